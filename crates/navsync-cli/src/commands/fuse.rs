@@ -1,0 +1,199 @@
+//! `navsync fuse`: KF-GINS-compatible batch fusion.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use navsync::Diagnostics;
+use navsync::fusion::GapPolicy;
+use navsync::io::config::KfGinsConfig;
+use navsync::pipeline::{self, FuseOptions, KfGinsSink, NhcSettings, OutageSchedule};
+
+use super::{parse_triplet, print_diagnostics};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// KF-GINS YAML configuration (read unchanged).
+    #[arg(long)]
+    pub config: PathBuf,
+    /// Output folder [default: the config's outputpath].
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    /// Apply the non-holonomic constraint (zero lateral and vertical
+    /// velocity in the vehicle frame).
+    #[arg(long)]
+    pub nhc: bool,
+    /// NHC standard deviation (m/s).
+    #[arg(long, default_value_t = 0.1, requires = "nhc")]
+    pub nhc_sd: f64,
+    /// Seconds between NHC updates.
+    #[arg(long, default_value_t = 0.2, requires = "nhc")]
+    pub nhc_interval: f64,
+    /// IMU mounting angles in the vehicle: roll,pitch,yaw (deg).
+    #[arg(long, value_parser = parse_triplet, default_value = "0,0,0", requires = "nhc")]
+    pub mount: [f64; 3],
+    /// Lever arm from the IMU to the NHC point (rear-axle centre), body FRD (m).
+    #[arg(long, value_parser = parse_triplet, default_value = "0,0,0", requires = "nhc")]
+    pub nhc_lever: [f64; 3],
+    /// Simulated GNSS outages: one every PERIOD seconds…
+    #[arg(long, requires_all = ["outage_len", "outage_first"])]
+    pub outage_period: Option<f64>,
+    /// …lasting LEN seconds…
+    #[arg(long)]
+    pub outage_len: Option<f64>,
+    /// …the first FIRST seconds after the first IMU epoch.
+    #[arg(long)]
+    pub outage_first: Option<f64>,
+    /// Column order of 13-column GNSS files.
+    #[arg(long, value_enum, default_value_t = Layout::Cpp)]
+    pub gnss_layout: Layout,
+    /// Replace GNSS standard deviations below this (m) instead of skipping the fix.
+    #[arg(long)]
+    pub gnss_sd_floor: Option<f64>,
+    /// Ignore GNSS velocities in 13-column files (KF-GINS ignores them).
+    #[arg(long)]
+    pub no_gnss_velocity: bool,
+    /// Chi-square gate probability for GNSS innovations.
+    #[arg(long, default_value_t = 0.9999)]
+    pub gate_prob: f64,
+    /// Disable innovation gating.
+    #[arg(long)]
+    pub no_gate: bool,
+    /// Covariance propagation step (s); 0 = every IMU sample.
+    #[arg(long, default_value_t = 0.1)]
+    pub cov_step: f64,
+    /// How to treat the sample after an IMU data gap.
+    #[arg(long, value_enum, default_value_t = Gap::Auto)]
+    pub gap_policy: Gap,
+    /// Interval of imu_err.txt and std.txt lines (s); 0 = every IMU epoch.
+    #[arg(long, default_value_t = 0.1)]
+    pub aux_interval: f64,
+    /// GPS week written into navresult.nav (KF-GINS writes 0).
+    #[arg(long, default_value_t = 0)]
+    pub week: i64,
+}
+
+#[derive(Copy, Clone, clap::ValueEnum)]
+pub enum Layout {
+    /// sow lat lon h vn ve vd sd_n sd_e sd_d sd_vn sd_ve sd_vd (KF-GINS C++)
+    Cpp,
+    /// sow lat lon h sd_n sd_e sd_d vn ve vd sd_vn sd_ve sd_vd (KF-GINS-Matlab)
+    Matlab,
+}
+
+#[derive(Copy, Clone, clap::ValueEnum)]
+pub enum Gap {
+    Auto,
+    HoldRate,
+    AsIs,
+}
+
+impl Args {
+    pub fn options(&self) -> Result<FuseOptions> {
+        let outages = match (self.outage_period, self.outage_len, self.outage_first) {
+            (Some(period_s), Some(len_s), Some(first_s)) => {
+                anyhow::ensure!(
+                    period_s > 0.0 && len_s > 0.0 && len_s < period_s && first_s >= 0.0,
+                    "outages need 0 < --outage-len < --outage-period and --outage-first >= 0"
+                );
+                Some(OutageSchedule {
+                    period_s,
+                    len_s,
+                    first_s,
+                })
+            }
+            (None, None, None) => None,
+            _ => anyhow::bail!("--outage-period, --outage-len and --outage-first go together"),
+        };
+        anyhow::ensure!(self.cov_step >= 0.0, "--cov-step must not be negative");
+        anyhow::ensure!(
+            self.no_gate || (self.gate_prob > 0.0 && self.gate_prob < 1.0),
+            "--gate-prob must be between 0 and 1"
+        );
+        Ok(FuseOptions {
+            output_dir: self.output.clone(),
+            outages,
+            nhc: self.nhc.then_some(NhcSettings {
+                mount_deg: self.mount,
+                lever_m: self.nhc_lever,
+                sd_mps: self.nhc_sd,
+                interval_s: self.nhc_interval,
+            }),
+            gnss_layout_matlab: matches!(self.gnss_layout, Layout::Matlab),
+            gnss_sd_floor: self.gnss_sd_floor,
+            cov_step_s: self.cov_step,
+            gate_prob: (!self.no_gate).then_some(self.gate_prob),
+            gap_policy: match self.gap_policy {
+                Gap::Auto => GapPolicy::Auto,
+                Gap::HoldRate => GapPolicy::HoldRate,
+                Gap::AsIs => GapPolicy::AsIs,
+            },
+            gap_factor: 2.5,
+            aux_interval_s: self.aux_interval,
+            use_gnss_velocity: !self.no_gnss_velocity,
+            week: self.week,
+            dry_run: false,
+        })
+    }
+}
+
+pub fn run(args: Args) -> Result<()> {
+    let mut diag = Diagnostics::default();
+    let cfg = KfGinsConfig::load(&args.config, &mut diag)?;
+    let opts = args.options()?;
+    let out_dir = opts
+        .output_dir
+        .clone()
+        .unwrap_or_else(|| cfg.output_path.clone());
+    if !diag.is_empty() {
+        eprintln!("configuration notes:");
+        print_diagnostics(&diag, 20);
+    }
+    let pb = crate::progress::bar("fuse");
+    let mut sink = KfGinsSink::create(&out_dir, opts.week)?;
+    let summary = pipeline::run(&cfg, &opts, &mut sink, &mut |f| {
+        crate::progress::set(&pb, f)
+    })?;
+    sink.finish()?;
+    pb.finish_and_clear();
+    let json = serde_json::to_string_pretty(&summary)?;
+    let summary_path = out_dir.join("summary.json");
+    std::fs::write(&summary_path, json)
+        .with_context(|| format!("writing {}", summary_path.display()))?;
+
+    let s = &summary.stats;
+    println!(
+        "navsync fuse: {:.1} s of data ({} IMU samples) in {:.3} s",
+        summary.duration_s, s.imu_samples, summary.run_time_s
+    );
+    println!(
+        "  GNSS fixes: {} used, {} rejected by the gate, {} withheld (outages), {} velocity updates",
+        s.gnss_fixes_used,
+        s.gnss_fixes_rejected,
+        summary.gnss_fixes_withheld_by_outages,
+        s.gnss_velocity_used
+    );
+    if opts.nhc.is_some() {
+        println!("  NHC updates: {}", s.nhc_updates);
+    }
+    if s.gaps > 0 {
+        println!(
+            "  IMU gaps: {} ({:.3} s in all, longest {:.3} s)",
+            s.gaps, s.gap_total_s, s.max_gap_s
+        );
+    }
+    if !summary.outages.is_empty() {
+        println!(
+            "  outages (for `navsync eval --outages`): {}",
+            summary.outages
+        );
+    }
+    println!(
+        "  wrote {}/navresult.nav, imu_err.txt, std.txt, summary.json",
+        out_dir.display()
+    );
+    if summary.diagnostics.total > 0 {
+        eprintln!("{} reported conditions:", summary.diagnostics.total);
+        print_diagnostics(&summary.diagnostics, 10);
+    }
+    Ok(())
+}

@@ -1,0 +1,479 @@
+//! Scoring a navigation solution against a reference trajectory.
+//!
+//! Errors are solution minus truth, with the truth interpolated to each
+//! solution epoch (position and velocity linearly, attitude by quaternion
+//! slerp): position in NED metres, velocity in m/s, attitude as roll,
+//! pitch and yaw differences (yaw wrapped to ±180°). For each GNSS outage
+//! the maximum horizontal and 3D drift inside it are found, then their RMS
+//! over outages: the metric of the KF-GINS paper and of seed 001 §1.3.3
+//! (Niu et al. 2010, "A proposed evaluation standard for the navigation
+//! results of MEMS INS/GPS integrated systems").
+
+use std::path::Path;
+
+use nalgebra::{UnitQuaternion, Vector3};
+use serde::Serialize;
+
+use crate::attitude::{Euler, euler_to_quat, quat_to_euler, wrap_180};
+use crate::earth::{Geodetic, LocalEarth};
+use crate::error::{Diagnostics, Error};
+use crate::io::kfgins::{NavReader, NavRecord};
+use crate::stats::Moments;
+use crate::time::GpsTime;
+
+/// RMS, maximum absolute value and mean of one error component.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
+pub struct ErrorStats {
+    pub rms: f64,
+    pub max: f64,
+    pub mean: f64,
+}
+
+impl From<&Moments> for ErrorStats {
+    fn from(m: &Moments) -> Self {
+        ErrorStats {
+            rms: m.rms(),
+            max: m.max_abs,
+            mean: m.mean(),
+        }
+    }
+}
+
+/// Drift inside one outage window.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct OutageDrift {
+    pub start_sow: f64,
+    pub len_s: f64,
+    pub epochs: usize,
+    pub max_horizontal_m: f64,
+    pub max_3d_m: f64,
+}
+
+/// The scores of a solution.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct EvalReport {
+    pub epochs_compared: usize,
+    pub epochs_without_truth: usize,
+    pub pos_north_m: ErrorStats,
+    pub pos_east_m: ErrorStats,
+    pub pos_down_m: ErrorStats,
+    pub pos_horizontal_m: ErrorStats,
+    pub pos_3d_m: ErrorStats,
+    pub vel_north_mps: ErrorStats,
+    pub vel_east_mps: ErrorStats,
+    pub vel_down_mps: ErrorStats,
+    pub vel_horizontal_mps: ErrorStats,
+    pub vel_3d_mps: ErrorStats,
+    pub roll_deg: ErrorStats,
+    pub pitch_deg: ErrorStats,
+    pub yaw_deg: ErrorStats,
+    pub outages: Vec<OutageDrift>,
+    /// RMS over outages of the maximum horizontal drift in each.
+    pub outage_rms_max_horizontal_m: Option<f64>,
+    pub outage_rms_max_3d_m: Option<f64>,
+    pub outage_worst_horizontal_m: Option<f64>,
+    pub outage_worst_3d_m: Option<f64>,
+}
+
+/// One epoch's errors (solution minus truth).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EpochError {
+    pub time: GpsTime,
+    pub pos_ned_m: Vector3<f64>,
+    pub vel_ned_mps: Vector3<f64>,
+    /// roll, pitch, yaw differences (deg), yaw wrapped.
+    pub att_deg: Vector3<f64>,
+}
+
+/// A state of the reference trajectory at some epoch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TruthState {
+    pub time: GpsTime,
+    pub pos: Geodetic,
+    pub vel: Vector3<f64>,
+    pub q_nb: UnitQuaternion<f64>,
+}
+
+impl From<&NavRecord> for TruthState {
+    fn from(r: &NavRecord) -> Self {
+        TruthState {
+            time: r.time,
+            pos: Geodetic::from_deg(r.lat_deg, r.lon_deg, r.h_m),
+            vel: Vector3::from(r.vel),
+            q_nb: euler_to_quat(&Euler::from_deg(r.att_deg[0], r.att_deg[1], r.att_deg[2])),
+        }
+    }
+}
+
+/// Linear/slerp interpolation between two truth states.
+pub fn interpolate(a: &TruthState, b: &TruthState, t: GpsTime) -> TruthState {
+    let span = (b.time - a.time) as f64;
+    let u = if span > 0.0 {
+        (t - a.time) as f64 / span
+    } else {
+        0.0
+    };
+    let lerp = |x: f64, y: f64| x + (y - x) * u;
+    TruthState {
+        time: t,
+        pos: Geodetic::new(
+            lerp(a.pos.lat_rad, b.pos.lat_rad),
+            lerp(a.pos.lon_rad, b.pos.lon_rad),
+            lerp(a.pos.h_m, b.pos.h_m),
+        ),
+        vel: a.vel + (b.vel - a.vel) * u,
+        q_nb: a.q_nb.slerp(&b.q_nb, u),
+    }
+}
+
+/// Errors of a solution state against a truth state at the same epoch.
+pub fn epoch_error(
+    truth: &TruthState,
+    pos: &Geodetic,
+    vel: &Vector3<f64>,
+    att: &Euler,
+) -> EpochError {
+    let le = LocalEarth::new(&truth.pos, &truth.vel);
+    let te = quat_to_euler(&truth.q_nb);
+    EpochError {
+        time: truth.time,
+        pos_ned_m: le.geodetic_delta_to_ned(
+            pos.lat_rad - truth.pos.lat_rad,
+            pos.lon_rad - truth.pos.lon_rad,
+            pos.h_m - truth.pos.h_m,
+        ),
+        vel_ned_mps: vel - truth.vel,
+        att_deg: Vector3::new(
+            wrap_180((att.roll_rad - te.roll_rad).to_degrees()),
+            (att.pitch_rad - te.pitch_rad).to_degrees(),
+            wrap_180((att.yaw_rad - te.yaw_rad).to_degrees()),
+        ),
+    }
+}
+
+/// Accumulates epoch errors into an [`EvalReport`].
+#[derive(Clone, Debug, Default)]
+pub struct Evaluator {
+    m: [Moments; 13],
+    outages: Vec<(GpsTime, f64, OutageDrift)>,
+    pub epochs_without_truth: usize,
+}
+
+impl Evaluator {
+    /// `outages`: (start, length s) windows in which drift is measured.
+    pub fn new(outages: &[(GpsTime, f64)]) -> Self {
+        Evaluator {
+            outages: outages
+                .iter()
+                .map(|&(s, l)| {
+                    (
+                        s,
+                        l,
+                        OutageDrift {
+                            start_sow: s.sow(),
+                            len_s: l,
+                            epochs: 0,
+                            max_horizontal_m: 0.0,
+                            max_3d_m: 0.0,
+                        },
+                    )
+                })
+                .collect(),
+            ..Default::default()
+        }
+    }
+
+    pub fn push(&mut self, e: &EpochError) {
+        let p = e.pos_ned_m;
+        let v = e.vel_ned_mps;
+        let h = (p.x * p.x + p.y * p.y).sqrt();
+        let vals = [
+            p.x,
+            p.y,
+            p.z,
+            h,
+            p.norm(),
+            v.x,
+            v.y,
+            v.z,
+            (v.x * v.x + v.y * v.y).sqrt(),
+            v.norm(),
+            e.att_deg.x,
+            e.att_deg.y,
+            e.att_deg.z,
+        ];
+        for (m, x) in self.m.iter_mut().zip(vals) {
+            m.push(x);
+        }
+        for (s, l, d) in &mut self.outages {
+            let rel = e.time.seconds_since(*s);
+            if (0.0..=*l).contains(&rel) {
+                d.epochs += 1;
+                d.max_horizontal_m = d.max_horizontal_m.max(h);
+                d.max_3d_m = d.max_3d_m.max(p.norm());
+            }
+        }
+    }
+
+    pub fn finish(self) -> EvalReport {
+        let m = &self.m;
+        let drifts: Vec<OutageDrift> = self
+            .outages
+            .into_iter()
+            .map(|o| o.2)
+            .filter(|d| d.epochs > 0)
+            .collect();
+        let rms = |f: &dyn Fn(&OutageDrift) -> f64| {
+            (!drifts.is_empty()).then(|| {
+                (drifts.iter().map(|d| f(d).powi(2)).sum::<f64>() / drifts.len() as f64).sqrt()
+            })
+        };
+        let worst = |f: &dyn Fn(&OutageDrift) -> f64| drifts.iter().map(f).reduce(f64::max);
+        EvalReport {
+            epochs_compared: m[0].n,
+            epochs_without_truth: self.epochs_without_truth,
+            pos_north_m: (&m[0]).into(),
+            pos_east_m: (&m[1]).into(),
+            pos_down_m: (&m[2]).into(),
+            pos_horizontal_m: (&m[3]).into(),
+            pos_3d_m: (&m[4]).into(),
+            vel_north_mps: (&m[5]).into(),
+            vel_east_mps: (&m[6]).into(),
+            vel_down_mps: (&m[7]).into(),
+            vel_horizontal_mps: (&m[8]).into(),
+            vel_3d_mps: (&m[9]).into(),
+            roll_deg: (&m[10]).into(),
+            pitch_deg: (&m[11]).into(),
+            yaw_deg: (&m[12]).into(),
+            outage_rms_max_horizontal_m: rms(&|d| d.max_horizontal_m),
+            outage_rms_max_3d_m: rms(&|d| d.max_3d_m),
+            outage_worst_horizontal_m: worst(&|d| d.max_horizontal_m),
+            outage_worst_3d_m: worst(&|d| d.max_3d_m),
+            outages: drifts,
+        }
+    }
+}
+
+/// Parses `"sow:len,sow:len"` outage windows (week from `week`).
+pub fn parse_outages(text: &str, week: i64) -> Result<Vec<(GpsTime, f64)>, Error> {
+    let mut out = Vec::new();
+    for part in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let (s, l) = part
+            .split_once(':')
+            .ok_or_else(|| Error::Invalid(format!("outage '{part}': expected sow:length")))?;
+        let s: f64 = s
+            .trim()
+            .parse()
+            .map_err(|_| Error::Invalid(format!("outage '{part}': bad start '{s}'")))?;
+        let l: f64 = l
+            .trim()
+            .parse()
+            .map_err(|_| Error::Invalid(format!("outage '{part}': bad length '{l}'")))?;
+        if l <= 0.0 || !(0.0..604800.0).contains(&s) {
+            return Err(Error::Invalid(format!(
+                "outage '{part}': expected 0 <= sow < 604800 and length > 0"
+            )));
+        }
+        out.push((GpsTime::from_week_sow(week, s), l));
+    }
+    Ok(out)
+}
+
+/// Streams a truth file and interpolates it at increasing epochs. Records
+/// are matched by seconds of week when either file has week 0 (KF-GINS
+/// writes week 0).
+pub struct TruthStream {
+    reader: NavReader,
+    prev: Option<TruthState>,
+    next: Option<TruthState>,
+    week: Option<i64>,
+    /// Largest truth gap bridged by interpolation (s).
+    pub max_gap_s: f64,
+}
+
+impl TruthStream {
+    pub fn open(path: &Path) -> Result<Self, Error> {
+        Ok(TruthStream {
+            reader: NavReader::open(path)?,
+            prev: None,
+            next: None,
+            week: None,
+            max_gap_s: 1.0,
+        })
+    }
+
+    fn fetch(&mut self, diag: &mut Diagnostics) -> Result<Option<TruthState>, Error> {
+        Ok(self.reader.next_record(diag)?.map(|r| {
+            if self.week.is_none() {
+                self.week = Some(r.week);
+            }
+            TruthState::from(&r)
+        }))
+    }
+
+    /// The truth at `t`, or `None` when `t` is outside the truth's span or
+    /// in a gap longer than `max_gap_s`. Calls must have increasing `t`.
+    pub fn at(
+        &mut self,
+        t: GpsTime,
+        by_sow: bool,
+        diag: &mut Diagnostics,
+    ) -> Result<Option<TruthState>, Error> {
+        let key = |x: GpsTime| if by_sow { x.ns_of_week() } else { x.ns() };
+        if self.next.is_none() {
+            self.next = self.fetch(diag)?;
+        }
+        loop {
+            let Some(n) = self.next else {
+                return Ok(None);
+            };
+            if key(n.time) >= key(t) {
+                break;
+            }
+            self.prev = Some(n);
+            self.next = self.fetch(diag)?;
+        }
+        let n = self.next.expect("checked");
+        if key(n.time) == key(t) {
+            return Ok(Some(TruthState { time: t, ..n }));
+        }
+        let Some(p) = self.prev else {
+            return Ok(None);
+        };
+        if (key(n.time) - key(p.time)) as f64 * 1e-9 > self.max_gap_s {
+            return Ok(None);
+        }
+        let pk = GpsTime::from_ns(key(p.time));
+        let nk = GpsTime::from_ns(key(n.time));
+        let mut s = interpolate(
+            &TruthState { time: pk, ..p },
+            &TruthState { time: nk, ..n },
+            GpsTime::from_ns(key(t)),
+        );
+        s.time = t;
+        Ok(Some(s))
+    }
+
+    /// Week of the first truth record (reads it if needed).
+    pub fn week(&mut self, diag: &mut Diagnostics) -> Result<Option<i64>, Error> {
+        if self.next.is_none() && self.prev.is_none() {
+            self.next = self.fetch(diag)?;
+        }
+        Ok(self.week)
+    }
+}
+
+/// Scores the navigation file `nav_path` against `truth_path`.
+pub fn eval_files(
+    truth_path: &Path,
+    nav_path: &Path,
+    outages: &[(GpsTime, f64)],
+    diag: &mut Diagnostics,
+) -> Result<EvalReport, Error> {
+    let mut truth = TruthStream::open(truth_path)?;
+    let mut nav = NavReader::open(nav_path)?;
+    let mut first = true;
+    let mut by_sow = false;
+    let mut ev: Option<Evaluator> = None;
+    while let Some(rec) = nav.next_record(diag)? {
+        if first {
+            first = false;
+            // Match by seconds of week when either side has no week.
+            let truth_week = truth.week(diag)?;
+            by_sow = rec.week == 0 || truth_week == Some(0);
+            let week = rec.week;
+            // Outage windows are given in sow; place them in the matching week.
+            let o: Vec<(GpsTime, f64)> = outages
+                .iter()
+                .map(|(s, l)| {
+                    (
+                        GpsTime::from_week_ns(if by_sow { 0 } else { week }, s.ns_of_week()),
+                        *l,
+                    )
+                })
+                .collect();
+            ev = Some(Evaluator::new(&o));
+        }
+        let e = ev.as_mut().expect("set on first record");
+        let t = if by_sow {
+            GpsTime::from_ns(rec.time.ns_of_week())
+        } else {
+            rec.time
+        };
+        match truth.at(t, by_sow, diag)? {
+            Some(ts) => {
+                let pos = Geodetic::from_deg(rec.lat_deg, rec.lon_deg, rec.h_m);
+                let att = Euler::from_deg(rec.att_deg[0], rec.att_deg[1], rec.att_deg[2]);
+                e.push(&epoch_error(&ts, &pos, &Vector3::from(rec.vel), &att));
+            }
+            None => e.epochs_without_truth += 1,
+        }
+    }
+    let ev = ev.ok_or_else(|| Error::NoData {
+        path: nav_path.to_path_buf(),
+        msg: "no navigation records".into(),
+    })?;
+    let report = ev.finish();
+    if report.epochs_compared == 0 {
+        return Err(Error::NoData {
+            path: nav_path.to_path_buf(),
+            msg: format!("no epoch overlaps the truth in {}", truth_path.display()),
+        });
+    }
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn yaw_error_wraps() {
+        let t = TruthState {
+            time: GpsTime::EPOCH,
+            pos: Geodetic::from_deg(30.0, 114.0, 10.0),
+            vel: Vector3::zeros(),
+            q_nb: euler_to_quat(&Euler::from_deg(0.0, 0.0, 179.9)),
+        };
+        let e = epoch_error(&t, &t.pos, &t.vel, &Euler::from_deg(0.0, 0.0, -179.9));
+        assert!((e.att_deg.z - 0.2).abs() < 1e-9, "{}", e.att_deg.z);
+    }
+
+    #[test]
+    fn outage_drift_and_rms() {
+        let s = GpsTime::from_week_sow(0, 100.0);
+        let mut ev = Evaluator::new(&[(s, 10.0), (s.add_seconds(100.0), 10.0)]);
+        for k in 0..300 {
+            let t = GpsTime::from_week_sow(0, 90.0 + k as f64);
+            let in1 = (100.0..=110.0).contains(&(90.0 + k as f64));
+            let in2 = (200.0..=210.0).contains(&(90.0 + k as f64));
+            let err = if in1 {
+                3.0
+            } else if in2 {
+                4.0
+            } else {
+                0.1
+            };
+            ev.push(&EpochError {
+                time: t,
+                pos_ned_m: Vector3::new(err, 0.0, 0.0),
+                vel_ned_mps: Vector3::zeros(),
+                att_deg: Vector3::zeros(),
+            });
+        }
+        let r = ev.finish();
+        assert_eq!(r.outages.len(), 2);
+        assert_eq!(r.outages[0].max_horizontal_m, 3.0);
+        assert!((r.outage_rms_max_horizontal_m.unwrap() - (12.5f64).sqrt()).abs() < 1e-12);
+        assert_eq!(r.outage_worst_horizontal_m, Some(4.0));
+    }
+
+    #[test]
+    fn outage_argument_parsing() {
+        let o = parse_outages("100120.005:60, 100300:60", 2300).unwrap();
+        assert_eq!(o.len(), 2);
+        assert_eq!(o[0].1, 60.0);
+        assert!(parse_outages("100120", 0).is_err());
+        assert!(parse_outages("1:-5", 0).is_err());
+    }
+}

@@ -1,0 +1,753 @@
+//! KF-GINS text formats (FORMATS.md §1): IMU increments, GNSS positions
+//! (7 columns) and positions+velocities (13 columns, C++ or Matlab order),
+//! navigation results/truth (11 columns), and KF-GINS's IMU-error and
+//! standard-deviation outputs.
+//!
+//! Readers stream (one record at a time) and report, then skip, any record
+//! that is bad on its own: too few fields, a field that is not a finite
+//! number, a time that goes backwards or repeats, a GNSS standard deviation
+//! that is not positive. An empty file is an error.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+
+use nalgebra::Vector3;
+
+use super::text::{
+    LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, push_fixed, split_fields,
+};
+use crate::earth::Geodetic;
+use crate::error::{Diagnostics, Error};
+use crate::filter::gnss::GnssFix;
+use crate::ins::{ImuErrors, ImuSample};
+use crate::time::{GpsTime, WeekTracker};
+
+/// Reads a KF-GINS IMU file: `sow dθx dθy dθz dvx dvy dvz [odo_speed]`.
+pub struct ImuReader {
+    lines: LineReader<File>,
+    path: std::path::PathBuf,
+    weeks: WeekTracker,
+    last: Option<GpsTime>,
+    count: usize,
+}
+
+impl ImuReader {
+    /// Opens `path`; times are placed in GPS week `week` (0 when unknown).
+    pub fn open(path: &Path, week: i64) -> Result<Self, Error> {
+        Ok(ImuReader {
+            lines: LineReader::open(path)?,
+            path: path.to_path_buf(),
+            weeks: WeekTracker::new(week),
+            last: None,
+            count: 0,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Records read so far.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// The next good record; bad records are reported into `diag` and
+    /// skipped. Errors at the end of an empty file.
+    pub fn next_sample(&mut self, diag: &mut Diagnostics) -> Result<Option<ImuSample>, Error> {
+        loop {
+            let mut f: [&[u8]; 8] = [b""; 8];
+            let Some((line, line_no)) = self.lines.next_line()? else {
+                if self.count == 0 {
+                    return Err(Error::NoData {
+                        path: self.path.clone(),
+                        msg: "no IMU records (expected lines of `sow dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z`)".into(),
+                    });
+                }
+                return Ok(None);
+            };
+            if is_blank_or_comment(line) {
+                continue;
+            }
+            let nf = split_fields(line, &mut f);
+            if nf < 7 {
+                diag.push(
+                    &self.path,
+                    line_no,
+                    format!("expected 7 fields (sow, 3 angle and 3 velocity increments), found {nf}; line skipped"),
+                );
+                continue;
+            }
+            let ns = match parse_seconds_ns(f[0]) {
+                Ok(v) => v,
+                Err(e) => {
+                    diag.push(
+                        &self.path,
+                        line_no,
+                        format!("field 1 (sow): {e}; line skipped"),
+                    );
+                    continue;
+                }
+            };
+            let mut vals = [0.0; 7];
+            let mut bad = None;
+            for k in 1..nf.min(8) {
+                match parse_f64(f[k]) {
+                    Ok(v) => vals[k - 1] = v,
+                    Err(e) => {
+                        bad = Some(format!("field {}: {e}; line skipped", k + 1));
+                        break;
+                    }
+                }
+            }
+            if let Some(msg) = bad {
+                diag.push(&self.path, line_no, msg);
+                continue;
+            }
+            let time = self.weeks.peek(ns);
+            if let Some(last) = self.last {
+                if time == last {
+                    diag.push(
+                        &self.path,
+                        line_no,
+                        format!("duplicate epoch {time}; line skipped"),
+                    );
+                    continue;
+                }
+                if time < last {
+                    diag.push(
+                        &self.path,
+                        line_no,
+                        format!(
+                            "time goes backwards ({} s after {last}); line skipped",
+                            time.seconds_since(last)
+                        ),
+                    );
+                    continue;
+                }
+            }
+            let time = self.weeks.resolve(ns);
+            self.last = Some(time);
+            self.count += 1;
+            return Ok(Some(ImuSample {
+                time,
+                dtheta: Vector3::new(vals[0], vals[1], vals[2]),
+                dvel: Vector3::new(vals[3], vals[4], vals[5]),
+                odo_speed: (nf >= 8).then_some(vals[6]),
+            }));
+        }
+    }
+}
+
+/// Column order of a 13-column GNSS file (FORMATS.md §1: an explicit
+/// option, never a guess).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum GnssLayout {
+    /// KF-GINS C++: `sow lat lon h vn ve vd sd_n sd_e sd_d sd_vn sd_ve sd_vd`.
+    #[default]
+    Cpp,
+    /// KF-GINS-Matlab: `sow lat lon h sd_n sd_e sd_d vn ve vd sd_vn sd_ve sd_vd`.
+    Matlab,
+}
+
+/// Reads a KF-GINS GNSS file of 7 or 13 columns.
+pub struct GnssReader {
+    lines: LineReader<File>,
+    path: std::path::PathBuf,
+    layout: GnssLayout,
+    weeks: WeekTracker,
+    last: Option<GpsTime>,
+    count: usize,
+    /// Replace standard deviations below this (m or m/s) instead of skipping
+    /// the fix; `None` skips fixes with a non-positive std.
+    pub sd_floor: Option<f64>,
+}
+
+impl GnssReader {
+    pub fn open(path: &Path, week: i64, layout: GnssLayout) -> Result<Self, Error> {
+        Ok(GnssReader {
+            lines: LineReader::open(path)?,
+            path: path.to_path_buf(),
+            layout,
+            weeks: WeekTracker::new(week),
+            last: None,
+            count: 0,
+            sd_floor: None,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The next good fix; bad lines are reported into `diag` and skipped.
+    pub fn next_fix(&mut self, diag: &mut Diagnostics) -> Result<Option<GnssFix>, Error> {
+        loop {
+            let mut f: [&[u8]; 13] = [b""; 13];
+            let Some((line, line_no)) = self.lines.next_line()? else {
+                if self.count == 0 {
+                    return Err(Error::NoData {
+                        path: self.path.clone(),
+                        msg: "no GNSS records (expected 7 or 13 columns: `sow lat_deg lon_deg h_m sd_n sd_e sd_d`)"
+                            .into(),
+                    });
+                }
+                return Ok(None);
+            };
+            if is_blank_or_comment(line) {
+                continue;
+            }
+            let path = self.path.clone();
+            let nf = split_fields(line, &mut f);
+            if nf != 7 && nf != 13 {
+                diag.push(
+                    &path,
+                    line_no,
+                    format!("expected 7 or 13 fields, found {nf}; line skipped"),
+                );
+                continue;
+            }
+            let ns = match parse_seconds_ns(f[0]) {
+                Ok(v) => v,
+                Err(e) => {
+                    diag.push(&path, line_no, format!("field 1 (sow): {e}; line skipped"));
+                    continue;
+                }
+            };
+            let mut v = [0.0; 13];
+            let mut bad = None;
+            for k in 1..nf {
+                match parse_f64(f[k]) {
+                    Ok(x) => v[k] = x,
+                    Err(e) => {
+                        bad = Some(format!("field {}: {e}; line skipped", k + 1));
+                        break;
+                    }
+                }
+            }
+            if let Some(msg) = bad {
+                diag.push(&path, line_no, msg);
+                continue;
+            }
+            if v[1].abs() > 90.0 || v[2].abs() > 360.0 {
+                diag.push(
+                    &path,
+                    line_no,
+                    format!(
+                        "latitude {} / longitude {} out of range; line skipped",
+                        v[1], v[2]
+                    ),
+                );
+                continue;
+            }
+            let (pos_sd, vel, vel_sd) = if nf == 7 {
+                (Vector3::new(v[4], v[5], v[6]), None, None)
+            } else {
+                match self.layout {
+                    GnssLayout::Cpp => (
+                        Vector3::new(v[7], v[8], v[9]),
+                        Some(Vector3::new(v[4], v[5], v[6])),
+                        Some(Vector3::new(v[10], v[11], v[12])),
+                    ),
+                    GnssLayout::Matlab => (
+                        Vector3::new(v[4], v[5], v[6]),
+                        Some(Vector3::new(v[7], v[8], v[9])),
+                        Some(Vector3::new(v[10], v[11], v[12])),
+                    ),
+                }
+            };
+            let fix_sd = |sd: Vector3<f64>,
+                          what: &str,
+                          diag: &mut Diagnostics|
+             -> Option<Vector3<f64>> {
+                if sd.iter().all(|&s| s > 0.0) {
+                    return Some(sd);
+                }
+                match self.sd_floor {
+                    Some(floor) => Some(sd.map(|s| s.max(floor))),
+                    None => {
+                        diag.push(
+                            &path,
+                            line_no,
+                            format!("{what} standard deviation {:?} is not positive; fix skipped (see --gnss-sd-floor)", sd.as_slice()),
+                        );
+                        None
+                    }
+                }
+            };
+            let Some(pos_sd) = fix_sd(pos_sd, "position", diag) else {
+                continue;
+            };
+            let vel_sd = match vel_sd {
+                Some(sd) => match fix_sd(sd, "velocity", diag) {
+                    Some(s) => Some(s),
+                    None => continue,
+                },
+                None => None,
+            };
+            let time = self.weeks.peek(ns);
+            if let Some(last) = self.last {
+                if time == last {
+                    diag.push(
+                        &path,
+                        line_no,
+                        format!("duplicate epoch {time}; line skipped"),
+                    );
+                    continue;
+                }
+                if time < last {
+                    diag.push(
+                        &path,
+                        line_no,
+                        format!("time goes backwards (before {last}); line skipped"),
+                    );
+                    continue;
+                }
+            }
+            let time = self.weeks.resolve(ns);
+            self.last = Some(time);
+            self.count += 1;
+            return Ok(Some(GnssFix {
+                time,
+                pos: Geodetic::from_deg(v[1], v[2], v[3]),
+                pos_sd,
+                vel,
+                vel_sd,
+            }));
+        }
+    }
+}
+
+/// One line of the navigation-result / truth format:
+/// `week sow lat_deg lon_deg h_m vn ve vd roll_deg pitch_deg yaw_deg`.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct NavRecord {
+    /// Week as written in the file (0 when unknown, as KF-GINS writes).
+    pub week: i64,
+    /// Time (week from the file, or the reader's week when the file has 0).
+    pub time: GpsTime,
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub h_m: f64,
+    pub vel: [f64; 3],
+    /// roll, pitch, yaw (deg).
+    pub att_deg: [f64; 3],
+}
+
+/// Streams an 11-column navigation file (result or truth).
+pub struct NavReader {
+    lines: LineReader<File>,
+    path: std::path::PathBuf,
+    last: Option<GpsTime>,
+    count: usize,
+}
+
+impl NavReader {
+    pub fn open(path: &Path) -> Result<Self, Error> {
+        Ok(NavReader {
+            lines: LineReader::open(path)?,
+            path: path.to_path_buf(),
+            last: None,
+            count: 0,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The next good record. Weeks of 0 are kept as 0 (time is then
+    /// seconds of week only); bad lines are reported and skipped.
+    pub fn next_record(&mut self, diag: &mut Diagnostics) -> Result<Option<NavRecord>, Error> {
+        loop {
+            let mut f: [&[u8]; 12] = [b""; 12];
+            let Some((line, line_no)) = self.lines.next_line()? else {
+                if self.count == 0 {
+                    return Err(Error::NoData {
+                        path: self.path.clone(),
+                        msg: "no navigation records (expected 11 columns: week sow lat lon h vn ve vd roll pitch yaw)"
+                            .into(),
+                    });
+                }
+                return Ok(None);
+            };
+            if is_blank_or_comment(line) {
+                continue;
+            }
+            let nf = split_fields(line, &mut f);
+            if nf < 11 {
+                diag.push(
+                    &self.path,
+                    line_no,
+                    format!("expected 11 fields, found {nf}; line skipped"),
+                );
+                continue;
+            }
+            let week = match parse_f64(f[0]) {
+                Ok(w) if w >= 0.0 && w.fract() == 0.0 => w as i64,
+                _ => {
+                    diag.push(
+                        &self.path,
+                        line_no,
+                        "field 1 (week) is not a whole number; line skipped",
+                    );
+                    continue;
+                }
+            };
+            let ns = match parse_seconds_ns(f[1]) {
+                Ok(v) => v,
+                Err(e) => {
+                    diag.push(
+                        &self.path,
+                        line_no,
+                        format!("field 2 (sow): {e}; line skipped"),
+                    );
+                    continue;
+                }
+            };
+            let mut v = [0.0; 11];
+            let mut bad = None;
+            for k in 2..11 {
+                match parse_f64(f[k]) {
+                    Ok(x) => v[k] = x,
+                    Err(e) => {
+                        bad = Some(format!("field {}: {e}; line skipped", k + 1));
+                        break;
+                    }
+                }
+            }
+            if let Some(msg) = bad {
+                diag.push(&self.path, line_no, msg);
+                continue;
+            }
+            let time = GpsTime::from_week_ns(week, ns);
+            if let Some(last) = self.last
+                && time <= last
+            {
+                diag.push(
+                    &self.path,
+                    line_no,
+                    format!("time {time} not after {last}; line skipped"),
+                );
+                continue;
+            }
+            self.last = Some(time);
+            self.count += 1;
+            return Ok(Some(NavRecord {
+                week,
+                time,
+                lat_deg: v[2],
+                lon_deg: v[3],
+                h_m: v[4],
+                vel: [v[5], v[6], v[7]],
+                att_deg: [v[8], v[9], v[10]],
+            }));
+        }
+    }
+
+    /// Reads the whole file (for truth files that are interpolated).
+    pub fn read_all(path: &Path, diag: &mut Diagnostics) -> Result<Vec<NavRecord>, Error> {
+        let mut r = NavReader::open(path)?;
+        let mut out = Vec::new();
+        while let Some(rec) = r.next_record(diag)? {
+            out.push(rec);
+        }
+        Ok(out)
+    }
+}
+
+/// Appends one navigation line (KF-GINS nav format, precision as the
+/// shared truth files: 1e-9 s, 1e-12 deg, 1e-6 m, 1e-9 m/s and deg).
+pub fn format_nav_line(
+    out: &mut Vec<u8>,
+    week: i64,
+    time: GpsTime,
+    pos: &Geodetic,
+    vel: &Vector3<f64>,
+    att_deg: &[f64; 3],
+) {
+    super::text::push_u64(out, week.max(0) as u64);
+    out.push(b' ');
+    time.write_sow(out);
+    out.push(b' ');
+    push_fixed(out, pos.lat_rad.to_degrees(), 12);
+    out.push(b' ');
+    push_fixed(out, pos.lon_rad.to_degrees(), 12);
+    out.push(b' ');
+    push_fixed(out, pos.h_m, 6);
+    for k in 0..3 {
+        out.push(b' ');
+        push_fixed(out, vel[k], 9);
+    }
+    for a in att_deg {
+        out.push(b' ');
+        push_fixed(out, *a, 9);
+    }
+    out.push(b'\n');
+}
+
+/// Appends one IMU-error line in KF-GINS's layout:
+/// `sow gyro_bias(deg/h ×3) accel_bias(mGal ×3) gyro_scale(ppm ×3) accel_scale(ppm ×3)`.
+pub fn format_imu_err_line(out: &mut Vec<u8>, time: GpsTime, e: &ImuErrors) {
+    time.write_sow(out);
+    let groups = [
+        (e.gyro_bias, 180.0 / std::f64::consts::PI * 3600.0),
+        (e.accel_bias, 1e5),
+        (e.gyro_scale, 1e6),
+        (e.accel_scale, 1e6),
+    ];
+    for (v, scale) in groups {
+        for k in 0..3 {
+            out.push(b' ');
+            push_fixed(out, v[k] * scale, 6);
+        }
+    }
+    out.push(b'\n');
+}
+
+/// Appends one standard-deviation line in KF-GINS's layout:
+/// `sow pos(m ×3) vel(m/s ×3) att(deg ×3) gyro_bias(deg/h ×3)
+/// accel_bias(mGal ×3) gyro_scale(ppm ×3) accel_scale(ppm ×3)`; `sd` holds
+/// the 21 core standard deviations in SI units.
+pub fn format_std_line(out: &mut Vec<u8>, time: GpsTime, sd: &[f64]) {
+    time.write_sow(out);
+    let deg = 180.0 / std::f64::consts::PI;
+    for (i, &s) in sd.iter().take(21).enumerate() {
+        let (scale, dec) = match i {
+            0..=5 => (1.0, 6),
+            6..=8 => (deg, 8),
+            9..=11 => (deg * 3600.0, 6),
+            12..=14 => (1e5, 6),
+            _ => (1e6, 6),
+        };
+        out.push(b' ');
+        push_fixed(out, s * scale, dec);
+    }
+    out.push(b'\n');
+}
+
+/// Writes KF-GINS IMU increments (one line per sample).
+pub fn format_imu_line(out: &mut Vec<u8>, s: &ImuSample) {
+    s.time.write_sow(out);
+    // Shortest round-trip form: every bit of an increment is kept (seed 001
+    // §1.5 point 4: never truncate IMU data).
+    for v in s.dtheta.iter().chain(s.dvel.iter()) {
+        let _ = write!(out, " {v:e}");
+    }
+    if let Some(o) = s.odo_speed {
+        out.push(b' ');
+        push_fixed(out, o, 6);
+    }
+    out.push(b'\n');
+}
+
+/// Writes one GNSS fix line (7 columns, or 13 in KF-GINS C++ order when it
+/// has a velocity).
+pub fn format_gnss_line(out: &mut Vec<u8>, fix: &GnssFix) {
+    fix.time.write_sow(out);
+    out.push(b' ');
+    push_fixed(out, fix.pos.lat_rad.to_degrees(), 11);
+    out.push(b' ');
+    push_fixed(out, fix.pos.lon_rad.to_degrees(), 11);
+    out.push(b' ');
+    push_fixed(out, fix.pos.h_m, 4);
+    if let (Some(v), Some(_)) = (fix.vel, fix.vel_sd) {
+        for k in 0..3 {
+            out.push(b' ');
+            push_fixed(out, v[k], 4);
+        }
+    }
+    for k in 0..3 {
+        out.push(b' ');
+        push_fixed(out, fix.pos_sd[k], 4);
+    }
+    if let (Some(_), Some(sd)) = (fix.vel, fix.vel_sd) {
+        for k in 0..3 {
+            out.push(b' ');
+            push_fixed(out, sd[k], 4);
+        }
+    }
+    out.push(b'\n');
+}
+
+/// A buffered text writer that reports errors with the file name.
+pub struct TextWriter {
+    inner: BufWriter<File>,
+    path: std::path::PathBuf,
+}
+
+impl TextWriter {
+    pub fn create(path: &Path) -> Result<Self, Error> {
+        let file = File::create(path).map_err(|e| Error::io(path, e))?;
+        Ok(TextWriter {
+            inner: BufWriter::with_capacity(1 << 20, file),
+            path: path.to_path_buf(),
+        })
+    }
+
+    pub fn write(&mut self, bytes: &[u8]) -> Result<(), Error> {
+        self.inner
+            .write_all(bytes)
+            .map_err(|e| Error::io(&self.path, e))
+    }
+
+    pub fn finish(mut self) -> Result<(), Error> {
+        self.inner.flush().map_err(|e| Error::io(&self.path, e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp_file(name: &str, content: &str) -> std::path::PathBuf {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        static N: AtomicUsize = AtomicUsize::new(0);
+        let k = N.fetch_add(1, Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("navsync-kfgins-{}-{k}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(name);
+        let mut f = File::create(&p).unwrap();
+        f.write_all(content.as_bytes()).unwrap();
+        p
+    }
+
+    fn read_imu(content: &str) -> (Result<Vec<ImuSample>, Error>, Diagnostics) {
+        let p = temp_file("imu.txt", content);
+        let mut d = Diagnostics::default();
+        let mut r = ImuReader::open(&p, 0).unwrap();
+        let mut out = Vec::new();
+        let res = loop {
+            match r.next_sample(&mut d) {
+                Ok(Some(s)) => out.push(s),
+                Ok(None) => break Ok(out),
+                Err(e) => break Err(e),
+            }
+        };
+        (res, d)
+    }
+
+    #[test]
+    fn imu_bad_lines_are_reported_and_skipped() {
+        let content = "# comment\n\
+            1.000 0 0 0 0 0 -0.049\n\
+            1.005 0 0 0 0 0\n\
+            1.010 0 0 x 0 0 -0.049\n\
+            1.015 0 0 nan 0 0 -0.049\n\
+            1.020 0 0 0 0 0 -0.049\n\
+            1.020 0 0 0 0 0 -0.049\n\
+            1.015 0 0 0 0 0 -0.049\n\
+            1.025,0,0,0,0,0,-0.049\n";
+        let (res, d) = read_imu(content);
+        let samples = res.unwrap();
+        assert_eq!(samples.len(), 3, "{samples:?}");
+        assert_eq!(d.total, 5);
+        let msgs: Vec<String> = d.items.iter().map(|x| x.to_string()).collect();
+        assert!(msgs[0].contains(":3: expected 7 fields"), "{}", msgs[0]);
+        assert!(
+            msgs[1].contains(":4: field 4: 'x' is not a number"),
+            "{}",
+            msgs[1]
+        );
+        assert!(
+            msgs[2].contains(":5: field 4: 'nan' is not a finite number"),
+            "{}",
+            msgs[2]
+        );
+        assert!(msgs[3].contains(":7: duplicate epoch"), "{}", msgs[3]);
+        assert!(msgs[4].contains(":8: time goes backwards"), "{}", msgs[4]);
+    }
+
+    #[test]
+    fn imu_empty_file_is_an_error() {
+        let (res, _) = read_imu("# only a comment\n\n");
+        let err = res.unwrap_err().to_string();
+        assert!(
+            err.contains("imu.txt") && err.contains("no IMU records"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn missing_file_names_the_path() {
+        let err = ImuReader::open(Path::new("/nonexistent/dir/imu.txt"), 0)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(err.contains("/nonexistent/dir/imu.txt"), "{err}");
+    }
+
+    #[test]
+    fn gnss_layouts_and_zero_std() {
+        let content = "1.0 30.0 114.0 20.0 1 2 3 0.02 0.02 0.03 0.1 0.1 0.1\n\
+                       2.0 30.0 114.0 20.0 0.02 0.0 0.03\n";
+        let p = temp_file("gnss.txt", content);
+        let mut d = Diagnostics::default();
+        let mut r = GnssReader::open(&p, 0, GnssLayout::Cpp).unwrap();
+        let fix = r.next_fix(&mut d).unwrap().unwrap();
+        assert_eq!(fix.vel.unwrap(), Vector3::new(1.0, 2.0, 3.0));
+        assert_eq!(fix.pos_sd, Vector3::new(0.02, 0.02, 0.03));
+        assert!(r.next_fix(&mut d).unwrap().is_none());
+        assert_eq!(d.total, 1);
+        assert!(
+            d.items[0]
+                .to_string()
+                .contains(":2: position standard deviation")
+        );
+
+        let mut r = GnssReader::open(&p, 0, GnssLayout::Matlab).unwrap();
+        let fix = r.next_fix(&mut d).unwrap().unwrap();
+        assert_eq!(fix.pos_sd, Vector3::new(1.0, 2.0, 3.0));
+        assert_eq!(fix.vel.unwrap(), Vector3::new(0.02, 0.02, 0.03));
+
+        let mut r = GnssReader::open(&p, 0, GnssLayout::Cpp).unwrap();
+        r.sd_floor = Some(0.01);
+        let _ = r.next_fix(&mut d).unwrap().unwrap();
+        let fix = r.next_fix(&mut d).unwrap().unwrap();
+        assert_eq!(fix.pos_sd[1], 0.01);
+    }
+
+    #[test]
+    fn nav_line_round_trips() {
+        let pos = Geodetic::from_deg(30.444787370100, 114.471863204700, 20.9);
+        let mut out = Vec::new();
+        let t = GpsTime::from_week_sow(2300, 100000.005);
+        format_nav_line(
+            &mut out,
+            2300,
+            t,
+            &pos,
+            &Vector3::new(1.0, -2.5, 0.001),
+            &[0.5, -1.25, 45.0],
+        );
+        let s = String::from_utf8(out).unwrap();
+        assert_eq!(
+            s,
+            "2300 100000.005000000 30.444787370100 114.471863204700 20.900000 1.000000000 -2.500000000 0.001000000 0.500000000 -1.250000000 45.000000000\n"
+        );
+        let p = temp_file("nav.txt", &s);
+        let mut d = Diagnostics::default();
+        let recs = NavReader::read_all(&p, &mut d).unwrap();
+        assert_eq!(recs.len(), 1);
+        assert_eq!(recs[0].time, t);
+        assert_eq!(recs[0].att_deg[2], 45.0);
+    }
+
+    #[test]
+    fn imu_line_keeps_full_precision() {
+        let s = ImuSample {
+            time: GpsTime::from_week_sow(0, 1.005),
+            dtheta: Vector3::new(2.289_979_938_347_008e-7, -1.0 / 3.0, 0.0),
+            dvel: Vector3::new(1e-300, 5.0, -4.889_923_517_563_737e-2),
+            odo_speed: None,
+        };
+        let mut out = Vec::new();
+        format_imu_line(&mut out, &s);
+        let p = temp_file("imu-rt.txt", std::str::from_utf8(&out).unwrap());
+        let mut d = Diagnostics::default();
+        let mut r = ImuReader::open(&p, 0).unwrap();
+        let back = r.next_sample(&mut d).unwrap().unwrap();
+        assert_eq!(back, s);
+    }
+}

@@ -1,0 +1,5 @@
+//! File formats: text plumbing, KF-GINS formats, the KF-GINS configuration.
+
+pub mod config;
+pub mod kfgins;
+pub mod text;

@@ -1,0 +1,394 @@
+//! Fast, careful text plumbing shared by every text format: a buffered line
+//! reader that counts lines, a field splitter for "any mix of spaces, tabs
+//! or commas" (FORMATS.md), exact decimal-seconds parsing into nanoseconds,
+//! and fixed-decimal number formatting without allocation.
+
+use std::fs::File;
+use std::io::{self, Read};
+use std::path::{Path, PathBuf};
+
+use crate::error::Error;
+
+/// Reads a file line by line into a reused buffer, counting lines (1-based)
+/// and never holding more than one block of the file in memory.
+pub struct LineReader<R> {
+    inner: R,
+    path: PathBuf,
+    buf: Vec<u8>,
+    start: usize,
+    end: usize,
+    eof: bool,
+    line_no: usize,
+}
+
+const BLOCK: usize = 1 << 20;
+
+impl LineReader<File> {
+    /// Opens `path`; a missing file is an error naming it.
+    pub fn open(path: &Path) -> Result<Self, Error> {
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        Ok(Self::new(file, path))
+    }
+}
+
+impl<R: Read> LineReader<R> {
+    /// Wraps any reader; `path` is used in messages only.
+    pub fn new(inner: R, path: &Path) -> Self {
+        LineReader {
+            inner,
+            path: path.to_path_buf(),
+            buf: vec![0; BLOCK],
+            start: 0,
+            end: 0,
+            eof: false,
+            line_no: 0,
+        }
+    }
+
+    /// The file name used in messages.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Number of the line last returned (1-based).
+    pub fn line_no(&self) -> usize {
+        self.line_no
+    }
+
+    /// The next line without its terminator (`\n` or `\r\n`) and its
+    /// 1-based number, or `None` at the end of the file.
+    pub fn next_line(&mut self) -> Result<Option<(&[u8], usize)>, Error> {
+        loop {
+            if let Some(pos) = memchr_newline(&self.buf[self.start..self.end]) {
+                let line_start = self.start;
+                let mut line_end = self.start + pos;
+                self.start = line_end + 1;
+                if line_end > line_start && self.buf[line_end - 1] == b'\r' {
+                    line_end -= 1;
+                }
+                self.line_no += 1;
+                return Ok(Some((&self.buf[line_start..line_end], self.line_no)));
+            }
+            if self.eof {
+                if self.start < self.end {
+                    let line_start = self.start;
+                    let mut line_end = self.end;
+                    self.start = self.end;
+                    if self.buf[line_end - 1] == b'\r' {
+                        line_end -= 1;
+                    }
+                    self.line_no += 1;
+                    return Ok(Some((&self.buf[line_start..line_end], self.line_no)));
+                }
+                return Ok(None);
+            }
+            // Move the partial line to the front, grow if one line fills the block.
+            if self.start > 0 {
+                self.buf.copy_within(self.start..self.end, 0);
+                self.end -= self.start;
+                self.start = 0;
+            }
+            if self.end == self.buf.len() {
+                let new_len = self.buf.len() * 2;
+                self.buf.resize(new_len, 0);
+            }
+            let n = loop {
+                match self.inner.read(&mut self.buf[self.end..]) {
+                    Ok(n) => break n,
+                    Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                    Err(e) => return Err(Error::io(&self.path, e)),
+                }
+            };
+            if n == 0 {
+                self.eof = true;
+            }
+            self.end += n;
+        }
+    }
+}
+
+#[inline]
+fn memchr_newline(hay: &[u8]) -> Option<usize> {
+    hay.iter().position(|&b| b == b'\n')
+}
+
+/// True for a line that carries no record: blank, or a `#` comment.
+#[inline]
+pub fn is_blank_or_comment(line: &[u8]) -> bool {
+    match line.iter().find(|b| !b.is_ascii_whitespace()) {
+        None => true,
+        Some(&b) => b == b'#',
+    }
+}
+
+/// Splits a record into fields separated by any mix of spaces, tabs and
+/// commas (FORMATS.md "Conventions everywhere"). Returns the number of
+/// fields found; at most `out.len()` are stored, the rest only counted.
+#[inline]
+pub fn split_fields<'a>(line: &'a [u8], out: &mut [&'a [u8]]) -> usize {
+    let mut count = 0;
+    let mut i = 0;
+    let n = line.len();
+    while i < n {
+        while i < n && is_sep(line[i]) {
+            i += 1;
+        }
+        if i >= n {
+            break;
+        }
+        let s = i;
+        while i < n && !is_sep(line[i]) {
+            i += 1;
+        }
+        if count < out.len() {
+            out[count] = &line[s..i];
+        }
+        count += 1;
+    }
+    count
+}
+
+#[inline]
+fn is_sep(b: u8) -> bool {
+    b == b' ' || b == b'\t' || b == b',' || b == b'\r'
+}
+
+/// Parses a field as a finite `f64`; NaN, infinities and junk are errors
+/// with a short description.
+#[inline]
+pub fn parse_f64(field: &[u8]) -> Result<f64, String> {
+    let s = std::str::from_utf8(field).map_err(|_| "not text".to_string())?;
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(_) => Err(format!("'{s}' is not a finite number")),
+        Err(_) => Err(format!("'{s}' is not a number")),
+    }
+}
+
+/// Parses decimal seconds (e.g. `100000.005000000`) into integer
+/// nanoseconds exactly, rounding digits beyond the ninth decimal. Accepts an
+/// exponent form through `f64` as a fallback.
+pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
+    let (neg, digits) = match field.first() {
+        Some(b'-') => (true, &field[1..]),
+        Some(b'+') => (false, &field[1..]),
+        _ => (false, field),
+    };
+    let mut int_part: i64 = 0;
+    let mut frac: i64 = 0;
+    let mut frac_digits = 0u32;
+    let mut seen_dot = false;
+    let mut round_up = false;
+    let mut any_digit = false;
+    for (k, &b) in digits.iter().enumerate() {
+        match b {
+            b'0'..=b'9' => {
+                any_digit = true;
+                let d = (b - b'0') as i64;
+                if !seen_dot {
+                    int_part = int_part
+                        .checked_mul(10)
+                        .and_then(|v| v.checked_add(d))
+                        .ok_or_else(|| "time value too large".to_string())?;
+                } else if frac_digits < 9 {
+                    frac = frac * 10 + d;
+                    frac_digits += 1;
+                } else if frac_digits == 9 {
+                    round_up = d >= 5;
+                    frac_digits += 1;
+                }
+            }
+            b'.' if !seen_dot => seen_dot = true,
+            b'e' | b'E' => {
+                let _ = k;
+                let v = parse_f64(field)?;
+                return Ok((v * 1e9).round() as i64);
+            }
+            _ => {
+                return Err(format!(
+                    "'{}' is not a time in seconds",
+                    String::from_utf8_lossy(field)
+                ));
+            }
+        }
+    }
+    if !any_digit {
+        return Err(format!(
+            "'{}' is not a time in seconds",
+            String::from_utf8_lossy(field)
+        ));
+    }
+    while frac_digits < 9 {
+        frac *= 10;
+        frac_digits += 1;
+    }
+    let mut ns = int_part
+        .checked_mul(crate::time::NS_PER_S)
+        .ok_or_else(|| "time value too large".to_string())?
+        + frac;
+    if round_up {
+        ns += 1;
+    }
+    Ok(if neg { -ns } else { ns })
+}
+
+/// Appends the decimal digits of `v`.
+#[inline]
+pub fn push_u64(out: &mut Vec<u8>, mut v: u64) {
+    let mut tmp = [0u8; 20];
+    let mut i = tmp.len();
+    loop {
+        i -= 1;
+        tmp[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+        if v == 0 {
+            break;
+        }
+    }
+    out.extend_from_slice(&tmp[i..]);
+}
+
+/// Appends `v` zero-padded to `width` digits.
+#[inline]
+pub fn push_u64_padded(out: &mut Vec<u8>, mut v: u64, width: usize) {
+    let mut tmp = [b'0'; 20];
+    let mut i = tmp.len();
+    while v > 0 {
+        i -= 1;
+        tmp[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+    }
+    let start = tmp.len() - width.max(tmp.len() - i);
+    out.extend_from_slice(&tmp[start..]);
+}
+
+const POW10: [f64; 16] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+];
+
+/// Appends `v` with exactly `decimals` decimals (like `%.{decimals}f`),
+/// without allocating. Values too large for the fast path fall back to the
+/// standard formatter; non-finite values print as `nan`/`inf`.
+#[inline]
+pub fn push_fixed(out: &mut Vec<u8>, v: f64, decimals: usize) {
+    let decimals = decimals.min(15);
+    let scale = POW10[decimals];
+    let scaled = (v * scale).round();
+    if !scaled.is_finite() || scaled.abs() >= 9.0e18 {
+        use std::io::Write;
+        let _ = write!(out, "{v:.decimals$}");
+        return;
+    }
+    let mut n = scaled as i64;
+    // A value that rounds to zero prints unsigned ("0.000", not "-0.000").
+    if n < 0 {
+        out.push(b'-');
+        n = -n;
+    }
+    let n = n as u64;
+    let div = scale as u64;
+    push_u64(out, n / div);
+    if decimals > 0 {
+        out.push(b'.');
+        push_u64_padded(out, n % div, decimals);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seconds_parse_exactly() {
+        assert_eq!(
+            parse_seconds_ns(b"100000.005000000").unwrap(),
+            100_000_005_000_000
+        );
+        assert_eq!(
+            parse_seconds_ns(b"100000.005").unwrap(),
+            100_000_005_000_000
+        );
+        assert_eq!(parse_seconds_ns(b"1.0000000005").unwrap(), 1_000_000_001);
+        assert_eq!(parse_seconds_ns(b"-1.5").unwrap(), -1_500_000_000);
+        assert_eq!(parse_seconds_ns(b"12").unwrap(), 12_000_000_000);
+        assert_eq!(parse_seconds_ns(b"1.5e3").unwrap(), 1_500_000_000_000);
+        assert!(parse_seconds_ns(b"12a").is_err());
+        assert!(parse_seconds_ns(b".").is_err());
+        assert!(parse_seconds_ns(b"").is_err());
+        assert!(parse_seconds_ns(b"99999999999999999999").is_err());
+    }
+
+    #[test]
+    fn fields_split_on_any_separator() {
+        let mut f: [&[u8]; 8] = [b""; 8];
+        let n = split_fields(b"  1.0,\t2 ,3  4\r", &mut f);
+        assert_eq!(n, 4);
+        assert_eq!(f[0], b"1.0");
+        assert_eq!(f[3], b"4");
+        assert_eq!(split_fields(b"", &mut f), 0);
+        assert_eq!(split_fields(b"a b c d e f g h i j", &mut f), 10);
+    }
+
+    #[test]
+    fn floats_reject_nan_and_junk() {
+        assert_eq!(parse_f64(b"-1.5e-3").unwrap(), -1.5e-3);
+        assert!(parse_f64(b"nan").is_err());
+        assert!(parse_f64(b"inf").is_err());
+        assert!(parse_f64(b"1.2.3").is_err());
+    }
+
+    #[test]
+    fn fixed_formatting_matches_std() {
+        for &(v, d) in &[
+            (30.444787370100, 12usize),
+            (-0.000000001, 9),
+            (114.471863204700, 12),
+            (-1.5, 3),
+            (0.0, 6),
+            (123456.0, 0),
+            (9.99999999999, 6),
+            (1e30, 3),
+        ] {
+            let mut out = Vec::new();
+            push_fixed(&mut out, v, d);
+            let want = format!("{v:.d$}");
+            let got = String::from_utf8(out).unwrap();
+            // std may print "-0.000000000" for tiny negatives; we print "0.000000000"
+            assert_eq!(
+                got.trim_start_matches('-'),
+                want.trim_start_matches('-'),
+                "{v}"
+            );
+        }
+    }
+
+    #[test]
+    fn line_reader_counts_lines_and_strips_cr() {
+        let data = b"a\r\nbb\n\nccc";
+        let mut r = LineReader::new(&data[..], Path::new("mem"));
+        let mut lines = Vec::new();
+        while let Some((l, n)) = r.next_line().unwrap() {
+            lines.push((n, l.to_vec()));
+        }
+        assert_eq!(
+            lines,
+            vec![
+                (1, b"a".to_vec()),
+                (2, b"bb".to_vec()),
+                (3, b"".to_vec()),
+                (4, b"ccc".to_vec())
+            ]
+        );
+    }
+
+    #[test]
+    fn line_reader_handles_lines_longer_than_a_block() {
+        let mut data = vec![b'x'; BLOCK * 2 + 10];
+        data.push(b'\n');
+        data.extend_from_slice(b"end");
+        let mut r = LineReader::new(&data[..], Path::new("mem"));
+        assert_eq!(r.next_line().unwrap().unwrap().0.len(), BLOCK * 2 + 10);
+        assert_eq!(r.next_line().unwrap().unwrap().0, b"end");
+        assert!(r.next_line().unwrap().is_none());
+    }
+}

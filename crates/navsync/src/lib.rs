@@ -1,0 +1,28 @@
+//! navsync: GNSS/INS integrated navigation in which time synchronization is
+//! first-class.
+//!
+//! The library is streaming-first: every stage takes one sample at a time
+//! and returns what it can ([`fusion::Fusion::push_imu`]), and batch
+//! processing of files is a loop over the same API ([`pipeline::run`]).
+//!
+//! Conventions: SI units inside; body frame FRD, navigation frame NED;
+//! `q_nb`/`c_nb` rotate body to navigation; GPS time as integer nanoseconds
+//! ([`time::GpsTime`]).
+
+// Index loops are the clearest form for the small matrix kernels here.
+#![allow(clippy::needless_range_loop)]
+
+pub mod attitude;
+pub mod earth;
+pub mod error;
+pub mod eval;
+pub mod filter;
+pub mod fusion;
+pub mod ins;
+pub mod io;
+pub mod pipeline;
+pub mod stats;
+pub mod time;
+
+pub use error::{Diagnostic, Diagnostics, Error, Result};
+pub use time::GpsTime;

@@ -1,0 +1,497 @@
+//! Batch fusion of KF-GINS files: a loop over the streaming engine
+//! ([`crate::fusion::Fusion`]) that reads the IMU file on one thread,
+//! fuses on the calling thread and writes the 200 Hz navigation file on a
+//! third, holding only a few blocks of each file in memory.
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::Instant;
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::attitude::Euler;
+use crate::error::{Diagnostics, Error};
+use crate::filter::gnss::GnssFix;
+use crate::filter::nhc::VehicleConstraint;
+use crate::fusion::{Fusion, FusionConfig, FusionStats, GapPolicy, NhcOptions};
+use crate::ins::{ImuErrors, ImuSample, NavState};
+use crate::io::config::KfGinsConfig;
+use crate::io::kfgins::{
+    GnssLayout, GnssReader, ImuReader, TextWriter, format_imu_err_line, format_nav_line,
+    format_std_line,
+};
+use crate::time::GpsTime;
+
+/// GNSS outages simulated by withholding fixes: windows of `len_s` every
+/// `period_s`, the first starting `first_s` after the first IMU epoch.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct OutageSchedule {
+    pub period_s: f64,
+    pub len_s: f64,
+    pub first_s: f64,
+}
+
+impl OutageSchedule {
+    /// True when `t` falls inside an outage that starts from `t0`.
+    pub fn contains(&self, t0: GpsTime, t: GpsTime) -> bool {
+        let rel = t.seconds_since(t0) - self.first_s;
+        if rel < 0.0 {
+            return false;
+        }
+        let k = (rel / self.period_s).floor();
+        rel - k * self.period_s < self.len_s
+    }
+
+    /// The outage windows `(start, length_s)` inside `[t0, t1]`.
+    pub fn windows(&self, t0: GpsTime, t1: GpsTime) -> Vec<(GpsTime, f64)> {
+        let mut out = Vec::new();
+        let mut s = self.first_s;
+        let span = t1.seconds_since(t0);
+        while s < span {
+            out.push((t0.add_seconds(s), self.len_s.min(span - s)));
+            s += self.period_s;
+        }
+        out
+    }
+}
+
+/// Non-holonomic constraint options as the CLI exposes them.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct NhcSettings {
+    /// IMU mounting angles in the vehicle (roll, pitch, yaw; deg).
+    pub mount_deg: [f64; 3],
+    /// Lever arm from the IMU to the constraint point (m, body FRD).
+    pub lever_m: [f64; 3],
+    pub sd_mps: f64,
+    pub interval_s: f64,
+}
+
+impl Default for NhcSettings {
+    fn default() -> Self {
+        NhcSettings {
+            mount_deg: [0.0; 3],
+            lever_m: [0.0; 3],
+            sd_mps: 0.1,
+            interval_s: 0.2,
+        }
+    }
+}
+
+/// Options of a batch run beyond the KF-GINS configuration.
+#[derive(Clone, Debug, Serialize)]
+pub struct FuseOptions {
+    /// Output folder (defaults to the config's `outputpath`).
+    pub output_dir: Option<PathBuf>,
+    pub outages: Option<OutageSchedule>,
+    pub nhc: Option<NhcSettings>,
+    pub gnss_layout_matlab: bool,
+    /// Floor for GNSS standard deviations (m, m/s) instead of skipping.
+    pub gnss_sd_floor: Option<f64>,
+    pub cov_step_s: f64,
+    pub gate_prob: Option<f64>,
+    pub gap_policy: GapPolicy,
+    pub gap_factor: f64,
+    /// Interval of the `imu_err.txt` and `std.txt` lines (s); 0 writes them
+    /// at every IMU epoch like KF-GINS.
+    pub aux_interval_s: f64,
+    pub use_gnss_velocity: bool,
+    /// GPS week of the data (KF-GINS files carry none; 0 as KF-GINS writes).
+    pub week: i64,
+    /// Write no output files (for benchmarks and studies).
+    pub dry_run: bool,
+}
+
+impl Default for FuseOptions {
+    fn default() -> Self {
+        FuseOptions {
+            output_dir: None,
+            outages: None,
+            nhc: None,
+            gnss_layout_matlab: false,
+            gnss_sd_floor: None,
+            cov_step_s: 0.1,
+            gate_prob: Some(0.9999),
+            gap_policy: GapPolicy::Auto,
+            gap_factor: 2.5,
+            aux_interval_s: 0.1,
+            use_gnss_velocity: true,
+            week: 0,
+            dry_run: false,
+        }
+    }
+}
+
+/// What a run did (written as `summary.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct FuseSummary {
+    pub tool: &'static str,
+    pub version: &'static str,
+    pub config: String,
+    pub imu_file: String,
+    pub gnss_file: String,
+    pub output_dir: String,
+    pub start_sow: f64,
+    pub end_sow: f64,
+    pub duration_s: f64,
+    pub imu_records_read: usize,
+    pub imu_lines_skipped: usize,
+    pub gnss_fixes_read: usize,
+    pub gnss_lines_skipped: usize,
+    pub gnss_fixes_withheld_by_outages: usize,
+    pub gnss_fixes_outside_run: usize,
+    /// Outage windows as `sow:len` (the `navsync eval --outages` argument).
+    pub outages: String,
+    pub stats: FusionStats,
+    pub final_gyro_bias_deg_h: [f64; 3],
+    pub final_accel_bias_mgal: [f64; 3],
+    pub final_gyro_scale_ppm: [f64; 3],
+    pub final_accel_scale_ppm: [f64; 3],
+    pub options: FuseOptions,
+    pub run_time_s: f64,
+    pub diagnostics: Diagnostics,
+}
+
+/// Builds the engine configuration from a KF-GINS configuration.
+pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
+    let start = GpsTime::from_week_ns(opts.week, (cfg.start_sow * 1e9).round() as i64);
+    let nav = NavState::new(start, cfg.init_pos, cfg.init_vel, &cfg.init_att);
+    let mut fc = FusionConfig::new(nav, cfg.init_std, cfg.noise, cfg.imu_rate_hz);
+    fc.init_imu = cfg.init_imu;
+    fc.antenna_lever_b = cfg.antenna_lever;
+    fc.cov_step_s = opts.cov_step_s;
+    fc.gate_prob = opts.gate_prob;
+    fc.gap_policy = opts.gap_policy;
+    fc.gap_factor = opts.gap_factor;
+    fc.use_gnss_velocity = opts.use_gnss_velocity;
+    fc.nhc = opts.nhc.map(|s| NhcOptions {
+        vehicle: VehicleConstraint::new(
+            &Euler::from_deg(s.mount_deg[0], s.mount_deg[1], s.mount_deg[2]),
+            Vector3::from(s.lever_m),
+            s.sd_mps,
+        ),
+        interval_s: s.interval_s,
+    });
+    fc
+}
+
+/// Receives the solution of a batch run.
+pub trait NavSink {
+    /// Every IMU epoch.
+    fn nav(&mut self, out: &NavState, imu: &ImuErrors) -> Result<(), Error>;
+    /// At the auxiliary interval: IMU errors and all state σ (SI).
+    fn aux(&mut self, time: GpsTime, imu: &ImuErrors, sd: &[f64]) -> Result<(), Error>;
+}
+
+/// Writes `navresult.nav` (through a writer thread), `imu_err.txt` and
+/// `std.txt` in KF-GINS layouts.
+pub struct KfGinsSink {
+    week: i64,
+    buf: Vec<u8>,
+    tx: Option<mpsc::SyncSender<Vec<u8>>>,
+    writer: Option<std::thread::JoinHandle<Result<(), Error>>>,
+    imu_err: TextWriter,
+    std: TextWriter,
+    line: Vec<u8>,
+}
+
+impl KfGinsSink {
+    /// Creates the three files in `dir` (created if missing).
+    pub fn create(dir: &Path, week: i64) -> Result<Self, Error> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let mut nav = TextWriter::create(&dir.join("navresult.nav"))?;
+        let (tx, rx) = mpsc::sync_channel::<Vec<u8>>(4);
+        let writer = std::thread::spawn(move || {
+            for block in rx {
+                nav.write(&block)?;
+            }
+            nav.finish()
+        });
+        Ok(KfGinsSink {
+            week,
+            buf: Vec::with_capacity(1 << 20),
+            tx: Some(tx),
+            writer: Some(writer),
+            imu_err: TextWriter::create(&dir.join("imu_err.txt"))?,
+            std: TextWriter::create(&dir.join("std.txt"))?,
+            line: Vec::with_capacity(512),
+        })
+    }
+
+    fn flush_block(&mut self) -> Result<(), Error> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        let block = std::mem::replace(&mut self.buf, Vec::with_capacity(1 << 20));
+        if let Some(tx) = &self.tx
+            && tx.send(block).is_err()
+        {
+            return self.join();
+        }
+        Ok(())
+    }
+
+    fn join(&mut self) -> Result<(), Error> {
+        self.tx = None;
+        match self.writer.take() {
+            Some(h) => h
+                .join()
+                .unwrap_or_else(|_| Err(Error::Invalid("navigation writer thread failed".into()))),
+            None => Ok(()),
+        }
+    }
+
+    /// Flushes and closes every file.
+    pub fn finish(mut self) -> Result<(), Error> {
+        self.flush_block()?;
+        self.join()?;
+        let KfGinsSink { imu_err, std, .. } = self;
+        imu_err.finish()?;
+        std.finish()
+    }
+}
+
+impl NavSink for KfGinsSink {
+    fn nav(&mut self, nav: &NavState, _imu: &ImuErrors) -> Result<(), Error> {
+        format_nav_line(
+            &mut self.buf,
+            self.week,
+            nav.time,
+            &nav.pos,
+            &nav.vel,
+            &nav.euler().to_deg(),
+        );
+        if self.buf.len() >= (1 << 20) - 256 {
+            self.flush_block()?;
+        }
+        Ok(())
+    }
+
+    fn aux(&mut self, time: GpsTime, imu: &ImuErrors, sd: &[f64]) -> Result<(), Error> {
+        self.line.clear();
+        format_imu_err_line(&mut self.line, time, imu);
+        self.imu_err.write(&self.line)?;
+        self.line.clear();
+        format_std_line(&mut self.line, time, sd);
+        self.std.write(&self.line)
+    }
+}
+
+/// A sink that keeps nothing (benchmarks, studies that only need a summary).
+pub struct NullSink;
+
+impl NavSink for NullSink {
+    fn nav(&mut self, _: &NavState, _: &ImuErrors) -> Result<(), Error> {
+        Ok(())
+    }
+    fn aux(&mut self, _: GpsTime, _: &ImuErrors, _: &[f64]) -> Result<(), Error> {
+        Ok(())
+    }
+}
+
+const BATCH: usize = 4096;
+
+/// Runs the fusion of a KF-GINS configuration into `sink`. `progress` is
+/// called with the fraction done (0..1) now and then.
+pub fn run(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    sink: &mut dyn NavSink,
+    progress: &mut dyn FnMut(f64),
+) -> Result<FuseSummary, Error> {
+    let started = Instant::now();
+    let mut diag = Diagnostics::with_cap(1000);
+    let fc = fusion_config(cfg, opts);
+    let start = fc.init_nav.time;
+    let end = cfg
+        .end_sow
+        .map(|e| GpsTime::from_week_ns(opts.week, (e * 1e9).round() as i64));
+    let mut fusion = Fusion::new(fc);
+
+    let mut gnss = GnssReader::open(
+        &cfg.gnss_path,
+        opts.week,
+        if opts.gnss_layout_matlab {
+            GnssLayout::Matlab
+        } else {
+            GnssLayout::Cpp
+        },
+    )?;
+    gnss.sd_floor = opts.gnss_sd_floor;
+    let mut next_fix: Option<GnssFix> = gnss.next_fix(&mut diag)?;
+
+    // IMU reader thread: batches of parsed samples.
+    let imu_path = cfg.imu_path.clone();
+    let week = opts.week;
+    let (tx, rx) = mpsc::sync_channel::<Vec<ImuSample>>(8);
+    let reader = std::thread::spawn(move || -> Result<(usize, Diagnostics), Error> {
+        let mut d = Diagnostics::with_cap(1000);
+        let mut r = ImuReader::open(&imu_path, week)?;
+        let mut batch = Vec::with_capacity(BATCH);
+        while let Some(s) = r.next_sample(&mut d)? {
+            batch.push(s);
+            if batch.len() == BATCH
+                && tx
+                    .send(std::mem::replace(&mut batch, Vec::with_capacity(BATCH)))
+                    .is_err()
+            {
+                return Ok((r.count(), d));
+            }
+        }
+        if !batch.is_empty() {
+            let _ = tx.send(batch);
+        }
+        Ok((r.count(), d))
+    });
+
+    let aux_ns = (opts.aux_interval_s * 1e9).round() as i64;
+    let mut next_aux: Option<GpsTime> = None;
+    let mut t0: Option<GpsTime> = None;
+    let mut last_time = start;
+    let mut withheld = 0usize;
+    let mut outside = 0usize;
+    let mut fixes_read = usize::from(next_fix.is_some());
+    let span = end.map(|e| e.seconds_since(start)).unwrap_or(f64::NAN);
+    let mut last_progress = Instant::now();
+    let mut result: Result<(), Error> = Ok(());
+
+    'outer: for batch in rx.iter() {
+        for s in &batch {
+            if let Some(e) = end
+                && s.time > e
+            {
+                break 'outer;
+            }
+            // Queue the fixes this sample's interval reaches.
+            while let Some(fix) = next_fix {
+                if fix.time > s.time {
+                    break;
+                }
+                let keep = match (t0, opts.outages) {
+                    (Some(t0), Some(o)) if o.contains(t0, fix.time) => {
+                        withheld += 1;
+                        false
+                    }
+                    (None, _) => {
+                        outside += 1;
+                        false
+                    }
+                    _ => true,
+                };
+                if keep {
+                    fusion.push_gnss(fix);
+                }
+                next_fix = gnss.next_fix(&mut diag)?;
+                fixes_read += usize::from(next_fix.is_some());
+            }
+            let out = match fusion.push_imu(s) {
+                Ok(o) => o,
+                Err(e) => {
+                    result = Err(e);
+                    break 'outer;
+                }
+            };
+            let Some(out) = out else {
+                if t0.is_none() && s.time >= start {
+                    t0 = Some(s.time);
+                    next_aux = Some(s.time);
+                }
+                continue;
+            };
+            last_time = out.nav.time;
+            if let Err(e) = sink.nav(&out.nav, &out.imu) {
+                result = Err(e);
+                break 'outer;
+            }
+            if let Some(na) = next_aux
+                && out.nav.time >= na
+            {
+                let sd = fusion.std_devs();
+                if let Err(e) = sink.aux(out.nav.time, &out.imu, &sd) {
+                    result = Err(e);
+                    break 'outer;
+                }
+                next_aux = Some(if aux_ns > 0 {
+                    na + aux_ns
+                } else {
+                    out.nav.time
+                });
+            }
+        }
+        if last_progress.elapsed().as_millis() > 100 {
+            last_progress = Instant::now();
+            let frac = if span.is_finite() && span > 0.0 {
+                last_time.seconds_since(start) / span
+            } else {
+                f64::NAN
+            };
+            progress(frac);
+        }
+    }
+    drop(rx);
+    let (imu_count, imu_diag) = reader
+        .join()
+        .unwrap_or_else(|_| Err(Error::Invalid("IMU reader thread failed".into())))?;
+    result?;
+    // Count the remaining fixes (and their bad lines) for the summary.
+    while next_fix.is_some() {
+        next_fix = gnss.next_fix(&mut diag)?;
+        fixes_read += usize::from(next_fix.is_some());
+    }
+    let Some(t0) = t0 else {
+        return Err(Error::NoData {
+            path: cfg.imu_path.clone(),
+            msg: format!("no IMU record at or after starttime {}", cfg.start_sow),
+        });
+    };
+    progress(1.0);
+
+    let gnss_skipped = diag.total;
+    let imu_skipped = imu_diag.total;
+    let mut all = imu_diag;
+    all.extend(diag);
+    all.extend(fusion.take_diagnostics());
+    let imu = *fusion.imu_errors();
+    let deg_h = 180.0 / std::f64::consts::PI * 3600.0;
+    let outages = opts
+        .outages
+        .map(|o| {
+            o.windows(t0, last_time)
+                .iter()
+                .map(|(s, l)| format!("{:.3}:{}", s.sow(), l))
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .unwrap_or_default();
+    Ok(FuseSummary {
+        tool: "navsync",
+        version: env!("CARGO_PKG_VERSION"),
+        config: cfg.path.display().to_string(),
+        imu_file: cfg.imu_path.display().to_string(),
+        gnss_file: cfg.gnss_path.display().to_string(),
+        output_dir: opts
+            .output_dir
+            .clone()
+            .unwrap_or_else(|| cfg.output_path.clone())
+            .display()
+            .to_string(),
+        start_sow: t0.sow(),
+        end_sow: last_time.sow(),
+        duration_s: last_time.seconds_since(t0),
+        imu_records_read: imu_count,
+        imu_lines_skipped: imu_skipped,
+        gnss_fixes_read: fixes_read,
+        gnss_lines_skipped: gnss_skipped,
+        gnss_fixes_withheld_by_outages: withheld,
+        gnss_fixes_outside_run: outside,
+        outages,
+        stats: fusion.stats().clone(),
+        final_gyro_bias_deg_h: (imu.gyro_bias * deg_h).into(),
+        final_accel_bias_mgal: (imu.accel_bias * 1e5).into(),
+        final_gyro_scale_ppm: (imu.gyro_scale * 1e6).into(),
+        final_accel_scale_ppm: (imu.accel_scale * 1e6).into(),
+        options: opts.clone(),
+        run_time_s: started.elapsed().as_secs_f64(),
+        diagnostics: all,
+    })
+}

@@ -1,0 +1,211 @@
+//! GPS time with integer nanoseconds.
+//!
+//! All timestamps inside navsync are [`GpsTime`]: nanoseconds since the GPS
+//! epoch (1980-01-06 00:00:00 UTC), so that no precision is lost over a week
+//! (an `f64` seconds-of-week keeps ~0.1 ns, an `f32` only ~60 ms) and equal
+//! epochs compare equal. Files carry week + seconds of week (SOW); KF-GINS
+//! files carry SOW only, and [`WeekTracker`] turns such a stream into
+//! absolute time across a week rollover.
+
+use std::fmt;
+use std::ops::{Add, Sub};
+
+/// Nanoseconds in one second.
+pub const NS_PER_S: i64 = 1_000_000_000;
+/// Seconds in one GPS week.
+pub const SECONDS_PER_WEEK: i64 = 604_800;
+/// Nanoseconds in one GPS week.
+pub const NS_PER_WEEK: i64 = SECONDS_PER_WEEK * NS_PER_S;
+
+/// An instant of GPS time, as integer nanoseconds since the GPS epoch.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct GpsTime {
+    ns: i64,
+}
+
+impl GpsTime {
+    /// The GPS epoch itself.
+    pub const EPOCH: GpsTime = GpsTime { ns: 0 };
+
+    /// From nanoseconds since the GPS epoch.
+    pub const fn from_ns(ns: i64) -> Self {
+        GpsTime { ns }
+    }
+
+    /// Nanoseconds since the GPS epoch.
+    pub const fn ns(self) -> i64 {
+        self.ns
+    }
+
+    /// From a week number and nanoseconds of week (which may be outside
+    /// `0..NS_PER_WEEK`; it is normalised).
+    pub const fn from_week_ns(week: i64, ns_of_week: i64) -> Self {
+        GpsTime {
+            ns: week * NS_PER_WEEK + ns_of_week,
+        }
+    }
+
+    /// From a week number and seconds of week. Rounded to the nearest ns.
+    pub fn from_week_sow(week: i64, sow_s: f64) -> Self {
+        Self::from_week_ns(week, (sow_s * 1e9).round() as i64)
+    }
+
+    /// From seconds since the GPS epoch (rounded to the nearest ns).
+    pub fn from_seconds(seconds: f64) -> Self {
+        GpsTime {
+            ns: (seconds * 1e9).round() as i64,
+        }
+    }
+
+    /// Seconds since the GPS epoch as `f64` (~0.1 µs resolution in 2026;
+    /// use differences of [`GpsTime`] for precise intervals).
+    pub fn seconds(self) -> f64 {
+        self.ns as f64 * 1e-9
+    }
+
+    /// GPS week number.
+    pub const fn week(self) -> i64 {
+        self.ns.div_euclid(NS_PER_WEEK)
+    }
+
+    /// Nanoseconds of week, in `0..NS_PER_WEEK`.
+    pub const fn ns_of_week(self) -> i64 {
+        self.ns.rem_euclid(NS_PER_WEEK)
+    }
+
+    /// Seconds of week as `f64` (exact to ~0.1 ns).
+    pub fn sow(self) -> f64 {
+        let ns = self.ns_of_week();
+        (ns / NS_PER_S) as f64 + (ns % NS_PER_S) as f64 * 1e-9
+    }
+
+    /// Interval `self - earlier` in seconds.
+    pub fn seconds_since(self, earlier: GpsTime) -> f64 {
+        (self.ns - earlier.ns) as f64 * 1e-9
+    }
+
+    /// This instant shifted by `seconds` (rounded to the nearest ns).
+    pub fn add_seconds(self, seconds: f64) -> GpsTime {
+        GpsTime {
+            ns: self.ns + (seconds * 1e9).round() as i64,
+        }
+    }
+
+    /// Writes `sow` with 9 decimals (exact nanoseconds) into `out`.
+    pub fn write_sow(self, out: &mut Vec<u8>) {
+        let ns = self.ns_of_week();
+        crate::io::text::push_u64(out, (ns / NS_PER_S) as u64);
+        out.push(b'.');
+        crate::io::text::push_u64_padded(out, (ns % NS_PER_S) as u64, 9);
+    }
+}
+
+impl Add<i64> for GpsTime {
+    type Output = GpsTime;
+    /// Adds nanoseconds.
+    fn add(self, ns: i64) -> GpsTime {
+        GpsTime { ns: self.ns + ns }
+    }
+}
+
+impl Sub for GpsTime {
+    type Output = i64;
+    /// Difference in nanoseconds.
+    fn sub(self, other: GpsTime) -> i64 {
+        self.ns - other.ns
+    }
+}
+
+impl fmt::Display for GpsTime {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let ns = self.ns_of_week();
+        write!(f, "{} {}.{:09}", self.week(), ns / NS_PER_S, ns % NS_PER_S)
+    }
+}
+
+/// Turns a stream of seconds-of-week without week numbers (KF-GINS files)
+/// into absolute [`GpsTime`], adding a week whenever SOW falls back by more
+/// than half a week (a week rollover), so that time stays monotonic.
+#[derive(Clone, Debug)]
+pub struct WeekTracker {
+    week: i64,
+    last_ns_of_week: Option<i64>,
+}
+
+impl WeekTracker {
+    /// Starts in `week` (0 when the files carry no week).
+    pub fn new(week: i64) -> Self {
+        WeekTracker {
+            week,
+            last_ns_of_week: None,
+        }
+    }
+
+    /// Absolute time of a seconds-of-week value given in nanoseconds.
+    pub fn resolve(&mut self, ns_of_week: i64) -> GpsTime {
+        if let Some(last) = self.last_ns_of_week
+            && last - ns_of_week > NS_PER_WEEK / 2
+        {
+            self.week += 1;
+        }
+        self.last_ns_of_week = Some(ns_of_week);
+        GpsTime::from_week_ns(self.week, ns_of_week)
+    }
+
+    /// Absolute time without advancing the tracker (for look-ups such as
+    /// `starttime` in a configuration).
+    pub fn peek(&self, ns_of_week: i64) -> GpsTime {
+        let mut week = self.week;
+        if let Some(last) = self.last_ns_of_week
+            && last - ns_of_week > NS_PER_WEEK / 2
+        {
+            week += 1;
+        }
+        GpsTime::from_week_ns(week, ns_of_week)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn week_and_sow_round_trip() {
+        let t = GpsTime::from_week_sow(2300, 100000.005);
+        assert_eq!(t.week(), 2300);
+        assert_eq!(t.ns_of_week(), 100_000_005_000_000);
+        assert!((t.sow() - 100000.005).abs() < 1e-10);
+        assert_eq!(t.to_string(), "2300 100000.005000000");
+        let mut s = Vec::new();
+        t.write_sow(&mut s);
+        assert_eq!(std::str::from_utf8(&s).unwrap(), "100000.005000000");
+    }
+
+    #[test]
+    fn differences_are_exact() {
+        let a = GpsTime::from_week_sow(2300, 100000.005);
+        let b = GpsTime::from_week_sow(2300, 100000.010);
+        assert_eq!(b - a, 5_000_000);
+        assert_eq!(b.seconds_since(a), 0.005);
+    }
+
+    #[test]
+    fn negative_time_normalises_week() {
+        let t = GpsTime::from_ns(-1);
+        assert_eq!(t.week(), -1);
+        assert_eq!(t.ns_of_week(), NS_PER_WEEK - 1);
+    }
+
+    #[test]
+    fn week_tracker_handles_rollover() {
+        let mut w = WeekTracker::new(2300);
+        let a = w.resolve(604_799_990_000_000);
+        let b = w.resolve(5_000_000);
+        assert_eq!(a.week(), 2300);
+        assert_eq!(b.week(), 2301);
+        assert_eq!(b - a, 15_000_000);
+        // a small step back (bad data) does not invent a week
+        let c = w.resolve(1_000_000);
+        assert_eq!(c.week(), 2301);
+    }
+}
