@@ -22,6 +22,8 @@ pub mod ins;
 pub mod io;
 pub mod pipeline;
 pub mod stats;
+#[cfg(test)]
+mod testutil;
 pub mod time;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};

@@ -23,6 +23,8 @@ pub mod dense;
 pub mod gnss;
 pub mod model;
 pub mod nhc;
+#[cfg(test)]
+mod tests;
 
 use nalgebra::{Matrix3, Vector3};
 
