@@ -123,6 +123,9 @@ pub struct StepInfo {
     pub c_nb: Matrix3<f64>,
     /// Specific-force velocity increment in NED, Δv_f^n (m/s).
     pub dv_f_n: Vector3<f64>,
+    /// Total velocity change over the step (specific force, gravity,
+    /// Coriolis): the kinematic acceleration times Δt (m/s).
+    pub dv_n: Vector3<f64>,
     /// Compensated body increments of the step.
     pub inc: Increment,
 }
@@ -220,6 +223,7 @@ impl Mechanization {
             dt,
             c_nb,
             dv_f_n,
+            dv_n: dv_total,
             inc: *inc,
         }
     }

@@ -19,7 +19,9 @@ pub mod eval;
 pub mod filter;
 pub mod fusion;
 pub mod ins;
+pub mod interp;
 pub mod io;
+pub mod offset_search;
 pub mod pipeline;
 pub mod stats;
 #[cfg(test)]

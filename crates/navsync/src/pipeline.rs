@@ -14,8 +14,12 @@ use crate::attitude::Euler;
 use crate::error::{Diagnostics, Error};
 use crate::filter::gnss::GnssFix;
 use crate::filter::nhc::VehicleConstraint;
-use crate::fusion::{Fusion, FusionConfig, FusionStats, GapPolicy, NhcOptions};
+use crate::fusion::{
+    Fusion, FusionConfig, FusionStats, GapPolicy, LatencyMode, NhcOptions, TimeOffsetOptions,
+    TimeOffsetState,
+};
 use crate::ins::{ImuErrors, ImuSample, NavState};
+use crate::interp::NavInterpolator;
 use crate::io::config::KfGinsConfig;
 use crate::io::kfgins::{
     GnssLayout, GnssReader, ImuReader, TextWriter, format_imu_err_line, format_nav_line,
@@ -100,6 +104,16 @@ pub struct FuseOptions {
     pub week: i64,
     /// Write no output files (for benchmarks and studies).
     pub dry_run: bool,
+    /// Estimate the IMU–GNSS time offset as a filter state.
+    pub time_offset: Option<TimeOffsetOptions>,
+    /// How fixes are used; with a real-time mode, each fix is delivered to
+    /// the engine `gnss_latency_s` after its time tag, as it would arrive.
+    pub latency: LatencyMode,
+    pub gnss_latency_s: f64,
+    /// Also write the solution interpolated at these epochs (one per line:
+    /// `sow` or `week sow`) with (2n+1)-order Lagrange (seed 000 eq 1).
+    pub output_at: Option<PathBuf>,
+    pub output_at_n: usize,
 }
 
 impl Default for FuseOptions {
@@ -118,6 +132,11 @@ impl Default for FuseOptions {
             use_gnss_velocity: true,
             week: 0,
             dry_run: false,
+            time_offset: None,
+            latency: LatencyMode::Offline,
+            gnss_latency_s: 0.0,
+            output_at: None,
+            output_at_n: 1,
         }
     }
 }
@@ -142,6 +161,14 @@ pub struct FuseSummary {
     pub gnss_fixes_outside_run: usize,
     /// Outage windows as `sow:len` (the `navsync eval --outages` argument).
     pub outages: String,
+    /// Final time-offset estimate (GNSS tag − true validity time), when estimated.
+    pub time_offset_s: Option<f64>,
+    pub time_offset_sd_s: Option<f64>,
+    /// The coarse search's estimate, when it converged.
+    pub time_offset_coarse_s: Option<f64>,
+    /// Epochs written by `--output-at`, and requested epochs outside the data.
+    pub output_at_written: usize,
+    pub output_at_skipped: usize,
     pub stats: FusionStats,
     pub final_gyro_bias_deg_h: [f64; 3],
     pub final_accel_bias_mgal: [f64; 3],
@@ -164,6 +191,8 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
     fc.gap_policy = opts.gap_policy;
     fc.gap_factor = opts.gap_factor;
     fc.use_gnss_velocity = opts.use_gnss_velocity;
+    fc.time_offset = opts.time_offset;
+    fc.latency = opts.latency;
     fc.nhc = opts.nhc.map(|s| NhcOptions {
         vehicle: VehicleConstraint::new(
             &Euler::from_deg(s.mount_deg[0], s.mount_deg[1], s.mount_deg[2]),
@@ -179,8 +208,19 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
 pub trait NavSink {
     /// Every IMU epoch.
     fn nav(&mut self, out: &NavState, imu: &ImuErrors) -> Result<(), Error>;
-    /// At the auxiliary interval: IMU errors and all state σ (SI).
-    fn aux(&mut self, time: GpsTime, imu: &ImuErrors, sd: &[f64]) -> Result<(), Error>;
+    /// At the auxiliary interval: IMU errors, all state σ (SI) and the
+    /// time-offset estimate when it is a state.
+    fn aux(
+        &mut self,
+        time: GpsTime,
+        imu: &ImuErrors,
+        sd: &[f64],
+        offset: Option<TimeOffsetState>,
+    ) -> Result<(), Error>;
+    /// The solution interpolated at a requested epoch (`--output-at`).
+    fn nav_at(&mut self, _nav: &NavState) -> Result<(), Error> {
+        Ok(())
+    }
 }
 
 /// Writes `navresult.nav` (through a writer thread), `imu_err.txt` and
@@ -192,6 +232,9 @@ pub struct KfGinsSink {
     writer: Option<std::thread::JoinHandle<Result<(), Error>>>,
     imu_err: TextWriter,
     std: TextWriter,
+    offset: Option<TextWriter>,
+    nav_at: Option<TextWriter>,
+    dir: PathBuf,
     line: Vec<u8>,
 }
 
@@ -214,6 +257,9 @@ impl KfGinsSink {
             writer: Some(writer),
             imu_err: TextWriter::create(&dir.join("imu_err.txt"))?,
             std: TextWriter::create(&dir.join("std.txt"))?,
+            offset: None,
+            nav_at: None,
+            dir: dir.to_path_buf(),
             line: Vec::with_capacity(512),
         })
     }
@@ -245,7 +291,19 @@ impl KfGinsSink {
     pub fn finish(mut self) -> Result<(), Error> {
         self.flush_block()?;
         self.join()?;
-        let KfGinsSink { imu_err, std, .. } = self;
+        let KfGinsSink {
+            imu_err,
+            std,
+            offset,
+            nav_at,
+            ..
+        } = self;
+        if let Some(w) = offset {
+            w.finish()?;
+        }
+        if let Some(w) = nav_at {
+            w.finish()?;
+        }
         imu_err.finish()?;
         std.finish()
     }
@@ -267,13 +325,59 @@ impl NavSink for KfGinsSink {
         Ok(())
     }
 
-    fn aux(&mut self, time: GpsTime, imu: &ImuErrors, sd: &[f64]) -> Result<(), Error> {
+    fn aux(
+        &mut self,
+        time: GpsTime,
+        imu: &ImuErrors,
+        sd: &[f64],
+        offset: Option<TimeOffsetState>,
+    ) -> Result<(), Error> {
         self.line.clear();
         format_imu_err_line(&mut self.line, time, imu);
         self.imu_err.write(&self.line)?;
         self.line.clear();
         format_std_line(&mut self.line, time, sd);
-        self.std.write(&self.line)
+        self.std.write(&self.line)?;
+        if let Some(o) = offset {
+            if self.offset.is_none() {
+                let mut w = TextWriter::create(&self.dir.join("time_offset.txt"))?;
+                w.write(b"# sow offset_s sd_s observable  (offset = GNSS time tag - true time of validity)\n")?;
+                self.offset = Some(w);
+            }
+            self.line.clear();
+            time.write_sow(&mut self.line);
+            use std::io::Write as _;
+            let _ = writeln!(
+                self.line,
+                " {:.7} {:.7} {}",
+                o.offset_s,
+                o.sd_s,
+                u8::from(o.observable)
+            );
+            if let Some(w) = self.offset.as_mut() {
+                w.write(&self.line)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn nav_at(&mut self, nav: &NavState) -> Result<(), Error> {
+        if self.nav_at.is_none() {
+            self.nav_at = Some(TextWriter::create(&self.dir.join("navresult_at.nav"))?);
+        }
+        self.line.clear();
+        format_nav_line(
+            &mut self.line,
+            self.week,
+            nav.time,
+            &nav.pos,
+            &nav.vel,
+            &nav.euler().to_deg(),
+        );
+        match self.nav_at.as_mut() {
+            Some(w) => w.write(&self.line),
+            None => Ok(()),
+        }
     }
 }
 
@@ -284,7 +388,13 @@ impl NavSink for NullSink {
     fn nav(&mut self, _: &NavState, _: &ImuErrors) -> Result<(), Error> {
         Ok(())
     }
-    fn aux(&mut self, _: GpsTime, _: &ImuErrors, _: &[f64]) -> Result<(), Error> {
+    fn aux(
+        &mut self,
+        _: GpsTime,
+        _: &ImuErrors,
+        _: &[f64],
+        _: Option<TimeOffsetState>,
+    ) -> Result<(), Error> {
         Ok(())
     }
 }
@@ -307,6 +417,31 @@ pub fn run(
         .end_sow
         .map(|e| GpsTime::from_week_ns(opts.week, (e * 1e9).round() as i64));
     let mut fusion = Fusion::new(fc);
+    let mut interp = match &opts.output_at {
+        Some(p) => {
+            let mut ip = NavInterpolator::new(opts.output_at_n);
+            for t in crate::io::kfgins::read_times(p, opts.week)? {
+                ip.request(t);
+            }
+            Some(ip)
+        }
+        None => None,
+    };
+    let mut at_written = 0usize;
+    let realtime = !matches!(opts.latency, LatencyMode::Offline);
+    // Offline, fixes are queued ahead (the engine processes each at its
+    // corrected time); in a real-time mode each is delivered at its arrival.
+    let lead_ns: i64 = if realtime {
+        -((opts.gnss_latency_s * 1e9).round() as i64)
+    } else {
+        ((1.0
+            + opts
+                .time_offset
+                .map(|t| t.search_range_s.max(3.0 * t.sd_s))
+                .unwrap_or(0.0))
+            * 1e9)
+            .round() as i64
+    };
 
     let mut gnss = GnssReader::open(
         &cfg.gnss_path,
@@ -362,24 +497,28 @@ pub fn run(
             {
                 break 'outer;
             }
-            // Queue the fixes this sample's interval reaches.
+            // Deliver the fixes this sample reaches.
             while let Some(fix) = next_fix {
-                if fix.time > s.time {
+                if fix.time > s.time + lead_ns {
                     break;
                 }
-                let keep = match (t0, opts.outages) {
-                    (Some(t0), Some(o)) if o.contains(t0, fix.time) => {
-                        withheld += 1;
-                        false
-                    }
-                    (None, _) => {
-                        outside += 1;
-                        false
-                    }
-                    _ => true,
+                // Outages are measured from the first IMU epoch, which is the
+                // first sample at or after the start time.
+                let t_ref = t0.unwrap_or(s.time);
+                let keep = if fix.time <= start {
+                    outside += 1;
+                    false
+                } else if let Some(o) = opts.outages
+                    && o.contains(t_ref, fix.time)
+                {
+                    withheld += 1;
+                    false
+                } else {
+                    true
                 };
-                if keep {
-                    fusion.push_gnss(fix);
+                if keep && let Err(e) = fusion.push_gnss(fix) {
+                    result = Err(e);
+                    break 'outer;
                 }
                 next_fix = gnss.next_fix(&mut diag)?;
                 fixes_read += usize::from(next_fix.is_some());
@@ -403,11 +542,20 @@ pub fn run(
                 result = Err(e);
                 break 'outer;
             }
+            if let Some(ip) = interp.as_mut() {
+                for at in ip.push(&out.nav) {
+                    at_written += 1;
+                    if let Err(e) = sink.nav_at(&at) {
+                        result = Err(e);
+                        break 'outer;
+                    }
+                }
+            }
             if let Some(na) = next_aux
                 && out.nav.time >= na
             {
                 let sd = fusion.std_devs();
-                if let Err(e) = sink.aux(out.nav.time, &out.imu, &sd) {
+                if let Err(e) = sink.aux(out.nav.time, &out.imu, &sd, fusion.time_offset()) {
                     result = Err(e);
                     break 'outer;
                 }
@@ -446,6 +594,10 @@ pub fn run(
     };
     progress(1.0);
 
+    let at_skipped = interp.as_mut().map(|ip| {
+        ip.finish();
+        ip.skipped
+    });
     let gnss_skipped = diag.total;
     let imu_skipped = imu_diag.total;
     let mut all = imu_diag;
@@ -485,7 +637,12 @@ pub fn run(
         gnss_fixes_withheld_by_outages: withheld,
         gnss_fixes_outside_run: outside,
         outages,
-        stats: fusion.stats().clone(),
+        time_offset_s: fusion.time_offset().map(|o| o.offset_s),
+        time_offset_sd_s: fusion.time_offset().map(|o| o.sd_s),
+        time_offset_coarse_s: fusion.coarse_offset().map(|o| o.offset_s),
+        output_at_written: at_written,
+        output_at_skipped: at_skipped.unwrap_or(0),
+        stats: fusion.stats(),
         final_gyro_bias_deg_h: (imu.gyro_bias * deg_h).into(),
         final_accel_bias_mgal: (imu.accel_bias * 1e5).into(),
         final_gyro_scale_ppm: (imu.gyro_scale * 1e6).into(),

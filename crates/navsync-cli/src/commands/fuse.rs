@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use navsync::Diagnostics;
-use navsync::fusion::GapPolicy;
+use navsync::fusion::{GapPolicy, LatencyMode, TimeOffsetOptions};
 use navsync::io::config::KfGinsConfig;
 use navsync::pipeline::{self, FuseOptions, KfGinsSink, NhcSettings, OutageSchedule};
 
@@ -70,6 +70,53 @@ pub struct Args {
     /// GPS week written into navresult.nav (KF-GINS writes 0).
     #[arg(long, default_value_t = 0)]
     pub week: i64,
+    /// Estimate the IMU–GNSS time offset (GNSS time tag − true time of
+    /// validity) as a filter state; written to time_offset.txt and summary.json.
+    #[arg(long)]
+    pub estimate_time_offset: bool,
+    /// Initial time-offset estimate (s).
+    #[arg(long, default_value_t = 0.0, requires = "estimate_time_offset")]
+    pub time_offset_init: f64,
+    /// Initial time-offset σ (s).
+    #[arg(long, default_value_t = 0.2, requires = "estimate_time_offset")]
+    pub time_offset_sd: f64,
+    /// Coarse search range ±S (s) before the filter refines; 0 disables it.
+    #[arg(long, default_value_t = 0.5, requires = "estimate_time_offset")]
+    pub time_offset_search: f64,
+    /// Let the time offset move even while the motion makes it unobservable.
+    #[arg(long, requires = "estimate_time_offset")]
+    pub no_time_offset_hold: bool,
+    /// Real-time latency handling: fixes reach the filter --gnss-latency
+    /// seconds after their time tag, and are used by this method.
+    #[arg(long, value_enum, default_value_t = Latency::Offline)]
+    pub latency_mode: Latency,
+    /// Emulated GNSS latency for the real-time modes (s).
+    #[arg(long, default_value_t = 0.0)]
+    pub gnss_latency: f64,
+    /// Fusion lag of `--latency-mode fixed` (s) [default: --gnss-latency].
+    #[arg(long)]
+    pub fixed_lag: Option<f64>,
+    /// Also write the solution at these epochs (one `sow` or `week sow` per
+    /// line) to navresult_at.nav, by (2n+1)-order Lagrange interpolation.
+    #[arg(long)]
+    pub output_at: Option<PathBuf>,
+    /// n of the (2n+1)-order interpolation (0 linear, 1 cubic, …).
+    #[arg(long, default_value_t = 1)]
+    pub interp_n: usize,
+}
+
+#[derive(Copy, Clone, PartialEq, clap::ValueEnum)]
+pub enum Latency {
+    /// Post-processing: each fix is used at its time of validity.
+    Offline,
+    /// Used on arrival as if valid then (no compensation).
+    Naive,
+    /// (a) Filter runs a fixed lag behind real time; output predicted forward.
+    Fixed,
+    /// (b) Fix moved forward by the INS change over the latency (seed 002).
+    Extrapolate,
+    /// (c) Delayed-state update: update in the past, propagate forward again.
+    Delayed,
 }
 
 #[derive(Copy, Clone, clap::ValueEnum)]
@@ -106,6 +153,15 @@ impl Args {
         };
         anyhow::ensure!(self.cov_step >= 0.0, "--cov-step must not be negative");
         anyhow::ensure!(
+            self.gnss_latency >= 0.0
+                && (self.gnss_latency == 0.0 || self.latency_mode != Latency::Offline),
+            "--gnss-latency needs a real-time --latency-mode (naive, fixed, extrapolate or delayed)"
+        );
+        anyhow::ensure!(
+            self.time_offset_sd > 0.0,
+            "--time-offset-sd must be positive"
+        );
+        anyhow::ensure!(
             self.no_gate || (self.gate_prob > 0.0 && self.gate_prob < 1.0),
             "--gate-prob must be between 0 and 1"
         );
@@ -132,6 +188,27 @@ impl Args {
             use_gnss_velocity: !self.no_gnss_velocity,
             week: self.week,
             dry_run: false,
+            time_offset: self.estimate_time_offset.then_some(TimeOffsetOptions {
+                init_s: self.time_offset_init,
+                sd_s: self.time_offset_sd,
+                random_walk_psd: 1e-12,
+                hold_when_unobservable: !self.no_time_offset_hold,
+                search_range_s: self.time_offset_search,
+            }),
+            latency: match self.latency_mode {
+                Latency::Offline => LatencyMode::Offline,
+                Latency::Naive => LatencyMode::Naive,
+                Latency::Fixed => LatencyMode::FixedLag {
+                    lag_s: self.fixed_lag.unwrap_or(self.gnss_latency),
+                },
+                Latency::Extrapolate => LatencyMode::Extrapolate,
+                Latency::Delayed => LatencyMode::DelayedState {
+                    max_latency_s: (2.0 * self.gnss_latency).max(1.0),
+                },
+            },
+            gnss_latency_s: self.gnss_latency,
+            output_at: self.output_at.clone(),
+            output_at_n: self.interp_n,
         })
     }
 }
@@ -179,6 +256,23 @@ pub fn run(args: Args) -> Result<()> {
         println!(
             "  IMU gaps: {} ({:.3} s in all, longest {:.3} s)",
             s.gaps, s.gap_total_s, s.max_gap_s
+        );
+    }
+    if let (Some(o), Some(sd)) = (summary.time_offset_s, summary.time_offset_sd_s) {
+        println!(
+            "  time offset (GNSS tag − validity): {:.3} ms ± {:.3} ms (coarse search: {})",
+            o * 1e3,
+            sd * 1e3,
+            summary
+                .time_offset_coarse_s
+                .map(|c| format!("{:.1} ms", c * 1e3))
+                .unwrap_or_else(|| "not converged".into())
+        );
+    }
+    if opts.output_at.is_some() {
+        println!(
+            "  navresult_at.nav: {} epochs ({} outside the data)",
+            summary.output_at_written, summary.output_at_skipped
         );
     }
     if !summary.outages.is_empty() {

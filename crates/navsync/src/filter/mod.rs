@@ -390,6 +390,20 @@ impl ErrorStateFilter {
         gate: Option<f64>,
         time: GpsTime,
     ) -> Result<UpdateOutcome, Error> {
+        self.update_with_frozen(obs, gate, &[], time)
+    }
+
+    /// As [`Self::update`], but the states in `frozen` are not updated (their
+    /// gain rows are zero, a Schmidt "consider" update); the Joseph form
+    /// keeps P exact for this suboptimal gain, so those states keep their
+    /// estimate and an honest covariance.
+    pub fn update_with_frozen(
+        &mut self,
+        obs: &Observation,
+        gate: Option<f64>,
+        frozen: &[usize],
+        time: GpsTime,
+    ) -> Result<UpdateOutcome, Error> {
         let n = self.n;
         let m = obs.dim();
         debug_assert_eq!(obs.h.cols, n);
@@ -442,6 +456,9 @@ impl ErrorStateFilter {
         dense::mul(&s_inv, &hp, &mut kt);
         let mut k = Mat::zeros(0, 0); // n × m
         kt.transpose_into(&mut k);
+        for &i in frozen {
+            k.row_mut(i).iter_mut().for_each(|x| *x = 0.0);
+        }
         let mut dx = vec![0.0; n];
         for (i, d) in dx.iter_mut().enumerate() {
             *d = k.row(i).iter().zip(&obs.z).map(|(a, b)| a * b).sum();

@@ -457,6 +457,55 @@ impl NavReader {
     }
 }
 
+/// Reads a list of epochs, one per line: `sow` or `week sow` (any
+/// separators, `#` comments). Epochs are placed in `week` when the file has
+/// none or when `week` is 0 (KF-GINS files carry no week). Epochs must
+/// increase; others are errors naming the line.
+pub fn read_times(path: &Path, week: i64) -> Result<Vec<GpsTime>, Error> {
+    let mut lines = LineReader::open(path)?;
+    let mut out: Vec<GpsTime> = Vec::new();
+    while let Some((line, line_no)) = lines.next_line()? {
+        if is_blank_or_comment(line) {
+            continue;
+        }
+        let mut f: [&[u8]; 3] = [b""; 3];
+        let nf = split_fields(line, &mut f);
+        let (w, sow_field) = match nf {
+            1 => (week, f[0]),
+            2 => {
+                let w = parse_f64(f[0])
+                    .map_err(|e| Error::parse(path, line_no, format!("week: {e}")))?;
+                (if week == 0 { 0 } else { w as i64 }, f[1])
+            }
+            _ => {
+                return Err(Error::parse(
+                    path,
+                    line_no,
+                    format!("expected `sow` or `week sow`, found {nf} fields"),
+                ));
+            }
+        };
+        let ns = parse_seconds_ns(sow_field)
+            .map_err(|e| Error::parse(path, line_no, format!("sow: {e}")))?;
+        let t = GpsTime::from_week_ns(w, ns);
+        if out.last().is_some_and(|&l| t <= l) {
+            return Err(Error::parse(
+                path,
+                line_no,
+                format!("epoch {t} does not increase"),
+            ));
+        }
+        out.push(t);
+    }
+    if out.is_empty() {
+        return Err(Error::NoData {
+            path: path.to_path_buf(),
+            msg: "no epochs (expected one `sow` or `week sow` per line)".into(),
+        });
+    }
+    Ok(out)
+}
+
 /// Appends one navigation line (KF-GINS nav format, precision as the
 /// shared truth files: 1e-9 s, 1e-12 deg, 1e-6 m, 1e-9 m/s and deg).
 pub fn format_nav_line(
