@@ -223,12 +223,15 @@ pub trait NavSink {
     }
 }
 
+/// States handed to the navigation writer thread at a time.
+const NAV_BATCH: usize = 4096;
+
 /// Writes `navresult.nav` (through a writer thread), `imu_err.txt` and
 /// `std.txt` in KF-GINS layouts.
 pub struct KfGinsSink {
     week: i64,
-    buf: Vec<u8>,
-    tx: Option<mpsc::SyncSender<Vec<u8>>>,
+    batch: Vec<NavState>,
+    tx: Option<mpsc::SyncSender<Vec<NavState>>>,
     writer: Option<std::thread::JoinHandle<Result<(), Error>>>,
     imu_err: TextWriter,
     std: TextWriter,
@@ -243,16 +246,23 @@ impl KfGinsSink {
     pub fn create(dir: &Path, week: i64) -> Result<Self, Error> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let mut nav = TextWriter::create(&dir.join("navresult.nav"))?;
-        let (tx, rx) = mpsc::sync_channel::<Vec<u8>>(4);
+        // The writer thread converts attitudes to Euler angles, formats and
+        // writes: the fusion thread only hands over batches of states.
+        let (tx, rx) = mpsc::sync_channel::<Vec<NavState>>(8);
         let writer = std::thread::spawn(move || {
-            for block in rx {
-                nav.write(&block)?;
+            let mut text = Vec::with_capacity(NAV_BATCH * 160);
+            for batch in rx {
+                text.clear();
+                for s in &batch {
+                    format_nav_line(&mut text, week, s.time, &s.pos, &s.vel, &s.euler().to_deg());
+                }
+                nav.write(&text)?;
             }
             nav.finish()
         });
         Ok(KfGinsSink {
             week,
-            buf: Vec::with_capacity(1 << 20),
+            batch: Vec::with_capacity(NAV_BATCH),
             tx: Some(tx),
             writer: Some(writer),
             imu_err: TextWriter::create(&dir.join("imu_err.txt"))?,
@@ -265,10 +275,10 @@ impl KfGinsSink {
     }
 
     fn flush_block(&mut self) -> Result<(), Error> {
-        if self.buf.is_empty() {
+        if self.batch.is_empty() {
             return Ok(());
         }
-        let block = std::mem::replace(&mut self.buf, Vec::with_capacity(1 << 20));
+        let block = std::mem::replace(&mut self.batch, Vec::with_capacity(NAV_BATCH));
         if let Some(tx) = &self.tx
             && tx.send(block).is_err()
         {
@@ -311,15 +321,8 @@ impl KfGinsSink {
 
 impl NavSink for KfGinsSink {
     fn nav(&mut self, nav: &NavState, _imu: &ImuErrors) -> Result<(), Error> {
-        format_nav_line(
-            &mut self.buf,
-            self.week,
-            nav.time,
-            &nav.pos,
-            &nav.vel,
-            &nav.euler().to_deg(),
-        );
-        if self.buf.len() >= (1 << 20) - 256 {
+        self.batch.push(*nav);
+        if self.batch.len() >= NAV_BATCH {
             self.flush_block()?;
         }
         Ok(())

@@ -232,33 +232,50 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
     Ok(if neg { -ns } else { ns })
 }
 
+const DIGIT_PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
+2021222324252627282930313233343536373839\
+4041424344454647484950515253545556575859\
+6061626364656667686970717273747576777879\
+8081828384858687888990919293949596979899";
+
+/// Writes the digits of `v` right-aligned into `tmp` (two at a time) and
+/// returns the index of the first digit.
+#[inline]
+fn digits(mut v: u64, tmp: &mut [u8; 20]) -> usize {
+    let mut i = tmp.len();
+    while v >= 100 {
+        let d = (v % 100) as usize * 2;
+        v /= 100;
+        i -= 2;
+        tmp[i] = DIGIT_PAIRS[d];
+        tmp[i + 1] = DIGIT_PAIRS[d + 1];
+    }
+    if v >= 10 {
+        let d = v as usize * 2;
+        i -= 2;
+        tmp[i] = DIGIT_PAIRS[d];
+        tmp[i + 1] = DIGIT_PAIRS[d + 1];
+    } else {
+        i -= 1;
+        tmp[i] = b'0' + v as u8;
+    }
+    i
+}
+
 /// Appends the decimal digits of `v`.
 #[inline]
-pub fn push_u64(out: &mut Vec<u8>, mut v: u64) {
+pub fn push_u64(out: &mut Vec<u8>, v: u64) {
     let mut tmp = [0u8; 20];
-    let mut i = tmp.len();
-    loop {
-        i -= 1;
-        tmp[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
-    }
+    let i = digits(v, &mut tmp);
     out.extend_from_slice(&tmp[i..]);
 }
 
-/// Appends `v` zero-padded to `width` digits.
+/// Appends `v` zero-padded to `width` digits (at most 20).
 #[inline]
-pub fn push_u64_padded(out: &mut Vec<u8>, mut v: u64, width: usize) {
+pub fn push_u64_padded(out: &mut Vec<u8>, v: u64, width: usize) {
     let mut tmp = [b'0'; 20];
-    let mut i = tmp.len();
-    while v > 0 {
-        i -= 1;
-        tmp[i] = b'0' + (v % 10) as u8;
-        v /= 10;
-    }
-    let start = tmp.len() - width.max(tmp.len() - i);
+    let i = digits(v, &mut tmp);
+    let start = tmp.len() - width.min(20).max(tmp.len() - i);
     out.extend_from_slice(&tmp[start..]);
 }
 
@@ -287,11 +304,24 @@ pub fn push_fixed(out: &mut Vec<u8>, v: f64, decimals: usize) {
     }
     let n = n as u64;
     let div = scale as u64;
-    push_u64(out, n / div);
+    // Integer digits, the point and the zero-padded fraction assembled in
+    // one stack buffer, copied out once.
+    let mut buf = [b'0'; 40];
+    let mut tmp = [b'0'; 20];
+    let i = digits(n / div, &mut tmp);
+    let int_len = 20 - i;
+    buf[..int_len].copy_from_slice(&tmp[i..]);
+    let mut len = int_len;
     if decimals > 0 {
-        out.push(b'.');
-        push_u64_padded(out, n % div, decimals);
+        buf[len] = b'.';
+        len += 1;
+        let mut ftmp = [b'0'; 20];
+        let j = digits(n % div, &mut ftmp);
+        let start = 20 - decimals.max(20 - j);
+        buf[len..len + decimals].copy_from_slice(&ftmp[start..]);
+        len += decimals;
     }
+    out.extend_from_slice(&buf[..len]);
 }
 
 #[cfg(test)]
