@@ -22,6 +22,8 @@ enum Command {
     Eval(commands::eval::Args),
     /// Time the navigation core on generated data (1 h of 200 Hz IMU).
     Bench(commands::bench::Args),
+    /// Fuse an IMU array with unknown relative time offsets (seed 004).
+    Array(commands::array::Args),
 }
 
 fn main() {
@@ -30,6 +32,7 @@ fn main() {
         Command::Fuse(a) => commands::fuse::run(a),
         Command::Eval(a) => commands::eval::run(a),
         Command::Bench(a) => commands::bench::run(a),
+        Command::Array(a) => commands::array::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

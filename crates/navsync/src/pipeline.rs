@@ -114,6 +114,9 @@ pub struct FuseOptions {
     /// `sow` or `week sow`) with (2n+1)-order Lagrange (seed 000 eq 1).
     pub output_at: Option<PathBuf>,
     pub output_at_n: usize,
+    /// With the time-offset state: stamp the solution in GNSS time (IMU
+    /// time + τ̂) rather than on the IMU's own time base.
+    pub output_gnss_time: bool,
 }
 
 impl Default for FuseOptions {
@@ -137,6 +140,7 @@ impl Default for FuseOptions {
             gnss_latency_s: 0.0,
             output_at: None,
             output_at_n: 1,
+            output_gnss_time: false,
         }
     }
 }
@@ -541,12 +545,20 @@ pub fn run(
                 continue;
             };
             last_time = out.nav.time;
-            if let Err(e) = sink.nav(&out.nav, &out.imu) {
+            // Solutions are on the IMU's time base; on request, move them to
+            // GNSS time with the offset estimate (GNSS time = IMU time + τ̂).
+            let mut nav_out = out.nav;
+            if opts.output_gnss_time
+                && let Some(o) = fusion.time_offset()
+            {
+                nav_out.time = nav_out.time.add_seconds(o.offset_s);
+            }
+            if let Err(e) = sink.nav(&nav_out, &out.imu) {
                 result = Err(e);
                 break 'outer;
             }
             if let Some(ip) = interp.as_mut() {
-                for at in ip.push(&out.nav) {
+                for at in ip.push(&nav_out) {
                     at_written += 1;
                     if let Err(e) = sink.nav_at(&at) {
                         result = Err(e);

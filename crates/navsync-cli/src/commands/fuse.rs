@@ -86,6 +86,11 @@ pub struct Args {
     /// Let the time offset move even while the motion makes it unobservable.
     #[arg(long, requires = "estimate_time_offset")]
     pub no_time_offset_hold: bool,
+    /// Time base of the written solution: the IMU's stamps (default), or
+    /// GNSS time (IMU stamps + estimated offset) when the GNSS clock is the
+    /// trusted one.
+    #[arg(long, value_enum, default_value_t = TimeBase::Imu, requires = "estimate_time_offset")]
+    pub time_base: TimeBase,
     /// Real-time latency handling: fixes reach the filter --gnss-latency
     /// seconds after their time tag, and are used by this method.
     #[arg(long, value_enum, default_value_t = Latency::Offline)]
@@ -103,6 +108,12 @@ pub struct Args {
     /// n of the (2n+1)-order interpolation (0 linear, 1 cubic, …).
     #[arg(long, default_value_t = 1)]
     pub interp_n: usize,
+}
+
+#[derive(Copy, Clone, PartialEq, clap::ValueEnum)]
+pub enum TimeBase {
+    Imu,
+    Gnss,
 }
 
 #[derive(Copy, Clone, PartialEq, clap::ValueEnum)]
@@ -209,6 +220,7 @@ impl Args {
             gnss_latency_s: self.gnss_latency,
             output_at: self.output_at.clone(),
             output_at_n: self.interp_n,
+            output_gnss_time: self.time_base == TimeBase::Gnss,
         })
     }
 }

@@ -1,3 +1,4 @@
+pub mod array;
 pub mod bench;
 pub mod eval;
 pub mod fuse;
