@@ -90,10 +90,13 @@ impl Default for ConvertOptions {
 /// Sensor time-tag rate measured against GPS time over the stream.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct SensorClock {
-    /// Sensor ticks per second of GPS time (from the first and last ESF data
-    /// and the GPS time of the fixes around them; arrival order, so good to
-    /// ~(output latency jitter)/(duration)).
+    /// Sensor ticks per second of GPS time, from the first and last ESF
+    /// data and the GPS time of the last fix before each in the stream
+    /// (arrival order): uncertain by about one fix interval over the span,
+    /// see `relative_uncertainty`.
     pub ticks_per_gps_second: Option<f64>,
+    /// ≈ fix interval / span.
+    pub relative_uncertainty: f64,
     pub configured_ticks_per_second: f64,
     pub gps_span_s: f64,
 }
@@ -256,6 +259,8 @@ struct StreamConverter {
     /// (first, last) ESF tick and GPS time of the latest fix at that point.
     esf_clock: Option<((u64, GpsTime), (u64, GpsTime))>,
     last_fix_time: Option<GpsTime>,
+    /// Largest interval between consecutive fix times (s).
+    fix_interval_s: f64,
 }
 
 impl StreamConverter {
@@ -281,7 +286,17 @@ impl StreamConverter {
             rig: Vec::new(),
             esf_clock: None,
             last_fix_time: None,
+            fix_interval_s: 0.0,
         }
+    }
+
+    fn note_fix_time(&mut self, t: GpsTime) {
+        if let Some(last) = self.last_fix_time
+            && t > last
+        {
+            self.fix_interval_s = self.fix_interval_s.max(t.seconds_since(last));
+        }
+        self.last_fix_time = Some(t);
     }
 
     fn note_esf_tag(&mut self, tag: Option<u32>) {
@@ -311,12 +326,12 @@ impl StreamConverter {
                 UbxMessage::NavTimeGps(t) => {
                     self.ctx.push_timegps(t);
                     if let Some(ns) = t.time_ns() {
-                        self.last_fix_time = Some(GpsTime::from_ns(ns));
+                        self.note_fix_time(GpsTime::from_ns(ns));
                     }
                 }
                 UbxMessage::NavPvt(p) => match nav_pvt_fix(p, &self.ctx) {
                     Ok(Some(f)) => {
-                        self.last_fix_time = Some(f.fix.time);
+                        self.note_fix_time(f.fix.time);
                         self.ubx_fixes.push(f);
                     }
                     Ok(None) => {}
@@ -435,6 +450,13 @@ impl StreamConverter {
             ));
         }
         if !rates.is_empty() {
+            let mean_fz = rates.iter().map(|r| r.accel_mps2.z).sum::<f64>() / rates.len() as f64;
+            if mean_fz > 4.9 {
+                s.diagnostics.note(format!(
+                    "ESF accelerometer z averages {mean_fz:+.2} m/s²: the receiver's sensor frame is z-up, not FRD; \
+                     imu.txt keeps the sensor axes as sent (rotate before fusing)"
+                ));
+            }
             s.imu_time_axis = format!(
                 "receiver sensor time ({what} × {} s{}), not GPS time",
                 tick,
@@ -447,7 +469,12 @@ impl StreamConverter {
             if let Some(((t0, g0), (t1, g1))) = self.esf_clock {
                 let span = g1.seconds_since(g0);
                 s.sensor_clock = Some(SensorClock {
-                    ticks_per_gps_second: (span > 10.0).then(|| (t1 - t0) as f64 / span),
+                    ticks_per_gps_second: (span > 0.0).then(|| (t1 - t0) as f64 / span),
+                    relative_uncertainty: if span > 0.0 {
+                        self.fix_interval_s / span
+                    } else {
+                        f64::INFINITY
+                    },
                     configured_ticks_per_second: 1.0 / tick,
                     gps_span_s: span,
                 });

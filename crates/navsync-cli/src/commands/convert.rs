@@ -123,8 +123,10 @@ pub fn run(a: Args) -> Result<()> {
             && let Some(r) = c.ticks_per_gps_second
         {
             println!(
-                "  sensor clock: {r:.1} ticks per GPS second over {:.0} s (configured {:.1})",
-                c.gps_span_s, c.configured_ticks_per_second
+                "  sensor clock: {r:.1} ticks per GPS second ± {:.0} % over {:.0} s (configured {:.1})",
+                100.0 * c.relative_uncertainty,
+                c.gps_span_s,
+                c.configured_ticks_per_second
             );
         }
     }
