@@ -20,6 +20,8 @@ enum Command {
     Fuse(commands::fuse::Args),
     /// Score a navigation result against a reference trajectory.
     Eval(commands::eval::Args),
+    /// Convert receiver logs (UBX, NMEA) and rate-form IMU CSVs to KF-GINS files and rig-logs.
+    Convert(commands::convert::Args),
     /// Time the navigation core on generated data (1 h of 200 Hz IMU).
     Bench(commands::bench::Args),
     /// Fuse an IMU array with unknown relative time offsets (seed 004).
@@ -31,6 +33,7 @@ fn main() {
     let result = match cli.command {
         Command::Fuse(a) => commands::fuse::run(a),
         Command::Eval(a) => commands::eval::run(a),
+        Command::Convert(a) => commands::convert::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Array(a) => commands::array::run(a),
     };

@@ -1,5 +1,6 @@
 pub mod array;
 pub mod bench;
+pub mod convert;
 pub mod eval;
 pub mod fuse;
 

@@ -1,0 +1,145 @@
+//! `navsync convert`: receiver and logger files → KF-GINS files and
+//! rig-logs (the work is in `navsync_receivers::convert`).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use navsync_receivers::convert::{self, ConvertOptions, GnssSource, InputFormat};
+
+use super::{parse_triplet, print_diagnostics};
+
+#[derive(Copy, Clone, Debug, clap::ValueEnum)]
+pub enum From {
+    /// u-blox stream: UBX (NAV-PVT, NAV-TIMEGPS, TIM-TP, TIM-TM2, ESF-MEAS,
+    /// ESF-RAW), possibly mixed with NMEA; gpsd `#` header lines skipped.
+    Ubx,
+    /// NMEA 0183 stream (GGA, RMC, GST, ZDA), possibly mixed with UBX.
+    Nmea,
+    /// Rate-form IMU CSV: time s, gyro x y z rad/s, accel x y z m/s².
+    RateCsv,
+    /// comma2k19 gnss_ublox.csv (boot time, lat, lon, speed, UTC ms, alt, bearing).
+    CommaGnss,
+}
+
+#[derive(Copy, Clone, Debug, clap::ValueEnum)]
+pub enum Source {
+    Auto,
+    Ubx,
+    Nmea,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Input format.
+    #[arg(long, value_enum)]
+    pub from: From,
+    /// Input file.
+    pub file: PathBuf,
+    /// Output directory (created if needed).
+    #[arg(long)]
+    pub output: PathBuf,
+    /// Standard deviations N,E,D (m) for fixes that carry none (NMEA without GST, comma2k19).
+    #[arg(long, default_value = "5,5,10", value_parser = parse_triplet)]
+    pub default_sd: [f64; 3],
+    /// Which fixes to write when a stream has both NAV-PVT and NMEA.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub gnss_source: Source,
+    /// Seconds added to IMU times (a known sensor/boot time → GPS time offset).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub imu_time_offset_s: f64,
+    /// Microseconds per ESF-RAW sensor time-tag tick (checked against GPS time in summary.json).
+    #[arg(long, default_value_t = 1000.0)]
+    pub esf_raw_tick_us: f64,
+    /// Microseconds per ESF-MEAS time-tag tick (u-blox IMUs: 1 ms).
+    #[arg(long, default_value_t = 1000.0)]
+    pub esf_meas_tick_us: f64,
+    /// Report IMU intervals at least this long (seed 001: no 0.1 s gap).
+    #[arg(long, default_value_t = 0.1)]
+    pub gap_s: f64,
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let format = match a.from {
+        From::Ubx => InputFormat::Ubx,
+        From::Nmea => InputFormat::Nmea,
+        From::RateCsv => InputFormat::RateCsv,
+        From::CommaGnss => InputFormat::CommaGnss,
+    };
+    let mut opts = ConvertOptions {
+        gnss_source: match a.gnss_source {
+            Source::Auto => GnssSource::Auto,
+            Source::Ubx => GnssSource::Ubx,
+            Source::Nmea => GnssSource::Nmea,
+        },
+        esf_meas_tick_s: a.esf_meas_tick_us * 1e-6,
+        esf_raw_tick_s: a.esf_raw_tick_us * 1e-6,
+        imu_time_offset_s: a.imu_time_offset_s,
+        gap_threshold_s: a.gap_s,
+        ..Default::default()
+    };
+    opts.fix.default_sd_m = a.default_sd;
+    if a.default_sd.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+        anyhow::bail!("--default-sd: standard deviations must be positive");
+    }
+    let s = convert::convert(format, &a.file, &a.output, &opts)?;
+    if let Some(st) = &s.stream {
+        println!(
+            "stream: {} bytes after a {}-byte header; {} UBX + {} NMEA messages read, {} other intact frames, {} invalid, {} corrupt runs ({} bytes)",
+            st.bytes,
+            s.header_bytes,
+            st.ubx_messages,
+            st.nmea_messages,
+            st.unknown_frames,
+            st.invalid_frames,
+            st.corrupt_runs,
+            st.corrupt_bytes
+        );
+        for (k, n) in &s.frames {
+            println!("  {k:<28} {n}");
+        }
+    }
+    if s.gnss_fixes > 0 {
+        println!(
+            "gnss.txt: {} fixes, {} columns, from {}{}{}",
+            s.gnss_fixes,
+            s.gnss_columns,
+            s.gnss_source,
+            s.leap_source
+                .map(|l| format!(", leap seconds from {l:?}"))
+                .unwrap_or_default(),
+            if s.gnss_default_sd > 0 {
+                format!(", {} with default std", s.gnss_default_sd)
+            } else {
+                String::new()
+            }
+        );
+    }
+    if s.imu_samples > 0 {
+        println!(
+            "imu.txt: {} increments on {}; {} gaps ≥ {} s",
+            s.imu_samples, s.imu_time_axis, s.imu_gaps, a.gap_s
+        );
+        if let Some(c) = &s.sensor_clock
+            && let Some(r) = c.ticks_per_gps_second
+        {
+            println!(
+                "  sensor clock: {r:.1} ticks per GPS second ± {:.0} % over {:.0} s (configured {:.1})",
+                100.0 * c.relative_uncertainty,
+                c.gps_span_s,
+                c.configured_ticks_per_second
+            );
+        }
+    }
+    if s.pps + s.mark_edges > 0 {
+        println!(
+            "events.rig: {} PPS ({} without qErr), {} time-mark edges, {} strobes",
+            s.pps, s.pps_without_qerr, s.mark_edges, s.strobes
+        );
+    }
+    if !s.diagnostics.is_empty() {
+        eprintln!("{} problems reported:", s.diagnostics.total);
+        print_diagnostics(&s.diagnostics, 10);
+    }
+    println!("wrote {}", s.files.join(", "));
+    Ok(())
+}

@@ -1,0 +1,720 @@
+//! File conversion behind `navsync convert`: receiver logs and rate-form
+//! IMU logs → KF-GINS files (FORMATS.md §1) and rig-logs (FORMATS.md §2).
+//!
+//! Outputs in the output directory, where the input has the data:
+//! - `gnss.txt`: KF-GINS GNSS file at each fix's time of validity in GPS
+//!   time; 13 columns (C++ order) from NAV-PVT, 7 from NMEA or comma2k19.
+//! - `imu.txt`: KF-GINS increments (trapezoid rule, seed 001 §1.1) from
+//!   ESF-MEAS/ESF-RAW or a rate CSV. ESF data are on the receiver's sensor
+//!   time-tag axis (seconds), not GPS time (no message of the stream relates
+//!   the two); `--imu-time-offset-s` shifts them when the offset is known.
+//! - `events.rig`: rig-log v1 of TIM-TP pulses (`pps`) and TIM-TM2 edges
+//!   (`mark`), whose counter is the receiver's GNSS time in ns (said so in
+//!   its header): a receiver stream has no logger counter.
+//! - `gnss_receipt.txt` (comma2k19): each fix's GPS time and boot time of
+//!   receipt, to study latency.
+//! - `summary.json`: counts, stream statistics and every reported problem.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use navsync::error::{Diagnostics, Error};
+use navsync::filter::gnss::GnssFix;
+use navsync::io::kfgins::{TextWriter, format_gnss_line, format_imu_line};
+use navsync::io::text::{
+    LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, split_fields,
+};
+use navsync::time::GpsTime;
+
+use crate::fixes::{FixOptions, NmeaFixes, NmeaOutcome, ReceiverFix, TimeContext, nav_pvt_fix};
+use crate::gnsstime::{LeapSource, UtcTime, utc_to_gps};
+use crate::imu::{EsfImu, RateIssue, RateSample, RateToIncrement};
+use crate::marks::{Edge, QErrCorrector, TimeMarks, pps_edge_gps};
+use crate::stream::{Event, EventKind, StreamReader, StreamStats, gpsd_log_header_len};
+use crate::ubx::UbxMessage;
+
+/// Input formats.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum InputFormat {
+    /// u-blox stream (UBX, possibly mixed with NMEA).
+    Ubx,
+    /// NMEA 0183 stream (possibly mixed with UBX).
+    Nmea,
+    /// Rate-form IMU CSV: time s, gyro xyz rad/s, accel xyz m/s².
+    RateCsv,
+    /// comma2k19 `gnss_ublox.csv`.
+    CommaGnss,
+}
+
+/// Which fixes go into `gnss.txt` when a stream holds both kinds.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub enum GnssSource {
+    /// NAV-PVT when the stream has NAV-PVT fixes, else NMEA.
+    #[default]
+    Auto,
+    Ubx,
+    Nmea,
+}
+
+/// Conversion options.
+#[derive(Copy, Clone, Debug)]
+pub struct ConvertOptions {
+    pub fix: FixOptions,
+    pub gnss_source: GnssSource,
+    /// Seconds per ESF-MEAS time-tag tick (u-blox IMUs: 1 ms).
+    pub esf_meas_tick_s: f64,
+    /// Seconds per ESF-RAW sTtag tick (checked against GPS time in the
+    /// summary; see `sensor_clock`).
+    pub esf_raw_tick_s: f64,
+    /// Added to IMU times (s): a known sensor/boot → GPS offset.
+    pub imu_time_offset_s: f64,
+    /// IMU intervals at least this long are reported (seed 001 §1.5).
+    pub gap_threshold_s: f64,
+}
+
+impl Default for ConvertOptions {
+    fn default() -> Self {
+        ConvertOptions {
+            fix: FixOptions::default(),
+            gnss_source: GnssSource::Auto,
+            esf_meas_tick_s: 1e-3,
+            esf_raw_tick_s: 1e-3,
+            imu_time_offset_s: 0.0,
+            gap_threshold_s: 0.1,
+        }
+    }
+}
+
+/// Sensor time-tag rate measured against GPS time over the stream.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SensorClock {
+    /// Sensor ticks per second of GPS time, from the first and last ESF
+    /// data and the GPS time of the last fix before each in the stream
+    /// (arrival order): uncertain by about one fix interval over the span,
+    /// see `relative_uncertainty`.
+    pub ticks_per_gps_second: Option<f64>,
+    /// ≈ fix interval / span.
+    pub relative_uncertainty: f64,
+    pub configured_ticks_per_second: f64,
+    pub gps_span_s: f64,
+}
+
+/// What a conversion did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct ConvertSummary {
+    pub input: String,
+    pub format: Option<InputFormat>,
+    /// Bytes of the file header skipped (gpsd `#` lines).
+    pub header_bytes: u64,
+    pub stream: Option<StreamStats>,
+    /// Decoded messages and intact frames by type.
+    pub frames: BTreeMap<String, u64>,
+    pub gnss_fixes: usize,
+    pub gnss_columns: usize,
+    pub gnss_source: String,
+    pub gnss_default_sd: usize,
+    pub leap_source: Option<LeapSource>,
+    pub imu_samples: usize,
+    pub imu_time_axis: String,
+    pub imu_gaps: usize,
+    pub sensor_clock: Option<SensorClock>,
+    pub pps: usize,
+    pub pps_without_qerr: usize,
+    pub mark_edges: usize,
+    pub strobes: usize,
+    pub files: Vec<String>,
+    pub diagnostics: Diagnostics,
+}
+
+/// Converts `input` of `format` into files in `out_dir` (created if
+/// needed).
+pub fn convert(
+    format: InputFormat,
+    input: &Path,
+    out_dir: &Path,
+    opts: &ConvertOptions,
+) -> Result<ConvertSummary, Error> {
+    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    let mut s = ConvertSummary {
+        input: input.display().to_string(),
+        format: Some(format),
+        diagnostics: Diagnostics::with_cap(2000),
+        ..Default::default()
+    };
+    match format {
+        InputFormat::Ubx | InputFormat::Nmea => convert_stream(input, out_dir, opts, &mut s)?,
+        InputFormat::RateCsv => convert_rate_csv(input, out_dir, opts, &mut s)?,
+        InputFormat::CommaGnss => convert_comma_gnss(input, out_dir, opts, &mut s)?,
+    }
+    let path = out_dir.join("summary.json");
+    let json = serde_json::to_string_pretty(&s).map_err(|e| Error::Invalid(e.to_string()))?;
+    std::fs::write(&path, json).map_err(|e| Error::io(&path, e))?;
+    s.files.push(path.display().to_string());
+    Ok(s)
+}
+
+fn write_gnss(path: &Path, fixes: &[GnssFix], s: &mut ConvertSummary) -> Result<(), Error> {
+    let mut w = TextWriter::create(path)?;
+    let mut line = Vec::with_capacity(160);
+    for f in fixes {
+        line.clear();
+        format_gnss_line(&mut line, f);
+        w.write(&line)?;
+    }
+    w.finish()?;
+    s.gnss_fixes = fixes.len();
+    s.gnss_columns = if fixes.iter().all(|f| f.vel.is_some()) {
+        13
+    } else {
+        7
+    };
+    s.files.push(path.display().to_string());
+    Ok(())
+}
+
+/// Keeps fixes strictly increasing in time (duplicates and steps back are
+/// reported and dropped).
+fn monotonic(fixes: Vec<ReceiverFix>, file: &Path, diag: &mut Diagnostics) -> Vec<ReceiverFix> {
+    let mut out: Vec<ReceiverFix> = Vec::with_capacity(fixes.len());
+    for f in fixes {
+        if let Some(last) = out.last()
+            && f.fix.time <= last.fix.time
+        {
+            diag.push(
+                file,
+                0,
+                format!(
+                    "fix at {} not after the previous one ({}); dropped",
+                    f.fix.time, last.fix.time
+                ),
+            );
+            continue;
+        }
+        out.push(f);
+    }
+    out
+}
+
+fn convert_stream(
+    input: &Path,
+    out_dir: &Path,
+    opts: &ConvertOptions,
+    s: &mut ConvertSummary,
+) -> Result<(), Error> {
+    let mut file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
+    let diag_path = input.to_path_buf();
+    let mut block = vec![0u8; 1 << 20];
+    let mut conv = StreamConverter::new(opts);
+    // gpsd logs start with `#` comment lines; headers are short, so the
+    // first block holds them.
+    let n = file.read(&mut block).map_err(|e| Error::io(input, e))?;
+    let h = gpsd_log_header_len(&block[..n]);
+    s.header_bytes = h as u64;
+    let mut r = StreamReader::new().starting_at(h as u64);
+    r.push(&block[h..n]);
+    loop {
+        while let Some(ev) = r.next_event() {
+            conv.push(&ev, &diag_path, s);
+        }
+        let n = file.read(&mut block).map_err(|e| Error::io(input, e))?;
+        if n == 0 {
+            break;
+        }
+        r.push(&block[..n]);
+    }
+    r.finish();
+    while let Some(ev) = r.next_event() {
+        conv.push(&ev, &diag_path, s);
+    }
+    let reader = Some(r);
+    let stats = reader.map(|r| r.stats().clone()).unwrap_or_default();
+    if stats.bytes == 0 {
+        return Err(Error::NoData {
+            path: input.to_path_buf(),
+            msg: "no bytes after the header".into(),
+        });
+    }
+    s.stream = Some(stats);
+    conv.finish(input, out_dir, s)
+}
+
+/// The streaming part of a receiver-log conversion: events in, records
+/// out (kept in memory here; the live mode will write them as they come).
+struct StreamConverter {
+    opts: ConvertOptions,
+    ctx: TimeContext,
+    ubx_fixes: Vec<ReceiverFix>,
+    nmea: NmeaFixes,
+    nmea_out: Vec<NmeaOutcome>,
+    esf: EsfImu,
+    esf_raw: EsfImu,
+    rates: Vec<RateSample>,
+    rates_raw: Vec<RateSample>,
+    marks: TimeMarks,
+    qerr: QErrCorrector,
+    last_pulse: Option<GpsTime>,
+    rig: Vec<u8>,
+    /// (first, last) ESF tick and GPS time of the latest fix at that point.
+    esf_clock: Option<((u64, GpsTime), (u64, GpsTime))>,
+    last_fix_time: Option<GpsTime>,
+    /// Largest interval between consecutive fix times (s).
+    fix_interval_s: f64,
+}
+
+impl StreamConverter {
+    fn new(opts: &ConvertOptions) -> Self {
+        let offset_ns = (opts.imu_time_offset_s * 1e9).round() as i64;
+        let mut esf = EsfImu::new(opts.esf_meas_tick_s);
+        esf.offset_ns = offset_ns;
+        let mut esf_raw = EsfImu::new(opts.esf_raw_tick_s);
+        esf_raw.offset_ns = offset_ns;
+        StreamConverter {
+            opts: *opts,
+            ctx: TimeContext::default(),
+            ubx_fixes: Vec::new(),
+            nmea: NmeaFixes::new(opts.fix),
+            nmea_out: Vec::new(),
+            esf,
+            esf_raw,
+            rates: Vec::new(),
+            rates_raw: Vec::new(),
+            marks: TimeMarks::new(),
+            qerr: QErrCorrector::new(),
+            last_pulse: None,
+            rig: Vec::new(),
+            esf_clock: None,
+            last_fix_time: None,
+            fix_interval_s: 0.0,
+        }
+    }
+
+    fn note_fix_time(&mut self, t: GpsTime) {
+        if let Some(last) = self.last_fix_time
+            && t > last
+        {
+            self.fix_interval_s = self.fix_interval_s.max(t.seconds_since(last));
+        }
+        self.last_fix_time = Some(t);
+    }
+
+    fn note_esf_tag(&mut self, tag: Option<u32>) {
+        let (Some(tag), Some(t)) = (tag, self.last_fix_time) else {
+            return;
+        };
+        let tag = tag as u64;
+        self.esf_clock = Some(match self.esf_clock {
+            None => ((tag, t), (tag, t)),
+            Some((first, _)) => (first, (tag.max(first.0), t)),
+        });
+    }
+
+    fn push(&mut self, ev: &Event, file: &Path, s: &mut ConvertSummary) {
+        let (kind, offset) = (&ev.kind, ev.offset);
+        let diag = &mut s.diagnostics;
+        let key = match kind {
+            EventKind::Ubx(m) => m.id().to_string(),
+            EventKind::Nmea(m) => format!("NMEA {}", m.kind()),
+            EventKind::Unknown(id) => format!("{id} (not read)"),
+            EventKind::Invalid { frame, .. } => format!("{frame} (invalid)"),
+            EventKind::Corrupt(_) => "corrupt runs".to_string(),
+        };
+        *s.frames.entry(key).or_default() += 1;
+        match kind {
+            EventKind::Ubx(m) => match m {
+                UbxMessage::NavTimeGps(t) => {
+                    self.ctx.push_timegps(t);
+                    if let Some(ns) = t.time_ns() {
+                        self.note_fix_time(GpsTime::from_ns(ns));
+                    }
+                }
+                UbxMessage::NavPvt(p) => match nav_pvt_fix(p, &self.ctx) {
+                    Ok(Some(f)) => {
+                        self.note_fix_time(f.fix.time);
+                        self.ubx_fixes.push(f);
+                    }
+                    Ok(None) => {}
+                    Err(e) => diag.push(file, 0, format!("byte {offset}: {e}; fix skipped")),
+                },
+                UbxMessage::EsfMeas(m) => {
+                    self.note_esf_tag(Some(m.time_tag));
+                    self.esf.push_meas(m, &mut self.rates);
+                }
+                UbxMessage::EsfRaw(m) => {
+                    self.note_esf_tag(m.blocks.last().map(|b| b.s_ttag));
+                    self.esf_raw.push_raw(m, &mut self.rates_raw);
+                }
+                UbxMessage::TimTp(tp) => {
+                    if let Some(p) = self.qerr.push_tim_tp(tp, &self.ctx.leap)
+                        && self.last_pulse != Some(p.time)
+                    {
+                        self.last_pulse = Some(p.time);
+                        let edge = if p.q_err_valid {
+                            pps_edge_gps(p.time, p.q_err_ps)
+                        } else {
+                            s.pps_without_qerr += 1;
+                            p.time
+                        };
+                        self.rig
+                            .extend_from_slice(format!("pps,{}\n", edge.ns()).as_bytes());
+                        s.pps += 1;
+                    }
+                }
+                UbxMessage::TimTm2(tm) => {
+                    let out = self.marks.push(tm, &self.ctx.leap);
+                    for p in out.problems {
+                        diag.push(file, 0, format!("byte {offset}: {p}"));
+                    }
+                    for e in &out.edges {
+                        let rising = (e.edge == Edge::Rising) as u8;
+                        self.rig.extend_from_slice(
+                            format!(
+                                "mark,{},{},{},{},{}\n",
+                                e.time.ns(),
+                                e.channel,
+                                rising,
+                                e.count,
+                                e.acc_ns
+                            )
+                            .as_bytes(),
+                        );
+                    }
+                    s.mark_edges += out.edges.len();
+                    s.strobes += out.strobes.len();
+                }
+            },
+            EventKind::Nmea(m) => {
+                self.nmea.push(m, &self.ctx, &mut self.nmea_out);
+            }
+            EventKind::Unknown(_) => {}
+            EventKind::Invalid { frame, what } => diag.push(
+                file,
+                0,
+                format!("byte {offset}: {frame} frame invalid: {what}"),
+            ),
+            EventKind::Corrupt(_) => {
+                diag.push(file, 0, format!("{ev}"));
+            }
+        }
+    }
+
+    fn finish(mut self, input: &Path, out_dir: &Path, s: &mut ConvertSummary) -> Result<(), Error> {
+        self.nmea.finish(&self.ctx, &mut self.nmea_out);
+        self.esf.finish();
+        self.esf_raw.finish();
+        let mut nmea_fixes = Vec::new();
+        for o in std::mem::take(&mut self.nmea_out) {
+            match o {
+                NmeaOutcome::Fix(f) => nmea_fixes.push(f),
+                NmeaOutcome::NoFix { .. } => {}
+                NmeaOutcome::Problem(p) => s.diagnostics.push(input, 0, p),
+            }
+        }
+        let use_ubx = match self.opts.gnss_source {
+            GnssSource::Ubx => true,
+            GnssSource::Nmea => false,
+            GnssSource::Auto => !self.ubx_fixes.is_empty(),
+        };
+        let (chosen, name) = if use_ubx {
+            (std::mem::take(&mut self.ubx_fixes), "UBX NAV-PVT")
+        } else {
+            (nmea_fixes, "NMEA GGA (+GST, RMC/ZDA)")
+        };
+        s.gnss_source = name.to_string();
+        let chosen = monotonic(chosen, input, &mut s.diagnostics);
+        s.gnss_default_sd = chosen.iter().filter(|f| f.default_sd).count();
+        s.leap_source = chosen.iter().rev().find_map(|f| f.leap);
+        if !chosen.is_empty() {
+            let fixes: Vec<GnssFix> = chosen.iter().map(|f| f.fix).collect();
+            write_gnss(&out_dir.join("gnss.txt"), &fixes, s)?;
+        }
+        // IMU: ESF-RAW when present (full rate), else ESF-MEAS.
+        let (rates, tick, what) = if !self.rates_raw.is_empty() {
+            (
+                std::mem::take(&mut self.rates_raw),
+                self.opts.esf_raw_tick_s,
+                "ESF-RAW sTtag",
+            )
+        } else {
+            (
+                std::mem::take(&mut self.rates),
+                self.opts.esf_meas_tick_s,
+                "ESF-MEAS timeTag",
+            )
+        };
+        let unpaired = self.esf.unpaired + self.esf_raw.unpaired;
+        if unpaired > 0 {
+            s.diagnostics.note(format!(
+                "{unpaired} gyro triads had no accelerometer triad around them (start/end of data); dropped"
+            ));
+        }
+        if !rates.is_empty() {
+            let mean_fz = rates.iter().map(|r| r.accel_mps2.z).sum::<f64>() / rates.len() as f64;
+            if mean_fz > 4.9 {
+                s.diagnostics.note(format!(
+                    "ESF accelerometer z averages {mean_fz:+.2} m/s²: the receiver's sensor frame is z-up, not FRD; \
+                     imu.txt keeps the sensor axes as sent (rotate before fusing)"
+                ));
+            }
+            s.imu_time_axis = format!(
+                "receiver sensor time ({what} × {} s{}), not GPS time",
+                tick,
+                if self.opts.imu_time_offset_s != 0.0 {
+                    format!(", + {} s", self.opts.imu_time_offset_s)
+                } else {
+                    String::new()
+                }
+            );
+            if let Some(((t0, g0), (t1, g1))) = self.esf_clock {
+                let span = g1.seconds_since(g0);
+                s.sensor_clock = Some(SensorClock {
+                    ticks_per_gps_second: (span > 0.0).then(|| (t1 - t0) as f64 / span),
+                    relative_uncertainty: if span > 0.0 {
+                        self.fix_interval_s / span
+                    } else {
+                        f64::INFINITY
+                    },
+                    configured_ticks_per_second: 1.0 / tick,
+                    gps_span_s: span,
+                });
+            }
+            write_increments(
+                &out_dir.join("imu.txt"),
+                rates,
+                input,
+                self.opts.gap_threshold_s,
+                s,
+            )?;
+        }
+        if !self.rig.is_empty() {
+            let path = out_dir.join("events.rig");
+            let mut w = TextWriter::create(&path)?;
+            w.write(RIG_HEADER.as_bytes())?;
+            w.write(&self.rig)?;
+            w.finish()?;
+            s.files.push(path.display().to_string());
+        }
+        Ok(())
+    }
+}
+
+/// Header of the receiver-time rig-log (FORMATS.md §2).
+pub const RIG_HEADER: &str = "# rig-log v1
+# counter_hz: 1000000000
+# counter_bits: 64
+# The counter is the receiver's own GNSS (GPS) time in ns since 1980-01-06:
+# a receiver stream has no logger counter, so each record carries the
+# receiver's measurement of the event.
+# pps = 1PPS edge from UBX TIM-TP = announced pulse time - qErr (edge early by qErr)
+# mark = UBX TIM-TM2 edge = mark,counter,channel,rising(1)/falling(0),rising-edge count,accuracy ns
+";
+
+fn write_increments(
+    path: &Path,
+    rates: Vec<RateSample>,
+    file: &Path,
+    gap_threshold_s: f64,
+    s: &mut ConvertSummary,
+) -> Result<(), Error> {
+    let mut w = TextWriter::create(path)?;
+    let mut conv = RateToIncrement::new(gap_threshold_s);
+    let mut line = Vec::with_capacity(200);
+    let mut n = 0;
+    for r in rates {
+        let (inc, issue) = conv.push(r);
+        match issue {
+            Some(RateIssue::Gap { time, dt_s }) => {
+                s.imu_gaps += 1;
+                s.diagnostics
+                    .push(file, 0, format!("IMU gap of {dt_s:.4} s ending at {time}"));
+            }
+            Some(RateIssue::NotIncreasing { time, previous }) => s.diagnostics.push(
+                file,
+                0,
+                format!("IMU sample at {time} not after {previous}; dropped"),
+            ),
+            None => {}
+        }
+        if let Some(inc) = inc {
+            line.clear();
+            format_imu_line(&mut line, &inc);
+            w.write(&line)?;
+            n += 1;
+        }
+    }
+    w.finish()?;
+    s.imu_samples = n;
+    s.files.push(path.display().to_string());
+    Ok(())
+}
+
+fn convert_rate_csv(
+    input: &Path,
+    out_dir: &Path,
+    opts: &ConvertOptions,
+    s: &mut ConvertSummary,
+) -> Result<(), Error> {
+    let mut lines = LineReader::open(input)?;
+    let offset_ns = (opts.imu_time_offset_s * 1e9).round() as i64;
+    let mut rates = Vec::new();
+    while let Some((line, no)) = lines.next_line()? {
+        if is_blank_or_comment(line) {
+            continue;
+        }
+        let mut f: [&[u8]; 8] = [b""; 8];
+        let nf = split_fields(line, &mut f);
+        if nf < 7 {
+            s.diagnostics.push(
+                input,
+                no,
+                format!("expected 7 fields (time, gyro x y z rad/s, accel x y z m/s²), found {nf}; line skipped"),
+            );
+            continue;
+        }
+        let t = match parse_seconds_ns(f[0]) {
+            Ok(t) => t,
+            Err(e) => {
+                s.diagnostics
+                    .push(input, no, format!("field 1 (time): {e}; line skipped"));
+                continue;
+            }
+        };
+        let mut v = [0.0; 6];
+        let mut bad = None;
+        for k in 0..6 {
+            match parse_f64(f[k + 1]) {
+                Ok(x) => v[k] = x,
+                Err(e) => {
+                    bad = Some(format!("field {}: {e}; line skipped", k + 2));
+                    break;
+                }
+            }
+        }
+        if let Some(b) = bad {
+            s.diagnostics.push(input, no, b);
+            continue;
+        }
+        rates.push(RateSample {
+            time: GpsTime::from_ns(t + offset_ns),
+            gyro_radps: Vector3::new(v[0], v[1], v[2]),
+            accel_mps2: Vector3::new(v[3], v[4], v[5]),
+        });
+    }
+    if rates.len() < 2 {
+        return Err(Error::NoData {
+            path: input.to_path_buf(),
+            msg: "fewer than two rate samples (expected lines of `time gyro_x gyro_y gyro_z acc_x acc_y acc_z`)".into(),
+        });
+    }
+    s.imu_time_axis = if opts.imu_time_offset_s != 0.0 {
+        format!("the file's time + {} s", opts.imu_time_offset_s)
+    } else {
+        "the file's time column".into()
+    };
+    write_increments(
+        &out_dir.join("imu.txt"),
+        rates,
+        input,
+        opts.gap_threshold_s,
+        s,
+    )
+}
+
+fn convert_comma_gnss(
+    input: &Path,
+    out_dir: &Path,
+    opts: &ConvertOptions,
+    s: &mut ConvertSummary,
+) -> Result<(), Error> {
+    let mut lines = LineReader::open(input)?;
+    let mut fixes: Vec<ReceiverFix> = Vec::new();
+    let mut receipts: Vec<(GpsTime, Vec<u8>)> = Vec::new();
+    let sd = opts.fix.default_sd_m;
+    while let Some((line, no)) = lines.next_line()? {
+        if is_blank_or_comment(line) {
+            continue;
+        }
+        let mut f: [&[u8]; 8] = [b""; 8];
+        let nf = split_fields(line, &mut f);
+        if nf < 7 {
+            s.diagnostics.push(
+                input,
+                no,
+                format!("expected 7 fields (t_boot_s, lat, lon, speed, utc_unix_ms, alt, bearing), found {nf}; line skipped"),
+            );
+            continue;
+        }
+        let parsed = (|| -> Result<(f64, f64, i64, f64), String> {
+            let lat = parse_f64(f[1]).map_err(|e| format!("field 2 (lat): {e}"))?;
+            let lon = parse_f64(f[2]).map_err(|e| format!("field 3 (lon): {e}"))?;
+            let ms = std::str::from_utf8(f[4])
+                .ok()
+                .and_then(|x| x.parse::<i64>().ok())
+                .ok_or_else(|| "field 5 (utc_unix_ms): not an integer".to_string())?;
+            let alt = parse_f64(f[5]).map_err(|e| format!("field 6 (alt): {e}"))?;
+            if lat.abs() > 90.0 || lon.abs() > 180.0 {
+                return Err(format!("latitude {lat} / longitude {lon} out of range"));
+            }
+            Ok((lat, lon, ms, alt))
+        })();
+        let (lat, lon, ms, alt) = match parsed {
+            Ok(v) => v,
+            Err(e) => {
+                s.diagnostics.push(input, no, format!("{e}; line skipped"));
+                continue;
+            }
+        };
+        if parse_seconds_ns(f[0]).is_err() {
+            s.diagnostics
+                .push(input, no, "field 1 (t_boot_s): not a number; line skipped");
+            continue;
+        }
+        let t = utc_to_gps(&UtcTime::from_unix_ns(ms * 1_000_000));
+        fixes.push(ReceiverFix {
+            fix: GnssFix {
+                time: t,
+                pos: navsync::earth::Geodetic::from_deg(lat, lon, alt),
+                pos_sd: Vector3::new(sd[0], sd[1], sd[2]),
+                vel: None,
+                vel_sd: None,
+            },
+            leap: Some(LeapSource::Table),
+            default_sd: true,
+        });
+        receipts.push((t, f[0].to_vec()));
+    }
+    if fixes.is_empty() {
+        return Err(Error::NoData {
+            path: input.to_path_buf(),
+            msg: "no fixes (expected comma2k19 gnss_ublox.csv lines)".into(),
+        });
+    }
+    let fixes = monotonic(fixes, input, &mut s.diagnostics);
+    s.gnss_source = "comma2k19 u-blox fixes (UTC fix time + leap seconds)".into();
+    s.gnss_default_sd = fixes.len();
+    s.leap_source = Some(LeapSource::Table);
+    let gf: Vec<GnssFix> = fixes.iter().map(|f| f.fix).collect();
+    write_gnss(&out_dir.join("gnss.txt"), &gf, s)?;
+    let path: PathBuf = out_dir.join("gnss_receipt.txt");
+    let mut w = TextWriter::create(&path)?;
+    w.write(b"# gps_week gps_sow t_boot_received_s  (fix time of validity in GPS time; device boot time at receipt)\n")?;
+    let mut kept = fixes.iter().map(|f| f.fix.time).peekable();
+    let mut line = Vec::new();
+    for (t, boot) in receipts {
+        if kept.peek() != Some(&t) {
+            continue;
+        }
+        kept.next();
+        line.clear();
+        line.extend_from_slice(format!("{} ", t.week()).as_bytes());
+        t.write_sow(&mut line);
+        line.push(b' ');
+        line.extend_from_slice(&boot);
+        line.push(b'\n');
+        w.write(&line)?;
+    }
+    w.finish()?;
+    s.files.push(path.display().to_string());
+    Ok(())
+}

@@ -1,0 +1,26 @@
+//! navsync-receivers: what real receivers and loggers emit, read into
+//! navsync's types.
+//!
+//! - [`stream`]: incremental reader of mixed NMEA 0183 + u-blox UBX byte
+//!   streams (push bytes, get messages; every corrupt or unknown frame
+//!   reported with its offset).
+//! - [`ubx`], [`nmea`]: the messages (decoders and encoders).
+//! - [`gnsstime`]: UTC ↔ GPS time with leap seconds.
+//! - [`fixes`]: GNSS fixes at their time of validity (NAV-PVT, NMEA epochs).
+//! - [`imu`]: ESF-MEAS/ESF-RAW and rate-form IMU data → increments.
+//! - [`marks`]: TIM-TM2 event stamps and TIM-TP qErr PPS correction.
+//! - [`convert`]: file conversion to KF-GINS files and rig-logs.
+//!
+//! Kept out of the core `navsync` crate so that its receiver dependencies
+//! (`nmea`, later serial and PPS) stay optional for library users.
+
+pub mod convert;
+pub mod fixes;
+pub mod gnsstime;
+pub mod imu;
+pub mod marks;
+pub mod nmea;
+pub mod stream;
+pub mod ubx;
+
+pub use stream::{Event, EventKind, StreamReader};

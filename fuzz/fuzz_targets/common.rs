@@ -1,0 +1,41 @@
+//! Shared checks: the reader accounts for every byte exactly once, in order,
+//! and every decoded message re-encodes to the very bytes it came from.
+
+use navsync_receivers::stream::{EventKind, StreamReader};
+
+/// Feeds `bytes` in chunks whose sizes come from `sizes`, then checks the
+/// event invariants.
+pub fn check_stream(bytes: &[u8], sizes: &[u8]) {
+    let mut r = StreamReader::new();
+    let mut events = Vec::new();
+    let mut pos = 0;
+    let mut k = 0;
+    while pos < bytes.len() {
+        let n = (sizes.get(k).copied().unwrap_or(255) as usize % 64 + 1).min(bytes.len() - pos);
+        r.push(&bytes[pos..pos + n]);
+        pos += n;
+        k += 1;
+        while let Some(e) = r.next_event() {
+            events.push(e);
+        }
+    }
+    r.finish();
+    while let Some(e) = r.next_event() {
+        events.push(e);
+    }
+    let mut expect = 0u64;
+    for e in &events {
+        assert_eq!(e.offset, expect, "events must tile the stream");
+        assert!(e.len > 0);
+        let frame = &bytes[e.offset as usize..e.offset as usize + e.len];
+        match &e.kind {
+            EventKind::Ubx(m) => assert_eq!(m.to_frame().unwrap(), frame, "UBX re-encode"),
+            EventKind::Nmea(_) => assert_eq!(frame[0], b'$'),
+            _ => {}
+        }
+        expect += e.len as u64;
+    }
+    assert_eq!(expect, bytes.len() as u64, "every byte accounted for");
+    let st = r.stats();
+    assert_eq!(st.bytes, bytes.len() as u64);
+}
