@@ -336,6 +336,13 @@ impl Core {
         }
     }
 
+    /// Number of accepted corrections so far (any change of the state by
+    /// the filter).
+    fn corrections(&self) -> usize {
+        let s = &self.stats;
+        s.gnss_fixes_used + s.gnss_velocity_used + s.nhc_updates + s.odometer_updates
+    }
+
     /// Processing time of a fix: its tag corrected by the offset estimate.
     fn proc_time(&self, fix: &GnssFix) -> GpsTime {
         if self.tau_index.is_some() {
@@ -667,6 +674,33 @@ impl Core {
     }
 }
 
+/// The fixed-lag mode's output predictor: the lagged filter state carried
+/// forward through the buffered samples.
+#[derive(Clone)]
+struct Predictor {
+    nav: NavState,
+    mech: Mechanization,
+    last: GpsTime,
+    /// The lagged filter's correction count this prediction started from.
+    corrections: usize,
+}
+
+impl Predictor {
+    fn step(&mut self, s: &ImuSample, imu: &ImuErrors) {
+        let dt = s.time.seconds_since(self.last);
+        if dt <= 0.0 {
+            return;
+        }
+        let inc = imu.compensate(&s.dtheta, &s.dvel, dt);
+        self.mech.step(&mut self.nav, &inc);
+        self.nav.time = s.time;
+        self.last = s.time;
+    }
+}
+
+/// Interval between stored filter states in the delayed-state mode.
+const SNAPSHOT_INTERVAL_NS: i64 = 50_000_000;
+
 /// A recent solution epoch kept for real-time latency handling.
 #[derive(Copy, Clone, Debug)]
 struct HistoryEntry {
@@ -686,6 +720,7 @@ pub struct Fusion {
     imu_buffer: VecDeque<ImuSample>,
     /// Fixes inserted in the delayed-state window (re-queued on a restore).
     applied: VecDeque<GnssFix>,
+    predictor: Option<Predictor>,
     replays: usize,
     now: GpsTime,
     diag: Diagnostics,
@@ -706,6 +741,7 @@ impl Fusion {
             snapshots: VecDeque::new(),
             imu_buffer: VecDeque::new(),
             applied: VecDeque::new(),
+            predictor: None,
             replays: 0,
             now,
             diag: Diagnostics::with_cap(1000),
@@ -837,10 +873,19 @@ impl Fusion {
                 let out = self.core.push_imu(sample)?;
                 if out.is_some() {
                     self.imu_buffer.push_back(*sample);
-                    self.snapshots.push_back(self.core.clone());
+                    self.maybe_snapshot();
+                    // Keep the states (and samples after them) that a fix up
+                    // to `max_latency_s` old can need.
                     let oldest = sample.time.add_seconds(-max_latency_s);
                     while self.snapshots.len() > 1 && self.snapshots[1].nav.time <= oldest {
                         self.snapshots.pop_front();
+                    }
+                    let keep_from = self
+                        .snapshots
+                        .front()
+                        .map(|s| s.nav.time)
+                        .unwrap_or(sample.time);
+                    while self.imu_buffer.front().is_some_and(|s| s.time <= keep_from) {
                         self.imu_buffer.pop_front();
                     }
                 }
@@ -884,21 +929,33 @@ impl Fusion {
         if !self.core.started {
             return Ok(None);
         }
-        // Output predictor: re-integrate the buffered samples from the
-        // lagged state with the current error estimates.
-        let mut nav = self.core.nav;
-        let mut mech = self.core.mech.clone();
-        let mut last = self.core.last_time;
-        for s in &self.imu_buffer {
-            let dt = s.time.seconds_since(last);
-            if dt <= 0.0 {
-                continue;
+        // Output predictor: the lagged state carried through the buffered
+        // samples. It is rebuilt only when the lagged filter corrected its
+        // state; otherwise the newest sample is integrated onto it.
+        let corrections = self.core.corrections();
+        let rebuild = self
+            .predictor
+            .as_ref()
+            .is_none_or(|p| p.corrections != corrections);
+        if rebuild {
+            let mut p = Predictor {
+                nav: self.core.nav,
+                mech: self.core.mech.clone(),
+                last: self.core.last_time,
+                corrections,
+            };
+            for s in &self.imu_buffer {
+                p.step(s, &self.core.imu);
             }
-            let inc = self.core.imu.compensate(&s.dtheta, &s.dvel, dt);
-            mech.step(&mut nav, &inc);
-            nav.time = s.time;
-            last = s.time;
+            self.predictor = Some(p);
+        } else if let Some(p) = self.predictor.as_mut() {
+            p.step(sample, &self.core.imu);
         }
+        let nav = self
+            .predictor
+            .as_ref()
+            .map(|p| p.nav)
+            .unwrap_or(self.core.nav);
         Ok(Some(NavOutput {
             nav,
             imu: self.core.imu,
@@ -962,6 +1019,18 @@ impl Fusion {
         })
     }
 
+    /// Stores the filter state every [`SNAPSHOT_INTERVAL_NS`] (a delayed fix
+    /// replays at most that much more than its latency).
+    fn maybe_snapshot(&mut self) {
+        let due = self
+            .snapshots
+            .back()
+            .is_none_or(|s| self.core.nav.time - s.nav.time >= SNAPSHOT_INTERVAL_NS);
+        if due {
+            self.snapshots.push_back(self.core.clone());
+        }
+    }
+
     /// (c) Return to the stored state before the fix, insert it, and
     /// re-process the buffered IMU samples.
     fn delayed_update(&mut self, fix: GnssFix) -> Result<(), Error> {
@@ -1001,13 +1070,16 @@ impl Fusion {
             self.applied.pop_front();
         }
         self.snapshots.truncate(k + 1);
-        let replay: Vec<ImuSample> = self.imu_buffer.iter().skip(k + 1).copied().collect();
-        self.imu_buffer.truncate(k + 1);
+        let replay: Vec<ImuSample> = self
+            .imu_buffer
+            .iter()
+            .filter(|s| s.time > t_snap)
+            .copied()
+            .collect();
         self.core = core;
-        for s in replay {
-            self.core.push_imu(&s)?;
-            self.imu_buffer.push_back(s);
-            self.snapshots.push_back(self.core.clone());
+        for s in &replay {
+            self.core.push_imu(s)?;
+            self.maybe_snapshot();
         }
         // The coarse search already saw these steps on the first pass.
         self.core.steps.clear();
