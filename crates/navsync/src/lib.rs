@@ -12,6 +12,7 @@
 // Index loops are the clearest form for the small matrix kernels here.
 #![allow(clippy::needless_range_loop)]
 
+pub mod allan;
 pub mod array;
 pub mod attitude;
 pub mod earth;
@@ -24,6 +25,7 @@ pub mod interp;
 pub mod io;
 pub mod offset_search;
 pub mod pipeline;
+pub mod sim;
 pub mod stats;
 #[cfg(test)]
 mod testutil;
