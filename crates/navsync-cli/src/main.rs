@@ -20,6 +20,8 @@ enum Command {
     Fuse(commands::fuse::Args),
     /// Score a navigation result against a reference trajectory.
     Eval(commands::eval::Args),
+    /// Put a raw rig log (rig-log v1) on GPS time: KF-GINS files and a report.
+    Sync(commands::sync::Args),
     /// Time the navigation core on generated data (1 h of 200 Hz IMU).
     Bench(commands::bench::Args),
 }
@@ -30,6 +32,7 @@ fn main() {
         Command::Fuse(a) => commands::fuse::run(a),
         Command::Eval(a) => commands::eval::run(a),
         Command::Bench(a) => commands::bench::run(a),
+        Command::Sync(a) => commands::sync::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");
