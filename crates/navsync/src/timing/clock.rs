@@ -49,7 +49,11 @@ pub struct ClockConfig {
     pub freq_random_walk: f64,
     /// Drift random walk (1/s³): variance of the drift change is `q·Δ`.
     pub drift_random_walk: f64,
-    /// Error bounds are this many standard deviations.
+    /// Largest change of drift the past cannot foresee (1/s), e.g. a
+    /// temperature ramp starting during a dropout: adds ½·d·Δ² to bounds
+    /// and gates after Δ seconds without pulses.
+    pub max_drift_change: f64,
+    /// Error bounds are this many standard deviations (plus the above).
     pub bound_sigmas: f64,
     /// Corrections larger than this are slewed, not stepped (s), causal mode.
     pub slew_threshold_s: f64,
@@ -71,14 +75,32 @@ impl ClockConfig {
             // ≥ 0.1 ms is always outside while locked.
             min_gate_s: (10.0 * tick).clamp(5e-6, 5e-5),
             max_freq_error_ppm: 1000.0,
-            // A good crystal: 1e-10 fractional frequency change over 100 s
-            // at 1σ; drift changes of 1e-10/s over 100 s.
-            freq_random_walk: 1e-22,
-            drift_random_walk: 1e-22,
+            freq_random_walk: Oscillator::Xo.freq_random_walk(),
+            drift_random_walk: Oscillator::Xo.drift_random_walk(),
+            max_drift_change: Oscillator::Xo.max_drift_change(),
             bound_sigmas: 3.0,
             slew_threshold_s: 0.5e-6,
             slew_rate: 1e-4,
         }
+    }
+
+    /// Sets the clock noise of `osc`.
+    pub fn with_oscillator(mut self, osc: Oscillator) -> Self {
+        self.freq_random_walk = osc.freq_random_walk();
+        self.drift_random_walk = osc.drift_random_walk();
+        self.max_drift_change = osc.max_drift_change();
+        self
+    }
+
+    /// The unforeseeable part of the error after `dt` s without pulses.
+    pub fn unmodelled(&self, dt: f64) -> f64 {
+        0.5 * self.max_drift_change * dt.max(0.0).powi(2)
+    }
+
+    /// Error bound from a model standard deviation `sd` after `dt` s
+    /// without pulses, including the stamp's own counter quantization.
+    pub fn bound(&self, sd: f64, dt: f64) -> f64 {
+        self.bound_sigmas * (sd * sd + self.tick_s().powi(2) / 12.0).sqrt() + self.unmodelled(dt)
     }
 
     fn tick_s(&self) -> f64 {
@@ -95,6 +117,51 @@ impl ClockConfig {
     pub fn process_var(&self, dt: f64) -> f64 {
         let dt = dt.max(0.0);
         self.freq_random_walk * dt.powi(3) / 3.0 + self.drift_random_walk * dt.powi(5) / 20.0
+    }
+}
+
+/// The kind of oscillator driving the counter: it sets how fast the
+/// holdover error bound grows (the clock noise the past cannot predict).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Oscillator {
+    /// A plain crystal (±1 ppm/°C) in a vehicle whose temperature may start
+    /// to ramp at 1 °C/min at any time: a drift change of 1.7e-8/s, i.e.
+    /// 30 µs after 60 s, is a 3σ event.
+    Xo,
+    /// Temperature compensated (≈ 0.05 ppm/°C): 20× less.
+    Tcxo,
+    /// Oven controlled: 1000× less than a crystal.
+    Ocxo,
+}
+
+impl Oscillator {
+    /// Fractional-frequency random walk (1/s): var of the change over Δ is q·Δ.
+    pub fn freq_random_walk(self) -> f64 {
+        match self {
+            Oscillator::Xo => 1e-20,
+            Oscillator::Tcxo => 1e-21,
+            Oscillator::Ocxo => 1e-23,
+        }
+    }
+
+    /// Drift random walk (1/s³): the phase variance after Δ is q·Δ⁵/20.
+    pub fn drift_random_walk(self) -> f64 {
+        match self {
+            Oscillator::Xo => 1e-20,
+            Oscillator::Tcxo => 1e-22,
+            Oscillator::Ocxo => 1e-25,
+        }
+    }
+
+    /// Unforeseeable drift change (1/s): 1 °C/min at 1 ppm/°C for a crystal
+    /// (30 µs after 60 s), 0.05 ppm/°C for a TCXO, 1e-11/s for an OCXO.
+    pub fn max_drift_change(self) -> f64 {
+        match self {
+            Oscillator::Xo => 1.7e-8,
+            Oscillator::Tcxo => 8.5e-10,
+            Oscillator::Ocxo => 1e-11,
+        }
     }
 }
 
@@ -317,7 +384,8 @@ impl PpsClock {
     }
 
     /// A 1PPS edge latched at `counter`.
-    pub fn push_pulse(&mut self, counter: u64) -> Result<(), Rejection> {
+    /// Returns the GPS second the pulse was accepted as.
+    pub fn push_pulse(&mut self, counter: u64) -> Result<i64, Rejection> {
         self.counts.received += 1;
         self.advance(counter);
         let Some(model) = self.model.clone() else {
@@ -327,8 +395,8 @@ impl PpsClock {
                 self.counts.rejected_acquisition += 1;
             }
             self.try_acquire();
-            return if self.model.is_some() {
-                Ok(())
+            return if let Some(p) = self.causal.back().filter(|_| self.model.is_some()) {
+                Ok(p.second)
             } else {
                 Err(Rejection::Acquisition)
             };
@@ -340,7 +408,8 @@ impl PpsClock {
         let innov = nearest - g; // measured offset − predicted offset
         let dt = self.secs(model.last_counter, counter).max(0.0);
         let var = model.sigma.powi(2) * (1.0 + model.fit.var_factor(x)) + self.cfg.process_var(dt);
-        let gate = (self.cfg.gate_sigmas * var.sqrt()).max(self.cfg.min_gate_s);
+        let gate =
+            (self.cfg.gate_sigmas * var.sqrt() + self.cfg.unmodelled(dt)).max(self.cfg.min_gate_s);
         let last_second = self.causal.back().map(|p| p.second).unwrap_or(i64::MIN);
         let pulse = Pulse { counter, second };
         let verdict = if innov.abs() > gate {
@@ -388,7 +457,7 @@ impl PpsClock {
                 self.rejected_run.clear();
                 self.innovation.push(innov);
                 self.accept(pulse);
-                Ok(())
+                Ok(pulse.second)
             }
             Err(r) => {
                 match r {
@@ -431,7 +500,7 @@ impl PpsClock {
         let Some(last) = self.causal.back().copied() else {
             return;
         };
-        let pts: Vec<(f64, f64)> = self
+        let mut pts: Vec<(f64, f64)> = self
             .causal
             .iter()
             .map(|p| {
@@ -439,16 +508,36 @@ impl PpsClock {
                 (x, (p.second - last.second) as f64 - x)
             })
             .collect();
-        let span = pts.first().map(|f| -f.0).unwrap_or(0.0);
-        let deg = if pts.len() >= 12 && span >= 10.0 {
-            2
-        } else if pts.len() >= 2 {
-            1
-        } else {
-            0
-        };
-        let Some(fit) = PolyFit::fit(&pts, deg) else {
-            return;
+        let sm = self.cfg.sigma_meas();
+        // Adaptive window (the spirit of chrony's runs test): while the
+        // residuals are too large for the pulse noise (χ², 99.9 %), the
+        // oldest quarter of the window is dropped, so a change of drift
+        // (a temperature ramp starting) leaves the model quickly.
+        let fit = loop {
+            let span = pts.first().map(|f| -f.0).unwrap_or(0.0);
+            let deg = if pts.len() >= 12 && span >= 10.0 {
+                2
+            } else if pts.len() >= 2 {
+                1
+            } else {
+                0
+            };
+            let Some(fit) = PolyFit::fit(&pts, deg) else {
+                return;
+            };
+            let dof = fit.dof();
+            let too_large = dof >= 10
+                && fit.sigma().is_some_and(|s| {
+                    s * s * dof as f64 > sm * sm * crate::stats::chi2_quantile(0.999, dof as f64)
+                });
+            if too_large && pts.len() > 16 {
+                let drop = pts.len() / 4;
+                pts.drain(..drop);
+                let keep: Vec<Pulse> = self.causal.iter().skip(drop).copied().collect();
+                self.causal = keep.into();
+                continue;
+            }
+            break fit;
         };
         let sm = self.cfg.sigma_meas();
         let dof = fit.dof() as f64;
@@ -582,7 +671,7 @@ impl PpsClock {
     }
 
     /// GPS time of counter `c` from the causal model (with slew) and its
-    /// standard deviation (s). Panics never; EPOCH without a model.
+    /// error bound (s). EPOCH and an infinite bound without a model.
     pub fn causal_time(&self, c: u64) -> (GpsTime, f64) {
         let Some(m) = &self.model else {
             return (GpsTime::EPOCH, f64::INFINITY);
@@ -593,7 +682,7 @@ impl PpsClock {
         let var = m.sigma.powi(2) * m.fit.var_factor(x) + self.cfg.process_var(dt);
         (
             Self::to_gps(m.s_ref, g),
-            var.sqrt() + self.slew_at(c).abs() / self.cfg.bound_sigmas,
+            self.cfg.bound(var.sqrt(), dt) + self.slew_at(c).abs(),
         )
     }
 
@@ -750,7 +839,7 @@ fn best_supported(votes: impl Iterator<Item = i64>) -> Option<i64> {
 #[derive(Clone, Debug, Default)]
 pub struct Smoother {
     cache_key: Option<(u64, u64)>,
-    cache: Option<(u64, i64, PolyFit, f64)>,
+    cache: Option<(u64, i64, PolyFit, f64, f64)>,
 }
 
 impl Smoother {
@@ -817,10 +906,22 @@ impl Smoother {
             let sigma = ((dof * s2 + prior * sm * sm) / (dof + prior))
                 .sqrt()
                 .max(0.5 * sm);
-            self.cache = Some((anchor.counter, anchor.second, fit, sigma));
+            // Misfit at the bracketing pulses of a gap: a drift change the
+            // quadratic cannot follow shows there first; added to bounds.
+            let misfit = match (left, right) {
+                (Some(l), Some(r)) if r.second - l.second > 1 => [l, r]
+                    .iter()
+                    .map(|p| {
+                        let x = (p.counter as i128 - anchor.counter as i128) as f64 / f0;
+                        ((p.second - anchor.second) as f64 - x - fit.eval(x)).abs()
+                    })
+                    .fold(0.0, f64::max),
+                _ => 0.0,
+            };
+            self.cache = Some((anchor.counter, anchor.second, fit, sigma, misfit));
             self.cache_key = Some(key);
         }
-        let (c_ref, s_ref, fit, sigma) = self.cache.as_ref()?;
+        let (c_ref, s_ref, fit, sigma, misfit) = self.cache.as_ref()?;
         let x = (c as i128 - *c_ref as i128) as f64 / f0;
         let g = x + fit.eval(x);
         let near = [left, right]
@@ -829,7 +930,10 @@ impl Smoother {
             .map(|p| ((c as i128 - p.counter as i128).abs() as f64) / f0)
             .fold(f64::INFINITY, f64::min);
         let var = sigma * sigma * fit.var_factor(x) + clock.cfg.process_var(near);
-        Some((PpsClock::to_gps(*s_ref, g), var.sqrt()))
+        Some((
+            PpsClock::to_gps(*s_ref, g),
+            clock.cfg.bound(var.sqrt(), near) + misfit,
+        ))
     }
 }
 

@@ -28,7 +28,7 @@ mod tests;
 #[cfg(test)]
 mod testsim;
 
-pub use clock::{ClockConfig, LockState};
+pub use clock::{ClockConfig, LockState, Oscillator};
 pub use engine::{StampedGnss, StampedImu, SyncConfig, SyncEngine, SyncMode, SyncOutput};
 pub use imu::{ImuFlags, IncrementBuilder};
 pub use report::SyncReport;

@@ -36,11 +36,31 @@ impl Default for SwConfig {
     fn default() -> Self {
         SwConfig {
             imu_window_s: 10.0,
-            gnss_window_s: 300.0,
+            gnss_window_s: 600.0,
             gnss_min_latency_s: 0.0,
             imu_min_latency_s: 0.0,
         }
     }
+}
+
+const GNSS_BLOCK_S: f64 = 10.0;
+const IMU_BLOCK_S: f64 = 1.0;
+
+/// `T` with `fit(T) = h` (Newton from the tangent line at 0).
+fn invert(fit: &EnvelopeFit, h: f64) -> Option<f64> {
+    let s = fit.slope(0.0);
+    if s.abs() < 1e-6 {
+        return None;
+    }
+    let mut t = (h - fit.eval(0.0)) / s;
+    for _ in 0..4 {
+        let d = fit.slope(t);
+        if d.abs() < 1e-6 {
+            break;
+        }
+        t -= (fit.eval(t) - h) / d;
+    }
+    Some(t)
 }
 
 /// Host→GPS envelope over a window, cached per block.
@@ -70,8 +90,8 @@ pub struct SwClock {
     gnss: VecDeque<(f64, f64)>,
     /// (k, h) of IMU samples.
     imu: VecDeque<(f64, f64)>,
-    gnss_map: Option<GnssMap>,
-    imu_map: Option<ImuMap>,
+    gnss_maps: Vec<GnssMap>,
+    imu_maps: Vec<ImuMap>,
     /// Index of the latest IMU sample and its receive time.
     last_k: Option<i64>,
     /// Latest envelope for loss detection: (k_ref, h_ref, period).
@@ -94,8 +114,8 @@ impl SwClock {
             t0: None,
             gnss: VecDeque::new(),
             imu: VecDeque::new(),
-            gnss_map: None,
-            imu_map: None,
+            gnss_maps: Vec::new(),
+            imu_maps: Vec::new(),
             last_k: None,
             live: None,
             recent_lat: VecDeque::new(),
@@ -221,66 +241,94 @@ impl SwClock {
         self.gnss.len() >= 3
     }
 
-    fn gnss_fit(&mut self, h: f64, causal: bool) -> Option<&EnvelopeFit> {
-        let block_len = 10.0;
-        let block = (h / block_len).floor() as i64;
-        if self.gnss_map.as_ref().is_none_or(|m| m.block != block) {
-            let w = self.cfg.gnss_window_s;
-            let (lo, hi) = if causal {
-                (h - w, h)
-            } else {
-                let mid = (block as f64 + 0.5) * block_len;
-                (mid - 0.5 * w, mid + 0.5 * w)
-            };
-            let mut pts: Vec<(f64, f64)> = self
-                .gnss
-                .iter()
-                .filter(|&&(_, hg)| hg >= lo && hg <= hi)
-                .copied()
-                .collect();
-            if pts.len() < 3 {
-                // Not enough in the window: use everything there is.
-                pts = self.gnss.iter().copied().collect();
-            }
-            let span = pts.last()?.0 - pts.first()?.0;
-            let deg = if pts.len() >= 30 && span >= 120.0 {
-                2
-            } else {
-                1
-            };
-            let fit = EnvelopeFit::fit(&pts, deg)?;
-            self.last_gnss_fit_excess = fit.mean_excess;
-            self.gnss_fit_points = pts.len();
-            self.host_ppm = Some((fit.slope(pts[pts.len() / 2].0) - 1.0) * 1e6);
-            self.gnss_map = Some(GnssMap { block, fit });
+    /// The host→GPS envelope of block `block` (10 s blocks of host time):
+    /// fitted over the window centred on the block, or ending at `h` in
+    /// causal mode.
+    fn gnss_block(&mut self, block: i64, h: f64, causal: bool) -> Option<EnvelopeFit> {
+        if let Some(m) = self.gnss_maps.iter().find(|m| m.block == block)
+            && !(causal && m.fit.n < 30)
+        {
+            return Some(m.fit.clone());
         }
-        self.gnss_map.as_ref().map(|m| &m.fit)
+        let w = self.cfg.gnss_window_s;
+        let (lo, hi) = if causal {
+            (h - w, h)
+        } else {
+            let mid = (block as f64 + 0.5) * GNSS_BLOCK_S;
+            (mid - 0.5 * w, mid + 0.5 * w)
+        };
+        let mut pts: Vec<(f64, f64)> = self
+            .gnss
+            .iter()
+            .filter(|&&(_, hg)| hg >= lo && hg <= hi)
+            .copied()
+            .collect();
+        if pts.len() < 3 {
+            // Not enough in the window: use everything there is.
+            pts = self.gnss.iter().copied().collect();
+        }
+        let span = pts.last()?.0 - pts.first()?.0;
+        let deg = if pts.len() >= 30 && span >= 120.0 {
+            2
+        } else {
+            1
+        };
+        let fit = EnvelopeFit::fit(&pts, deg)?;
+        self.last_gnss_fit_excess = fit.mean_excess;
+        self.gnss_fit_points = pts.len();
+        self.host_ppm = Some((fit.slope(pts[pts.len() / 2].0) - 1.0) * 1e6);
+        self.gnss_maps
+            .retain(|m| m.block != block && (m.block - block).abs() <= 2);
+        self.gnss_maps.push(GnssMap {
+            block,
+            fit: fit.clone(),
+        });
+        Some(fit)
     }
 
-    fn imu_fit(&mut self, k: f64, h: f64, causal: bool) -> Option<&EnvelopeFit> {
-        let block_len = 1.0;
-        let block = (h / block_len).floor() as i64;
-        if self.imu_map.as_ref().is_none_or(|m| m.block != block) {
-            let w = self.cfg.imu_window_s;
-            let (lo, hi) = if causal {
-                (h - w, h)
-            } else {
-                let mid = (block as f64 + 0.5) * block_len;
-                (mid - 0.5 * w, mid + 0.5 * w)
-            };
-            let pts: Vec<(f64, f64)> = self
-                .imu
-                .iter()
-                .filter(|&&(_, hi_)| hi_ >= lo && hi_ <= hi)
-                .copied()
-                .collect();
-            let fit = EnvelopeFit::fit(&pts, 1)?;
-            self.last_imu_fit_excess = fit.mean_excess;
-            self.imu_fit_points = pts.len();
-            self.imu_map = Some(ImuMap { block, fit });
+    /// The IMU envelope of block `block` (1 s blocks of host time).
+    fn imu_block(&mut self, block: i64, h: f64, causal: bool) -> Option<EnvelopeFit> {
+        if let Some(m) = self.imu_maps.iter().find(|m| m.block == block)
+            && !(causal && m.fit.n < 100)
+        {
+            return Some(m.fit.clone());
         }
-        let _ = k;
-        self.imu_map.as_ref().map(|m| &m.fit)
+        let w = self.cfg.imu_window_s;
+        let (lo, hi) = if causal {
+            (h - w, h)
+        } else {
+            let mid = (block as f64 + 0.5) * IMU_BLOCK_S;
+            (mid - 0.5 * w, mid + 0.5 * w)
+        };
+        let pts: Vec<(f64, f64)> = self
+            .imu
+            .iter()
+            .filter(|&&(_, hi_)| hi_ >= lo && hi_ <= hi)
+            .copied()
+            .collect();
+        let fit = EnvelopeFit::fit(&pts, 1)?;
+        self.last_imu_fit_excess = fit.mean_excess;
+        self.imu_fit_points = pts.len();
+        self.imu_maps
+            .retain(|m| m.block != block && (m.block - block).abs() <= 2);
+        self.imu_maps.push(ImuMap {
+            block,
+            fit: fit.clone(),
+        });
+        Some(fit)
+    }
+
+    /// Blending weights: post-processing values are interpolated between
+    /// the fits of the two nearest blocks, so stamps stay continuous.
+    fn blend(x: f64, block_len: f64, causal: bool) -> (i64, i64, f64) {
+        if causal {
+            // Causal fits end at the sample: refit every second.
+            let b = x.floor() as i64;
+            return (b, b, 0.0);
+        }
+        let u = x / block_len - 0.5;
+        let b0 = u.floor();
+        (b0 as i64, b0 as i64 + 1, u - b0)
     }
 
     /// GPS time of IMU sample `k` received at host `h`; `output_delay_s`
@@ -292,31 +340,29 @@ impl SwClock {
         output_delay_s: f64,
         causal: bool,
     ) -> Option<GpsTime> {
-        let he = self.imu_fit(k as f64, h, causal)?.eval(k as f64);
+        let (b0, b1, w) = Self::blend(h, IMU_BLOCK_S, causal);
+        let e0 = self.imu_block(b0, h, causal)?.eval(k as f64);
+        let he = if w > 0.0 {
+            let e1 = self.imu_block(b1, h, causal)?.eval(k as f64);
+            e0 + w * (e1 - e0)
+        } else {
+            e0
+        };
         let host_sample =
             he - output_delay_s - self.cfg.imu_min_latency_s + self.cfg.gnss_min_latency_s;
         self.host_to_gps(host_sample, causal)
     }
 
-    /// GPS time of host time `h` (the envelope inverted by Newton steps).
+    /// GPS time of host time `h`.
     pub fn host_to_gps(&mut self, h: f64, causal: bool) -> Option<GpsTime> {
         let t0 = self.t0?;
-        let fit = self.gnss_fit(h, causal)?;
-        // initial guess from the line through the fit
-        let mut t = {
-            let s = fit.slope(0.0);
-            if s.abs() < 1e-6 {
-                return None;
-            }
-            -fit.eval(0.0) / s + h / s
-        };
-        for _ in 0..4 {
-            let f = fit.eval(t) - h;
-            let d = fit.slope(t);
-            if d.abs() < 1e-6 {
-                break;
-            }
-            t -= f / d;
+        let (b0, b1, w) = Self::blend(h, GNSS_BLOCK_S, causal);
+        let f0 = self.gnss_block(b0, h, causal)?;
+        let mut t = invert(&f0, h)?;
+        if w > 0.0 {
+            let f1 = self.gnss_block(b1, h, causal)?;
+            let t1 = invert(&f1, h)?;
+            t += w * (t1 - t);
         }
         let whole = t.floor();
         Some(GpsTime::from_ns(
@@ -330,7 +376,12 @@ impl SwClock {
         let t0 = self.t0?;
         let t = (valid.ns() - t0 * NS_PER_S) as f64 * 1e-9;
         let lam_min = self.cfg.gnss_min_latency_s;
-        let fit = self.gnss_fit(h, causal)?;
-        Some(h - fit.eval(t) + lam_min)
+        let (b0, b1, w) = Self::blend(h, GNSS_BLOCK_S, causal);
+        let mut e = self.gnss_block(b0, h, causal)?.eval(t);
+        if w > 0.0 {
+            let e1 = self.gnss_block(b1, h, causal)?.eval(t);
+            e += w * (e1 - e);
+        }
+        Some(h - e + lam_min)
     }
 }
