@@ -6,10 +6,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use navsync::Diagnostics;
-use navsync::io::kfgins::{TextWriter, format_gnss_line, format_imu_line};
+use navsync::ins::ImuSample;
+use navsync::io::kfgins::{TextWriter, format_gnss_line};
 use navsync::io::riglog::{RigLogReader, RigRecord};
 use navsync::timing::report::{TruthAccumulator, TruthTimes, format_week_sow};
-use navsync::timing::{IncrementBuilder, SyncConfig, SyncEngine, SyncMode, SyncOutput, SyncReport};
+use navsync::timing::{
+    IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncMode, SyncOutput, SyncReport,
+};
 
 use super::print_diagnostics;
 
@@ -34,6 +37,11 @@ pub struct Args {
     /// Software sync: assumed latency of the fastest GNSS message (s).
     #[arg(long, default_value_t = 0.0)]
     pub gnss_min_latency: f64,
+    /// Rate → increment rule: trapezoid of consecutive samples (seed 001
+    /// §1.1, for instantaneous rates) or average (rate already averaged
+    /// over the interval, as an averaging/decimating IMU outputs).
+    #[arg(long, value_enum, default_value_t = Rule::Trapezoid)]
+    pub rate_rule: Rule,
     /// True GPS time of each imu record ("week sow" lines): print the
     /// stamp errors and add them to the report.
     #[arg(long)]
@@ -49,6 +57,12 @@ pub struct Args {
     /// Hours of data for --bench.
     #[arg(long, default_value_t = 24.0, requires = "bench")]
     pub hours: f64,
+}
+
+#[derive(Copy, Clone, clap::ValueEnum)]
+pub enum Rule {
+    Trapezoid,
+    Average,
 }
 
 #[derive(Copy, Clone, clap::ValueEnum)]
@@ -81,7 +95,11 @@ pub fn run(args: Args) -> Result<()> {
         ..Default::default()
     };
     let t0 = Instant::now();
-    let summary = sync_file(rig, out_dir, cfg, args.truth.as_deref())?;
+    let rule = match args.rate_rule {
+        Rule::Trapezoid => RateRule::Trapezoid,
+        Rule::Average => RateRule::Average,
+    };
+    let summary = sync_file(rig, out_dir, cfg, rule, args.truth.as_deref())?;
     let wall = t0.elapsed().as_secs_f64();
     if let Some(tpl) = &args.kfgins_template {
         write_kfgins_config(tpl, out_dir, &summary.report)?;
@@ -115,6 +133,7 @@ pub fn sync_file(
     rig: &Path,
     out_dir: &Path,
     cfg: SyncConfig,
+    rule: RateRule,
     truth: Option<&Path>,
 ) -> Result<SyncSummary> {
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
@@ -125,84 +144,88 @@ pub fn sync_file(
 
     // Reader thread: parsed records in batches.
     let (rec_tx, rec_rx) = mpsc::sync_channel::<Vec<(RigRecord, usize)>>(8);
-    let reader_handle = std::thread::spawn(move || -> Result<(Diagnostics, usize)> {
-        let mut diag = read_diag;
-        let mut batch = Vec::with_capacity(BATCH);
-        while let Some(r) = reader.next_record(&mut diag)? {
-            batch.push(r);
-            if batch.len() == BATCH {
-                let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH));
-                if rec_tx.send(full).is_err() {
-                    break;
+    let reader_handle = std::thread::Builder::new()
+        .name("rig-reader".into())
+        .spawn(move || -> Result<(Diagnostics, usize)> {
+            let mut diag = read_diag;
+            let mut batch = Vec::with_capacity(BATCH);
+            while let Some(r) = reader.next_record(&mut diag)? {
+                batch.push(r);
+                if batch.len() == BATCH {
+                    let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH));
+                    if rec_tx.send(full).is_err() {
+                        break;
+                    }
                 }
             }
-        }
-        if !batch.is_empty() {
-            let _ = rec_tx.send(batch);
-        }
-        Ok((diag, reader.records()))
-    });
+            if !batch.is_empty() {
+                let _ = rec_tx.send(batch);
+            }
+            Ok((diag, reader.records()))
+        })?;
 
     // Writer thread: formatting and files.
     let (out_tx, out_rx) = mpsc::sync_channel::<Vec<SyncOutput>>(8);
     let dir = out_dir.to_path_buf();
     let truth_path = truth.map(Path::to_path_buf);
-    let writer_handle = std::thread::spawn(move || -> Result<Option<TruthAccumulator>> {
-        let mut imu_w = TextWriter::create(&dir.join("imu.txt"))?;
-        let mut gnss_w = TextWriter::create(&dir.join("gnss.txt"))?;
-        let mut times_w = TextWriter::create(&dir.join("imu_times.txt"))?;
-        let mut truth = match &truth_path {
-            Some(p) => Some((TruthTimes::open(p)?, TruthAccumulator::default())),
-            None => None,
-        };
-        let mut inc = IncrementBuilder::new(kind);
-        let mut buf_imu = Vec::with_capacity(1 << 20);
-        let mut buf_times = Vec::with_capacity(1 << 18);
-        let mut buf_gnss = Vec::with_capacity(1 << 12);
-        let mut truth_short = false;
-        for batch in out_rx {
-            for o in batch {
-                match o {
-                    SyncOutput::Imu(s) => {
-                        if s.flags.unstamped {
-                            buf_times.extend_from_slice(b"-1 nan\n");
-                        } else {
-                            format_week_sow(&mut buf_times, s.time);
-                        }
-                        if let Some((tt, acc)) = &mut truth {
-                            match tt.next_time()? {
-                                Some(true_t) => {
-                                    if !s.flags.unstamped && !s.flags.duplicate {
-                                        acc.push(s.time, true_t, s.bound_s, s.flags.holdover)
+    let writer_handle = std::thread::Builder::new()
+        .name("sync-writer".into())
+        .spawn(move || -> Result<Option<TruthAccumulator>> {
+            let mut imu_w = TextWriter::create(&dir.join("imu.txt"))?;
+            let mut gnss_w = TextWriter::create(&dir.join("gnss.txt"))?;
+            let mut times_w = TextWriter::create(&dir.join("imu_times.txt"))?;
+            let mut truth = match &truth_path {
+                Some(p) => Some((TruthTimes::open(p)?, TruthAccumulator::default())),
+                None => None,
+            };
+            let mut inc = IncrementBuilder::with_rule(kind, rule);
+            let mut buf_imu = Vec::with_capacity(1 << 20);
+            let mut buf_times = Vec::with_capacity(1 << 18);
+            let mut buf_gnss = Vec::with_capacity(1 << 12);
+            let mut truth_short = false;
+            for batch in out_rx {
+                for o in batch {
+                    match o {
+                        SyncOutput::Imu(s) => {
+                            if s.flags.unstamped {
+                                buf_times.extend_from_slice(b"-1 nan\n");
+                            } else {
+                                format_week_sow(&mut buf_times, s.time);
+                            }
+                            if let Some((tt, acc)) = &mut truth {
+                                match tt.next_time()? {
+                                    Some(true_t) => {
+                                        if !s.flags.unstamped && !s.flags.duplicate {
+                                            acc.push(s.time, true_t, s.bound_s, s.flags.holdover)
+                                        }
                                     }
+                                    None => truth_short = true,
                                 }
-                                None => truth_short = true,
+                            }
+                            if let Some(sample) = inc.push(s.time, &s.values, &s.flags) {
+                                push_imu_line(&mut buf_imu, &sample);
                             }
                         }
-                        if let Some(sample) = inc.push(s.time, &s.values, &s.flags) {
-                            format_imu_line(&mut buf_imu, &sample);
+                        SyncOutput::Gnss(g) => {
+                            format_gnss_line(&mut buf_gnss, &g.fix());
                         }
                     }
-                    SyncOutput::Gnss(g) => {
-                        format_gnss_line(&mut buf_gnss, &g.fix());
-                    }
                 }
+                imu_w.write(&buf_imu)?;
+                times_w.write(&buf_times)?;
+                gnss_w.write(&buf_gnss)?;
+                buf_imu.clear();
+                buf_times.clear();
+                buf_gnss.clear();
             }
-            imu_w.write(&buf_imu)?;
-            times_w.write(&buf_times)?;
-            gnss_w.write(&buf_gnss)?;
-            buf_imu.clear();
-            buf_times.clear();
-            buf_gnss.clear();
-        }
-        imu_w.finish()?;
-        gnss_w.finish()?;
-        times_w.finish()?;
-        if truth_short {
-            eprintln!("warning: the truth file has fewer lines than the log has imu records");
-        }
-        Ok(truth.map(|(_, acc)| acc))
-    });
+            imu_w.finish()?;
+            gnss_w.finish()?;
+            times_w.finish()?;
+            if truth_short {
+                eprintln!("warning: the truth file has fewer lines than the log has imu records");
+            }
+            Ok(truth.map(|(_, acc)| acc))
+        })?;
 
     let mut engine = SyncEngine::new(&header, cfg);
     let mut out = Vec::with_capacity(BATCH * 2);
@@ -380,6 +403,28 @@ fn write_kfgins_config(template: &Path, out_dir: &Path, r: &SyncReport) -> Resul
     Ok(())
 }
 
+/// A KF-GINS IMU line, like `io::kfgins::format_imu_line` (every bit kept:
+/// shortest round-trip form) but with a faster float printer.
+fn push_imu_line(out: &mut Vec<u8>, s: &ImuSample) {
+    s.time.write_sow(out);
+    let mut b = zmij::Buffer::new();
+    for v in s.dtheta.iter().chain(s.dvel.iter()) {
+        out.push(b' ');
+        out.extend_from_slice(b.format(*v).as_bytes());
+    }
+    out.push(b'\n');
+}
+
+/// CPU time of this process, all threads (s), from /proc/self/stat.
+fn cpu_seconds() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let rest = s.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = f.get(11)?.parse().ok()?;
+    let stime: f64 = f.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
 /// Peak resident memory of this process (kB), from /proc/self/status.
 fn peak_rss_kb() -> Option<u64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -412,9 +457,11 @@ fn bench(args: &Args) -> Result<()> {
         ..Default::default()
     };
     let t1 = Instant::now();
+    let cpu0 = cpu_seconds().unwrap_or(0.0);
     let out = dir.join("out");
-    let res = sync_file(&rig, &out, cfg, None);
+    let res = sync_file(&rig, &out, cfg, RateRule::Trapezoid, None);
     let wall = t1.elapsed().as_secs_f64();
+    let cpu = cpu_seconds().unwrap_or(0.0) - cpu0;
     let rss = peak_rss_kb().unwrap_or(0);
     let _ = std::fs::remove_dir_all(&dir);
     let summary = res?;
@@ -426,6 +473,13 @@ fn bench(args: &Args) -> Result<()> {
         size as f64 / wall / 1e6,
         rss as f64 / 1024.0,
         rss_before as f64 / 1024.0
+    );
+    println!(
+        "  CPU time {cpu:.2} s over all threads (load average now {})",
+        std::fs::read_to_string("/proc/loadavg")
+            .ok()
+            .and_then(|l| l.split_whitespace().next().map(str::to_string))
+            .unwrap_or_default()
     );
     println!(
         "  imu rate {:.4} Hz, lost {}, pps accepted {} of {}",

@@ -120,6 +120,12 @@ impl ClockConfig {
     }
 }
 
+/// `b − a` in ticks as `f64` (unwrapped counters are far closer than 2^63).
+#[inline]
+pub(crate) fn tick_diff(a: u64, b: u64) -> f64 {
+    b.wrapping_sub(a) as i64 as f64
+}
+
 /// The kind of oscillator driving the counter: it sets how fast the
 /// holdover error bound grows (the clock noise the past cannot predict).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
@@ -270,6 +276,7 @@ pub struct PpsClock {
     pub innovation: crate::stats::Moments,
     /// Latest counter seen by the clock.
     now: u64,
+    chi2_table: Vec<f64>,
 }
 
 impl PpsClock {
@@ -294,6 +301,7 @@ impl PpsClock {
             freq_ppm: Default::default(),
             innovation: Default::default(),
             now: 0,
+            chi2_table: Vec::new(),
         }
     }
 
@@ -308,7 +316,7 @@ impl PpsClock {
     }
 
     fn secs(&self, from: u64, to: u64) -> f64 {
-        (to as i128 - from as i128) as f64 / self.cfg.counter_hz
+        tick_diff(from, to) / self.cfg.counter_hz
     }
 
     /// GPS time (ns) of `s_ref + g` seconds.
@@ -527,9 +535,9 @@ impl PpsClock {
             };
             let dof = fit.dof();
             let too_large = dof >= 10
-                && fit.sigma().is_some_and(|s| {
-                    s * s * dof as f64 > sm * sm * crate::stats::chi2_quantile(0.999, dof as f64)
-                });
+                && fit
+                    .sigma()
+                    .is_some_and(|s| s * s * dof as f64 > sm * sm * self.chi2_999(dof));
             if too_large && pts.len() > 16 {
                 let drop = pts.len() / 4;
                 pts.drain(..drop);
@@ -575,8 +583,19 @@ impl PpsClock {
         self.model = Some(new);
     }
 
+    /// χ² 99.9 % quantile for `dof` degrees of freedom (cached).
+    fn chi2_999(&mut self, dof: usize) -> f64 {
+        if self.chi2_table.len() <= dof {
+            self.chi2_table.resize(dof + 1, f64::NAN);
+        }
+        if self.chi2_table[dof].is_nan() {
+            self.chi2_table[dof] = crate::stats::chi2_quantile(0.999, dof as f64);
+        }
+        self.chi2_table[dof]
+    }
+
     fn model_g(m: &CausalModel, c: u64, hz: f64) -> f64 {
-        let x = (c as i128 - m.c_ref as i128) as f64 / hz;
+        let x = tick_diff(m.c_ref, c) / hz;
         x + m.fit.eval(x)
     }
 
@@ -839,6 +858,7 @@ fn best_supported(votes: impl Iterator<Item = i64>) -> Option<i64> {
 #[derive(Clone, Debug, Default)]
 pub struct Smoother {
     cache_key: Option<(u64, u64)>,
+    bracket: (Option<Pulse>, Option<Pulse>),
     cache: Option<(u64, i64, PolyFit, f64, f64)>,
 }
 
@@ -847,21 +867,30 @@ impl Smoother {
         Self::default()
     }
 
-    pub fn time_at(&mut self, clock: &PpsClock, c: u64) -> Option<(GpsTime, f64)> {
+    /// GPS time, error bound, and whether `c` lies in a gap of the pulses
+    /// (holdover), at counter `c`.
+    pub fn time_at(&mut self, clock: &PpsClock, c: u64) -> Option<(GpsTime, f64, bool)> {
         let h = &clock.history;
         if h.is_empty() {
             return None;
         }
         let f0 = clock.cfg.counter_hz;
-        // bracketing pulses
-        let idx = h.partition_point(|p| p.counter <= c);
-        let left = idx.checked_sub(1).map(|i| h[i]);
-        let right = h.get(idx).copied();
+        // Samples come in order: most fall in the cached bracket.
+        let cached = self
+            .cache_key
+            .is_some_and(|(l, r)| r != u64::MAX && l <= c && c < r);
+        let (left, right) = if cached {
+            (self.bracket.0, self.bracket.1)
+        } else {
+            let idx = h.partition_point(|p| p.counter <= c);
+            (idx.checked_sub(1).map(|i| h[i]), h.get(idx).copied())
+        };
         let key = (
             left.map(|p| p.counter).unwrap_or(0),
             right.map(|p| p.counter).unwrap_or(u64::MAX),
         );
         if self.cache_key != Some(key) {
+            self.bracket = (left, right);
             let half = clock.cfg.smooth_half_window_s.round() as i64;
             let lo = left.or(right)?.second - half;
             let hi = right.or(left)?.second + half;
@@ -870,7 +899,7 @@ impl Smoother {
                 .iter()
                 .filter(|p| p.second >= lo && p.second <= hi)
                 .map(|p| {
-                    let x = (p.counter as i128 - anchor.counter as i128) as f64 / f0;
+                    let x = tick_diff(anchor.counter, p.counter) / f0;
                     (x, (p.second - anchor.second) as f64 - x)
                 })
                 .collect();
@@ -912,7 +941,7 @@ impl Smoother {
                 (Some(l), Some(r)) if r.second - l.second > 1 => [l, r]
                     .iter()
                     .map(|p| {
-                        let x = (p.counter as i128 - anchor.counter as i128) as f64 / f0;
+                        let x = tick_diff(anchor.counter, p.counter) / f0;
                         ((p.second - anchor.second) as f64 - x - fit.eval(x)).abs()
                     })
                     .fold(0.0, f64::max),
@@ -922,17 +951,22 @@ impl Smoother {
             self.cache_key = Some(key);
         }
         let (c_ref, s_ref, fit, sigma, misfit) = self.cache.as_ref()?;
-        let x = (c as i128 - *c_ref as i128) as f64 / f0;
+        let x = tick_diff(*c_ref, c) / f0;
         let g = x + fit.eval(x);
         let near = [left, right]
             .iter()
             .flatten()
-            .map(|p| ((c as i128 - p.counter as i128).abs() as f64) / f0)
+            .map(|p| tick_diff(p.counter, c).abs() / f0)
             .fold(f64::INFINITY, f64::min);
         let var = sigma * sigma * fit.var_factor(x) + clock.cfg.process_var(near);
+        let gap = match (left, right) {
+            (Some(l), Some(r)) => r.second - l.second > 1,
+            _ => true,
+        };
         Some((
             PpsClock::to_gps(*s_ref, g),
             clock.cfg.bound(var.sqrt(), near) + misfit,
+            gap,
         ))
     }
 }

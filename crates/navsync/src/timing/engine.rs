@@ -458,7 +458,8 @@ impl SyncEngine {
             return true;
         }
         let need = self.clock.cfg.smooth_half_window_s + 2.0;
-        match self.clock.history.iter().find(|p| p.counter > c) {
+        let h = &self.clock.history;
+        match h.get(h.partition_point(|p| p.counter <= c)) {
             Some(p) => self.clock.seconds_between(p.counter, self.now) >= need,
             None => self.clock.seconds_between(c, self.now) >= self.cfg.max_lookahead_s,
         }
@@ -471,16 +472,7 @@ impl SyncEngine {
             let hold = self.clock.since_last_pulse(c) > 1.5;
             Some((t, sd, hold))
         } else {
-            let (t, sd) = self.smoother.time_at(&self.clock, c)?;
-            let h = &self.clock.history;
-            let idx = h.partition_point(|p| p.counter <= c);
-            let left = idx.checked_sub(1).map(|i| h[i].second);
-            let right = h.get(idx).map(|p| p.second);
-            let hold = match (left, right) {
-                (Some(l), Some(r)) => r - l > 1,
-                _ => true,
-            };
-            Some((t, sd, hold))
+            self.smoother.time_at(&self.clock, c)
         }
     }
 

@@ -51,6 +51,7 @@ pub struct ImuTracker {
     pub irregular: u64,
     pub gaps: Vec<ImuGap>,
     pub gaps_total: u64,
+    since_update: u32,
 }
 
 impl ImuTracker {
@@ -66,6 +67,7 @@ impl ImuTracker {
             irregular: 0,
             gaps: Vec::new(),
             gaps_total: 0,
+            since_update: 0,
         }
     }
 
@@ -126,7 +128,10 @@ impl ImuTracker {
         if self.deltas.len() > 15 {
             self.deltas.pop_front();
         }
-        if self.deltas.len() >= 5 {
+        self.since_update += 1;
+        // The period drifts slowly (ppm): a median every 16 samples suffices.
+        if self.deltas.len() >= 5 && (self.period_ticks.is_none() || self.since_update >= 16) {
+            self.since_update = 0;
             let mut v: Vec<f64> = self.deltas.iter().copied().collect();
             let m = median(&mut v);
             // Accept the running median once it agrees with the nominal
@@ -255,12 +260,33 @@ impl RateEstimator {
 #[derive(Clone, Debug)]
 pub struct IncrementBuilder {
     kind: ImuKind,
+    rule: RateRule,
     prev: Option<(GpsTime, [f64; 6])>,
+}
+
+/// How rate samples become increments over (t_{k−1}, t_k].
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RateRule {
+    /// (ω_{k−1} + ω_k)/2 · Δt: for instantaneous rates (seed 001 §1.1).
+    #[default]
+    Trapezoid,
+    /// ω_k · Δt: for rates that are already averages over the interval
+    /// (an IMU's averaging decimation filter, seed 001 §1.3.1).
+    Average,
 }
 
 impl IncrementBuilder {
     pub fn new(kind: ImuKind) -> Self {
-        IncrementBuilder { kind, prev: None }
+        Self::with_rule(kind, RateRule::Trapezoid)
+    }
+
+    pub fn with_rule(kind: ImuKind, rule: RateRule) -> Self {
+        IncrementBuilder {
+            kind,
+            rule,
+            prev: None,
+        }
     }
 
     /// The increment ending at this sample, if any (the first rate sample
@@ -295,7 +321,11 @@ impl IncrementBuilder {
                     return None;
                 }
                 let dt = time.seconds_since(t0);
-                let m = |k: usize| 0.5 * (v0[k] + values[k]) * dt;
+                let rule = self.rule;
+                let m = |k: usize| match rule {
+                    RateRule::Trapezoid => 0.5 * (v0[k] + values[k]) * dt,
+                    RateRule::Average => values[k] * dt,
+                };
                 Some(ImuSample {
                     time,
                     dtheta: Vector3::new(m(0), m(1), m(2)),

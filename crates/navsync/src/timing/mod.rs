@@ -30,6 +30,6 @@ mod testsim;
 
 pub use clock::{ClockConfig, LockState, Oscillator};
 pub use engine::{StampedGnss, StampedImu, SyncConfig, SyncEngine, SyncMode, SyncOutput};
-pub use imu::{ImuFlags, IncrementBuilder};
+pub use imu::{ImuFlags, IncrementBuilder, RateRule};
 pub use report::SyncReport;
 pub use swsync::SwConfig;

@@ -131,7 +131,7 @@ impl SwClock {
     /// Host seconds of an unwrapped counter.
     pub fn host(&mut self, c: u64) -> f64 {
         let c0 = *self.c0.get_or_insert(c);
-        (c as i128 - c0 as i128) as f64 / self.hz
+        super::clock::tick_diff(c0, c) / self.hz
     }
 
     /// Latest host time seen.
