@@ -771,6 +771,7 @@ impl SyncEngine {
             kind: self.header.imu_kind,
             nominal_rate_hz: self.header.imu_rate_hz,
             rate_hz: self.rate.rate_hz(),
+            rate_ls_hz: self.rate.rate_ls_hz(),
             lost: self.tracker.lost,
             duplicated: self.tracker.duplicated,
             irregular_intervals: self.tracker.irregular,

@@ -174,6 +174,7 @@ pub struct RateEstimator {
     ckk: f64,
     ckt: f64,
     t0: Option<GpsTime>,
+    last: Option<GpsTime>,
     index: u64,
     current_second: Option<i64>,
     current_count: u32,
@@ -189,6 +190,7 @@ impl RateEstimator {
     pub fn push(&mut self, time: GpsTime, lost_before: u32) {
         self.index += lost_before as u64;
         let t0 = *self.t0.get_or_insert(time);
+        self.last = Some(time);
         let k = self.index as f64;
         let t = time.seconds_since(t0);
         self.n += 1.0;
@@ -248,8 +250,17 @@ impl RateEstimator {
         self.odd_seconds.clone()
     }
 
-    /// Estimated rate (Hz).
+    /// Mean rate over the run (Hz): sample periods elapsed (lost ones
+    /// counted) over the time from the first to the last stamp.
     pub fn rate_hz(&self) -> Option<f64> {
+        let span = self.last?.seconds_since(self.t0?);
+        (self.n >= 3.0 && span > 0.0).then(|| (self.index - 1) as f64 / span)
+    }
+
+    /// Rate from the least-squares slope of stamps on sample index (Hz):
+    /// weights the middle of the run; differs from the mean rate when the
+    /// IMU clock drifts.
+    pub fn rate_ls_hz(&self) -> Option<f64> {
         (self.n >= 3.0 && self.ckk > 0.0 && self.ckt > 0.0).then(|| self.ckk / self.ckt)
     }
 }

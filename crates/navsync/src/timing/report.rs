@@ -104,8 +104,10 @@ pub struct ImuReport {
     pub records: u64,
     pub kind: ImuKind,
     pub nominal_rate_hz: Option<f64>,
-    /// The IMU's true rate from its stamps (Hz).
+    /// The IMU's true mean rate from its stamps (Hz), lost samples counted.
     pub rate_hz: Option<f64>,
+    /// Least-squares rate (stamps on sample index) (Hz).
+    pub rate_ls_hz: Option<f64>,
     pub lost: u64,
     pub duplicated: u64,
     pub irregular_intervals: u64,
