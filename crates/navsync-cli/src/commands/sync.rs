@@ -11,7 +11,8 @@ use navsync::io::kfgins::{TextWriter, format_gnss_line};
 use navsync::io::riglog::{RigLogReader, RigRecord};
 use navsync::timing::report::{TruthAccumulator, TruthTimes, format_week_sow};
 use navsync::timing::{
-    IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncMode, SyncOutput, SyncReport,
+    IncrementBuilder, Oscillator, RateRule, SyncConfig, SyncEngine, SyncMode, SyncOutput,
+    SyncReport,
 };
 
 use super::print_diagnostics;
@@ -34,6 +35,9 @@ pub struct Args {
     /// subtracted from every IMU stamp (seed 000).
     #[arg(long, default_value_t = 0.0)]
     pub imu_output_delay: f64,
+    /// The counter's oscillator: how fast holdover error bounds grow.
+    #[arg(long, value_enum, default_value_t = Osc::Xo)]
+    pub oscillator: Osc,
     /// Software sync: assumed latency of the fastest GNSS message (s).
     #[arg(long, default_value_t = 0.0)]
     pub gnss_min_latency: f64,
@@ -57,6 +61,16 @@ pub struct Args {
     /// Hours of data for --bench.
     #[arg(long, default_value_t = 24.0, requires = "bench")]
     pub hours: f64,
+}
+
+#[derive(Copy, Clone, clap::ValueEnum)]
+pub enum Osc {
+    /// Plain crystal: a 1 °C/min ramp may start at any time (≈ 30 µs after 60 s).
+    Xo,
+    /// Temperature-compensated crystal.
+    Tcxo,
+    /// Oven-controlled crystal.
+    Ocxo,
 }
 
 #[derive(Copy, Clone, clap::ValueEnum)]
@@ -87,6 +101,11 @@ pub fn run(args: Args) -> Result<()> {
         },
         causal: args.causal,
         imu_output_delay_s: args.imu_output_delay,
+        oscillator: match args.oscillator {
+            Osc::Xo => Oscillator::Xo,
+            Osc::Tcxo => Oscillator::Tcxo,
+            Osc::Ocxo => Oscillator::Ocxo,
+        },
         sw: navsync::timing::SwConfig {
             gnss_min_latency_s: args.gnss_min_latency,
             ..Default::default()

@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use super::clock::{ClockConfig, LockState, PpsClock, Smoother};
+use super::clock::{ClockConfig, LockState, Oscillator, PpsClock, Smoother};
 use super::imu::{ImuFlags, ImuTracker, RateEstimator};
 use super::report::*;
 use super::swsync::{SwClock, SwConfig};
@@ -36,6 +36,9 @@ pub struct SyncConfig {
     pub imu_output_delay_s: f64,
     /// Clock-model settings (defaults follow the header's counter).
     pub clock: Option<ClockConfig>,
+    /// The counter's oscillator, for the default clock settings: sets how
+    /// fast holdover bounds grow.
+    pub oscillator: Oscillator,
     /// Software-sync settings.
     pub sw: SwConfig,
     /// Longest wait for pulses to return before a post-processing stamp
@@ -57,6 +60,7 @@ impl Default for SyncConfig {
             causal: false,
             imu_output_delay_s: 0.0,
             clock: None,
+            oscillator: Oscillator::Xo,
             sw: SwConfig::default(),
             max_lookahead_s: 600.0,
             auto_wait_s: 5.0,
