@@ -22,6 +22,8 @@ enum Command {
     Eval(commands::eval::Args),
     /// Convert receiver logs (UBX, NMEA) and rate-form IMU CSVs to KF-GINS files and rig-logs.
     Convert(commands::convert::Args),
+    /// Put a raw rig log (rig-log v1) on GPS time: KF-GINS files and a report.
+    Sync(commands::sync::Args),
     /// Time the navigation core on generated data (1 h of 200 Hz IMU).
     Bench(commands::bench::Args),
     /// Fuse an IMU array with unknown relative time offsets (seed 004).
@@ -36,6 +38,7 @@ fn main() {
         Command::Convert(a) => commands::convert::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Array(a) => commands::array::run(a),
+        Command::Sync(a) => commands::sync::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

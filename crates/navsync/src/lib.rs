@@ -30,6 +30,7 @@ pub mod stats;
 #[cfg(test)]
 mod testutil;
 pub mod time;
+pub mod timing;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
 pub use time::GpsTime;

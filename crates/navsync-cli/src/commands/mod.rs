@@ -3,6 +3,7 @@ pub mod bench;
 pub mod convert;
 pub mod eval;
 pub mod fuse;
+pub mod sync;
 
 /// Parses "a,b,c" into three numbers.
 pub fn parse_triplet(s: &str) -> Result<[f64; 3], String> {

@@ -2,4 +2,5 @@
 
 pub mod config;
 pub mod kfgins;
+pub mod riglog;
 pub mod text;

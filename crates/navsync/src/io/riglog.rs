@@ -1,0 +1,675 @@
+//! Streaming reader of the raw acquisition log `rig-log v1` (FORMATS.md §2).
+//!
+//! The header (`# rig-log v1`, `# counter_hz`, `# counter_bits`, `# imu`)
+//! is read on open; unknown `# key: value` header lines are kept and
+//! reported as warnings (`# imu_rate_hz: 200` is understood). Records are
+//! returned one at a time in file order. A record that is bad on its own
+//! (unknown type, wrong field count, a field that is not a number, a
+//! counter that does not fit the counter's width) is reported with file and
+//! line into [`Diagnostics`] and skipped: nothing else is lost.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use super::text::{LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, split_fields};
+use crate::error::{Diagnostics, Error};
+use crate::time::{GpsTime, NS_PER_WEEK};
+
+/// What the six values of an `imu` record are.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ImuKind {
+    /// Gyro rates (rad/s) then specific forces (m/s²), FRD.
+    Rate,
+    /// Angle increments (rad) then velocity increments (m/s), FRD.
+    Increment,
+}
+
+/// The header of a rig log.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RigHeader {
+    /// Nominal counter frequency (Hz).
+    pub counter_hz: f64,
+    /// Counter width: it wraps modulo 2^bits (1..=64).
+    pub counter_bits: u32,
+    /// Meaning of the IMU values.
+    pub imu_kind: ImuKind,
+    /// Nominal IMU rate (Hz) when the header gives `imu_rate_hz`.
+    pub imu_rate_hz: Option<f64>,
+    /// Other `key: value` header lines, in order.
+    pub extra: Vec<(String, String)>,
+}
+
+/// One GNSS fix as logged: valid at `time`, last byte received at `counter`.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct RigGnss {
+    /// Raw counter (not unwrapped) at the last byte.
+    pub counter: u64,
+    /// Time of validity (GPS).
+    pub time: GpsTime,
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub h_m: f64,
+    /// Standard deviations N, E, D (m).
+    pub sd_m: [f64; 3],
+}
+
+/// One record of a rig log.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum RigRecord {
+    /// Raw counter latched at a 1PPS rising edge.
+    Pps { counter: u64 },
+    /// A GNSS fix and its receive counter.
+    Gnss(RigGnss),
+    /// Raw counter at the IMU data-ready edge (or receipt) and six values.
+    Imu { counter: u64, values: [f64; 6] },
+}
+
+impl RigRecord {
+    /// The raw counter of the record.
+    pub fn counter(&self) -> u64 {
+        match self {
+            RigRecord::Pps { counter } | RigRecord::Imu { counter, .. } => *counter,
+            RigRecord::Gnss(g) => g.counter,
+        }
+    }
+}
+
+/// Streaming rig-log reader over any byte source.
+pub struct RigLogReader<R> {
+    lines: LineReader<R>,
+    path: PathBuf,
+    header: RigHeader,
+    /// First record line, read while scanning the header.
+    pending: Option<(Vec<u8>, usize)>,
+    records: usize,
+    counter_max: u64,
+}
+
+impl RigLogReader<File> {
+    /// Opens `path` and reads its header. Header warnings go to `diag`.
+    pub fn open(path: &Path, diag: &mut Diagnostics) -> Result<Self, Error> {
+        Self::new(LineReader::open(path)?, diag)
+    }
+}
+
+impl<R: Read> RigLogReader<R> {
+    /// Reads the header from `lines`.
+    pub fn new(mut lines: LineReader<R>, diag: &mut Diagnostics) -> Result<Self, Error> {
+        let path = lines.path().to_path_buf();
+        let mut magic = false;
+        let mut counter_hz = None;
+        let mut counter_bits = None;
+        let mut imu_kind = None;
+        let mut imu_rate_hz = None;
+        let mut extra = Vec::new();
+        let mut pending = None;
+        let mut first_line = true;
+        while let Some((line, no)) = lines.next_line()? {
+            let text = String::from_utf8_lossy(line);
+            let t = text.trim();
+            if t.is_empty() {
+                continue;
+            }
+            let Some(comment) = t.strip_prefix('#') else {
+                pending = Some((line.to_vec(), no));
+                break;
+            };
+            let c = comment.trim();
+            if first_line {
+                first_line = false;
+                if c == "rig-log v1" {
+                    magic = true;
+                    continue;
+                }
+                if c.starts_with("rig-log") {
+                    return Err(Error::parse(
+                        &path,
+                        no,
+                        format!("unsupported version '{c}' (this reader knows 'rig-log v1')"),
+                    ));
+                }
+            }
+            let Some((key, value)) = c.split_once(':') else {
+                continue; // a plain comment
+            };
+            let (key, value) = (key.trim(), value.trim());
+            // Values may be followed by a comment ("1000000   nominal ...").
+            let first = value.split_whitespace().next().unwrap_or("");
+            match key {
+                "counter_hz" => match first.parse::<f64>() {
+                    Ok(v) if v.is_finite() && v > 0.0 => counter_hz = Some(v),
+                    _ => {
+                        return Err(Error::parse(
+                            &path,
+                            no,
+                            format!(
+                                "counter_hz: expected a positive frequency in Hz, found '{value}'"
+                            ),
+                        ));
+                    }
+                },
+                "counter_bits" => match first.parse::<u32>() {
+                    Ok(v) if (1..=64).contains(&v) => counter_bits = Some(v),
+                    _ => {
+                        return Err(Error::parse(
+                            &path,
+                            no,
+                            format!(
+                                "counter_bits: expected an integer from 1 to 64, found '{value}'"
+                            ),
+                        ));
+                    }
+                },
+                "imu" => {
+                    imu_kind = Some(match first {
+                        "rate" => ImuKind::Rate,
+                        "increment" => ImuKind::Increment,
+                        _ => {
+                            return Err(Error::parse(
+                                &path,
+                                no,
+                                format!("imu: expected 'rate' or 'increment', found '{value}'"),
+                            ));
+                        }
+                    })
+                }
+                "imu_rate_hz" => match first.parse::<f64>() {
+                    Ok(v) if v.is_finite() && v > 0.0 => imu_rate_hz = Some(v),
+                    _ => diag.push(
+                        &path,
+                        no,
+                        format!("imu_rate_hz: '{value}' is not a positive rate; ignored"),
+                    ),
+                },
+                _ => {
+                    diag.push(
+                        &path,
+                        no,
+                        format!("unknown header line '{key}: {value}' skipped"),
+                    );
+                    extra.push((key.to_string(), value.to_string()));
+                }
+            }
+        }
+        if !magic {
+            let msg = if pending.is_none() && counter_hz.is_none() {
+                "empty log: expected a '# rig-log v1' header and records".to_string()
+            } else {
+                "not a rig log: the first line must be '# rig-log v1'".to_string()
+            };
+            return Err(Error::parse(&path, 1, msg));
+        }
+        let counter_hz = counter_hz
+            .ok_or_else(|| Error::parse(&path, 1, "header has no '# counter_hz: <Hz>' line"))?;
+        let counter_bits = match counter_bits {
+            Some(b) => b,
+            None => {
+                diag.push(
+                    &path,
+                    1,
+                    "header has no '# counter_bits' line: assuming a 64-bit counter that never wraps",
+                );
+                64
+            }
+        };
+        let imu_kind = imu_kind
+            .ok_or_else(|| Error::parse(&path, 1, "header has no '# imu: rate|increment' line"))?;
+        let counter_max = if counter_bits == 64 {
+            u64::MAX
+        } else {
+            (1u64 << counter_bits) - 1
+        };
+        Ok(RigLogReader {
+            lines,
+            path,
+            header: RigHeader {
+                counter_hz,
+                counter_bits,
+                imu_kind,
+                imu_rate_hz,
+                extra,
+            },
+            pending,
+            records: 0,
+            counter_max,
+        })
+    }
+
+    /// The header read on open.
+    pub fn header(&self) -> &RigHeader {
+        &self.header
+    }
+
+    /// The file name used in messages.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Good records returned so far.
+    pub fn records(&self) -> usize {
+        self.records
+    }
+
+    /// The next good record with its line number; bad lines are reported
+    /// into `diag` and skipped. `None` at the end of the file.
+    pub fn next_record(
+        &mut self,
+        diag: &mut Diagnostics,
+    ) -> Result<Option<(RigRecord, usize)>, Error> {
+        if let Some((line, no)) = self.pending.take() {
+            if let Some(r) = parse_record(&line, no, &self.path, self.counter_max, diag) {
+                self.records += 1;
+                return Ok(Some((r, no)));
+            }
+        }
+        loop {
+            let Some((line, no)) = self.lines.next_line()? else {
+                return Ok(None);
+            };
+            if is_blank_or_comment(line) {
+                continue;
+            }
+            let rec = parse_record(line, no, &self.path, self.counter_max, diag);
+            if let Some(r) = rec {
+                self.records += 1;
+                return Ok(Some((r, no)));
+            }
+        }
+    }
+}
+
+/// Exact powers of ten representable in an `f64`.
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// Parses a decimal number. Fast path (Clinger 1990, "How to read floating
+/// point numbers accurately"): a mantissa below 2^53 and a power of ten up
+/// to 22 are both exact doubles, so one IEEE multiplication or division is
+/// correctly rounded. Anything else goes to the standard parser.
+#[inline]
+fn parse_number(field: &[u8]) -> Result<f64, String> {
+    let n = field.len();
+    let mut i = 0;
+    let neg = match field.first() {
+        Some(b'-') => {
+            i = 1;
+            true
+        }
+        Some(b'+') => {
+            i = 1;
+            false
+        }
+        _ => false,
+    };
+    let mut m: u64 = 0;
+    let mut digits = 0u32;
+    let mut frac = 0i32;
+    let mut seen_dot = false;
+    let mut any = false;
+    while i < n {
+        let c = field[i];
+        if c.is_ascii_digit() {
+            any = true;
+            if digits < 19 {
+                m = m * 10 + (c - b'0') as u64;
+                if m > 0 {
+                    digits += 1;
+                }
+                if seen_dot {
+                    frac += 1;
+                }
+            } else {
+                return parse_f64(field);
+            }
+        } else if c == b'.' && !seen_dot {
+            seen_dot = true;
+        } else {
+            break;
+        }
+        i += 1;
+    }
+    let mut exp: i32 = 0;
+    if i < n {
+        if !(field[i] == b'e' || field[i] == b'E') || !any {
+            return parse_f64(field);
+        }
+        i += 1;
+        let eneg = match field.get(i) {
+            Some(b'-') => {
+                i += 1;
+                true
+            }
+            Some(b'+') => {
+                i += 1;
+                false
+            }
+            _ => false,
+        };
+        let start = i;
+        while i < n && field[i].is_ascii_digit() && i - start < 4 {
+            exp = exp * 10 + (field[i] - b'0') as i32;
+            i += 1;
+        }
+        if i == start || i < n {
+            return parse_f64(field);
+        }
+        if eneg {
+            exp = -exp;
+        }
+    }
+    if !any {
+        return parse_f64(field);
+    }
+    let e10 = exp - frac;
+    let v = if m == 0 {
+        0.0
+    } else if m < (1u64 << 53) && (-22..=22).contains(&e10) {
+        let x = m as f64;
+        if e10 >= 0 {
+            x * POW10[e10 as usize]
+        } else {
+            x / POW10[(-e10) as usize]
+        }
+    } else {
+        return parse_f64(field);
+    };
+    Ok(if neg { -v } else { v })
+}
+
+fn parse_counter(field: &[u8], counter_max: u64) -> Result<u64, String> {
+    // Fast path: plain digits.
+    if !field.is_empty() && field.len() <= 19 && field.iter().all(u8::is_ascii_digit) {
+        let v = field.iter().fold(0u64, |a, &c| a * 10 + (c - b'0') as u64);
+        if v > counter_max {
+            return Err(format!(
+                "counter {v} does not fit the counter width (max {counter_max})"
+            ));
+        }
+        return Ok(v);
+    }
+    let s = std::str::from_utf8(field).map_err(|_| "counter is not text".to_string())?;
+    let v: u64 = s
+        .parse()
+        .map_err(|_| format!("counter '{s}' is not a non-negative integer"))?;
+    if v > counter_max {
+        return Err(format!(
+            "counter {v} does not fit the counter width (max {counter_max})"
+        ));
+    }
+    Ok(v)
+}
+
+/// Parses one record line; reports and returns `None` when it is bad.
+fn parse_record(
+    line: &[u8],
+    no: usize,
+    path: &Path,
+    counter_max: u64,
+    diag: &mut Diagnostics,
+) -> Option<RigRecord> {
+    let mut f: [&[u8]; 11] = [b""; 11];
+    let n = split_fields(line, &mut f);
+    let kind = f[0];
+    let expect = |diag: &mut Diagnostics, want: usize, layout: &str| {
+        diag.push(
+            path,
+            no,
+            format!("expected {want} fields ({layout}), found {n}; line skipped"),
+        );
+    };
+    match kind {
+        b"imu" => {
+            if n != 8 {
+                expect(diag, 8, "imu,counter,x1..x6");
+                return None;
+            }
+            let counter = match parse_counter(f[1], counter_max) {
+                Ok(c) => c,
+                Err(e) => {
+                    diag.push(path, no, format!("field 2: {e}; line skipped"));
+                    return None;
+                }
+            };
+            let mut values = [0.0; 6];
+            for k in 0..6 {
+                match parse_number(f[2 + k]) {
+                    Ok(v) => values[k] = v,
+                    Err(e) => {
+                        diag.push(path, no, format!("field {}: {e}; line skipped", k + 3));
+                        return None;
+                    }
+                }
+            }
+            Some(RigRecord::Imu { counter, values })
+        }
+        b"pps" => {
+            if n != 2 {
+                expect(diag, 2, "pps,counter");
+                return None;
+            }
+            match parse_counter(f[1], counter_max) {
+                Ok(counter) => Some(RigRecord::Pps { counter }),
+                Err(e) => {
+                    diag.push(path, no, format!("field 2: {e}; line skipped"));
+                    None
+                }
+            }
+        }
+        b"gnss" => {
+            if n != 10 {
+                expect(
+                    diag,
+                    10,
+                    "gnss,counter_rx,week,tow_s,lat_deg,lon_deg,h_m,sd_n,sd_e,sd_d",
+                );
+                return None;
+            }
+            let counter = match parse_counter(f[1], counter_max) {
+                Ok(c) => c,
+                Err(e) => {
+                    diag.push(path, no, format!("field 2: {e}; line skipped"));
+                    return None;
+                }
+            };
+            let week = match std::str::from_utf8(f[2])
+                .ok()
+                .and_then(|s| s.parse::<i64>().ok())
+            {
+                Some(w) if (0..=100_000).contains(&w) => w,
+                _ => {
+                    diag.push(
+                        path,
+                        no,
+                        format!(
+                            "field 3: week '{}' is not a GPS week number; line skipped",
+                            String::from_utf8_lossy(f[2])
+                        ),
+                    );
+                    return None;
+                }
+            };
+            let tow_ns = match parse_seconds_ns(f[3]) {
+                Ok(t) if (0..NS_PER_WEEK).contains(&t) => t,
+                Ok(_) => {
+                    diag.push(
+                        path,
+                        no,
+                        "field 4: time of week outside 0..604800 s; line skipped",
+                    );
+                    return None;
+                }
+                Err(e) => {
+                    diag.push(path, no, format!("field 4: {e}; line skipped"));
+                    return None;
+                }
+            };
+            let mut v = [0.0; 6];
+            for k in 0..6 {
+                match parse_f64(f[4 + k]) {
+                    Ok(x) => v[k] = x,
+                    Err(e) => {
+                        diag.push(path, no, format!("field {}: {e}; line skipped", k + 5));
+                        return None;
+                    }
+                }
+            }
+            if !(-90.0..=90.0).contains(&v[0]) || !(-180.0..=360.0).contains(&v[1]) {
+                diag.push(path, no, "latitude or longitude out of range; line skipped");
+                return None;
+            }
+            if v[3..].iter().any(|&s| s <= 0.0) {
+                diag.push(
+                    path,
+                    no,
+                    "GNSS standard deviations must be positive; line skipped",
+                );
+                return None;
+            }
+            Some(RigRecord::Gnss(RigGnss {
+                counter,
+                time: GpsTime::from_week_ns(week, tow_ns),
+                lat_deg: v[0],
+                lon_deg: v[1],
+                h_m: v[2],
+                sd_m: [v[3], v[4], v[5]],
+            }))
+        }
+        _ => {
+            diag.push(
+                path,
+                no,
+                format!(
+                    "unknown record type '{}' skipped",
+                    String::from_utf8_lossy(kind)
+                ),
+            );
+            None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(text: &str) -> (Result<Vec<RigRecord>, Error>, Diagnostics) {
+        let mut diag = Diagnostics::default();
+        let lines = LineReader::new(text.as_bytes(), Path::new("rig.csv"));
+        let r = RigLogReader::new(lines, &mut diag).and_then(|mut r| {
+            let mut v = Vec::new();
+            while let Some((rec, _)) = r.next_record(&mut diag)? {
+                v.push(rec);
+            }
+            Ok(v)
+        });
+        (r, diag)
+    }
+
+    const HEAD: &str = "# rig-log v1\n# counter_hz: 1000000        nominal\n# counter_bits: 32\n# imu: rate\n# imu_rate_hz: 200\n";
+
+    #[test]
+    fn reads_header_and_records() {
+        let text = format!(
+            "{HEAD}imu,4095394224,4.7e-04,8.5e-04,6.5e-06,1.4e-02,1.1e-02,-9.79\npps,4096372991\ngnss,4096461055,2300,100001.000,30.44478463551,114.47186743179,22.1037,0.0200,0.0200,0.0300\n"
+        );
+        let mut diag = Diagnostics::default();
+        let lines = LineReader::new(text.as_bytes(), Path::new("rig.csv"));
+        let mut r = RigLogReader::new(lines, &mut diag).unwrap();
+        assert_eq!(r.header().counter_hz, 1e6);
+        assert_eq!(r.header().counter_bits, 32);
+        assert_eq!(r.header().imu_kind, ImuKind::Rate);
+        assert_eq!(r.header().imu_rate_hz, Some(200.0));
+        let (a, la) = r.next_record(&mut diag).unwrap().unwrap();
+        assert_eq!(la, 6);
+        assert!(matches!(
+            a,
+            RigRecord::Imu {
+                counter: 4095394224,
+                ..
+            }
+        ));
+        let (b, _) = r.next_record(&mut diag).unwrap().unwrap();
+        assert_eq!(
+            b,
+            RigRecord::Pps {
+                counter: 4096372991
+            }
+        );
+        let (c, _) = r.next_record(&mut diag).unwrap().unwrap();
+        let RigRecord::Gnss(g) = c else { panic!() };
+        assert_eq!(g.time, GpsTime::from_week_sow(2300, 100001.0));
+        assert_eq!(g.sd_m, [0.02, 0.02, 0.03]);
+        assert!(r.next_record(&mut diag).unwrap().is_none());
+        assert!(diag.is_empty(), "{diag:?}");
+    }
+
+    #[test]
+    fn bad_lines_are_reported_and_skipped() {
+        let text = format!(
+            "{HEAD}# vendor: acme\nimu,1,1,2,3,4,5\nimu,2,1,2,3,4,5,6\nimu,x,1,2,3,4,5,6\nimu,3,1,2,nan,4,5,6\npps,4294967296\npps\ncam,5,6\ngnss,9,2300,1.0,30,114,10,0.1,0.1\ngnss,9,2300,1.0,30,114,10,0.1,0.1,0\npps,7\n"
+        );
+        let (r, diag) = read(&text);
+        let recs = r.unwrap();
+        assert_eq!(recs.len(), 2);
+        assert!(matches!(recs[0], RigRecord::Imu { counter: 2, .. }));
+        assert_eq!(recs[1], RigRecord::Pps { counter: 7 });
+        // vendor header, 8 bad records
+        assert_eq!(diag.total, 9, "{:#?}", diag.items);
+        let lines: Vec<usize> = diag.items.iter().map(|d| d.line).collect();
+        assert_eq!(lines, vec![6, 7, 9, 10, 11, 12, 13, 14, 15]);
+        assert!(diag.items[1].message.contains("expected 8 fields"));
+        assert!(diag.items[4].message.contains("does not fit"));
+        assert!(diag.items[6].message.contains("unknown record type 'cam'"));
+        assert!(diag.items.iter().all(|d| d.file == "rig.csv"));
+    }
+
+    #[test]
+    fn fast_number_parsing_matches_the_standard_parser() {
+        for s in [
+            "4.7151651886e-04",
+            "-9.7927725367e+00",
+            "0",
+            "-0.0",
+            "1e22",
+            "1e23",
+            "123456789012345678901234",
+            "0.1",
+            "3.14159265358979323846",
+            "-1.5E-3",
+            "9007199254740993",
+            "2.2250738585072014e-308",
+            "7.",
+            ".5",
+            "+2.5",
+        ] {
+            let want: f64 = s.parse().unwrap();
+            let got = parse_number(s.as_bytes()).unwrap();
+            assert_eq!(got.to_bits(), want.to_bits(), "{s}");
+        }
+        for bad in ["", "-", "1e", "1.2.3", "e5", "nan", "inf", "1x", "1e5x"] {
+            assert!(parse_number(bad.as_bytes()).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn empty_and_headerless_logs_are_clear_errors() {
+        let (r, _) = read("");
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("empty log"), "{e}");
+        let (r, _) = read("pps,1\n");
+        assert!(r.unwrap_err().to_string().contains("first line must be"));
+        let (r, _) = read("# rig-log v1\n# counter_bits: 32\n# imu: rate\npps,1\n");
+        assert!(r.unwrap_err().to_string().contains("counter_hz"));
+        let (r, _) = read("# rig-log v2\n");
+        assert!(r.unwrap_err().to_string().contains("unsupported version"));
+        let (r, _) = read("# rig-log v1\n# counter_hz: 1e6\n# counter_bits: 99\n");
+        assert!(r.unwrap_err().to_string().contains("counter_bits"));
+        // header only: a valid, empty log (the engine reports "no records")
+        let (r, _) = read(HEAD);
+        assert!(r.unwrap().is_empty());
+    }
+}

@@ -1,0 +1,889 @@
+//! The synchronization engine: push rig-log records in arrival order, get
+//! GPS-stamped IMU samples and GNSS fixes out — at once in causal mode,
+//! after a bounded lookahead in post-processing mode.
+
+use std::collections::VecDeque;
+
+use super::clock::{ClockConfig, LockState, Oscillator, PpsClock, Smoother};
+use super::imu::{ImuFlags, ImuTracker, RateEstimator};
+use super::report::*;
+use super::swsync::{SwClock, SwConfig};
+use super::unwrap::{Unwrapped, Unwrapper};
+use crate::error::{Diagnostics, Error};
+use crate::io::riglog::{ImuKind, RigGnss, RigHeader, RigRecord};
+use crate::time::GpsTime;
+
+/// Which synchronization to run.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SyncMode {
+    /// Hardware sync when the log holds `pps` records, software otherwise.
+    Auto,
+    /// 1PPS + local counter (seed 001 §2.1).
+    Hw,
+    /// Receive times only (seed 001 §2.2).
+    Sw,
+}
+
+/// Settings of the engine.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SyncConfig {
+    pub mode: SyncMode,
+    /// Stamp each sample from past data only (real time).
+    pub causal: bool,
+    /// The IMU's known output delay T_c (s), subtracted from every IMU
+    /// stamp: for an IMU timed by its serial frame (seed 000).
+    pub imu_output_delay_s: f64,
+    /// Clock-model settings (defaults follow the header's counter).
+    pub clock: Option<ClockConfig>,
+    /// The counter's oscillator, for the default clock settings: sets how
+    /// fast holdover bounds grow.
+    pub oscillator: Oscillator,
+    /// Software-sync settings.
+    pub sw: SwConfig,
+    /// Longest wait for pulses to return before a post-processing stamp
+    /// falls back to one-sided holdover (s); bounds memory.
+    pub max_lookahead_s: f64,
+    /// In auto mode, decide software sync when no pulse came in this many
+    /// seconds of counter time.
+    pub auto_wait_s: f64,
+    /// Tolerated step back of the counter between records (s).
+    pub reorder_tolerance_s: f64,
+    /// File name used in diagnostics.
+    pub source: String,
+}
+
+impl Default for SyncConfig {
+    fn default() -> Self {
+        SyncConfig {
+            mode: SyncMode::Auto,
+            causal: false,
+            imu_output_delay_s: 0.0,
+            clock: None,
+            oscillator: Oscillator::Xo,
+            sw: SwConfig::default(),
+            max_lookahead_s: 600.0,
+            auto_wait_s: 5.0,
+            reorder_tolerance_s: 0.01,
+            source: String::new(),
+        }
+    }
+}
+
+/// An IMU record with its GPS time.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct StampedImu {
+    /// Index of this record among the log's `imu` records (0-based).
+    pub seq: u64,
+    /// GPS time of the sample (meaningless when `flags.unstamped`).
+    pub time: GpsTime,
+    /// Error bound of `time` (s): ≥ 99 % of true errors lie within (hardware
+    /// sync); the jitter estimate (software sync, constant part excluded).
+    pub bound_s: f64,
+    /// The six values as logged (rates or increments, FRD).
+    pub values: [f64; 6],
+    pub flags: ImuFlags,
+}
+
+/// A GNSS fix with its latency.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct StampedGnss {
+    /// Time of validity (from the message; never moved).
+    pub time: GpsTime,
+    /// GPS time at which its last byte arrived.
+    pub received: GpsTime,
+    /// `received − time` (s): seed 002's latency from the 1PPS edge.
+    pub latency_s: f64,
+    pub lat_deg: f64,
+    pub lon_deg: f64,
+    pub h_m: f64,
+    pub sd_m: [f64; 3],
+}
+
+impl StampedGnss {
+    /// The fix at its time of validity, for the filter or a KF-GINS file.
+    pub fn fix(&self) -> crate::filter::gnss::GnssFix {
+        crate::filter::gnss::GnssFix {
+            time: self.time,
+            pos: crate::earth::Geodetic::from_deg(self.lat_deg, self.lon_deg, self.h_m),
+            pos_sd: nalgebra::Vector3::from(self.sd_m),
+            vel: None,
+            vel_sd: None,
+        }
+    }
+}
+
+/// One output of the engine.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum SyncOutput {
+    Imu(StampedImu),
+    Gnss(StampedGnss),
+}
+
+#[derive(Copy, Clone, Debug)]
+struct PendingImu {
+    seq: u64,
+    counter: u64,
+    values: [f64; 6],
+    flags: ImuFlags,
+    /// Software sync: sample index and host time.
+    k: i64,
+    h: f64,
+}
+
+#[derive(Copy, Clone, Debug)]
+struct PendingGnss {
+    counter: u64,
+    h: f64,
+    fix: RigGnss,
+}
+
+enum Engine {
+    /// Auto mode before the decision: raw records buffered.
+    Undecided(Vec<(RigRecord, usize)>),
+    Hw,
+    Sw,
+}
+
+/// The streaming synchronization engine. See the module documentation.
+pub struct SyncEngine {
+    cfg: SyncConfig,
+    header: RigHeader,
+    state: Engine,
+    unwrap: Unwrapper,
+    clock: PpsClock,
+    smoother: Smoother,
+    sw: SwClock,
+    tracker: ImuTracker,
+    rate: RateEstimator,
+    pending_imu: VecDeque<PendingImu>,
+    pending_gnss: VecDeque<PendingGnss>,
+    imu_seq: u64,
+    now: u64,
+    first_counter: Option<u64>,
+    tick_s: f64,
+    // statistics
+    counts: RecordCounts,
+    latencies_ms: Vec<f32>,
+    negative_latency: u64,
+    holdover: Vec<HoldoverSpan>,
+    open_holdover: Option<HoldoverSpan>,
+    bounds: crate::stats::Moments,
+    max_bound_s: f64,
+    last_time: Option<GpsTime>,
+    nonincreasing: u64,
+    first_time: Option<GpsTime>,
+    backwards: u64,
+    reorders: u64,
+    resets: u64,
+    pps_ignored: u64,
+    unstamped: u64,
+    diag: Diagnostics,
+    out_of_order_imu: u64,
+}
+
+impl SyncEngine {
+    /// A new engine for a log with `header`.
+    pub fn new(header: &RigHeader, cfg: SyncConfig) -> Self {
+        let hz = header.counter_hz;
+        let clock_cfg = cfg
+            .clock
+            .clone()
+            .unwrap_or_else(|| ClockConfig::for_counter(hz));
+        let reorder = (cfg.reorder_tolerance_s * hz) as u64;
+        // Records are far closer than an hour; half the wrap period caps it.
+        let max_forward = (3600.0 * hz).min(u64::MAX as f64 / 4.0) as u64;
+        let state = match cfg.mode {
+            SyncMode::Auto => Engine::Undecided(Vec::new()),
+            SyncMode::Hw => Engine::Hw,
+            SyncMode::Sw => Engine::Sw,
+        };
+        let nominal_period = header.imu_rate_hz.map(|r| hz / r);
+        SyncEngine {
+            sw: SwClock::new(cfg.sw.clone(), hz),
+            cfg,
+            header: header.clone(),
+            state,
+            unwrap: Unwrapper::new(header.counter_bits, reorder, max_forward),
+            clock: PpsClock::new(clock_cfg),
+            smoother: Smoother::new(),
+            tracker: ImuTracker::new(nominal_period),
+            rate: RateEstimator::default(),
+            pending_imu: VecDeque::new(),
+            pending_gnss: VecDeque::new(),
+            imu_seq: 0,
+            now: 0,
+            first_counter: None,
+            tick_s: 1.0 / hz,
+            counts: RecordCounts::default(),
+            latencies_ms: Vec::new(),
+            negative_latency: 0,
+            holdover: Vec::new(),
+            open_holdover: None,
+            bounds: Default::default(),
+            max_bound_s: 0.0,
+            last_time: None,
+            nonincreasing: 0,
+            first_time: None,
+            backwards: 0,
+            reorders: 0,
+            resets: 0,
+            pps_ignored: 0,
+            unstamped: 0,
+            diag: Diagnostics::default(),
+            out_of_order_imu: 0,
+        }
+    }
+
+    /// Current lock state of the hardware clock.
+    pub fn lock_state(&self) -> LockState {
+        self.clock.state()
+    }
+
+    /// Pushes one record (line 0: not from a file).
+    pub fn push(&mut self, rec: RigRecord) -> Vec<SyncOutput> {
+        let mut out = Vec::new();
+        self.push_into(rec, 0, &mut out);
+        out
+    }
+
+    /// Pushes one record read at `line`; outputs are appended to `out`.
+    pub fn push_into(&mut self, rec: RigRecord, line: usize, out: &mut Vec<SyncOutput>) {
+        match rec {
+            RigRecord::Imu { .. } => self.counts.imu += 1,
+            RigRecord::Pps { .. } => self.counts.pps += 1,
+            RigRecord::Gnss(_) => self.counts.gnss += 1,
+        }
+        if let Engine::Undecided(buf) = &mut self.state {
+            let c = rec.counter();
+            buf.push((rec, line));
+            let is_pps = matches!(rec, RigRecord::Pps { .. });
+            let first = buf[0].0.counter();
+            let span = self.unwrap_span(first, c);
+            if is_pps {
+                self.decide(true, out);
+            } else if span > self.cfg.auto_wait_s {
+                self.decide(false, out);
+            }
+            return;
+        }
+        self.process(rec, line, out);
+    }
+
+    /// Counter seconds from `a` to `b` (modular, for the auto decision).
+    fn unwrap_span(&self, a: u64, b: u64) -> f64 {
+        let bits = self.header.counter_bits;
+        let d = if bits >= 64 {
+            b.wrapping_sub(a)
+        } else {
+            b.wrapping_sub(a) & ((1u64 << bits) - 1)
+        };
+        d as f64 * self.tick_s
+    }
+
+    fn decide(&mut self, hw: bool, out: &mut Vec<SyncOutput>) {
+        let Engine::Undecided(buf) =
+            std::mem::replace(&mut self.state, if hw { Engine::Hw } else { Engine::Sw })
+        else {
+            return;
+        };
+        for (rec, line) in buf {
+            self.process(rec, line, out);
+        }
+    }
+
+    fn unwrap_counter(&mut self, raw: u64, line: usize) -> Option<u64> {
+        match self.unwrap.push(raw) {
+            Unwrapped::Ok(c) => Some(c),
+            Unwrapped::Reordered(c) => {
+                self.reorders += 1;
+                Some(c)
+            }
+            Unwrapped::Backwards { ticks } => {
+                self.backwards += 1;
+                self.diag.push(
+                    std::path::Path::new(&self.cfg.source),
+                    line,
+                    format!(
+                        "counter went back by {ticks} ticks ({:.6} s) without wrapping; record skipped",
+                        ticks as f64 * self.tick_s
+                    ),
+                );
+                None
+            }
+            Unwrapped::JumpForward { ticks } => {
+                self.backwards += 1;
+                self.diag.push(
+                    std::path::Path::new(&self.cfg.source),
+                    line,
+                    format!(
+                        "counter jumped forward by {ticks} ticks ({:.3} s); record skipped",
+                        ticks as f64 * self.tick_s
+                    ),
+                );
+                None
+            }
+            Unwrapped::Reset(c) => {
+                self.resets += 1;
+                self.diag.push(
+                    std::path::Path::new(&self.cfg.source),
+                    line,
+                    "counter restarted (confirmed by three records): new segment, clock re-acquired",
+                );
+                // No clock relation carries over a reset.
+                let cfg = self.clock.cfg.clone();
+                let mut fresh = PpsClock::new(cfg);
+                fresh.events = std::mem::take(&mut self.clock.events);
+                self.clock = fresh;
+                self.smoother = Smoother::new();
+                Some(c)
+            }
+        }
+    }
+
+    fn process(&mut self, rec: RigRecord, line: usize, out: &mut Vec<SyncOutput>) {
+        let hw = matches!(self.state, Engine::Hw);
+        let counter = self.unwrap_counter(rec.counter(), line);
+        if let RigRecord::Imu { values, .. } = rec {
+            let seq = self.imu_seq;
+            self.imu_seq += 1;
+            let Some(c) = counter else {
+                // Keep order: an unstamped placeholder.
+                let flags = ImuFlags {
+                    unstamped: true,
+                    ..Default::default()
+                };
+                self.pending_imu.push_back(PendingImu {
+                    seq,
+                    counter: self
+                        .pending_imu
+                        .back()
+                        .map(|p| p.counter)
+                        .unwrap_or(self.now),
+                    values,
+                    flags,
+                    k: 0,
+                    h: self
+                        .pending_imu
+                        .back()
+                        .map(|p| p.h)
+                        .unwrap_or(f64::NEG_INFINITY),
+                });
+                self.drain(out, false);
+                return;
+            };
+            self.note_time(c);
+            let (flags, k, h) = if hw {
+                (self.tracker.classify_hw(seq, c, &values), 0, 0.0)
+            } else {
+                let h = self.sw.host(c);
+                let mut flags = self.tracker.classify_sw(&values);
+                if flags.duplicate {
+                    (flags, self.pending_imu.back().map(|p| p.k).unwrap_or(0), h)
+                } else {
+                    let (k, lost) = self.sw.push_imu(h);
+                    if lost > 0 {
+                        flags.lost_before = lost;
+                        self.tracker.note_lost(seq, lost);
+                    }
+                    (flags, k, h)
+                }
+            };
+            if hw
+                && self
+                    .pending_imu
+                    .back()
+                    .is_some_and(|p| c < p.counter && !p.flags.unstamped)
+            {
+                self.out_of_order_imu += 1;
+            }
+            self.pending_imu.push_back(PendingImu {
+                seq,
+                counter: c,
+                values,
+                flags,
+                k,
+                h,
+            });
+        } else {
+            let Some(c) = counter else {
+                return;
+            };
+            self.note_time(c);
+            match rec {
+                RigRecord::Pps { .. } => {
+                    if hw {
+                        let _ = self.clock.push_pulse(c);
+                    } else {
+                        self.pps_ignored += 1;
+                    }
+                }
+                RigRecord::Gnss(g) => {
+                    let h = if hw {
+                        self.clock.push_gnss(c, g.time);
+                        0.0
+                    } else {
+                        let h = self.sw.host(c);
+                        self.sw.push_gnss(h, g.time);
+                        h
+                    };
+                    self.pending_gnss.push_back(PendingGnss {
+                        counter: c,
+                        h,
+                        fix: g,
+                    });
+                }
+                RigRecord::Imu { .. } => {}
+            }
+        }
+        self.drain(out, false);
+    }
+
+    fn note_time(&mut self, c: u64) {
+        self.first_counter.get_or_insert(c);
+        self.now = self.now.max(c);
+        self.clock.advance(c);
+    }
+
+    /// Stamps every pending record that is ready (all of them when `flush`).
+    fn drain(&mut self, out: &mut Vec<SyncOutput>, flush: bool) {
+        match self.state {
+            Engine::Hw => self.drain_hw(out, flush),
+            Engine::Sw => self.drain_sw(out, flush),
+            Engine::Undecided(_) => {}
+        }
+    }
+
+    fn hw_ready(&self, c: u64, flush: bool) -> bool {
+        if !self.clock.has_model() {
+            return false;
+        }
+        if flush || self.cfg.causal {
+            return true;
+        }
+        let need = self.clock.cfg.smooth_half_window_s + 2.0;
+        let h = &self.clock.history;
+        match h.get(h.partition_point(|p| p.counter <= c)) {
+            Some(p) => self.clock.seconds_between(p.counter, self.now) >= need,
+            None => self.clock.seconds_between(c, self.now) >= self.cfg.max_lookahead_s,
+        }
+    }
+
+    /// GPS time, error bound and holdover flag of counter `c`.
+    fn hw_time(&mut self, c: u64) -> Option<(GpsTime, f64, bool)> {
+        if self.cfg.causal {
+            let (t, sd) = self.clock.stamp_causal(c);
+            let hold = self.clock.since_last_pulse(c) > 1.5;
+            Some((t, sd, hold))
+        } else {
+            self.smoother.time_at(&self.clock, c)
+        }
+    }
+
+    fn drain_hw(&mut self, out: &mut Vec<SyncOutput>, flush: bool) {
+        let tc = self.cfg.imu_output_delay_s;
+        let locked_once = self.clock.has_model();
+        while let Some(p) = self.pending_imu.front().copied() {
+            if p.flags.unstamped {
+                self.pending_imu.pop_front();
+                self.emit_unstamped(p, out);
+                continue;
+            }
+            if !self.hw_ready(p.counter, flush) {
+                break;
+            }
+            self.pending_imu.pop_front();
+            let Some((t, sd, hold)) = self.hw_time(p.counter) else {
+                self.emit_unstamped(p, out);
+                continue;
+            };
+            let mut flags = p.flags;
+            flags.holdover = hold;
+            flags.before_lock = self
+                .clock
+                .history
+                .front()
+                .is_none_or(|f| p.counter < f.counter)
+                && self.cfg.causal;
+            let bound = sd;
+            self.emit_imu(p, t.add_seconds(-tc), bound, flags, out);
+        }
+        while let Some(g) = self.pending_gnss.front().copied() {
+            if !self.hw_ready(g.counter, flush) {
+                break;
+            }
+            self.pending_gnss.pop_front();
+            if let Some((rx, _, _)) = self.hw_time(g.counter) {
+                self.emit_gnss(g.fix, rx, out);
+            }
+        }
+        // Memory: history needed only around the oldest pending record.
+        let oldest = self
+            .pending_imu
+            .front()
+            .map(|p| p.counter)
+            .into_iter()
+            .chain(self.pending_gnss.front().map(|g| g.counter))
+            .min()
+            .unwrap_or(self.now);
+        if locked_once {
+            self.clock.prune_history(oldest.min(self.now));
+        }
+    }
+
+    fn drain_sw(&mut self, out: &mut Vec<SyncOutput>, flush: bool) {
+        let tc = self.cfg.imu_output_delay_s;
+        let causal = self.cfg.causal;
+        while let Some(p) = self.pending_imu.front().copied() {
+            if p.flags.unstamped {
+                self.pending_imu.pop_front();
+                self.emit_unstamped(p, out);
+                continue;
+            }
+            if !self.sw.has_gnss() && !flush {
+                break;
+            }
+            if !causal && !flush && !self.sw.ready(p.h) {
+                break;
+            }
+            self.pending_imu.pop_front();
+            match self.sw.imu_time(p.k, p.h, tc, causal) {
+                Some(t) => {
+                    let sd = self.sw_sd();
+                    self.emit_imu(p, t, 3.0 * sd, p.flags, out);
+                }
+                None => self.emit_unstamped(p, out),
+            }
+        }
+        while let Some(g) = self.pending_gnss.front().copied() {
+            if !self.sw.has_gnss() && !flush {
+                break;
+            }
+            if !causal && !flush && !self.sw.ready(g.h) {
+                break;
+            }
+            self.pending_gnss.pop_front();
+            if let Some(lat) = self.sw.gnss_latency(g.h, g.fix.time, causal) {
+                let rx = g.fix.time.add_seconds(lat);
+                self.emit_gnss(g.fix, rx, out);
+            }
+        }
+        let oldest = self
+            .pending_imu
+            .front()
+            .map(|p| p.h)
+            .into_iter()
+            .chain(self.pending_gnss.front().map(|g| g.h))
+            .fold(self.sw.now(), f64::min);
+        let keep = if causal {
+            oldest
+        } else {
+            oldest - 0.5 * self.sw.cfg.gnss_window_s
+        };
+        self.sw.prune(keep);
+    }
+
+    /// Jitter estimate of software stamps: an envelope through N points
+    /// whose delays above it average `e` is uncertain by about e/N per
+    /// coefficient; the factor 2 was calibrated on the synthetic rig
+    /// (uniform 1–10 ms delays), where it keeps the estimate above the
+    /// measured wander.
+    fn sw_sd(&self) -> f64 {
+        let gi = if self.sw.imu_fit_points > 0 {
+            2.0 * self.sw.last_imu_fit_excess * 2f64.sqrt() / self.sw.imu_fit_points as f64
+        } else {
+            0.0
+        };
+        let gg = if self.sw.gnss_fit_points > 0 {
+            2.0 * self.sw.last_gnss_fit_excess * 3f64.sqrt() / self.sw.gnss_fit_points as f64
+        } else {
+            0.0
+        };
+        (gi * gi + gg * gg).sqrt()
+    }
+
+    fn emit_unstamped(&mut self, p: PendingImu, out: &mut Vec<SyncOutput>) {
+        self.unstamped += 1;
+        let mut flags = p.flags;
+        flags.unstamped = true;
+        out.push(SyncOutput::Imu(StampedImu {
+            seq: p.seq,
+            time: GpsTime::EPOCH,
+            bound_s: f64::INFINITY,
+            values: p.values,
+            flags,
+        }));
+    }
+
+    fn emit_imu(
+        &mut self,
+        p: PendingImu,
+        t: GpsTime,
+        bound: f64,
+        flags: ImuFlags,
+        out: &mut Vec<SyncOutput>,
+    ) {
+        if !flags.duplicate {
+            if self.last_time.is_some_and(|l| t <= l) {
+                self.nonincreasing += 1;
+            }
+            self.last_time = Some(t);
+            self.rate.push(t, flags.lost_before);
+            self.bounds.push(bound);
+            self.first_time.get_or_insert(t);
+        }
+        if flags.holdover {
+            match &mut self.open_holdover {
+                Some(h) => {
+                    h.end = WeekSow::from(t);
+                    h.max_bound_us = h.max_bound_us.max(bound * 1e6);
+                    h.samples += 1;
+                }
+                None => {
+                    self.open_holdover = Some(HoldoverSpan {
+                        start: WeekSow::from(t),
+                        end: WeekSow::from(t),
+                        duration_s: 0.0,
+                        max_bound_us: bound * 1e6,
+                        samples: 1,
+                    })
+                }
+            }
+        } else if let Some(mut h) = self.open_holdover.take() {
+            h.duration_s = h.end.seconds_since(&h.start);
+            self.holdover.push(h);
+        }
+        self.max_bound_s = self.max_bound_s.max(bound);
+        out.push(SyncOutput::Imu(StampedImu {
+            seq: p.seq,
+            time: t,
+            bound_s: bound,
+            values: p.values,
+            flags,
+        }));
+    }
+
+    fn emit_gnss(&mut self, fix: RigGnss, rx: GpsTime, out: &mut Vec<SyncOutput>) {
+        let lat = rx.seconds_since(fix.time);
+        if lat < 0.0 {
+            self.negative_latency += 1;
+        }
+        self.latencies_ms.push((lat * 1e3) as f32);
+        out.push(SyncOutput::Gnss(StampedGnss {
+            time: fix.time,
+            received: rx,
+            latency_s: lat,
+            lat_deg: fix.lat_deg,
+            lon_deg: fix.lon_deg,
+            h_m: fix.h_m,
+            sd_m: fix.sd_m,
+        }));
+    }
+
+    /// Ends the stream: stamps everything still pending and returns the
+    /// report. Errors when nothing could be put on GPS time.
+    pub fn finish(mut self) -> Result<(Vec<SyncOutput>, SyncReport), Error> {
+        let mut out = Vec::new();
+        let src = std::path::PathBuf::from(&self.cfg.source);
+        if matches!(self.state, Engine::Undecided(_)) {
+            self.decide(self.counts.pps > 0, &mut out);
+        }
+        let total = self.counts.imu + self.counts.pps + self.counts.gnss;
+        if total == 0 {
+            return Err(Error::NoData {
+                path: src,
+                msg: "empty log: no pps, gnss or imu records".into(),
+            });
+        }
+        let hw = matches!(self.state, Engine::Hw);
+        if hw && !self.clock.has_model() {
+            let msg = if self.counts.pps == 0 {
+                "no pps records: hardware sync impossible (use --mode sw for receive-time sync)"
+                    .to_string()
+            } else if self.counts.gnss == 0 {
+                format!(
+                    "{} pps records but no gnss messages: the pulses cannot be labelled with GPS seconds",
+                    self.counts.pps
+                )
+            } else {
+                format!(
+                    "{} pps records and {} gnss messages, but no 4 consistent pulses labelled by ≥ 3 messages: no GPS time",
+                    self.counts.pps, self.counts.gnss
+                )
+            };
+            return Err(Error::NoData { path: src, msg });
+        }
+        if !hw && !self.sw.has_gnss() {
+            return Err(Error::NoData {
+                path: src,
+                msg: format!(
+                    "software sync needs at least 3 gnss messages to map receive time to GPS time; found {}",
+                    self.counts.gnss
+                ),
+            });
+        }
+        self.drain(&mut out, true);
+        if let Some(mut h) = self.open_holdover.take() {
+            h.duration_s = h.end.seconds_since(&h.start);
+            self.holdover.push(h);
+        }
+        let report = self.report(hw);
+        Ok((out, report))
+    }
+
+    fn report(&mut self, hw: bool) -> SyncReport {
+        let mut lat = self.latencies_ms.clone();
+        lat.sort_by(|a, b| a.total_cmp(b));
+        let q = |p: f64| -> Option<f64> {
+            if lat.is_empty() {
+                None
+            } else {
+                let i = ((lat.len() - 1) as f64 * p).round() as usize;
+                Some(lat[i] as f64)
+            }
+        };
+        let gnss = GnssReport {
+            messages: self.counts.gnss,
+            stamped: lat.len() as u64,
+            latency_ms: LatencyStats {
+                min: q(0.0),
+                median: q(0.5),
+                p99: q(0.99),
+                max: q(1.0),
+            },
+            negative_latency: self.negative_latency,
+        };
+        let timeline = self.timeline(hw);
+        let clock = &self.clock;
+        let freq = &clock.freq_ppm;
+        let counter = CounterReport {
+            nominal_hz: self.header.counter_hz,
+            bits: self.header.counter_bits,
+            wraps: self.unwrap.wraps,
+            went_backwards_or_jumped: self.backwards,
+            reordered_records: self.reorders,
+            resets: self.resets,
+            freq_error_ppm: (hw && freq.n > 0).then(|| RangeStats {
+                mean: freq.mean(),
+                min: freq.min,
+                max: freq.max,
+            }),
+        };
+        let odd = self.rate.odd();
+        let imu = ImuReport {
+            records: self.counts.imu,
+            kind: self.header.imu_kind,
+            nominal_rate_hz: self.header.imu_rate_hz,
+            rate_hz: self.rate.rate_hz(),
+            rate_ls_hz: self.rate.rate_ls_hz(),
+            lost: self.tracker.lost,
+            duplicated: self.tracker.duplicated,
+            irregular_intervals: self.tracker.irregular,
+            unstamped: self.unstamped,
+            out_of_order: self.out_of_order_imu,
+            gaps: self.tracker.gaps.clone(),
+            gap_count: self.tracker.gaps_total,
+            samples_per_gps_second: self
+                .rate
+                .per_second
+                .iter()
+                .map(|(k, v)| (k.to_string(), *v))
+                .collect(),
+            odd_seconds: odd
+                .into_iter()
+                .map(|(s, c)| OddSecond {
+                    gps_second: s,
+                    samples: c,
+                })
+                .collect(),
+            output_delay_s: self.cfg.imu_output_delay_s,
+            timestamps_not_increasing: self.nonincreasing,
+        };
+        let pps = hw.then(|| PpsReport {
+            counts: clock.counts.clone(),
+            innovation_rms_us: (clock.innovation.n > 0).then(|| clock.innovation.rms() * 1e6),
+            ignored: 0,
+        });
+        let software = (!hw).then(|| {
+            let sd = self.sw_sd();
+            SoftwareReport {
+                imu_envelope_mean_delay_ms: self.sw.last_imu_fit_excess * 1e3,
+                gnss_envelope_mean_delay_ms: self.sw.last_gnss_fit_excess * 1e3,
+                host_clock_error_ppm: self.sw.host_ppm,
+                jitter_sd_ms: sd * 1e3,
+                assumed_fastest_gnss_latency_s: self.sw.cfg.gnss_min_latency_s,
+                assumed_fastest_imu_latency_s: self.sw.cfg.imu_min_latency_s,
+                unobservable: "every IMU stamp is off by the same constant: (fastest true GNSS latency − assumed) − (fastest true IMU latency − assumed). Receive times alone cannot observe it; estimate it in the filter or measure it once with 1PPS.".into(),
+                pps_records_ignored: self.pps_ignored,
+            }
+        });
+        SyncReport {
+            mode: if hw { "hw" } else { "sw" }.into(),
+            causal: self.cfg.causal,
+            records: self.counts.clone(),
+            counter,
+            lock_timeline: timeline,
+            pps,
+            holdover: self.holdover.clone(),
+            imu,
+            gnss,
+            software,
+            stamp_bound_us: BoundStats {
+                mean: (self.bounds.n > 0).then(|| self.bounds.mean() * 1e6),
+                max: (self.bounds.n > 0).then_some(self.max_bound_s * 1e6),
+            },
+            first_stamp: self.first_time.map(WeekSow::from),
+            last_stamp: self.last_time.map(WeekSow::from),
+            diagnostics: self.diag.clone(),
+            truth: None,
+        }
+    }
+
+    fn timeline(&self, hw: bool) -> Vec<LockSpan> {
+        let (Some(first), Some(last)) = (self.first_time, self.last_time) else {
+            return Vec::new();
+        };
+        if !hw {
+            return vec![LockSpan {
+                state: "software".into(),
+                start: WeekSow::from(first),
+                end: WeekSow::from(last),
+            }];
+        }
+        let mut spans = Vec::new();
+        let mut cur_state = LockState::Acquiring;
+        let mut cur_start = first;
+        for e in &self.clock.events {
+            let t = e.time.max(first).min(last);
+            if e.state != cur_state {
+                if t > cur_start {
+                    spans.push(LockSpan {
+                        state: format!("{cur_state:?}").to_lowercase(),
+                        start: WeekSow::from(cur_start),
+                        end: WeekSow::from(t),
+                    });
+                }
+                cur_state = e.state;
+                cur_start = t;
+            }
+        }
+        if last > cur_start {
+            spans.push(LockSpan {
+                state: format!("{cur_state:?}").to_lowercase(),
+                start: WeekSow::from(cur_start),
+                end: WeekSow::from(last),
+            });
+        }
+        spans
+    }
+
+    /// Diagnostics collected so far.
+    pub fn diagnostics(&self) -> &Diagnostics {
+        &self.diag
+    }
+
+    /// Meaning of the IMU values.
+    pub fn imu_kind(&self) -> ImuKind {
+        self.header.imu_kind
+    }
+}

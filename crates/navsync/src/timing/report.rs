@@ -1,0 +1,310 @@
+//! The synchronization report (`sync_report.json`) and the comparison of
+//! stamps with a truth file.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::Serialize;
+
+use super::clock::PulseCounts;
+use super::imu::ImuGap;
+use crate::error::{Diagnostics, Error};
+use crate::io::riglog::ImuKind;
+use crate::io::text::{LineReader, is_blank_or_comment, parse_seconds_ns, split_fields};
+use crate::time::{GpsTime, NS_PER_S};
+
+/// A GPS time as week and seconds of week.
+#[derive(Copy, Clone, Debug, Serialize, PartialEq)]
+pub struct WeekSow {
+    pub week: i64,
+    pub sow: f64,
+}
+
+impl From<GpsTime> for WeekSow {
+    fn from(t: GpsTime) -> Self {
+        WeekSow {
+            week: t.week(),
+            sow: t.sow(),
+        }
+    }
+}
+
+impl WeekSow {
+    /// `self − other` in seconds.
+    pub fn seconds_since(&self, other: &WeekSow) -> f64 {
+        (self.week - other.week) as f64 * 604_800.0 + (self.sow - other.sow)
+    }
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RecordCounts {
+    pub imu: u64,
+    pub pps: u64,
+    pub gnss: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct RangeStats {
+    pub mean: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct CounterReport {
+    pub nominal_hz: f64,
+    pub bits: u32,
+    pub wraps: u64,
+    /// Records skipped because the counter went back (or jumped) without wrapping.
+    pub went_backwards_or_jumped: u64,
+    /// Records slightly out of counter order (within tolerance).
+    pub reordered_records: u64,
+    /// Confirmed counter restarts.
+    pub resets: u64,
+    /// Counter frequency error (ppm; positive = counter fast), over the
+    /// causal fits at each accepted pulse.
+    pub freq_error_ppm: Option<RangeStats>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct LockSpan {
+    pub state: String,
+    pub start: WeekSow,
+    pub end: WeekSow,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct HoldoverSpan {
+    /// First and last IMU stamp made without a pulse within 1.5 s.
+    pub start: WeekSow,
+    pub end: WeekSow,
+    pub duration_s: f64,
+    /// Largest error bound of a stamp in the span (µs).
+    pub max_bound_us: f64,
+    pub samples: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct PpsReport {
+    #[serde(flatten)]
+    pub counts: PulseCounts,
+    /// RMS of accepted pulses' innovations against the causal prediction (µs).
+    pub innovation_rms_us: Option<f64>,
+    pub ignored: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct OddSecond {
+    pub gps_second: i64,
+    pub samples: u32,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ImuReport {
+    pub records: u64,
+    pub kind: ImuKind,
+    pub nominal_rate_hz: Option<f64>,
+    /// The IMU's true mean rate from its stamps (Hz), lost samples counted.
+    pub rate_hz: Option<f64>,
+    /// Least-squares rate (stamps on sample index) (Hz).
+    pub rate_ls_hz: Option<f64>,
+    pub lost: u64,
+    pub duplicated: u64,
+    pub irregular_intervals: u64,
+    pub unstamped: u64,
+    pub out_of_order: u64,
+    /// Gaps (first 1000): record index after the gap, samples lost.
+    pub gaps: Vec<ImuGap>,
+    pub gap_count: u64,
+    /// Samples counted in each full GPS second → how many seconds (seed 002).
+    pub samples_per_gps_second: BTreeMap<String, u64>,
+    /// Seconds whose count is off the most common one by more than one.
+    pub odd_seconds: Vec<OddSecond>,
+    /// T_c subtracted from every stamp (s).
+    pub output_delay_s: f64,
+    pub timestamps_not_increasing: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct LatencyStats {
+    pub min: Option<f64>,
+    pub median: Option<f64>,
+    pub p99: Option<f64>,
+    pub max: Option<f64>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct GnssReport {
+    pub messages: u64,
+    pub stamped: u64,
+    /// Latency from validity (the 1PPS edge for whole-second fixes) to the
+    /// last byte (ms), seed 002.
+    pub latency_ms: LatencyStats,
+    pub negative_latency: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SoftwareReport {
+    pub imu_envelope_mean_delay_ms: f64,
+    pub gnss_envelope_mean_delay_ms: f64,
+    pub host_clock_error_ppm: Option<f64>,
+    /// Estimated standard deviation of the stamps' varying error (ms).
+    pub jitter_sd_ms: f64,
+    pub assumed_fastest_gnss_latency_s: f64,
+    pub assumed_fastest_imu_latency_s: f64,
+    pub unobservable: String,
+    pub pps_records_ignored: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BoundStats {
+    pub mean: Option<f64>,
+    pub max: Option<f64>,
+}
+
+/// Stamps compared with the true times.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct TruthComparison {
+    pub compared: u64,
+    pub rms_us: f64,
+    pub max_abs_us: f64,
+    pub mean_us: f64,
+    /// Standard deviation about the mean (µs): the jitter.
+    pub sd_us: f64,
+    /// Share of stamps whose error lies within their reported bound.
+    pub within_bound: f64,
+    /// Over holdover stamps only.
+    pub holdover_compared: u64,
+    pub holdover_rms_us: f64,
+    pub holdover_max_abs_us: f64,
+    pub holdover_within_bound: f64,
+    /// Largest difference between consecutive errors (µs): a jump.
+    pub max_step_us: f64,
+}
+
+/// Everything `navsync sync` learned.
+#[derive(Clone, Debug, Serialize)]
+pub struct SyncReport {
+    pub mode: String,
+    pub causal: bool,
+    pub records: RecordCounts,
+    pub counter: CounterReport,
+    pub lock_timeline: Vec<LockSpan>,
+    pub pps: Option<PpsReport>,
+    pub holdover: Vec<HoldoverSpan>,
+    pub imu: ImuReport,
+    pub gnss: GnssReport,
+    pub software: Option<SoftwareReport>,
+    /// Error bounds of the IMU stamps (µs).
+    pub stamp_bound_us: BoundStats,
+    pub first_stamp: Option<WeekSow>,
+    pub last_stamp: Option<WeekSow>,
+    pub diagnostics: Diagnostics,
+    pub truth: Option<TruthComparison>,
+}
+
+/// Accumulates stamp errors against truth, in record order.
+#[derive(Clone, Debug, Default)]
+pub struct TruthAccumulator {
+    all: crate::stats::Moments,
+    hold: crate::stats::Moments,
+    within: u64,
+    hold_within: u64,
+    prev_err: Option<f64>,
+    max_step: f64,
+}
+
+impl TruthAccumulator {
+    /// One stamp: estimated `t`, true `truth`, its bound, holdover flag.
+    pub fn push(&mut self, t: GpsTime, truth: GpsTime, bound_s: f64, holdover: bool) {
+        let e = (t - truth) as f64 * 1e-9;
+        self.all.push(e);
+        if e.abs() <= bound_s {
+            self.within += 1;
+        }
+        if holdover {
+            self.hold.push(e);
+            if e.abs() <= bound_s {
+                self.hold_within += 1;
+            }
+        }
+        if let Some(p) = self.prev_err {
+            self.max_step = self.max_step.max((e - p).abs());
+        }
+        self.prev_err = Some(e);
+    }
+
+    pub fn finish(&self) -> TruthComparison {
+        let n = self.all.n.max(1) as f64;
+        let hn = self.hold.n.max(1) as f64;
+        TruthComparison {
+            compared: self.all.n as u64,
+            rms_us: self.all.rms() * 1e6,
+            max_abs_us: self.all.max_abs * 1e6,
+            mean_us: self.all.mean() * 1e6,
+            sd_us: self.all.std() * 1e6,
+            within_bound: self.within as f64 / n,
+            holdover_compared: self.hold.n as u64,
+            holdover_rms_us: if self.hold.n > 0 {
+                self.hold.rms() * 1e6
+            } else {
+                0.0
+            },
+            holdover_max_abs_us: self.hold.max_abs * 1e6,
+            holdover_within_bound: self.hold_within as f64 / hn,
+            max_step_us: self.max_step * 1e6,
+        }
+    }
+}
+
+/// Reads a truth file of `week sow` lines (one per `imu` record), streaming.
+pub struct TruthTimes {
+    lines: LineReader<std::fs::File>,
+    path: std::path::PathBuf,
+}
+
+impl TruthTimes {
+    pub fn open(path: &Path) -> Result<Self, Error> {
+        Ok(TruthTimes {
+            lines: LineReader::open(path)?,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// The next true time; `None` at the end. A bad line is an error (the
+    /// file must align with the records).
+    pub fn next_time(&mut self) -> Result<Option<GpsTime>, Error> {
+        loop {
+            let Some((line, no)) = self.lines.next_line()? else {
+                return Ok(None);
+            };
+            if is_blank_or_comment(line) {
+                continue;
+            }
+            let mut f: [&[u8]; 2] = [b""; 2];
+            let n = split_fields(line, &mut f);
+            if n < 2 {
+                return Err(Error::parse(&self.path, no, "expected 'week sow'"));
+            }
+            let week: i64 = std::str::from_utf8(f[0])
+                .ok()
+                .and_then(|s| s.parse().ok())
+                .ok_or_else(|| Error::parse(&self.path, no, "week is not an integer"))?;
+            let ns = parse_seconds_ns(f[1]).map_err(|e| Error::parse(&self.path, no, e))?;
+            return Ok(Some(GpsTime::from_week_ns(week, ns)));
+        }
+    }
+}
+
+/// Formats `week sow` with nanoseconds (the imu_times.txt layout).
+pub fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
+    crate::io::text::push_u64(out, t.week().max(0) as u64);
+    out.push(b' ');
+    t.write_sow(out);
+    out.push(b'\n');
+}
+
+/// Whole GPS seconds of `t`.
+pub fn gps_second(t: GpsTime) -> i64 {
+    t.ns().div_euclid(NS_PER_S)
+}
