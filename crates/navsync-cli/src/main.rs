@@ -22,6 +22,9 @@ enum Command {
     Eval(commands::eval::Args),
     /// Time the navigation core on generated data (1 h of 200 Hz IMU).
     Bench(commands::bench::Args),
+    /// Simulate carrier tracking (unaided or INS-aided, fixed or adaptive
+    /// bandwidth) against C/N0: jitter, bias, slips, threshold.
+    Track(commands::track::Args),
 }
 
 fn main() {
@@ -30,6 +33,7 @@ fn main() {
         Command::Fuse(a) => commands::fuse::run(a),
         Command::Eval(a) => commands::eval::run(a),
         Command::Bench(a) => commands::bench::run(a),
+        Command::Track(a) => commands::track::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

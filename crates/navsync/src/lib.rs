@@ -23,6 +23,7 @@ pub mod io;
 pub mod pipeline;
 pub mod stats;
 pub mod time;
+pub mod tracking;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
 pub use time::GpsTime;

@@ -1,6 +1,7 @@
 pub mod bench;
 pub mod eval;
 pub mod fuse;
+pub mod track;
 
 /// Parses "a,b,c" into three numbers.
 pub fn parse_triplet(s: &str) -> Result<[f64; 3], String> {
