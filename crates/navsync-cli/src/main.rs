@@ -25,6 +25,8 @@ enum Command {
     /// Simulate carrier tracking (unaided or INS-aided, fixed or adaptive
     /// bandwidth) against C/N0: jitter, bias, slips, threshold.
     Track(commands::track::Args),
+    /// Make a simulated odometer speed file from a truth trajectory.
+    SpeedSim(commands::speed_sim::Args),
 }
 
 fn main() {
@@ -34,6 +36,7 @@ fn main() {
         Command::Eval(a) => commands::eval::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Track(a) => commands::track::run(a),
+        Command::SpeedSim(a) => commands::speed_sim::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

@@ -21,6 +21,7 @@ pub mod fusion;
 pub mod ins;
 pub mod io;
 pub mod pipeline;
+pub mod reduced;
 pub mod stats;
 pub mod time;
 pub mod tracking;

@@ -1,6 +1,7 @@
 pub mod bench;
 pub mod eval;
 pub mod fuse;
+pub mod speed_sim;
 pub mod track;
 
 /// Parses "a,b,c" into three numbers.

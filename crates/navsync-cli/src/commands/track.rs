@@ -432,11 +432,12 @@ pub fn run(args: Args) -> Result<()> {
     let mut table = String::new();
     let _ = writeln!(
         table,
-        "{:>6} {:>7} {:>17} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8} {:>6}{}",
+        "{:>6} {:>7} {:>17} {:>8} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>6}{}",
         "C/N0",
         "est",
         "Bn mean [min-max]",
         "jitter°",
+        "Kaplan σt",
         "bias°",
         "RMS°",
         "3σ+|b|°",
@@ -452,13 +453,14 @@ pub fn run(args: Args) -> Result<()> {
     for (r, bf) in results.iter().zip(&best_fixed) {
         let _ = write!(
             table,
-            "{:>6.1} {:>7.1} {:>6.2} [{:>4.1}-{:>4.1}] {:>8.2} {:>8.2} {:>8.2} {:>9.1} {:>9.1} {:>8.2} {:>6.1}",
+            "{:>6.1} {:>7.1} {:>6.2} [{:>4.1}-{:>4.1}] {:>8.2} {:>9.2} {:>8.2} {:>8.2} {:>9.1} {:>9.1} {:>8.2} {:>6.1}",
             r.cn0_dbhz,
             r.cn0_est_dbhz,
             r.bn_mean_hz,
             r.bn_min_hz,
             r.bn_max_hz,
             r.jitter_deg,
+            r.kaplan_thermal_deg,
             r.bias_deg,
             r.rms_deg,
             r.three_sigma_deg,
@@ -506,19 +508,20 @@ pub fn run(args: Args) -> Result<()> {
 
     if let Some(p) = &args.csv {
         let mut s = String::from(
-            "cn0_dbhz,cn0_est_dbhz,bn_mean_hz,bn_min_hz,bn_max_hz,jitter_deg,bias_deg,rms_deg,three_sigma_deg,predicted_three_sigma_deg,predicted_thermal_deg,predicted_oscillator_deg,predicted_aiding_deg,predicted_bias_deg,slips,slips_per_min,lock_fraction,best_fixed_hz,best_fixed_rms_deg\n",
+            "cn0_dbhz,cn0_est_dbhz,bn_mean_hz,bn_min_hz,bn_max_hz,jitter_deg,kaplan_thermal_deg,bias_deg,rms_deg,three_sigma_deg,predicted_three_sigma_deg,predicted_thermal_deg,predicted_oscillator_deg,predicted_aiding_deg,predicted_bias_deg,slips,slips_per_min,lock_fraction,best_fixed_hz,best_fixed_rms_deg\n",
         );
         for (r, bf) in results.iter().zip(&best_fixed) {
             let b = &r.predicted;
             let _ = writeln!(
                 s,
-                "{},{:.3},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{:.4},{:.4},{},{}",
+                "{},{:.3},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{},{:.4},{:.4},{},{}",
                 r.cn0_dbhz,
                 r.cn0_est_dbhz,
                 r.bn_mean_hz,
                 r.bn_min_hz,
                 r.bn_max_hz,
                 r.jitter_deg,
+                r.kaplan_thermal_deg,
                 r.bias_deg,
                 r.rms_deg,
                 r.three_sigma_deg,

@@ -91,9 +91,12 @@ impl TrackingChannel {
             BandwidthMode::Adaptive { initial_hz, .. } => initial_hz,
         };
         let adaptive = match cfg.bandwidth {
-            BandwidthMode::Adaptive { cfg: a, initial_hz } => {
-                Some(AdaptiveBandwidth::new(a, cfg.order, initial_hz))
-            }
+            BandwidthMode::Adaptive { cfg: a, initial_hz } => Some(AdaptiveBandwidth::new(
+                a,
+                cfg.order,
+                cfg.t_coh_s,
+                initial_hz,
+            )),
             BandwidthMode::Fixed(_) => None,
         };
         // Lock detector sums within one 20 ms data bit, smoothed over ~1 s.

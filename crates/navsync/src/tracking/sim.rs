@@ -37,7 +37,7 @@ use serde::Serialize;
 
 use super::aiding::{AidingErrorConfig, AidingErrorProcess};
 use super::channel::{BandwidthMode, ChannelConfig, Correlators, TrackingChannel};
-use super::design::{BudgetInputs, ErrorBudget, PhaseErrorModel};
+use super::design::{BudgetInputs, ErrorBudget, PhaseErrorModel, thermal_jitter_rad};
 use super::discriminator::Discriminator;
 use super::dynamics::{DynamicsEnvelope, SatelliteLos, Trajectory};
 use super::loop_filter::LoopOrder;
@@ -328,6 +328,9 @@ pub struct TrackResult {
     /// The budget's prediction at the mean bandwidth and the true C/N0
     /// (aiding statistics at t = 0).
     pub predicted: ErrorBudget,
+    /// Kaplan & Hegarty's thermal-noise jitter formula at the nominal mean
+    /// bandwidth and the true C/N0 (deg).
+    pub kaplan_thermal_deg: f64,
     pub series: Vec<TrackSample>,
 }
 
@@ -444,7 +447,7 @@ pub fn run(
         }
     }
     let seconds = err_stats.n as f64 * t;
-    let model = PhaseErrorModel::new(cfg.order);
+    let model = PhaseErrorModel::new(cfg.order, t);
     let predicted = model.budget(
         &BudgetInputs {
             t_coh_s: t,
@@ -460,6 +463,13 @@ pub fn run(
     );
     let jitter = err_stats.std();
     let bias = err_stats.mean();
+    let kaplan_thermal_deg = thermal_jitter_rad(
+        cfg.discriminator,
+        bn_stats.mean(),
+        10f64.powf(cfg.cn0_dbhz / 10.0),
+        t,
+    )
+    .to_degrees();
     Ok(TrackResult {
         cn0_dbhz: cfg.cn0_dbhz,
         seconds,
@@ -476,6 +486,7 @@ pub fn run(
         bn_min_hz: bn_stats.min,
         bn_max_hz: bn_stats.max,
         predicted,
+        kaplan_thermal_deg,
         series,
     })
 }
@@ -563,7 +574,7 @@ pub fn threshold_slips(results: &[TrackResult]) -> Option<Threshold> {
 #[cfg(test)]
 mod tests {
     use super::super::aiding::AidingStats;
-    use super::super::design::{AdaptiveConfig, thermal_jitter_rad};
+    use super::super::design::AdaptiveConfig;
     use super::super::dynamics::{LandVehicleOptions, LandVehicleProfile, StaticTrajectory};
     use super::super::scenario::varying_aiding;
     use super::*;
@@ -820,6 +831,7 @@ mod tests {
             bn_min_hz: 1.0,
             bn_max_hz: 1.0,
             predicted: ErrorBudget::default(),
+            kaplan_thermal_deg: 0.0,
             series: Vec::new(),
         };
         let rs = vec![
