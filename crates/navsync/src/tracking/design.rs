@@ -716,21 +716,6 @@ mod tests {
     }
 
     #[test]
-    fn model_construction_time() {
-        let t0 = std::time::Instant::now();
-        let m = PhaseErrorModel::new(LoopOrder::Second, 0.001);
-        let t1 = t0.elapsed();
-        let s = AidingStats {
-            ramp_hz_s: 0.0,
-            gm_sd_hz: 0.1,
-            gm_tau_s: 2.0,
-            update_period_s: 0.0,
-        };
-        m.gm_aiding_jitter_rad(&s, 1.0);
-        println!("construct {:?} gm {:?}", t1, t0.elapsed() - t1);
-    }
-
-    #[test]
     fn stability_limits() {
         for order in [LoopOrder::First, LoopOrder::Second, LoopOrder::Third] {
             assert!(discrete_loop_is_stable(order, 1.0, 0.001));
