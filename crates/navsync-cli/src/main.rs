@@ -28,6 +28,11 @@ enum Command {
     Bench(commands::bench::Args),
     /// Fuse an IMU array with unknown relative time offsets (seed 004).
     Array(commands::array::Args),
+    /// Simulate carrier tracking (unaided or INS-aided, fixed or adaptive
+    /// bandwidth) against C/N0: jitter, bias, slips, threshold.
+    Track(commands::track::Args),
+    /// Make a simulated odometer speed file from a truth trajectory.
+    SpeedSim(commands::speed_sim::Args),
 }
 
 fn main() {
@@ -39,6 +44,8 @@ fn main() {
         Command::Bench(a) => commands::bench::run(a),
         Command::Array(a) => commands::array::run(a),
         Command::Sync(a) => commands::sync::run(a),
+        Command::Track(a) => commands::track::run(a),
+        Command::SpeedSim(a) => commands::speed_sim::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

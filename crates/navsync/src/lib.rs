@@ -25,12 +25,14 @@ pub mod interp;
 pub mod io;
 pub mod offset_search;
 pub mod pipeline;
+pub mod reduced;
 pub mod sim;
 pub mod stats;
 #[cfg(test)]
 mod testutil;
 pub mod time;
 pub mod timing;
+pub mod tracking;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
 pub use time::GpsTime;

@@ -117,6 +117,10 @@ pub struct FuseOptions {
     /// With the time-offset state: stamp the solution in GNSS time (IMU
     /// time + τ̂) rather than on the IMU's own time base.
     pub output_gnss_time: bool,
+    /// Reduced IMU: absent sensors replaced by pseudo-signals (seed 003).
+    pub reduced_imu: Option<crate::reduced::ReducedImu>,
+    /// Odometer/CAN speed updates from a speed file.
+    pub odometer: Option<crate::reduced::OdometerSettings>,
 }
 
 impl Default for FuseOptions {
@@ -141,6 +145,8 @@ impl Default for FuseOptions {
             output_at: None,
             output_at_n: 1,
             output_gnss_time: false,
+            reduced_imu: None,
+            odometer: None,
         }
     }
 }
@@ -178,6 +184,8 @@ pub struct FuseSummary {
     pub final_accel_bias_mgal: [f64; 3],
     pub final_gyro_scale_ppm: [f64; 3],
     pub final_accel_scale_ppm: [f64; 3],
+    /// Estimated odometer scale factor (when odometer updates ran).
+    pub final_odometer_scale: Option<f64>,
     pub options: FuseOptions,
     pub run_time_s: f64,
     pub diagnostics: Diagnostics,
@@ -205,6 +213,13 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
         ),
         interval_s: s.interval_s,
     });
+    if let Some(r) = &opts.reduced_imu {
+        r.adjust_noise(&mut fc.noise, &mut fc.init_std);
+    }
+    fc.odometer = opts
+        .odometer
+        .as_ref()
+        .map(|o| crate::reduced::odometer_options(o, opts.nhc.as_ref()));
     fc
 }
 
@@ -461,6 +476,15 @@ pub fn run(
     )?;
     gnss.sd_floor = opts.gnss_sd_floor;
     let mut next_fix: Option<GnssFix> = gnss.next_fix(&mut diag)?;
+    let mut speeds = match &opts.odometer {
+        Some(o) => Some(crate::reduced::SpeedStream::open(
+            &o.path,
+            opts.week,
+            o.max_gap_s,
+        )?),
+        None => None,
+    };
+    let nominal_dt = 1.0 / cfg.imu_rate_hz;
 
     // IMU reader thread: batches of parsed samples.
     let imu_path = cfg.imu_path.clone();
@@ -530,7 +554,18 @@ pub fn run(
                 next_fix = gnss.next_fix(&mut diag)?;
                 fixes_read += usize::from(next_fix.is_some());
             }
-            let out = match fusion.push_imu(s) {
+            let mut s = *s;
+            if let Some(r) = &opts.reduced_imu {
+                let dt = s.time.seconds_since(fusion.nav().time);
+                let dt = if dt > 0.0 && dt < 1.0 { dt } else { nominal_dt };
+                r.fill(&mut s, fusion.nav(), fusion.imu_errors(), dt);
+            }
+            if let Some(sp) = speeds.as_mut()
+                && let Some(v) = sp.at(s.time, &mut diag)?
+            {
+                fusion.push_speed(v);
+            }
+            let out = match fusion.push_imu(&s) {
                 Ok(o) => o,
                 Err(e) => {
                     result = Err(e);
@@ -662,6 +697,11 @@ pub fn run(
         final_accel_bias_mgal: (imu.accel_bias * 1e5).into(),
         final_gyro_scale_ppm: (imu.gyro_scale * 1e6).into(),
         final_accel_scale_ppm: (imu.accel_scale * 1e6).into(),
+        final_odometer_scale: opts
+            .odometer
+            .as_ref()
+            .filter(|o| o.scale_sd.is_some())
+            .map(|_| fusion.odometer_scale()),
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,

@@ -108,6 +108,39 @@ pub struct Args {
     /// n of the (2n+1)-order interpolation (0 linear, 1 cubic, …).
     #[arg(long, default_value_t = 1)]
     pub interp_n: usize,
+    /// Inertial sensors present: full, 1g2a (vertical gyro, forward and
+    /// lateral accelerometers) or 1g3a; absent ones become pseudo-signals.
+    #[arg(long, default_value = "full")]
+    pub imu_config: navsync::reduced::ImuConfig,
+    /// Roll/pitch rates a pseudo gyro must cover (deg/s, 1σ) and their
+    /// correlation time (s).
+    #[arg(long, default_value_t = 0.5)]
+    pub pseudo_rate_sd: f64,
+    #[arg(long, default_value_t = 1.0)]
+    pub pseudo_rate_corr: f64,
+    /// Vertical acceleration a pseudo accelerometer must cover (m/s², 1σ)
+    /// and its correlation time (s).
+    #[arg(long, default_value_t = 0.2)]
+    pub pseudo_accel_sd: f64,
+    #[arg(long, default_value_t = 0.5)]
+    pub pseudo_accel_corr: f64,
+    /// Odometer/CAN speed file: `sow speed_mps` per line (GPS seconds of
+    /// week, m/s; any separators; `#` comments).
+    #[arg(long)]
+    pub odometer: Option<PathBuf>,
+    /// Odometer speed standard deviation (m/s).
+    #[arg(long, default_value_t = 0.1, requires = "odometer")]
+    pub odo_sd: f64,
+    /// Seconds between odometer updates.
+    #[arg(long, default_value_t = 0.1, requires = "odometer")]
+    pub odo_interval: f64,
+    /// Initial σ of the odometer scale factor (0: no scale-factor state).
+    #[arg(long, default_value_t = 0.01, requires = "odometer")]
+    pub odo_scale_sd: f64,
+    /// Lever arm from the IMU to the odometer point, body FRD (m)
+    /// [default: the NHC lever arm].
+    #[arg(long, value_parser = parse_triplet, requires = "odometer")]
+    pub odo_lever: Option<[f64; 3]>,
 }
 
 #[derive(Copy, Clone, PartialEq, clap::ValueEnum)]
@@ -176,6 +209,17 @@ impl Args {
             self.no_gate || (self.gate_prob > 0.0 && self.gate_prob < 1.0),
             "--gate-prob must be between 0 and 1"
         );
+        anyhow::ensure!(
+            self.odo_sd > 0.0 && self.odo_interval >= 0.0 && self.odo_scale_sd >= 0.0,
+            "--odo-sd must be positive, --odo-interval and --odo-scale-sd not negative"
+        );
+        anyhow::ensure!(
+            self.pseudo_rate_sd > 0.0
+                && self.pseudo_rate_corr > 0.0
+                && self.pseudo_accel_sd > 0.0
+                && self.pseudo_accel_corr > 0.0,
+            "pseudo-signal noise settings must be positive"
+        );
         Ok(FuseOptions {
             output_dir: self.output.clone(),
             outages,
@@ -221,6 +265,27 @@ impl Args {
             output_at: self.output_at.clone(),
             output_at_n: self.interp_n,
             output_gnss_time: self.time_base == TimeBase::Gnss,
+            reduced_imu: (self.imu_config != navsync::reduced::ImuConfig::Full).then(|| {
+                navsync::reduced::ReducedImu {
+                    config: self.imu_config,
+                    noise: navsync::reduced::PseudoSignalNoise {
+                        rate_sd: self.pseudo_rate_sd.to_radians(),
+                        rate_corr_s: self.pseudo_rate_corr,
+                        vertical_accel_sd: self.pseudo_accel_sd,
+                        vertical_accel_corr_s: self.pseudo_accel_corr,
+                    },
+                }
+            }),
+            odometer: self
+                .odometer
+                .clone()
+                .map(|path| navsync::reduced::OdometerSettings {
+                    sd_mps: self.odo_sd,
+                    interval_s: self.odo_interval,
+                    scale_sd: (self.odo_scale_sd > 0.0).then_some(self.odo_scale_sd),
+                    lever_m: self.odo_lever,
+                    ..navsync::reduced::OdometerSettings::new(path)
+                }),
         })
     }
 }
@@ -263,6 +328,19 @@ pub fn run(args: Args) -> Result<()> {
     );
     if opts.nhc.is_some() {
         println!("  NHC updates: {}", s.nhc_updates);
+    }
+    if let Some(r) = &opts.reduced_imu {
+        println!(
+            "  IMU configuration {} (absent sensors replaced by pseudo-signals)",
+            r.config
+        );
+    }
+    if opts.odometer.is_some() {
+        print!("  odometer updates: {}", s.odometer_updates);
+        match summary.final_odometer_scale {
+            Some(k) => println!(", estimated scale error {:+.3} %", 100.0 * k),
+            None => println!(),
+        }
     }
     if s.gaps > 0 {
         println!(

@@ -3,7 +3,9 @@ pub mod bench;
 pub mod convert;
 pub mod eval;
 pub mod fuse;
+pub mod speed_sim;
 pub mod sync;
+pub mod track;
 
 /// Parses "a,b,c" into three numbers.
 pub fn parse_triplet(s: &str) -> Result<[f64; 3], String> {
