@@ -582,7 +582,8 @@ pub fn format_imu_line(out: &mut Vec<u8>, s: &ImuSample) {
     // Shortest round-trip form: every bit of an increment is kept (seed 001
     // §1.5 point 4: never truncate IMU data).
     for v in s.dtheta.iter().chain(s.dvel.iter()) {
-        let _ = write!(out, " {v:e}");
+        out.push(b' ');
+        super::text::push_f64(out, *v);
     }
     if let Some(o) = s.odo_speed {
         out.push(b' ');

@@ -109,7 +109,7 @@ impl<R: Read> LineReader<R> {
 
 #[inline]
 fn memchr_newline(hay: &[u8]) -> Option<usize> {
-    hay.iter().position(|&b| b == b'\n')
+    memchr::memchr(b'\n', hay)
 }
 
 /// True for a line that carries no record: blank, or a `#` comment.
@@ -282,6 +282,15 @@ pub fn push_u64_padded(out: &mut Vec<u8>, v: u64, width: usize) {
 const POW10: [f64; 16] = [
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
 ];
+
+/// Appends `v` in its shortest form that reads back to the same `f64`
+/// (e.g. `2.2899799383470081e-7`, `-0.049`); NaN and infinities as Rust
+/// prints them. Every bit is kept (seed 001 §1.5 point 4).
+#[inline]
+pub fn push_f64(out: &mut Vec<u8>, v: f64) {
+    let mut b = zmij::Buffer::new();
+    out.extend_from_slice(b.format(v).as_bytes());
+}
 
 /// Appends `v` with exactly `decimals` decimals (like `%.{decimals}f`),
 /// without allocating. Values too large for the fast path fall back to the

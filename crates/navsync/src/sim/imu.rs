@@ -688,6 +688,20 @@ impl Triad {
         self.turn_on + self.drift_sum
     }
 
+    /// Three white-noise draws of σ `sd` (no draw when `sd` is 0).
+    #[inline]
+    fn draw_white(&mut self, sd: f64) -> Vector3<f64> {
+        if sd > 0.0 {
+            Vector3::new(
+                sd * rng::normal(&mut self.white),
+                sd * rng::normal(&mut self.white),
+                sd * rng::normal(&mut self.white),
+            )
+        } else {
+            Vector3::zeros()
+        }
+    }
+
     /// One internal sample: errors, white noise of σ = N·√fs, saturation.
     #[inline]
     fn sample(&mut self, x: &Vector3<f64>, noise_sd: f64) -> Vector3<f64> {
@@ -891,6 +905,119 @@ impl ImuSensor {
         self.sum = [0.0; 6];
         self.trap = [0.0; 6];
         Some(self.quantized(rate, delta))
+    }
+
+    /// True when [`ImuSensor::push_window`] needs every internal sample of
+    /// the window (false for point decimation without a filter: only the
+    /// last sample reaches the output).
+    pub fn needs_full_window(&self) -> bool {
+        self.filters.is_some() || self.decimation == Decimation::Average
+    }
+
+    /// Pushes the true rates `[ω_ib^b; f^b]` of one whole output interval
+    /// (`decimation_factor()` internal samples) and returns the output.
+    ///
+    /// Equivalent in distribution to as many [`ImuSensor::push_internal`]
+    /// calls. When the chain is linear (no filter, and no sample can reach
+    /// the range: max|M·x + b| + 8σ below it), the output is formed from
+    /// sums of the true signal and the noise sums are drawn directly — the
+    /// last sample's noise w_N and the rest Σ_{n<N} w_n ~ N(0, (N−1)σ²),
+    /// two normals per channel instead of N. The averaged rate is
+    /// (M Σx + N b + Σw)/N and the trapezoid increment
+    /// T_int·(Σm − m_N/2 + m_0/2) with m_0 the previous window's last
+    /// sample: the same quantities, exactly, at a fifth of the cost.
+    pub fn push_window(&mut self, xs: &[[f64; 6]]) -> Result<ImuOutput, String> {
+        let n = self.n_dec;
+        if n == 0 || xs.len() != n || self.count != 0 {
+            return Err(format!(
+                "push_window needs exactly {n} internal samples at a window start (got {})",
+                xs.len()
+            ));
+        }
+        let linear = self.filters.is_none()
+            && (self.decimation == Decimation::Point || !self.may_saturate(xs));
+        if !linear {
+            let mut out = None;
+            for x in xs {
+                out = self.push_internal(
+                    &Vector3::new(x[0], x[1], x[2]),
+                    &Vector3::new(x[3], x[4], x[5]),
+                );
+            }
+            return out.ok_or_else(|| "window produced no output".to_string());
+        }
+        self.gyro.step_drift();
+        self.accel.step_drift();
+        let last = &xs[n - 1];
+        let mut rate = [0.0; 6];
+        let mut delta = [0.0; 6];
+        let mut m_last = [0.0; 6];
+        for (t, (triad, sd)) in [
+            (&mut self.gyro, self.gyro_sd_int),
+            (&mut self.accel, self.accel_sd_int),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let o = 3 * t;
+            let b = triad.bias();
+            let x_last = Vector3::new(last[o], last[o + 1], last[o + 2]);
+            let w_last = triad.draw_white(sd);
+            let m_n = triad.m * x_last + b + w_last;
+            match self.decimation {
+                Decimation::Point => {
+                    for k in 0..3 {
+                        rate[o + k] = m_n[k];
+                        delta[o + k] = m_n[k] * self.t_out;
+                    }
+                }
+                Decimation::Average => {
+                    let mut sx = Vector3::zeros();
+                    for x in xs {
+                        sx += Vector3::new(x[o], x[o + 1], x[o + 2]);
+                    }
+                    let w_rest = triad.draw_white(sd * ((n - 1) as f64).sqrt());
+                    let sum_m = triad.m * sx + b * n as f64 + w_rest + w_last;
+                    for k in 0..3 {
+                        rate[o + k] = sum_m[k] / n as f64;
+                        delta[o + k] =
+                            self.t_int * (sum_m[k] - 0.5 * m_n[k] + 0.5 * self.prev[o + k]);
+                    }
+                }
+            }
+            for k in 0..3 {
+                m_last[o + k] = m_n[k];
+            }
+        }
+        self.prev = m_last;
+        self.last = m_last;
+        self.primed = true;
+        Ok(self.quantized(rate, delta))
+    }
+
+    /// Could any sample of the window reach the range (with 8σ of noise)?
+    fn may_saturate(&self, xs: &[[f64; 6]]) -> bool {
+        for (t, (triad, sd)) in [
+            (&self.gyro, self.gyro_sd_int),
+            (&self.accel, self.accel_sd_int),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            if triad.si.range <= 0.0 {
+                continue;
+            }
+            let o = 3 * t;
+            let b = triad.bias();
+            let margin = triad.si.range - 8.0 * sd;
+            for x in xs {
+                let y = triad.m * Vector3::new(x[o], x[o + 1], x[o + 2]) + b;
+                if y.amax() >= margin {
+                    return true;
+                }
+            }
+        }
+        false
     }
 
     /// Pushes the exact increments of one output interval (ideal
@@ -1205,6 +1332,100 @@ mod tests {
         // Different seeds give different draws.
         let c = ImuSensor::new(&base, 10).unwrap().drawn();
         assert_ne!(a.gyro.turn_on_bias, c.gyro.turn_on_bias);
+    }
+
+    #[test]
+    fn window_path_equals_sample_path() {
+        // Without noise the linear fast path gives the same numbers as the
+        // per-sample chain; with noise, the same distribution.
+        let mut spec = ImuSpec::preset("adis16465").unwrap();
+        spec.gyro.arw_deg_sqrt_h = 0.0;
+        spec.accel.vrw_mps_sqrt_h = 0.0;
+        for dec in [Decimation::Average, Decimation::Point] {
+            spec.decimation = dec;
+            let mut a = ImuSensor::new(&spec, 5).unwrap();
+            let mut b = ImuSensor::new(&spec, 5).unwrap();
+            let x = |j: usize| {
+                let t = j as f64 * 5e-4;
+                [0.3 * t.sin(), 0.1, -0.2 * t, 1.0 + t, -0.5, -9.8 + 0.01 * t]
+            };
+            let v = |x: [f64; 6]| {
+                (
+                    Vector3::new(x[0], x[1], x[2]),
+                    Vector3::new(x[3], x[4], x[5]),
+                )
+            };
+            let (w0, f0) = v(x(0));
+            a.prime(&w0, &f0);
+            b.prime(&w0, &f0);
+            for k in 0..50 {
+                let xs: Vec<[f64; 6]> = (1..=10).map(|j| x(10 * k + j)).collect();
+                let oa = a.push_window(&xs).unwrap();
+                let mut ob = None;
+                for xj in &xs {
+                    let (w, f) = v(*xj);
+                    ob = b.push_internal(&w, &f);
+                }
+                let ob = ob.unwrap();
+                for (p, q) in [
+                    (oa.gyro_rate, ob.gyro_rate),
+                    (oa.dtheta, ob.dtheta),
+                    (oa.accel_rate, ob.accel_rate),
+                    (oa.dvel, ob.dvel),
+                ] {
+                    assert!(
+                        (p - q).amax() <= 1e-12 * (1.0 + q.amax()),
+                        "{dec:?} {k}: {p} vs {q}"
+                    );
+                }
+            }
+        }
+        // Noise: the sd of rate and increment outputs agree (2e4 windows:
+        // relative sd of an sd estimate 0.5 %).
+        let mut spec = noise_spec(2000.0, 200.0);
+        spec.gyro.bias_instability_deg_h = 0.0;
+        let mut fast = ImuSensor::new(&spec, 8).unwrap();
+        let mut slow = ImuSensor::new(&spec, 9).unwrap();
+        let z = [0.0; 6];
+        let (mut rf, mut df, mut rs, mut ds) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        fast.prime(&Vector3::zeros(), &Vector3::zeros());
+        slow.prime(&Vector3::zeros(), &Vector3::zeros());
+        for _ in 0..20_000 {
+            let o = fast.push_window(&[z; 10]).unwrap();
+            rf.push(o.gyro_rate.x);
+            df.push(o.dtheta.x);
+            let mut q = None;
+            for _ in 0..10 {
+                q = slow.push_internal(&Vector3::zeros(), &Vector3::zeros());
+            }
+            let q = q.unwrap();
+            rs.push(q.gyro_rate.x);
+            ds.push(q.dtheta.x);
+        }
+        let sd = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        assert!(
+            (sd(&rf) / sd(&rs) - 1.0).abs() < 0.03,
+            "{} {}",
+            sd(&rf),
+            sd(&rs)
+        );
+        assert!(
+            (sd(&df) / sd(&ds) - 1.0).abs() < 0.03,
+            "{} {}",
+            sd(&df),
+            sd(&ds)
+        );
+        // Lag-1 correlation of the trapezoid increments (shared boundary
+        // sample): 0.5·σ²T²/4 over ≈ (N−½)σ²T² → 0.026 for N = 10, both ways.
+        let lag1 = |v: &[f64]| {
+            v.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / v.iter().map(|x| x * x).sum::<f64>()
+        };
+        assert!(
+            (lag1(&df) - lag1(&ds)).abs() < 0.03,
+            "{} {}",
+            lag1(&df),
+            lag1(&ds)
+        );
     }
 
     #[test]

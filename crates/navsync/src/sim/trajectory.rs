@@ -64,14 +64,21 @@ impl Piece {
 
     /// Value, first and second derivative at `t` inside the piece.
     #[inline]
+    #[cfg(test)]
     fn eval(&self, t: f64) -> [f64; 3] {
+        self.eval_with(t, &mut TrigCache::default())
+    }
+
+    /// [`Piece::eval`] with the sine and cosine of 2πτ from `trig`.
+    #[inline]
+    fn eval_with(&self, t: f64, trig: &mut TrigCache) -> [f64; 3] {
         let big_t = self.dur;
         let tau = (t - self.t0) / big_t;
         let q0 = self.q0;
         match self.shape {
             Shape::Linear(r) => [q0 + r * (t - self.t0), r, 0.0],
             Shape::Step(d) => {
-                let (s, c) = (TAU * tau).sin_cos();
+                let (s, c) = trig.sin_cos(TAU * tau);
                 [
                     q0 + d * (tau - s / TAU),
                     d / big_t * (1.0 - c),
@@ -79,7 +86,7 @@ impl Piece {
                 ]
             }
             Shape::RampUp(r) => {
-                let (s, c) = (TAU * tau).sin_cos();
+                let (s, c) = trig.sin_cos(TAU * tau);
                 [
                     q0 + r * big_t * (0.5 * tau * tau + (c - 1.0) / (TAU * TAU)),
                     r * (tau - s / TAU),
@@ -87,7 +94,7 @@ impl Piece {
                 ]
             }
             Shape::RampDown(r) => {
-                let (s, c) = (TAU * tau).sin_cos();
+                let (s, c) = trig.sin_cos(TAU * tau);
                 [
                     q0 + r * big_t * (tau - 0.5 * tau * tau - (c - 1.0) / (TAU * TAU)),
                     r * (1.0 - tau + s / TAU),
@@ -95,7 +102,7 @@ impl Piece {
                 ]
             }
             Shape::Bump(a) => {
-                let (s, c) = (TAU * tau).sin_cos();
+                let (s, c) = trig.sin_cos(TAU * tau);
                 let u = 1.0 - c;
                 [
                     q0 + 0.25 * a * u * u,
@@ -132,10 +139,24 @@ impl Channel {
         self.pieces.push(Piece { t0, dur, q0, shape });
     }
 
-    /// Value, first and second derivative at `t`.
+    /// Value, first and second derivative at `t`, starting the search at
+    /// `*hint` (the number of pieces starting at or before the previous
+    /// query), which makes queries in increasing time O(1).
     #[inline]
-    fn eval(&self, t: f64) -> [f64; 3] {
-        let i = self.pieces.partition_point(|p| p.t0 <= t);
+    fn eval_hint(&self, t: f64, hint: &mut usize, trig: &mut TrigCache) -> [f64; 3] {
+        let n = self.pieces.len();
+        let mut i = *hint;
+        let ok = |i: usize| {
+            i <= n && (i == 0 || self.pieces[i - 1].t0 <= t) && (i == n || self.pieces[i].t0 > t)
+        };
+        if !ok(i) {
+            if i < n && ok(i + 1) {
+                i += 1;
+            } else {
+                i = self.pieces.partition_point(|p| p.t0 <= t);
+            }
+        }
+        *hint = i;
         if i == 0 {
             return [self.start, 0.0, 0.0];
         }
@@ -143,7 +164,7 @@ impl Channel {
         if t >= p.t0 + p.dur {
             [p.end_value(), 0.0, 0.0]
         } else {
-            p.eval(t)
+            p.eval_with(t, trig)
         }
     }
 }
@@ -760,6 +781,73 @@ impl Kinematics {
     }
 }
 
+/// Where the last query fell in each profile, and the last sines and
+/// cosines: queries in increasing time then cost O(1) searches and few
+/// trigonometric calls.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct Cursor {
+    hint: [usize; 3],
+    /// 2πτ of the speed, heading and grade pieces; heading, pitch, roll.
+    trig: [TrigCache; 6],
+}
+
+/// sin and cos of an angle near the previous one: rotated from an anchor
+/// where they were computed exactly, sin(x₀+δ) = s₀ cos δ + c₀ sin δ,
+/// with sin δ and cos δ from their Taylor series for |δ| < 0.1 (truncation
+/// below 3e-19; a few ulps of rounding), and re-anchored beyond.
+#[derive(Copy, Clone, Debug)]
+pub struct TrigCache {
+    x0: f64,
+    s0: f64,
+    c0: f64,
+}
+
+impl Default for TrigCache {
+    fn default() -> Self {
+        TrigCache {
+            x0: f64::NAN,
+            s0: 0.0,
+            c0: 1.0,
+        }
+    }
+}
+
+impl TrigCache {
+    #[inline]
+    pub fn sin_cos(&mut self, x: f64) -> (f64, f64) {
+        let d = x - self.x0;
+        if d.abs() < 0.1 {
+            let d2 = d * d;
+            let sd = d
+                * (1.0
+                    + d2 * (-1.0 / 6.0
+                        + d2 * (1.0 / 120.0
+                            + d2 * (-1.0 / 5040.0 + d2 * (1.0 / 362_880.0 - d2 / 39_916_800.0)))));
+            let cd = 1.0
+                + d2 * (-0.5
+                    + d2 * (1.0 / 24.0
+                        + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40_320.0 - d2 / 3_628_800.0))));
+            (self.s0 * cd + self.c0 * sd, self.c0 * cd - self.s0 * sd)
+        } else {
+            let (s, c) = x.sin_cos();
+            self.x0 = x;
+            self.s0 = s;
+            self.c0 = c;
+            (s, c)
+        }
+    }
+}
+
+/// sin and cos, exact and free for the frequent zero (level road, no roll).
+#[inline]
+fn sin_cos0(x: f64, trig: &mut TrigCache) -> (f64, f64) {
+    if x == 0.0 {
+        (0.0, 1.0)
+    } else {
+        trig.sin_cos(x)
+    }
+}
+
 /// Options of [`Trajectory::from_segments`].
 #[derive(Clone, Debug, Default)]
 pub struct TrajectoryOptions {
@@ -833,9 +921,15 @@ impl Trajectory {
     /// The vehicle profiles at `t`.
     #[inline]
     pub fn vehicle(&self, t: f64) -> VehicleState {
-        let [v, v_dot, _] = self.speed.eval(t);
-        let [psi, psi_dot, psi_ddot] = self.heading.eval(t);
-        let [theta, theta_dot, _] = self.grade.eval(t);
+        self.vehicle_at(t, &mut Cursor::default())
+    }
+
+    /// [`Trajectory::vehicle`] with a search cursor (fast for increasing `t`).
+    #[inline]
+    pub fn vehicle_at(&self, t: f64, c: &mut Cursor) -> VehicleState {
+        let [v, v_dot, _] = self.speed.eval_hint(t, &mut c.hint[0], &mut c.trig[0]);
+        let [psi, psi_dot, psi_ddot] = self.heading.eval_hint(t, &mut c.hint[1], &mut c.trig[1]);
+        let [theta, theta_dot, _] = self.grade.eval_hint(t, &mut c.hint[2], &mut c.trig[2]);
         VehicleState {
             speed_mps: v,
             accel_mps2: v_dot,
@@ -853,21 +947,34 @@ impl Trajectory {
     /// integration): v·[cos θ cos ψ, cos θ sin ψ, −sin θ].
     #[inline]
     pub fn vehicle_velocity(&self, t: f64) -> Vector3<f64> {
-        let v = self.speed.eval(t)[0];
-        let psi = self.heading.eval(t)[0];
-        let theta = self.grade.eval(t)[0];
-        let (sp, cp) = psi.sin_cos();
-        let (st, ct) = theta.sin_cos();
+        self.vehicle_velocity_at(t, &mut Cursor::default())
+    }
+
+    /// [`Trajectory::vehicle_velocity`] with a search cursor.
+    #[inline]
+    pub fn vehicle_velocity_at(&self, t: f64, c: &mut Cursor) -> Vector3<f64> {
+        let v = self.speed.eval_hint(t, &mut c.hint[0], &mut c.trig[0])[0];
+        let psi = self.heading.eval_hint(t, &mut c.hint[1], &mut c.trig[1])[0];
+        let theta = self.grade.eval_hint(t, &mut c.hint[2], &mut c.trig[2])[0];
+        let (sp, cp) = c.trig[3].sin_cos(psi);
+        let (st, ct) = sin_cos0(theta, &mut c.trig[4]);
         Vector3::new(v * ct * cp, v * ct * sp, -v * st)
     }
 
     /// Velocity, acceleration, attitude and body rate at `t`.
     #[inline]
     pub fn kinematics(&self, t: f64) -> Kinematics {
-        let s = self.vehicle(t);
-        let (sps, cps) = s.heading_rad.sin_cos();
-        let (sth, cth) = s.pitch_rad.sin_cos();
-        let (sph, cph) = s.roll_rad.sin_cos();
+        self.kinematics_at(t, &mut Cursor::default())
+    }
+
+    /// [`Trajectory::kinematics`] with a search cursor (fast for
+    /// increasing `t`).
+    #[inline]
+    pub fn kinematics_at(&self, t: f64, cursor: &mut Cursor) -> Kinematics {
+        let s = self.vehicle_at(t, cursor);
+        let (sps, cps) = cursor.trig[3].sin_cos(s.heading_rad);
+        let (sth, cth) = sin_cos0(s.pitch_rad, &mut cursor.trig[4]);
+        let (sph, cph) = sin_cos0(s.roll_rad, &mut cursor.trig[5]);
         let v = s.speed_mps;
         let u = Vector3::new(cth * cps, cth * sps, -sth);
         let du_dpsi = Vector3::new(-cth * sps, cth * cps, 0.0);
@@ -1197,6 +1304,19 @@ mod tests {
             assert!(p.eval(2.0)[2].abs() < 1e-12, "{shape:?}");
             assert!(p.eval(5.0 - 1e-12)[2].abs() < 1e-9, "{shape:?}");
         }
+    }
+
+    #[test]
+    fn trig_cache_matches_libm() {
+        let mut c = TrigCache::default();
+        let mut worst = 0.0f64;
+        for k in 0..200_000 {
+            let x = -40.0 + k as f64 * 4.1e-4 + 0.03 * (k as f64 * 0.37).sin();
+            let (s, co) = c.sin_cos(x);
+            let (s1, c1) = x.sin_cos();
+            worst = worst.max((s - s1).abs()).max((co - c1).abs());
+        }
+        assert!(worst < 5e-16, "{worst}");
     }
 
     #[test]

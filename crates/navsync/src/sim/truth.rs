@@ -23,7 +23,7 @@
 
 use nalgebra::Vector3;
 
-use super::trajectory::{Kinematics, Trajectory};
+use super::trajectory::{Cursor, Kinematics, Trajectory};
 use crate::earth::{Geodetic, OMEGA_E, gravity, radii};
 use crate::ins::{ImuSample, NavState};
 use crate::time::GpsTime;
@@ -118,6 +118,8 @@ pub struct TruthGenerator<'a> {
     k: u64,
     prev: GpsTime,
     quad_sub_s: f64,
+    cursor: Cursor,
+    grid_cursor: Cursor,
 }
 
 /// 4-point Gauss–Legendre nodes and weights on [−1, 1].
@@ -154,6 +156,8 @@ impl<'a> TruthGenerator<'a> {
             k: 0,
             prev: start,
             quad_sub_s,
+            cursor: Cursor::default(),
+            grid_cursor: Cursor::default(),
         };
         g.reset();
         g
@@ -171,7 +175,8 @@ impl<'a> TruthGenerator<'a> {
 
     fn reset(&mut self) {
         let o = self.traj.origin();
-        let vel = self.traj.vehicle_velocity(0.0);
+        self.grid_cursor = Cursor::default();
+        let vel = self.traj.vehicle_velocity_at(0.0, &mut self.grid_cursor);
         let y = [o.lat_rad, o.lon_rad, o.h_m];
         self.a = Node {
             t: 0.0,
@@ -192,12 +197,12 @@ impl<'a> TruthGenerator<'a> {
     }
 
     /// One classical Runge–Kutta step from node `a` to grid index `k`.
-    fn integrate(&self, a: &Node, k: u64) -> Node {
+    fn integrate(&mut self, a: &Node, k: u64) -> Node {
         let h = self.step_s;
         let t1 = k as f64 * h;
         let tm = t1 - 0.5 * h;
-        let vm = self.traj.vehicle_velocity(tm);
-        let v1 = self.traj.vehicle_velocity(t1);
+        let vm = self.traj.vehicle_velocity_at(tm, &mut self.grid_cursor);
+        let v1 = self.traj.vehicle_velocity_at(t1, &mut self.grid_cursor);
         let add = |y: &[f64; 3], d: &[f64; 3], s: f64| {
             [y[0] + s * d[0], y[1] + s * d[1], y[2] + s * d[2]]
         };
@@ -227,7 +232,8 @@ impl<'a> TruthGenerator<'a> {
         while t > self.b.t {
             self.a = self.b;
             self.k += 1;
-            self.b = self.integrate(&self.a, self.k + 1);
+            let a = self.a;
+            self.b = self.integrate(&a, self.k + 1);
         }
     }
 
@@ -289,12 +295,23 @@ impl<'a> TruthGenerator<'a> {
         (w_ib, c_bn * f_n, w_ie, w_en)
     }
 
+    /// Interpolated Earth terms at `t` (no position needed).
+    #[inline]
+    fn earth_at(&mut self, t: f64) -> EarthPos {
+        if t <= 0.0 {
+            return self.position(t).1;
+        }
+        self.seek(t);
+        let s = (t - self.a.t) / (self.b.t - self.a.t);
+        EarthPos::lerp(&self.a.earth, &self.b.earth, s)
+    }
+
     /// Ideal gyro and accelerometer rates at `t` seconds after the start
     /// (the fast path for high-rate internal IMU sampling).
     #[inline]
     pub fn rates_at_s(&mut self, t: f64) -> SensedRates {
-        let kin = self.traj.kinematics(t);
-        let (_, e) = self.position(t);
+        let kin = self.traj.kinematics_at(t, &mut self.cursor);
+        let e = self.earth_at(t);
         let (w_ib_b, f_b, _, _) = Self::sensed(&kin, &e);
         SensedRates { w_ib_b, f_b }
     }
@@ -308,7 +325,7 @@ impl<'a> TruthGenerator<'a> {
     /// The full truth at GPS time `t`.
     pub fn state_at(&mut self, t: GpsTime) -> TruthPoint {
         let ts = self.rel(t);
-        let kin = self.traj.kinematics(ts);
+        let kin = self.traj.kinematics_at(ts, &mut self.cursor);
         let (y, e) = self.position(ts);
         let (w_ib_b, f_b, w_ie_n, w_en_n) = Self::sensed(&kin, &e);
         // Vibration displacement in NED → geodetic offset (D_R⁻¹).

@@ -1,0 +1,387 @@
+//! A simulation scenario: the trajectory, the sensors and the rig, with
+//! every parameter, as read from a user's TOML file and command-line
+//! overrides on top of defaults and presets.
+//!
+//! Layering: defaults ← the IMU preset named by `imu.grade` (default
+//! `adis16465`) ← the user's TOML file ← `--set key=value` style overrides.
+//! Unknown keys are errors that name the key (and the line in a TOML
+//! file), never silently ignored.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value};
+
+use super::gnss::GnssSpec;
+use super::imu::{IMU_PRESETS, ImuSpec};
+use super::rig::RigSpec;
+use super::trajectory::{BUILTIN_SCENARIOS, Segment, VibrationSpec, builtin_segments};
+use crate::error::Error;
+
+/// Options of the written files.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputSpec {
+    /// Interval of `imu_err_truth.txt` lines (s).
+    pub imu_err_interval_s: f64,
+    /// Write `rig.csv` and `imu_times_truth.txt`.
+    pub rig_log: bool,
+    /// Error added to the initial state written into the KF-GINS
+    /// configuration: NED position (m), velocity (m/s), roll/pitch/yaw (deg).
+    pub init_error_pos_m: [f64; 3],
+    pub init_error_vel_mps: [f64; 3],
+    pub init_error_att_deg: [f64; 3],
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec {
+            imu_err_interval_s: 1.0,
+            rig_log: true,
+            init_error_pos_m: [0.0; 3],
+            init_error_vel_mps: [0.0; 3],
+            init_error_att_deg: [0.0; 3],
+        }
+    }
+}
+
+/// Everything a run needs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Scenario {
+    /// A built-in trajectory (`test-track`, `urban`, `figure8`, `static`),
+    /// used when `segments` is empty.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trajectory: Option<String>,
+    /// A user trajectory as a list of segments.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub segments: Vec<Segment>,
+    /// Seed of every error source.
+    pub seed: u64,
+    /// Seed of the random trajectory (`urban`).
+    pub traj_seed: u64,
+    /// Length of the run (s); built-in trajectories default to 600 s, user
+    /// segments to their own length.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub duration_s: Option<f64>,
+    pub gps_week: i64,
+    pub start_sow: f64,
+    /// Start position: latitude (deg), longitude (deg), ellipsoidal height (m).
+    pub origin: [f64; 3],
+    pub initial_heading_deg: f64,
+    pub initial_speed_mps: f64,
+    /// Roll per lateral acceleration, φ = −k·v·ψ̇ (deg per m/s²).
+    pub roll_gain_deg_per_mps2: f64,
+    pub vibration: VibrationSpec,
+    pub imu: ImuSpec,
+    pub gnss: GnssSpec,
+    pub rig: RigSpec,
+    pub output: OutputSpec,
+}
+
+/// Default built-in duration (s).
+pub const DEFAULT_DURATION_S: f64 = 600.0;
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Scenario {
+            trajectory: None,
+            segments: Vec::new(),
+            seed: 1,
+            traj_seed: 1,
+            duration_s: None,
+            gps_week: 2300,
+            start_sow: 100_000.0,
+            origin: [30.444_787_370_1, 114.471_863_204_7, 20.9],
+            initial_heading_deg: 45.0,
+            initial_speed_mps: 0.0,
+            roll_gain_deg_per_mps2: 0.5,
+            vibration: VibrationSpec::default(),
+            imu: ImuSpec::preset("adis16465").unwrap_or_default(),
+            gnss: GnssSpec::default(),
+            rig: RigSpec::default(),
+            output: OutputSpec::default(),
+        }
+    }
+}
+
+/// Merges `patch` into `base`: objects key by key, anything else replaced.
+pub fn deep_merge(base: &mut Value, patch: Value) {
+    match (base, patch) {
+        (Value::Object(b), Value::Object(p)) => {
+            for (k, v) in p {
+                match b.get_mut(&k) {
+                    Some(slot) => deep_merge(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v,
+    }
+}
+
+/// Sets `a.b.c = value` in a JSON object, creating tables on the way.
+pub fn set_path(root: &mut Value, dotted: &str, value: Value) -> Result<(), Error> {
+    let keys: Vec<&str> = dotted.split('.').collect();
+    if keys.iter().any(|k| k.is_empty()) {
+        return Err(Error::Invalid(format!(
+            "'{dotted}' is not a key path like imu.gyro.arw_deg_sqrt_h"
+        )));
+    }
+    let mut cur = root;
+    for (i, k) in keys.iter().enumerate() {
+        if !cur.is_object() {
+            *cur = Value::Object(Map::new());
+        }
+        let obj = cur
+            .as_object_mut()
+            .ok_or_else(|| Error::Invalid("not a table".into()))?;
+        if i + 1 == keys.len() {
+            obj.insert((*k).to_string(), value);
+            return Ok(());
+        }
+        cur = obj
+            .entry((*k).to_string())
+            .or_insert_with(|| Value::Object(Map::new()));
+    }
+    Ok(())
+}
+
+/// Parses the value of a `key=value` override as TOML (numbers, strings,
+/// booleans, arrays, inline tables); a bare word is taken as a string.
+pub fn parse_override(text: &str) -> Result<(String, Value), Error> {
+    let (k, v) = text
+        .split_once('=')
+        .ok_or_else(|| Error::Invalid(format!("override '{text}' is not key=value")))?;
+    let k = k.trim();
+    let v = v.trim();
+    let doc = format!("x = {v}");
+    let value = match toml::from_str::<toml::Table>(&doc) {
+        Ok(t) => t
+            .get("x")
+            .map(toml_to_json)
+            .ok_or_else(|| Error::Invalid(format!("override '{text}' has no value")))?,
+        Err(_) => Value::String(v.to_string()),
+    };
+    Ok((k.to_string(), value))
+}
+
+fn toml_to_json(v: &toml::Value) -> Value {
+    match v {
+        toml::Value::String(s) => Value::String(s.clone()),
+        toml::Value::Integer(i) => Value::from(*i),
+        toml::Value::Float(f) => {
+            serde_json::Number::from_f64(*f).map_or(Value::Null, Value::Number)
+        }
+        toml::Value::Boolean(b) => Value::Bool(*b),
+        toml::Value::Datetime(d) => Value::String(d.to_string()),
+        toml::Value::Array(a) => Value::Array(a.iter().map(toml_to_json).collect()),
+        toml::Value::Table(t) => Value::Object(
+            t.iter()
+                .map(|(k, v)| (k.clone(), toml_to_json(v)))
+                .collect(),
+        ),
+    }
+}
+
+impl Scenario {
+    /// Reads a user scenario file (TOML) as a sparse layer; unknown keys
+    /// and bad values are reported with the file and line.
+    pub fn read_toml_layer(path: &Path) -> Result<Value, Error> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::toml_layer(&text, path)
+    }
+
+    /// [`Scenario::read_toml_layer`] on text.
+    pub fn toml_layer(text: &str, path: &Path) -> Result<Value, Error> {
+        // Full typed parse first, for located errors (unknown keys, types).
+        toml::from_str::<Scenario>(text)
+            .map_err(|e| Error::config(path, scenario_error(&e.to_string())))?;
+        let table: toml::Table =
+            toml::from_str(text).map_err(|e| Error::config(path, e.to_string()))?;
+        Ok(toml_to_json(&toml::Value::Table(table)))
+    }
+
+    /// Builds the scenario from a sparse layer (file and overrides merged):
+    /// defaults, then the IMU preset named by `imu.grade`, then the layer.
+    pub fn from_layer(layer: Value) -> Result<Scenario, Error> {
+        let grade = layer
+            .get("imu")
+            .and_then(|i| i.get("grade"))
+            .and_then(Value::as_str)
+            .unwrap_or("adis16465")
+            .to_string();
+        let preset = ImuSpec::preset(&grade).ok_or_else(|| {
+            Error::Invalid(format!(
+                "unknown IMU grade '{grade}' (presets: {})",
+                IMU_PRESETS.join(", ")
+            ))
+        })?;
+        let defaults = Scenario {
+            imu: preset,
+            ..Scenario::default()
+        };
+        let mut full =
+            serde_json::to_value(&defaults).map_err(|e| Error::Invalid(e.to_string()))?;
+        deep_merge(&mut full, layer);
+        let scn: Scenario = serde_json::from_value(full)
+            .map_err(|e| Error::Invalid(scenario_error(&e.to_string())))?;
+        scn.validate()?;
+        Ok(scn)
+    }
+
+    /// Checks what can be checked before running.
+    pub fn validate(&self) -> Result<(), Error> {
+        let bad = |m: String| Err(Error::Invalid(m));
+        if let Some(name) = &self.trajectory
+            && self.segments.is_empty()
+            && !BUILTIN_SCENARIOS.contains(&name.as_str())
+        {
+            return bad(format!(
+                "unknown scenario '{name}' (built-in: {}; or give a TOML file with [[segments]])",
+                BUILTIN_SCENARIOS.join(", ")
+            ));
+        }
+        if self.trajectory.is_some() && !self.segments.is_empty() {
+            return bad("give either `trajectory` (a built-in) or `segments`, not both".into());
+        }
+        if let Some(d) = self.duration_s
+            && !(d > 0.0 && d <= 7.0 * 86400.0)
+        {
+            return bad(format!("duration_s {d} must be within (0, 604800]"));
+        }
+        let [lat, lon, h] = self.origin;
+        if !(lat.abs() < 89.0 && lon.abs() <= 360.0 && h.is_finite()) {
+            return bad(format!(
+                "origin {:?} must be [lat within ±89°, lon, height]",
+                self.origin
+            ));
+        }
+        if !(self.start_sow >= 0.0 && self.start_sow < 604_800.0) || self.gps_week < 0 {
+            return bad("start_sow must be within a week and gps_week >= 0".into());
+        }
+        if !(self.initial_speed_mps >= 0.0 && self.roll_gain_deg_per_mps2.is_finite()) {
+            return bad("initial_speed_mps must be >= 0 and roll_gain finite".into());
+        }
+        let n = self.imu.decimation_factor().map_err(Error::Invalid)?;
+        self.imu.filter_delay_s().map_err(Error::Invalid)?;
+        if n == 0 && self.imu.decimation == super::imu::Decimation::Point {
+            return bad(
+                "point decimation needs an internal sampling rate (imu.internal_rate_hz)".into(),
+            );
+        }
+        self.gnss.validate().map_err(Error::Invalid)?;
+        self.rig
+            .validate(1.0 / self.imu.output_rate_hz)
+            .map_err(Error::Invalid)?;
+        if self.output.imu_err_interval_s.is_nan() || self.output.imu_err_interval_s <= 0.0 {
+            return bad("output.imu_err_interval_s must be positive".into());
+        }
+        Ok(())
+    }
+
+    /// The trajectory's segments and the run's length.
+    pub fn segments_and_duration(&self) -> Result<(Vec<Segment>, Option<f64>), Error> {
+        if !self.segments.is_empty() {
+            return Ok((self.segments.clone(), self.duration_s));
+        }
+        let name = self.trajectory.as_deref().unwrap_or("urban");
+        let d = self.duration_s.unwrap_or(DEFAULT_DURATION_S);
+        let segs = builtin_segments(name, d, self.traj_seed)
+            .ok_or_else(|| Error::Invalid(format!("unknown scenario '{name}'")))?;
+        Ok((segs, Some(d)))
+    }
+}
+
+/// Makes serde's messages about the scenario friendlier.
+fn scenario_error(msg: &str) -> String {
+    format!("scenario: {msg}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::imu::Decimation;
+
+    #[test]
+    fn layers_apply_in_order() {
+        let text = r#"
+seed = 42
+duration_s = 120
+
+[imu]
+grade = "icm20602"
+decimation = "point"
+
+[imu.gyro]
+arw_deg_sqrt_h = 0.5
+
+[[segments]]
+kind = "static"
+duration_s = 10
+
+[[segments]]
+kind = "accelerate"
+speed_mps = 10
+"#;
+        let mut layer = Scenario::toml_layer(text, Path::new("s.toml")).unwrap();
+        let (k, v) = parse_override("gnss.rate_hz=10").unwrap();
+        set_path(&mut layer, &k, v).unwrap();
+        let scn = Scenario::from_layer(layer).unwrap();
+        assert_eq!(scn.seed, 42);
+        assert_eq!(scn.imu.grade, "icm20602");
+        assert_eq!(scn.imu.decimation, Decimation::Point);
+        assert_eq!(scn.imu.gyro.arw_deg_sqrt_h, 0.5);
+        // Untouched preset values stay (ICM-20602: 1 kHz, ±250°/s).
+        assert_eq!(scn.imu.internal_rate_hz, 1000.0);
+        assert_eq!(scn.imu.gyro.range_deg_s, 250.0);
+        assert_eq!(scn.gnss.rate_hz, 10.0);
+        assert_eq!(scn.segments.len(), 2);
+        let (segs, d) = scn.segments_and_duration().unwrap();
+        assert_eq!((segs.len(), d), (2, Some(120.0)));
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_values_are_located() {
+        let err = Scenario::toml_layer("seed = 1\n[imu.gyro]\narw = 0.1\n", Path::new("s.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("s.toml") && err.contains("arw") && err.contains("line 3"),
+            "{err}"
+        );
+        let err = Scenario::toml_layer("[[segments]]\nkind = \"fly\"\n", Path::new("s.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("fly"), "{err}");
+        let err = Scenario::from_layer(serde_json::json!({"imu": {"grade": "mems9000"}}))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("unknown IMU grade 'mems9000'"), "{err}");
+        let err = Scenario::from_layer(serde_json::json!({"trajectory": "moon"}))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("unknown scenario 'moon'"), "{err}");
+        let err = Scenario::from_layer(serde_json::json!({"gnss": {"rate_hz": 0}}))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("GNSS rate"), "{err}");
+        let err = Scenario::from_layer(serde_json::json!({"imu": {"internal_rate_hz": 1500}}))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("integer multiple"), "{err}");
+        assert!(parse_override("nokey").is_err());
+        let (k, v) = parse_override("rig.sync=sw").unwrap();
+        assert_eq!((k.as_str(), v), ("rig.sync", Value::String("sw".into())));
+    }
+
+    #[test]
+    fn builtins_default_to_ten_minutes() {
+        let scn = Scenario::from_layer(serde_json::json!({"trajectory": "test-track"})).unwrap();
+        let (segs, d) = scn.segments_and_duration().unwrap();
+        assert!(!segs.is_empty());
+        assert_eq!(d, Some(600.0));
+    }
+}
