@@ -33,6 +33,10 @@ enum Command {
     Track(commands::track::Args),
     /// Make a simulated odometer speed file from a truth trajectory.
     SpeedSim(commands::speed_sim::Args),
+    /// IMU acquisition quality: check a log, convert and decimate, rate study.
+    Imu(commands::imu::Args),
+    /// Simulate a drive: exact truth, IMU, GNSS, clocks and a raw rig log.
+    Simulate(commands::simulate::Args),
 }
 
 fn main() {
@@ -46,6 +50,8 @@ fn main() {
         Command::Sync(a) => commands::sync::run(a),
         Command::Track(a) => commands::track::run(a),
         Command::SpeedSim(a) => commands::speed_sim::run(a),
+        Command::Imu(a) => commands::imu::run(a),
+        Command::Simulate(a) => commands::simulate::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

@@ -20,6 +20,7 @@ pub mod error;
 pub mod eval;
 pub mod filter;
 pub mod fusion;
+pub mod imu;
 pub mod ins;
 pub mod interp;
 pub mod io;

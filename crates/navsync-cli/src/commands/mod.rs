@@ -3,6 +3,8 @@ pub mod bench;
 pub mod convert;
 pub mod eval;
 pub mod fuse;
+pub mod imu;
+pub mod simulate;
 pub mod speed_sim;
 pub mod sync;
 pub mod track;

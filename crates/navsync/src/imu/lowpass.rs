@@ -1,0 +1,563 @@
+//! Low-pass filters and their delay (seed 001 §1.4).
+//!
+//! An IMU's noise-reduction low-pass filter (e.g. the ADIS16465's FIR
+//! bank) delays the data and so harms dead reckoning; it should be off —
+//! the integration in the mechanization already low-passes far better —
+//! and, if it cannot be turned off, set to its highest cut-off (seed 001
+//! §1.4, citing Ban et al. 2013). When a log was recorded with a filter on,
+//! navsync computes the filter's group delay and shifts the time stamps
+//! back by it.
+//!
+//! Group delay of H(z) = B(z)/A(z) with B = Σ b_n z^−n, A = Σ a_n z^−n:
+//! τ(ω) = τ_B(ω) − τ_A(ω), τ_C(ω) = Re[ Σ n c_n e^{−jωn} / Σ c_n e^{−jωn} ]
+//! (J. O. Smith, *Introduction to Digital Filters*, "Numerical
+//! computation of group delay"). At DC, τ(0) = Σ n b_n/Σ b_n − Σ n a_n/Σ a_n
+//! samples; a symmetric FIR of N taps has τ = (N − 1)/2 at every frequency.
+//! Vehicle dynamics live far below the cut-off, where τ(ω) ≈ τ(0): the
+//! DC delay is the one compensated, and the report says how much the
+//! delay varies up to a stated dynamics band.
+
+use std::path::Path;
+
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+use crate::error::Error;
+
+/// A linear low-pass filter the IMU applied, running at `sample_rate_hz`
+/// (the rate of the stage where it runs: the ADIS16465 filters at its
+/// internal 2 kHz, before decimation).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LowPassFilter {
+    /// A name for reports.
+    pub name: String,
+    pub sample_rate_hz: f64,
+    /// Numerator coefficients b_0, b_1, … (FIR taps).
+    pub b: Vec<f64>,
+    /// Denominator a_0, a_1, … (`[1]` for an FIR).
+    pub a: Vec<f64>,
+}
+
+/// The file form (TOML), one of:
+///
+/// ```toml
+/// sample_rate_hz = 2000
+/// kind = "fir"            # taps = [ ... ]
+/// kind = "iir"            # b = [ ... ], a = [ ... ]
+/// kind = "moving-average" # n = 16
+/// kind = "bartlett"       # n = 8 (two n-tap moving averages in series)
+/// kind = "first-order"    # cutoff_hz = 50
+/// ```
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LowPassSpec {
+    pub kind: String,
+    pub sample_rate_hz: f64,
+    #[serde(default)]
+    pub name: Option<String>,
+    #[serde(default)]
+    pub taps: Option<Vec<f64>>,
+    #[serde(default)]
+    pub b: Option<Vec<f64>>,
+    #[serde(default)]
+    pub a: Option<Vec<f64>>,
+    #[serde(default)]
+    pub n: Option<usize>,
+    #[serde(default)]
+    pub cutoff_hz: Option<f64>,
+}
+
+/// One point of the delay curve.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct DelayPoint {
+    pub freq_hz: f64,
+    pub delay_s: f64,
+    pub gain_db: f64,
+}
+
+/// The group delay of a filter.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GroupDelay {
+    /// At DC, in samples of the filter's rate and in seconds: the delay
+    /// compensated in the time stamps.
+    pub dc_samples: f64,
+    pub dc_s: f64,
+    pub dc_gain: f64,
+    /// −3 dB frequency (Hz), if the gain falls that far below Nyquist.
+    pub cutoff_hz: Option<f64>,
+    /// Dynamics band used below (Hz): up to `band_hz` or the cut-off.
+    pub band_hz: f64,
+    /// Smallest and largest delay in the band (s).
+    pub band_min_s: f64,
+    pub band_max_s: f64,
+    /// The curve from DC to Nyquist (frequencies where the gain is zero
+    /// are left out).
+    pub curve: Vec<DelayPoint>,
+}
+
+impl LowPassFilter {
+    /// An FIR filter from its taps.
+    pub fn fir(name: &str, taps: Vec<f64>, sample_rate_hz: f64) -> Result<Self, Error> {
+        Self::iir(name, taps, vec![1.0], sample_rate_hz)
+    }
+
+    /// An IIR filter b/a (a_0 ≠ 0; normalised so that a_0 = 1).
+    pub fn iir(name: &str, b: Vec<f64>, a: Vec<f64>, sample_rate_hz: f64) -> Result<Self, Error> {
+        let bad = |m: String| Err(Error::Invalid(format!("low-pass filter '{name}': {m}")));
+        if !(sample_rate_hz > 0.0 && sample_rate_hz.is_finite()) {
+            return bad(format!(
+                "sample_rate_hz must be positive, got {sample_rate_hz}"
+            ));
+        }
+        if b.is_empty() || a.is_empty() {
+            return bad("needs at least one coefficient in b (taps) and in a".into());
+        }
+        if b.iter().chain(&a).any(|x| !x.is_finite()) {
+            return bad("coefficients must be finite numbers".into());
+        }
+        if a[0] == 0.0 {
+            return bad("a[0] must not be zero".into());
+        }
+        let a0 = a[0];
+        let b: Vec<f64> = b.iter().map(|x| x / a0).collect();
+        let a: Vec<f64> = a.iter().map(|x| x / a0).collect();
+        let f = LowPassFilter {
+            name: name.to_string(),
+            sample_rate_hz,
+            b,
+            a,
+        };
+        if f.b.iter().sum::<f64>() == 0.0 || f.a.iter().sum::<f64>() == 0.0 {
+            return bad("gain at DC is zero or infinite: not a low-pass filter".into());
+        }
+        if let Some(r) = f.largest_pole_radius()
+            && r >= 1.0
+        {
+            return bad(format!("unstable: a pole has radius {r:.6} >= 1"));
+        }
+        Ok(f)
+    }
+
+    /// An `n`-tap moving average (boxcar).
+    pub fn moving_average(n: usize, sample_rate_hz: f64) -> Result<Self, Error> {
+        if n == 0 {
+            return Err(Error::Invalid("moving average needs n >= 1".into()));
+        }
+        Self::fir(
+            &format!("{n}-tap moving average"),
+            vec![1.0 / n as f64; n],
+            sample_rate_hz,
+        )
+    }
+
+    /// Two `n`-tap moving averages in series: a (2n − 1)-tap triangular
+    /// (Bartlett) window, the form of the FIR stage of many MEMS IMUs.
+    pub fn bartlett(n: usize, sample_rate_hz: f64) -> Result<Self, Error> {
+        if n == 0 {
+            return Err(Error::Invalid("Bartlett filter needs n >= 1".into()));
+        }
+        let box_ = vec![1.0 / n as f64; n];
+        let mut taps = vec![0.0; 2 * n - 1];
+        for i in 0..n {
+            for j in 0..n {
+                taps[i + j] += box_[i] * box_[j];
+            }
+        }
+        Self::fir(
+            &format!("Bartlett (2 x {n}-tap average)"),
+            taps,
+            sample_rate_hz,
+        )
+    }
+
+    /// A first-order low-pass y_k = α x_k + (1 − α) y_{k−1}, with
+    /// α = 1 − exp(−2π f_c / f_s) (the sampled RC filter).
+    pub fn first_order(cutoff_hz: f64, sample_rate_hz: f64) -> Result<Self, Error> {
+        if cutoff_hz.is_nan() || cutoff_hz <= 0.0 {
+            return Err(Error::Invalid(
+                "first-order filter needs cutoff_hz > 0".into(),
+            ));
+        }
+        let alpha = 1.0 - (-2.0 * std::f64::consts::PI * cutoff_hz / sample_rate_hz).exp();
+        Self::iir(
+            &format!("first-order {cutoff_hz} Hz"),
+            vec![alpha],
+            vec![1.0, -(1.0 - alpha)],
+            sample_rate_hz,
+        )
+    }
+
+    /// Builds a filter from its file form.
+    pub fn from_spec(spec: &LowPassSpec) -> Result<Self, Error> {
+        let fs = spec.sample_rate_hz;
+        let mut f = match spec.kind.as_str() {
+            "fir" => {
+                let taps = spec
+                    .taps
+                    .clone()
+                    .ok_or_else(|| Error::Invalid("kind = \"fir\" needs taps = [...]".into()))?;
+                Self::fir("FIR", taps, fs)?
+            }
+            "iir" => match (&spec.b, &spec.a) {
+                (Some(b), Some(a)) => Self::iir("IIR", b.clone(), a.clone(), fs)?,
+                _ => {
+                    return Err(Error::Invalid(
+                        "kind = \"iir\" needs b = [...] and a = [...]".into(),
+                    ));
+                }
+            },
+            "moving-average" => Self::moving_average(
+                spec.n
+                    .ok_or_else(|| Error::Invalid("kind = \"moving-average\" needs n".into()))?,
+                fs,
+            )?,
+            "bartlett" => Self::bartlett(
+                spec.n
+                    .ok_or_else(|| Error::Invalid("kind = \"bartlett\" needs n".into()))?,
+                fs,
+            )?,
+            "first-order" => Self::first_order(
+                spec.cutoff_hz.ok_or_else(|| {
+                    Error::Invalid("kind = \"first-order\" needs cutoff_hz".into())
+                })?,
+                fs,
+            )?,
+            k => {
+                return Err(Error::Invalid(format!(
+                    "unknown filter kind '{k}' (expected fir, iir, moving-average, bartlett, first-order)"
+                )));
+            }
+        };
+        if let Some(n) = &spec.name {
+            f.name = n.clone();
+        }
+        Ok(f)
+    }
+
+    /// Reads a TOML filter description (see [`LowPassSpec`]).
+    pub fn load(path: &Path) -> Result<Self, Error> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let spec: LowPassSpec = toml::from_str(&text)
+            .map_err(|e| Error::config(path, format!("not a filter description: {e}")))?;
+        Self::from_spec(&spec).map_err(|e| Error::config(path, e.to_string()))
+    }
+
+    /// True for an FIR filter.
+    pub fn is_fir(&self) -> bool {
+        self.a.len() == 1
+    }
+
+    /// Complex frequency response at ω (rad/sample): (re, im).
+    fn response(c: &[f64], w: f64) -> ((f64, f64), (f64, f64)) {
+        // Σ c_n e^{−jωn} and Σ n c_n e^{−jωn}.
+        let (mut re, mut im, mut nre, mut nim) = (0.0, 0.0, 0.0, 0.0);
+        for (n, &cn) in c.iter().enumerate() {
+            let (s, co) = (w * n as f64).sin_cos();
+            re += cn * co;
+            im -= cn * s;
+            nre += n as f64 * cn * co;
+            nim -= n as f64 * cn * s;
+        }
+        ((re, im), (nre, nim))
+    }
+
+    /// τ_C(ω) = Re[ Σ n c_n e^{−jωn} / Σ c_n e^{−jωn} ] (Smith), and |C|².
+    fn poly_delay(c: &[f64], w: f64) -> (f64, f64) {
+        let ((re, im), (nre, nim)) = Self::response(c, w);
+        let mag2 = re * re + im * im;
+        ((nre * re + nim * im) / mag2, mag2)
+    }
+
+    /// Group delay (samples) and gain |H| at ω (rad/sample); NaN delay
+    /// where the gain is zero.
+    pub fn delay_and_gain(&self, w: f64) -> (f64, f64) {
+        let (tb, mb) = Self::poly_delay(&self.b, w);
+        let (ta, ma) = Self::poly_delay(&self.a, w);
+        let gain = (mb / ma).sqrt();
+        if mb < 1e-24 * self.b.iter().map(|x| x * x).sum::<f64>() {
+            return (f64::NAN, gain);
+        }
+        (tb - ta, gain)
+    }
+
+    /// Group delay at DC in samples: Σ n b_n/Σ b_n − Σ n a_n/Σ a_n.
+    pub fn dc_delay_samples(&self) -> f64 {
+        let m = |c: &[f64]| {
+            c.iter().enumerate().map(|(n, x)| n as f64 * x).sum::<f64>() / c.iter().sum::<f64>()
+        };
+        m(&self.b) - m(&self.a)
+    }
+
+    /// The delay to subtract from time stamps (s): the DC group delay.
+    pub fn delay_compensation_s(&self) -> f64 {
+        self.dc_delay_samples() / self.sample_rate_hz
+    }
+
+    /// The delay report; `band_hz` is the dynamics band of interest (e.g.
+    /// 10 Hz for a land vehicle) over which the delay spread is given.
+    pub fn group_delay(&self, band_hz: f64) -> GroupDelay {
+        let fs = self.sample_rate_hz;
+        let nyq = fs / 2.0;
+        let dc_gain = self.b.iter().sum::<f64>() / self.a.iter().sum::<f64>();
+        let points = 512;
+        let mut curve = Vec::with_capacity(points + 1);
+        let mut cutoff = None;
+        for k in 0..=points {
+            let f = nyq * k as f64 / points as f64;
+            let w = 2.0 * std::f64::consts::PI * f / fs;
+            let (d, g) = self.delay_and_gain(w);
+            let rel = g / dc_gain.abs();
+            if cutoff.is_none() && rel < std::f64::consts::FRAC_1_SQRT_2 && k > 0 {
+                // Refine between the previous point and this one by bisection.
+                let (mut lo, mut hi) = (nyq * (k - 1) as f64 / points as f64, f);
+                for _ in 0..50 {
+                    let mid = 0.5 * (lo + hi);
+                    let (_, gm) = self.delay_and_gain(2.0 * std::f64::consts::PI * mid / fs);
+                    if gm / dc_gain.abs() < std::f64::consts::FRAC_1_SQRT_2 {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                cutoff = Some(0.5 * (lo + hi));
+            }
+            if d.is_finite() {
+                curve.push(DelayPoint {
+                    freq_hz: f,
+                    delay_s: d / fs,
+                    gain_db: 20.0 * rel.max(1e-300).log10(),
+                });
+            }
+        }
+        let band = band_hz.min(cutoff.unwrap_or(nyq)).max(0.0);
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let steps = 200;
+        for k in 0..=steps {
+            let f = band * k as f64 / steps as f64;
+            let (d, _) = self.delay_and_gain(2.0 * std::f64::consts::PI * f / fs);
+            if d.is_finite() {
+                lo = lo.min(d / fs);
+                hi = hi.max(d / fs);
+            }
+        }
+        let dc = self.dc_delay_samples();
+        GroupDelay {
+            dc_samples: dc,
+            dc_s: dc / fs,
+            dc_gain,
+            cutoff_hz: cutoff,
+            band_hz: band,
+            band_min_s: lo,
+            band_max_s: hi,
+            curve,
+        }
+    }
+
+    /// The warning seed 001 §1.4 asks for.
+    pub fn warning(&self, gd: &GroupDelay) -> String {
+        format!(
+            "the IMU applied a low-pass filter ({}, {} Hz): it delays the data by {:.3} ms ({:.2} samples at DC{}). \
+             Seed 001 §1.4: turn the filter off (or set its cut-off to the highest); \
+             navsync shifts the time stamps back by {:.3} ms (the delay varies {:.3}–{:.3} ms up to {:.1} Hz)",
+            self.name,
+            self.sample_rate_hz,
+            gd.dc_s * 1e3,
+            gd.dc_samples,
+            gd.cutoff_hz
+                .map(|c| format!(", −3 dB at {c:.1} Hz"))
+                .unwrap_or_default(),
+            gd.dc_s * 1e3,
+            gd.band_min_s * 1e3,
+            gd.band_max_s * 1e3,
+            gd.band_hz
+        )
+    }
+
+    /// Radius of the largest pole (None for an FIR).
+    fn largest_pole_radius(&self) -> Option<f64> {
+        let n = self.a.len() - 1;
+        if n == 0 {
+            return None;
+        }
+        // Poles: roots of z^n + a_1 z^{n−1} + … + a_n; companion matrix.
+        let mut m = DMatrix::<f64>::zeros(n, n);
+        for j in 0..n {
+            m[(0, j)] = -self.a[j + 1];
+        }
+        for i in 1..n {
+            m[(i, i - 1)] = 1.0;
+        }
+        let ev = m.complex_eigenvalues();
+        Some(ev.iter().map(|c| c.norm()).fold(0.0, f64::max))
+    }
+
+    /// A streaming instance of the filter (direct form II transposed).
+    pub fn runner(&self) -> FilterRunner {
+        FilterRunner {
+            b: self.b.clone(),
+            a: self.a.clone(),
+            z: vec![0.0; self.b.len().max(self.a.len())],
+        }
+    }
+}
+
+/// Runs a filter on one channel, sample by sample (to simulate what the
+/// IMU did, and in tests).
+#[derive(Clone, Debug)]
+pub struct FilterRunner {
+    b: Vec<f64>,
+    a: Vec<f64>,
+    z: Vec<f64>,
+}
+
+impl FilterRunner {
+    /// Starts the filter in steady state at `x0` (no start-up transient).
+    pub fn prime(&mut self, x0: f64) {
+        let gain = self.b.iter().sum::<f64>() / self.a.iter().sum::<f64>();
+        let y0 = gain * x0;
+        // DF-II transposed steady state: z_i = Σ_{k>i} (b_k x0 − a_k y0).
+        let n = self.z.len();
+        for i in 0..n {
+            let mut s = 0.0;
+            for k in (i + 1)..n {
+                s += self.b.get(k).copied().unwrap_or(0.0) * x0
+                    - self.a.get(k).copied().unwrap_or(0.0) * y0;
+            }
+            self.z[i] = s;
+        }
+    }
+
+    /// Filters one sample.
+    pub fn step(&mut self, x: f64) -> f64 {
+        let n = self.z.len();
+        let b = |k: usize| self.b.get(k).copied().unwrap_or(0.0);
+        let a = |k: usize| self.a.get(k).copied().unwrap_or(0.0);
+        let y = b(0) * x + if n > 1 { self.z[0] } else { 0.0 };
+        for i in 0..n.saturating_sub(1) {
+            let next = if i + 1 < n - 1 { self.z[i + 1] } else { 0.0 };
+            self.z[i] = b(i + 1) * x - a(i + 1) * y + next;
+        }
+        y
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn symmetric_fir_delays_half_its_length_at_every_frequency() {
+        // A symmetric (linear-phase) FIR of N taps: τ = (N − 1)/2 exactly.
+        let taps = vec![0.05, 0.1, 0.2, 0.3, 0.2, 0.1, 0.05];
+        let f = LowPassFilter::fir("sym", taps, 2000.0).unwrap();
+        assert!((f.dc_delay_samples() - 3.0).abs() < 1e-12);
+        let gd = f.group_delay(10.0);
+        for p in &gd.curve {
+            // Near a zero of the response (gain below −60 dB) the ratio
+            // loses digits; elsewhere it is exact to rounding.
+            let tol = if p.gain_db > -60.0 { 1e-9 } else { 1e-5 };
+            assert!((p.delay_s * 2000.0 - 3.0).abs() < tol, "{p:?}");
+        }
+        assert!((gd.dc_s - 1.5e-3).abs() < 1e-15);
+        let b = LowPassFilter::bartlett(8, 2000.0).unwrap();
+        assert_eq!(b.b.len(), 15);
+        assert!((b.dc_delay_samples() - 7.0).abs() < 1e-12);
+        let m = LowPassFilter::moving_average(16, 2000.0).unwrap();
+        assert!((m.dc_delay_samples() - 7.5).abs() < 1e-12);
+        // Its nulls (multiples of 125 Hz) have no defined delay and are skipped.
+        assert!(
+            m.group_delay(10.0)
+                .curve
+                .iter()
+                .all(|p| (p.delay_s * 2000.0 - 7.5).abs() < 1e-5)
+        );
+    }
+
+    #[test]
+    fn first_order_iir_delay_at_dc_is_one_minus_alpha_over_alpha() {
+        // y_k = α x_k + (1 − α) y_{k−1}: H(z) = α/(1 − (1 − α) z⁻¹),
+        // τ(0) = (1 − α)/α samples.
+        let alpha = 0.2;
+        let f = LowPassFilter::iir("rc", vec![alpha], vec![1.0, -(1.0 - alpha)], 100.0).unwrap();
+        assert!((f.dc_delay_samples() - 4.0).abs() < 1e-12);
+        let gd = f.group_delay(1.0);
+        assert!((gd.dc_s - 0.04).abs() < 1e-12);
+        // Closed form for a one-pole filter with pole p: τ(ω) = (p cos ω − p²)/(1 − 2p cos ω + p²).
+        let p: f64 = 1.0 - alpha;
+        for w in [0.0f64, 0.1, 0.5, 1.0, 3.0] {
+            let want = (p * w.cos() - p * p) / (1.0 - 2.0 * p * w.cos() + p * p);
+            let (d, _) = f.delay_and_gain(w);
+            assert!((d - want).abs() < 1e-12, "{w}: {d} vs {want}");
+        }
+        // −3 dB of the one-pole filter: cos ω_c = 1 − (1−p)²/(2p).
+        let wc = (1.0 - (1.0 - p).powi(2) / (2.0 * p)).acos();
+        assert!((gd.cutoff_hz.unwrap() - wc * 100.0 / (2.0 * std::f64::consts::PI)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_ramp_through_the_filter_lags_by_the_dc_delay() {
+        // A unit-DC-gain LTI filter turns a ramp x = c·k into c·(k − τ(0))
+        // in steady state: the definition of the DC group delay in time.
+        for f in [
+            LowPassFilter::first_order(30.0, 1000.0).unwrap(),
+            LowPassFilter::bartlett(4, 1000.0).unwrap(),
+            LowPassFilter::iir(
+                "2nd",
+                vec![0.02, 0.04, 0.02],
+                vec![1.0, -1.56, 0.64],
+                1000.0,
+            )
+            .unwrap(),
+        ] {
+            let mut r = f.runner();
+            r.prime(0.0);
+            let c = 0.01;
+            let mut y = 0.0;
+            let n = 4000;
+            for k in 0..=n {
+                y = r.step(c * k as f64);
+            }
+            let lag = n as f64 - y / c / (f.b.iter().sum::<f64>() / f.a.iter().sum::<f64>());
+            assert!(
+                (lag - f.dc_delay_samples()).abs() < 1e-6,
+                "{}: {lag} vs {}",
+                f.name,
+                f.dc_delay_samples()
+            );
+        }
+    }
+
+    #[test]
+    fn bad_descriptions_are_refused_with_reasons() {
+        assert!(
+            LowPassFilter::iir("x", vec![1.0], vec![1.0, -1.5], 100.0)
+                .unwrap_err()
+                .to_string()
+                .contains("unstable")
+        );
+        assert!(
+            LowPassFilter::fir("x", vec![1.0, -1.0], 100.0)
+                .unwrap_err()
+                .to_string()
+                .contains("DC")
+        );
+        assert!(LowPassFilter::iir("x", vec![1.0], vec![0.0, 1.0], 100.0).is_err());
+        assert!(LowPassFilter::fir("x", vec![], 100.0).is_err());
+        let spec: LowPassSpec =
+            toml::from_str("kind = \"iir\"\nsample_rate_hz = 100\nb = [1]").unwrap();
+        assert!(
+            LowPassFilter::from_spec(&spec)
+                .unwrap_err()
+                .to_string()
+                .contains("needs b")
+        );
+        let spec: LowPassSpec = toml::from_str(
+            "kind = \"bartlett\"\nsample_rate_hz = 2000\nn = 4\nname = \"ADIS FIR\"",
+        )
+        .unwrap();
+        let f = LowPassFilter::from_spec(&spec).unwrap();
+        assert_eq!(f.name, "ADIS FIR");
+        assert!((f.delay_compensation_s() - 1.5e-3).abs() < 1e-15);
+        assert!(f.warning(&f.group_delay(10.0)).contains("1.500 ms"));
+    }
+}

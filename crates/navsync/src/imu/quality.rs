@@ -1,0 +1,2404 @@
+//! Quality of a recorded IMU log against seed 001 §1 (checklist §1.5).
+//!
+//! One streaming pass ([`QualityAnalyzer::push`]) measures:
+//! - intervals: statistics, jitter, the true rate (least squares of time on
+//!   sample index, lost samples counted in the index);
+//! - gaps (an interval over `gap_factor` nominal periods; any over 0.1 s
+//!   violates §1.5 point 5), lost samples, duplicated and out-of-order
+//!   records, stale records (all six values repeat the previous record
+//!   where chance cannot explain it);
+//! - per channel: stuck runs, saturation (a flat top at the channel's
+//!   extreme, or a declared full-scale range), spikes (isolated one-sample
+//!   excursions), the retained precision (significant digits written,
+//!   quantization step, print rounding against the sensor noise; §1.5
+//!   point 4);
+//! - static segments, detected automatically, and their Allan deviation
+//!   (angle/velocity random walk, bias instability).
+//!
+//! [`QualityAnalyzer::finish`] turns this into a [`QualityReport`] with one
+//! verdict row per seed 001 criterion. Loss rate = lost / (received +
+//! lost); bad-data rate = bad records / records, both against 1e-5 (§1.5
+//! point 5).
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+
+use serde::Serialize;
+
+use super::log::{ImuLogFormat, ImuLogReader, LogRecord};
+use super::lowpass::{GroupDelay, LowPassFilter};
+use crate::allan::{AllanPoint, fit_noise, overlapping_adev};
+use crate::error::{Diagnostics, Error};
+use crate::stats::{Moments, quantile};
+
+const CHANNELS: [&str; 6] = [
+    "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
+];
+/// Rates the nominal rate is rounded to when within 1 %.
+const ROUND_RATES: [f64; 29] = [
+    1.0, 2.0, 4.0, 5.0, 8.0, 10.0, 16.0, 20.0, 25.0, 32.0, 40.0, 50.0, 64.0, 100.0, 125.0, 128.0,
+    200.0, 250.0, 256.0, 400.0, 500.0, 512.0, 1000.0, 1024.0, 2000.0, 2048.0, 4000.0, 4096.0,
+    8000.0,
+];
+/// Records used to find the nominal interval when none is given.
+const WARMUP: usize = 64;
+/// Events kept per kind (all are counted).
+const EVENTS_PER_KIND: usize = 50;
+
+/// Options and limits of a check.
+#[derive(Clone, Debug, Serialize)]
+pub struct QualityConfig {
+    /// Nominal output rate (Hz); estimated from the first intervals when
+    /// `None`.
+    pub nominal_rate_hz: Option<f64>,
+    /// The IMU's internal (raw) sampling rate, when known (§1.2).
+    pub raw_rate_hz: Option<f64>,
+    /// Lowest raw rate for the carrier (§1.2: a vehicle not below 200 Hz).
+    pub min_raw_rate_hz: f64,
+    /// An interval longer than this many nominal periods is a gap.
+    pub gap_factor: f64,
+    /// Longest acceptable gap (s): §1.5 point 5, 0.1 s for a vehicle.
+    pub max_gap_s: f64,
+    /// §1.5 point 5: loss and bad-data rates below 1e-5.
+    pub max_loss_rate: f64,
+    pub max_bad_rate: f64,
+    /// navsync's limit on interval jitter (RMS, fraction of the interval);
+    /// seed 001 asks for a stable interval without a number.
+    pub max_jitter_frac: f64,
+    /// A spike exceeds this many times the running mean |second
+    /// difference| of its channel.
+    pub spike_factor: f64,
+    /// Shortest stuck run (s); at least 20 samples, and longer for coarse
+    /// channels where repeats are common (see [`QualityReport`]).
+    pub stuck_min_s: f64,
+    /// Full-scale ranges, when known: samples at ≥ 99.9 % are saturated.
+    pub gyro_range_rad_s: Option<f64>,
+    pub accel_range_mps2: Option<f64>,
+    /// The low-pass filter the IMU applied, if any (§1.4).
+    pub lowpass: Option<LowPassFilter>,
+    /// Band of the carrier's dynamics (Hz) for the filter-delay report.
+    pub dynamics_band_hz: f64,
+    /// Static detection window (s) and shortest static segment kept (s).
+    pub static_window_s: f64,
+    pub min_static_s: f64,
+}
+
+impl Default for QualityConfig {
+    fn default() -> Self {
+        QualityConfig {
+            nominal_rate_hz: None,
+            raw_rate_hz: None,
+            min_raw_rate_hz: 200.0,
+            gap_factor: 1.5,
+            max_gap_s: 0.1,
+            max_loss_rate: 1e-5,
+            max_bad_rate: 1e-5,
+            max_jitter_frac: 0.05,
+            spike_factor: 12.0,
+            stuck_min_s: 0.5,
+            gyro_range_rad_s: None,
+            accel_range_mps2: None,
+            lowpass: None,
+            dynamics_band_hz: 10.0,
+            static_window_s: 1.0,
+            min_static_s: 10.0,
+        }
+    }
+}
+
+/// Outcome of one criterion.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    Pass,
+    Info,
+    /// Cannot be decided from the log alone, or marginal.
+    Warn,
+    Fail,
+}
+
+impl Status {
+    pub fn label(self) -> &'static str {
+        match self {
+            Status::Pass => "PASS",
+            Status::Info => "info",
+            Status::Warn => "WARN",
+            Status::Fail => "FAIL",
+        }
+    }
+}
+
+/// One row of the verdict.
+#[derive(Clone, Debug, Serialize)]
+pub struct Criterion {
+    /// Seed 001 section, e.g. "§1.5-5".
+    pub seed: &'static str,
+    pub rule: String,
+    pub status: Status,
+    pub measured: String,
+    pub limit: String,
+}
+
+/// Kinds of findings.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EventKind {
+    Malformed,
+    Gap,
+    Duplicate,
+    OutOfOrder,
+    Stale,
+    Stuck,
+    Saturation,
+    Spike,
+}
+
+const KINDS: [EventKind; 8] = [
+    EventKind::Malformed,
+    EventKind::Gap,
+    EventKind::Duplicate,
+    EventKind::OutOfOrder,
+    EventKind::Stale,
+    EventKind::Stuck,
+    EventKind::Saturation,
+    EventKind::Spike,
+];
+
+/// One finding, located in the file.
+#[derive(Clone, Debug, Serialize)]
+pub struct Event {
+    pub kind: EventKind,
+    pub line: usize,
+    /// The time stamp as written (s).
+    pub time_s: f64,
+    pub channel: Option<&'static str>,
+    pub detail: String,
+}
+
+/// Counts of findings by kind.
+#[derive(Clone, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct Counts {
+    pub malformed_lines: usize,
+    pub gaps: usize,
+    pub gaps_over_limit: usize,
+    pub lost_samples: usize,
+    pub duplicates: usize,
+    pub out_of_order: usize,
+    pub stale_records: usize,
+    pub stuck_segments: usize,
+    pub stuck_samples: usize,
+    pub saturation_events: usize,
+    pub saturated_samples: usize,
+    pub spikes: usize,
+    /// Records with at least one spike.
+    pub spike_records: usize,
+}
+
+impl Counts {
+    /// Events of one kind (segments for stuck, flat tops for saturation).
+    pub fn of(&self, k: EventKind) -> usize {
+        match k {
+            EventKind::Malformed => self.malformed_lines,
+            EventKind::Gap => self.gaps,
+            EventKind::Duplicate => self.duplicates,
+            EventKind::OutOfOrder => self.out_of_order,
+            EventKind::Stale => self.stale_records,
+            EventKind::Stuck => self.stuck_segments,
+            EventKind::Saturation => self.saturation_events,
+            EventKind::Spike => self.spikes,
+        }
+    }
+}
+
+/// Interval statistics (s).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct IntervalStats {
+    pub nominal_s: f64,
+    pub mean_s: f64,
+    pub median_s: f64,
+    pub min_s: f64,
+    pub max_s: f64,
+    /// RMS deviation from the mean over intervals that are not gaps.
+    pub jitter_rms_s: f64,
+    pub jitter_rms_frac: f64,
+    /// 99th percentile of |interval − nominal| (histogram, 0.1 % bins).
+    pub p99_abs_dev_s: f64,
+}
+
+/// Per-channel findings (values in rate units: rad/s, m/s²).
+#[derive(Clone, Debug, Serialize)]
+pub struct ChannelReport {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub mean: f64,
+    pub std: f64,
+    pub min: f64,
+    pub max: f64,
+    /// Fraction of samples equal to the one before.
+    pub repeat_fraction: f64,
+    /// Sensor resolution found in the values (None: no grid).
+    pub quantization_step: Option<f64>,
+    pub min_significant_digits: u8,
+    /// Median significant digits written.
+    pub typical_significant_digits: u8,
+    /// Typical resolution of the written numbers.
+    pub print_step: f64,
+    /// High-frequency noise σ (robust, from second differences).
+    pub noise_sd: f64,
+    /// Print rounding noise (step/√12) over `noise_sd`.
+    pub rounding_to_noise: f64,
+    pub stuck_segments: usize,
+    pub saturated_samples: usize,
+    pub spikes: usize,
+}
+
+/// A static segment found in the log.
+#[derive(Clone, Debug, Serialize)]
+pub struct StaticSegment {
+    pub first_line: usize,
+    pub start_s: f64,
+    pub duration_s: f64,
+}
+
+/// Allan results of one channel.
+#[derive(Clone, Debug, Serialize)]
+pub struct AllanChannel {
+    pub name: &'static str,
+    /// Random walk in SI (rad/√s, m/s/√s) and in display units
+    /// (deg/√h, m/s/√h).
+    pub random_walk: f64,
+    pub random_walk_display: f64,
+    /// Bias instability in SI (rad/s, m/s²) and display (deg/h, mGal).
+    pub bias_instability: f64,
+    pub bias_instability_display: f64,
+    pub bias_instability_tau_s: f64,
+    /// False when the curve had not turned up within the segment (the
+    /// value is then an upper bound).
+    pub bias_instability_resolved: bool,
+    /// Lag-1 and lag-2 autocorrelation of the static noise (≈ 0 when
+    /// white; a low-pass filter makes them large). Increments converted
+    /// from white rates by the trapezoid have lag-1 0.5 and lag-2 0 (a
+    /// two-sample average with no delay beyond its own interval), so for
+    /// increment logs only lag 2 tells a filter.
+    pub lag1_correlation: f64,
+    pub lag2_correlation: f64,
+    pub curve: Vec<AllanPoint>,
+}
+
+/// Allan analysis of the longest static segment.
+#[derive(Clone, Debug, Serialize)]
+pub struct AllanReport {
+    pub segment: StaticSegment,
+    pub tau0_s: f64,
+    pub channels: Vec<AllanChannel>,
+}
+
+/// The delay of a declared low-pass filter.
+#[derive(Clone, Debug, Serialize)]
+pub struct LowPassReport {
+    pub filter: LowPassFilter,
+    pub delay: GroupDelay,
+    pub warning: String,
+}
+
+/// Everything a check found.
+#[derive(Clone, Debug, Serialize)]
+pub struct QualityReport {
+    pub file: String,
+    pub format: &'static str,
+    /// Lines that held a record or tried to (records + malformed).
+    pub records: usize,
+    /// Records in time order (duplicates and out-of-order excluded).
+    pub accepted: usize,
+    pub first_time_s: f64,
+    pub last_time_s: f64,
+    pub duration_s: f64,
+    pub nominal_rate_hz: f64,
+    /// A round rate within 1 % of the nominal one, if any.
+    pub round_rate_hz: Option<f64>,
+    /// From a least-squares fit of time on sample index.
+    pub true_rate_hz: f64,
+    /// (round or nominal period / true period − 1) × 1e6.
+    pub rate_error_ppm: f64,
+    pub intervals: IntervalStats,
+    pub longest_gap_s: f64,
+    pub longest_gap_line: usize,
+    pub counts: Counts,
+    pub bad_records: usize,
+    pub loss_rate: f64,
+    pub bad_data_rate: f64,
+    pub channels: Vec<ChannelReport>,
+    pub static_segments: Vec<StaticSegment>,
+    pub allan: Option<AllanReport>,
+    pub lowpass: Option<LowPassReport>,
+    pub criteria: Vec<Criterion>,
+    pub verdict: Status,
+    /// Findings (at most 50 of each kind; all are counted in `counts`).
+    pub events: Vec<Event>,
+    pub notes: Vec<String>,
+}
+
+/// A deterministic thinning sample of a long series (keeps every
+/// `stride`-th value; halves itself when full).
+#[derive(Clone, Debug)]
+struct Reservoir {
+    data: Vec<f64>,
+    stride: usize,
+    count: usize,
+}
+
+impl Reservoir {
+    const CAP: usize = 4096;
+
+    fn new() -> Self {
+        Reservoir {
+            data: Vec::new(),
+            stride: 1,
+            count: 0,
+        }
+    }
+
+    #[inline]
+    fn push(&mut self, v: f64) {
+        self.count += 1;
+        if self.count % self.stride != 0 {
+            return;
+        }
+        self.data.push(v);
+        if self.data.len() == Self::CAP {
+            let mut k = 0;
+            self.data.retain(|_| {
+                k += 1;
+                k % 2 == 0
+            });
+            self.stride *= 2;
+        }
+    }
+}
+
+/// The extreme (max or min) of a channel and the flat tops at it.
+#[derive(Clone, Debug, Default)]
+struct Extreme {
+    value: Option<f64>,
+    run: usize,
+    run_line: usize,
+    longest: usize,
+    longest_line: usize,
+    /// Samples at the extreme inside runs of two or more.
+    in_runs: usize,
+}
+
+impl Extreme {
+    #[inline]
+    fn push(&mut self, x: f64, line: usize, is_max: bool) {
+        match self.value {
+            Some(v) if x == v => {
+                self.run += 1;
+                if self.run == 1 {
+                    self.run_line = line;
+                }
+                if self.run == 2 {
+                    self.in_runs += 2;
+                } else if self.run > 2 {
+                    self.in_runs += 1;
+                }
+                if self.run > self.longest {
+                    self.longest = self.run;
+                    self.longest_line = self.run_line;
+                }
+            }
+            Some(v) if (is_max && x < v) || (!is_max && x > v) => self.run = 0,
+            _ => {
+                *self = Extreme {
+                    value: Some(x),
+                    run: 1,
+                    run_line: line,
+                    longest: 1,
+                    longest_line: line,
+                    in_runs: 0,
+                };
+            }
+        }
+    }
+}
+
+/// A run of identical values long enough to be a stuck candidate.
+#[derive(Clone, Debug)]
+struct Run {
+    first_line: usize,
+    first_ns: i64,
+    first_idx: usize,
+    len: usize,
+    value: f64,
+}
+
+#[derive(Clone, Debug)]
+struct ChannelState {
+    moments: Moments,
+    repeats: usize,
+    prev_raw: Option<f64>,
+    run: Run,
+    stuck: Vec<Run>,
+    max: Extreme,
+    min: Extreme,
+    range_hits: usize,
+    range_first_line: usize,
+    // Spike test: the two previous rate values (contiguous).
+    hist: [f64; 2],
+    hist_line: [usize; 2],
+    hist_ns: [i64; 2],
+    hist_n: usize,
+    scale: f64,
+    scale_n: usize,
+    min_step: f64,
+    spikes: usize,
+    // Precision.
+    min_sig: u8,
+    sig_hist: [u32; 32],
+    step_hist: [u32; 64],
+    diffs: Reservoir,
+    second: Reservoir,
+}
+
+impl ChannelState {
+    fn new() -> Self {
+        ChannelState {
+            moments: Moments::default(),
+            repeats: 0,
+            prev_raw: None,
+            run: Run {
+                first_line: 0,
+                first_ns: 0,
+                first_idx: 0,
+                len: 0,
+                value: f64::NAN,
+            },
+            stuck: Vec::new(),
+            max: Extreme::default(),
+            min: Extreme::default(),
+            range_hits: 0,
+            range_first_line: 0,
+            hist: [0.0; 2],
+            hist_line: [0; 2],
+            hist_ns: [0; 2],
+            hist_n: 0,
+            scale: 0.0,
+            scale_n: 0,
+            min_step: f64::INFINITY,
+            spikes: 0,
+            min_sig: u8::MAX,
+            sig_hist: [0; 32],
+            step_hist: [0; 64],
+            diffs: Reservoir::new(),
+            second: Reservoir::new(),
+        }
+    }
+}
+
+/// Per-window statistics of the static detector.
+#[derive(Clone, Copy, Debug)]
+struct WindowStat {
+    std: [f64; 6],
+    /// Index of the window's first sample in the candidate buffer (base
+    /// rate) and its length.
+    start: usize,
+    len: usize,
+    first_line: usize,
+    start_ns: i64,
+}
+
+/// Static-segment detector (see [`QualityAnalyzer`]).
+#[derive(Clone, Debug)]
+struct StaticDetector {
+    win_n: usize,
+    n: usize,
+    sum: [f64; 6],
+    win_first_line: usize,
+    win_start_ns: i64,
+    win_buf: Vec<[f64; 6]>,
+    floor: [f64; 6],
+    prev_mean: Option<([f64; 6], [f64; 6])>,
+    cand_windows: Vec<WindowStat>,
+    cand: Vec<[f64; 6]>,
+    cand_decim: usize,
+    best: Option<(StaticSegment, Vec<[f64; 6]>, usize)>,
+    segments: Vec<StaticSegment>,
+    min_len: usize,
+    dt_s: f64,
+}
+
+/// Most samples kept for one static segment; beyond, pairs are averaged
+/// (τ0 doubles; the Allan curve keeps its long-τ part).
+const STATIC_CAP: usize = 1 << 21;
+/// A window is quiet when every channel's σ is within this factor of the
+/// quietest window seen.
+const QUIET_FACTOR: f64 = 2.5;
+/// Absolute ceilings for "static" (a car at rest vibrates less; any
+/// navigation IMU is quieter): rad/s and m/s².
+const STATIC_GYRO_SD: f64 = 0.01;
+const STATIC_ACCEL_SD: f64 = 0.1;
+
+impl StaticDetector {
+    fn new(win_n: usize, min_len: usize, dt_s: f64) -> Self {
+        StaticDetector {
+            win_n: win_n.max(8),
+            n: 0,
+            sum: [0.0; 6],
+            win_first_line: 0,
+            win_start_ns: 0,
+            win_buf: Vec::new(),
+            floor: [f64::INFINITY; 6],
+            prev_mean: None,
+            cand_windows: Vec::new(),
+            cand: Vec::new(),
+            cand_decim: 1,
+            best: None,
+            segments: Vec::new(),
+            min_len: min_len.max(1),
+            dt_s,
+        }
+    }
+
+    /// A gap breaks the window and the candidate.
+    fn gap(&mut self) {
+        self.n = 0;
+        self.sum = [0.0; 6];
+        self.win_buf.clear();
+        self.prev_mean = None;
+        self.finalize();
+    }
+
+    fn push(&mut self, r: &[f64; 6], line: usize, t_ns: i64, q: &[f64; 6]) {
+        if self.n == 0 {
+            self.win_first_line = line;
+            self.win_start_ns = t_ns;
+        }
+        self.n += 1;
+        for c in 0..6 {
+            self.sum[c] += r[c];
+        }
+        self.win_buf.push(*r);
+        if self.n < self.win_n {
+            return;
+        }
+        let n = self.n as f64;
+        let mut mean = [0.0; 6];
+        let mut std = [0.0; 6];
+        for c in 0..6 {
+            mean[c] = self.sum[c] / n;
+            // Per-window values are centred by subtracting the mean in a
+            // second pass over the (small) window buffer for accuracy.
+            let var = self
+                .win_buf
+                .iter()
+                .map(|x| (x[c] - mean[c]).powi(2))
+                .sum::<f64>()
+                / (n - 1.0);
+            std[c] = var.sqrt();
+        }
+        let abs_ok =
+            (0..3).all(|c| std[c] <= STATIC_GYRO_SD) && (3..6).all(|c| std[c] <= STATIC_ACCEL_SD);
+        if abs_ok {
+            for c in 0..6 {
+                // A constant coarse channel has σ = 0: floor at its resolution.
+                let s = std[c].max(q[c] / 12f64.sqrt()).max(1e-15);
+                self.floor[c] = self.floor[c].min(s);
+            }
+        }
+        let quiet_vs_floor =
+            (0..6).all(|c| std[c] <= QUIET_FACTOR * self.floor[c].max(q[c] / 12f64.sqrt()));
+        let stationary = match &self.prev_mean {
+            None => true,
+            Some((pm, ps)) => (0..6).all(|c| {
+                let s = std[c].max(ps[c]).max(q[c] / 12f64.sqrt());
+                (mean[c] - pm[c]).abs() <= 6.0 * s * (2.0 / n).sqrt()
+            }),
+        };
+        let quiet = abs_ok && quiet_vs_floor && stationary;
+        self.prev_mean = Some((mean, std));
+        if quiet {
+            let start = self
+                .cand_windows
+                .last()
+                .map(|w| w.start + w.len)
+                .unwrap_or(0);
+            self.cand_windows.push(WindowStat {
+                std,
+                start,
+                len: self.n,
+                first_line: self.win_first_line,
+                start_ns: self.win_start_ns,
+            });
+            let buf = std::mem::take(&mut self.win_buf);
+            self.append(buf);
+        } else {
+            self.finalize();
+        }
+        self.n = 0;
+        self.sum = [0.0; 6];
+        self.win_buf.clear();
+    }
+
+    fn append(&mut self, buf: Vec<[f64; 6]>) {
+        // Samples enter at the current decimation (pairs averaged).
+        if self.cand_decim == 1 {
+            self.cand.extend(buf);
+        } else {
+            let d = self.cand_decim;
+            for chunk in buf.chunks(d) {
+                if chunk.len() == d {
+                    let mut m = [0.0; 6];
+                    for x in chunk {
+                        for c in 0..6 {
+                            m[c] += x[c] / d as f64;
+                        }
+                    }
+                    self.cand.push(m);
+                }
+            }
+        }
+        if self.cand.len() >= STATIC_CAP {
+            let halved: Vec<[f64; 6]> = self
+                .cand
+                .chunks(2)
+                .filter(|c| c.len() == 2)
+                .map(|p| {
+                    let mut m = [0.0; 6];
+                    for c in 0..6 {
+                        m[c] = 0.5 * (p[0][c] + p[1][c]);
+                    }
+                    m
+                })
+                .collect();
+            self.cand = halved;
+            self.cand_decim *= 2;
+        }
+    }
+
+    /// Closes the candidate: the longest run of its windows that is quiet
+    /// against the final floor becomes a segment.
+    fn finalize(&mut self) {
+        if self.cand_windows.is_empty() {
+            self.cand.clear();
+            self.cand_decim = 1;
+            return;
+        }
+        let ok = |w: &WindowStat| (0..6).all(|c| w.std[c] <= QUIET_FACTOR * self.floor[c]);
+        let (mut best_i, mut best_len, mut i) = (0, 0, 0);
+        while i < self.cand_windows.len() {
+            if ok(&self.cand_windows[i]) {
+                let s = i;
+                while i < self.cand_windows.len() && ok(&self.cand_windows[i]) {
+                    i += 1;
+                }
+                if i - s > best_len {
+                    best_len = i - s;
+                    best_i = s;
+                }
+            } else {
+                i += 1;
+            }
+        }
+        if best_len > 0 {
+            let ws = &self.cand_windows[best_i..best_i + best_len];
+            let samples: usize = ws.iter().map(|w| w.len).sum();
+            if samples >= self.min_len {
+                let seg = StaticSegment {
+                    first_line: ws[0].first_line,
+                    start_s: ws[0].start_ns as f64 * 1e-9,
+                    duration_s: samples as f64 * self.dt_s,
+                };
+                self.segments.push(seg.clone());
+                let better = self
+                    .best
+                    .as_ref()
+                    .is_none_or(|b| b.0.duration_s < seg.duration_s);
+                if better {
+                    let d = self.cand_decim;
+                    let a = ws[0].start / d;
+                    let b = ((ws[0].start + samples) / d).min(self.cand.len());
+                    let data = self.cand[a..b].to_vec();
+                    self.best = Some((seg, data, d));
+                }
+            }
+        }
+        self.cand_windows.clear();
+        self.cand.clear();
+        self.cand_decim = 1;
+    }
+}
+
+/// The streaming analyzer (see the module docs).
+pub struct QualityAnalyzer {
+    cfg: QualityConfig,
+    path: PathBuf,
+    format: ImuLogFormat,
+    warm: Vec<LogRecord>,
+    nominal_ns: i64,
+    nominal_s: f64,
+    last: Option<LogRecord>,
+    first_ns: Option<i64>,
+    records: usize,
+    accepted: usize,
+    // Order guard (reset detection).
+    behind_run: usize,
+    behind_line: usize,
+    behind_by_ns: i64,
+    // Intervals.
+    hist: Vec<u32>,
+    hist_bin_ns: f64,
+    dt_all: Moments,
+    dt_regular: Moments,
+    longest_gap_s: f64,
+    longest_gap_line: usize,
+    // Regression of time on index (Welford).
+    idx: f64,
+    reg_n: f64,
+    reg_mx: f64,
+    reg_my: f64,
+    reg_sxx: f64,
+    reg_sxy: f64,
+    counts: Counts,
+    events: Vec<Event>,
+    kind_events: [usize; 8],
+    ch: Vec<ChannelState>,
+    last_spike_line: usize,
+    stale_ok_after: usize,
+    statics: Option<StaticDetector>,
+    notes: Vec<String>,
+}
+
+impl QualityAnalyzer {
+    /// An analyzer for a log of `format` read from `path` (named in
+    /// messages).
+    pub fn new(cfg: QualityConfig, format: ImuLogFormat, path: &Path) -> Self {
+        let mut a = QualityAnalyzer {
+            cfg,
+            path: path.to_path_buf(),
+            format,
+            warm: Vec::with_capacity(WARMUP),
+            nominal_ns: 0,
+            nominal_s: f64::NAN,
+            last: None,
+            first_ns: None,
+            records: 0,
+            accepted: 0,
+            behind_run: 0,
+            behind_line: 0,
+            behind_by_ns: 0,
+            hist: Vec::new(),
+            hist_bin_ns: 1.0,
+            dt_all: Moments::default(),
+            dt_regular: Moments::default(),
+            longest_gap_s: 0.0,
+            longest_gap_line: 0,
+            idx: 0.0,
+            reg_n: 0.0,
+            reg_mx: 0.0,
+            reg_my: 0.0,
+            reg_sxx: 0.0,
+            reg_sxy: 0.0,
+            counts: Counts::default(),
+            events: Vec::new(),
+            kind_events: [0; 8],
+            ch: (0..6).map(|_| ChannelState::new()).collect(),
+            last_spike_line: 0,
+            stale_ok_after: 200,
+            statics: None,
+            notes: Vec::new(),
+        };
+        if let Some(r) = a.cfg.nominal_rate_hz
+            && r > 0.0
+        {
+            a.set_nominal((1e9 / r).round() as i64);
+        }
+        a
+    }
+
+    fn set_nominal(&mut self, ns: i64) {
+        self.nominal_ns = ns.max(1);
+        self.nominal_s = self.nominal_ns as f64 * 1e-9;
+        // 0.1 % bins up to four periods.
+        self.hist_bin_ns = self.nominal_ns as f64 / 1000.0;
+        self.hist = vec![0; 4000];
+        let rate = 1.0 / self.nominal_s;
+        let win_n = (self.cfg.static_window_s * rate).round() as usize;
+        let min_len = (self.cfg.min_static_s * rate).round() as usize;
+        self.statics = Some(StaticDetector::new(win_n, min_len, self.nominal_s));
+    }
+
+    /// Pushes one record (in file order). Errors when time goes back and
+    /// stays back (a reset or two logs joined).
+    pub fn push(&mut self, rec: &LogRecord) -> Result<(), Error> {
+        self.records += 1;
+        if self.nominal_ns == 0 {
+            self.warm.push(*rec);
+            if self.warm.len() >= WARMUP {
+                self.end_warmup()?;
+            }
+            return Ok(());
+        }
+        self.process(rec)
+    }
+
+    fn end_warmup(&mut self) -> Result<(), Error> {
+        let mut dts: Vec<f64> = self
+            .warm
+            .windows(2)
+            .map(|w| (w[1].time_ns - w[0].time_ns) as f64)
+            .filter(|&d| d > 0.0)
+            .collect();
+        if dts.is_empty() {
+            return Err(Error::NoData {
+                path: self.path.clone(),
+                msg: "need at least two records with increasing time to find the sampling interval"
+                    .into(),
+            });
+        }
+        let med = quantile(&mut dts, 0.5);
+        self.set_nominal(med.round() as i64);
+        let warm = std::mem::take(&mut self.warm);
+        for r in &warm {
+            self.process(r)?;
+        }
+        Ok(())
+    }
+
+    fn event(
+        &mut self,
+        kind: EventKind,
+        line: usize,
+        time_ns: i64,
+        channel: Option<usize>,
+        detail: String,
+    ) {
+        let k = KINDS.iter().position(|&x| x == kind).unwrap_or(0);
+        self.kind_events[k] += 1;
+        if self.kind_events[k] <= EVENTS_PER_KIND {
+            self.events.push(Event {
+                kind,
+                line,
+                time_s: time_ns as f64 * 1e-9,
+                channel: channel.map(|c| CHANNELS[c]),
+                detail,
+            });
+        }
+    }
+
+    fn process(&mut self, rec: &LogRecord) -> Result<(), Error> {
+        let Some(last) = self.last else {
+            self.first_ns = Some(rec.time_ns);
+            self.accept(rec, None);
+            return Ok(());
+        };
+        if rec.time_ns == last.time_ns {
+            self.counts.duplicates += 1;
+            let same = rec.values == last.values;
+            self.event(
+                EventKind::Duplicate,
+                rec.line,
+                rec.time_ns,
+                None,
+                if same {
+                    format!(
+                        "duplicated sample (same time and values as line {})",
+                        last.line
+                    )
+                } else {
+                    format!(
+                        "duplicate time stamp (line {} has the same time, other values)",
+                        last.line
+                    )
+                },
+            );
+            return Ok(());
+        }
+        if rec.time_ns < last.time_ns {
+            if self.behind_run == 0 {
+                self.behind_line = rec.line;
+                self.behind_by_ns = last.time_ns - rec.time_ns;
+            }
+            self.behind_run += 1;
+            if self.behind_run >= super::log::TimeOrder::RESET_RUN {
+                return Err(Error::parse(
+                    &self.path,
+                    self.behind_line,
+                    format!(
+                        "time goes back {:.6} s here and does not recover within {} records: expected increasing times in one IMU stream (a clock reset, or two logs joined?)",
+                        self.behind_by_ns as f64 * 1e-9,
+                        super::log::TimeOrder::RESET_RUN
+                    ),
+                ));
+            }
+            self.counts.out_of_order += 1;
+            self.event(
+                EventKind::OutOfOrder,
+                rec.line,
+                rec.time_ns,
+                None,
+                format!(
+                    "time {:.6} s is {:.6} s before line {}; record not used",
+                    rec.time_ns as f64 * 1e-9,
+                    (last.time_ns - rec.time_ns) as f64 * 1e-9,
+                    last.line
+                ),
+            );
+            return Ok(());
+        }
+        self.behind_run = 0;
+        self.accept(rec, Some(last));
+        Ok(())
+    }
+
+    fn accept(&mut self, rec: &LogRecord, last: Option<LogRecord>) {
+        let mut gap = false;
+        if let Some(last) = last {
+            let dt_ns = rec.time_ns - last.time_ns;
+            let dt = dt_ns as f64 * 1e-9;
+            self.dt_all.push(dt);
+            let bin = (dt_ns as f64 / self.hist_bin_ns) as usize;
+            if let Some(h) = self.hist.get_mut(bin) {
+                *h += 1;
+            }
+            let mut lost = 0usize;
+            if dt_ns as f64 > self.cfg.gap_factor * self.nominal_ns as f64 {
+                gap = true;
+                lost = ((dt_ns as f64 / self.nominal_ns as f64).round() as usize)
+                    .saturating_sub(1)
+                    .max(1);
+                self.counts.gaps += 1;
+                self.counts.lost_samples += lost;
+                let over = dt > self.cfg.max_gap_s;
+                if over {
+                    self.counts.gaps_over_limit += 1;
+                }
+                if dt > self.longest_gap_s {
+                    self.longest_gap_s = dt;
+                    self.longest_gap_line = rec.line;
+                }
+                self.event(
+                    EventKind::Gap,
+                    rec.line,
+                    rec.time_ns,
+                    None,
+                    format!(
+                        "{dt:.6} s since line {} (≈ {lost} sample{} lost){}",
+                        last.line,
+                        if lost == 1 { "" } else { "s" },
+                        if over {
+                            format!("; longer than {} s (seed 001 §1.5-5)", self.cfg.max_gap_s)
+                        } else {
+                            String::new()
+                        }
+                    ),
+                );
+                if let Some(s) = self.statics.as_mut() {
+                    s.gap();
+                }
+            } else {
+                self.dt_regular.push(dt);
+            }
+            self.idx += 1.0 + lost as f64;
+        }
+        // Time-on-index regression (Welford), y relative to the first time.
+        let y = (rec.time_ns - self.first_ns.unwrap_or(rec.time_ns)) as f64 * 1e-9;
+        self.reg_n += 1.0;
+        let dx = self.idx - self.reg_mx;
+        self.reg_mx += dx / self.reg_n;
+        let dy = y - self.reg_my;
+        self.reg_my += dy / self.reg_n;
+        self.reg_sxx += dx * (self.idx - self.reg_mx);
+        self.reg_sxy += dx * (y - self.reg_my);
+
+        self.accepted += 1;
+        let scale = if self.format == ImuLogFormat::KfGins {
+            1.0 / self.nominal_s
+        } else {
+            1.0
+        };
+        let mut r = [0.0; 6];
+        for c in 0..6 {
+            r[c] = rec.values[c] * scale;
+        }
+
+        // Stale record: all six values repeat the previous record, where
+        // the channels' repeat rates make that a < 1e-6 chance.
+        if let Some(last) = last
+            && rec.values == last.values
+            && self.accepted > self.stale_ok_after
+        {
+            let n = (self.accepted - 1) as f64;
+            let chance: f64 = self
+                .ch
+                .iter()
+                .map(|c| (c.repeats as f64 / n).max(1.0 / n))
+                .product();
+            if chance < 1e-6 {
+                self.counts.stale_records += 1;
+                self.event(
+                    EventKind::Stale,
+                    rec.line,
+                    rec.time_ns,
+                    None,
+                    format!(
+                        "all six values repeat line {} (stale data re-sent?)",
+                        last.line
+                    ),
+                );
+            }
+        }
+
+        let idx = self.accepted - 1;
+        let k_spike = self.cfg.spike_factor;
+        let alpha = 1.0 / (0.5 / self.nominal_s).clamp(16.0, 256.0);
+        let mut q = [0.0; 6];
+        for c in 0..6 {
+            let raw = rec.values[c];
+            let x = r[c];
+            let st = &mut self.ch[c];
+            st.moments.push(x);
+            if rec.digits[c].significant > 0 {
+                st.min_sig = st.min_sig.min(rec.digits[c].significant);
+                st.sig_hist[(rec.digits[c].significant as usize).min(31)] += 1;
+                let e = (rec.digits[c].step_exp as i32 + 50).clamp(0, 63) as usize;
+                st.step_hist[e] += 1;
+            }
+            // Runs of identical values.
+            if st.prev_raw == Some(raw) {
+                st.repeats += 1;
+                st.run.len += 1;
+            } else {
+                if st.run.len >= 20 {
+                    st.stuck.push(st.run.clone());
+                }
+                st.run = Run {
+                    first_line: rec.line,
+                    first_ns: rec.time_ns,
+                    first_idx: idx,
+                    len: 1,
+                    value: raw,
+                };
+            }
+            if let Some(p) = st.prev_raw
+                && !gap
+            {
+                let d = (raw - p).abs() * scale;
+                if d > 0.0 {
+                    st.diffs.push(d);
+                    st.min_step = st.min_step.min(d);
+                }
+            }
+            st.prev_raw = Some(raw);
+            st.max.push(x, rec.line, true);
+            st.min.push(x, rec.line, false);
+            let range = if c < 3 {
+                self.cfg.gyro_range_rad_s
+            } else {
+                self.cfg.accel_range_mps2
+            };
+            if let Some(fs) = range
+                && x.abs() >= 0.999 * fs
+            {
+                if st.range_hits == 0 {
+                    st.range_first_line = rec.line;
+                }
+                st.range_hits += 1;
+            }
+            q[c] = if st.min_step.is_finite() {
+                st.min_step
+            } else {
+                0.0
+            };
+            // Spike test on the middle of three contiguous samples.
+            if gap {
+                st.hist_n = 0;
+            }
+            if st.hist_n >= 2 {
+                let (a, b) = (st.hist[0], st.hist[1]);
+                let d = b - 0.5 * (a + x);
+                let spread = (x - a).abs();
+                let thr = (k_spike * st.scale).max(10.0 * q[c]);
+                if st.scale_n >= 32 && d.abs() > thr && spread < 0.25 * d.abs() {
+                    st.spikes += 1;
+                    let (line, t_ns) = (st.hist_line[1], st.hist_ns[1]);
+                    st.hist[1] = 0.5 * (a + x);
+                    let detail = format!(
+                        "{:+.6e} off its neighbours ({:.1} × the channel's running level)",
+                        d,
+                        d.abs() / st.scale.max(f64::MIN_POSITIVE)
+                    );
+                    self.counts.spikes += 1;
+                    if line != self.last_spike_line {
+                        self.counts.spike_records += 1;
+                        self.last_spike_line = line;
+                    }
+                    self.event(EventKind::Spike, line, t_ns, Some(c), detail);
+                } else {
+                    let st = &mut self.ch[c];
+                    st.second.push(d);
+                    if st.scale_n < 32 {
+                        st.scale =
+                            (st.scale * st.scale_n as f64 + d.abs()) / (st.scale_n + 1) as f64;
+                    } else {
+                        st.scale += alpha * (d.abs() - st.scale);
+                    }
+                    st.scale_n += 1;
+                }
+            }
+            let st = &mut self.ch[c];
+            st.hist = [st.hist[1], x];
+            st.hist_line = [st.hist_line[1], rec.line];
+            st.hist_ns = [st.hist_ns[1], rec.time_ns];
+            st.hist_n = (st.hist_n + 1).min(2);
+        }
+        if let Some(s) = self.statics.as_mut() {
+            s.push(&r, rec.line, rec.time_ns, &q);
+        }
+        self.last = Some(*rec);
+    }
+
+    /// Closes the analysis. `malformed` lines (with their diagnostics)
+    /// come from the reader and count as bad data.
+    pub fn finish(
+        mut self,
+        malformed: usize,
+        reader_diag: &Diagnostics,
+    ) -> Result<QualityReport, Error> {
+        if self.nominal_ns == 0 {
+            self.end_warmup()?;
+        }
+        if self.accepted < 2 {
+            return Err(Error::NoData {
+                path: self.path.clone(),
+                msg: "fewer than two usable IMU records".into(),
+            });
+        }
+        self.counts.malformed_lines = malformed;
+        for d in reader_diag.items.iter() {
+            let k = 0;
+            self.kind_events[k] += 1;
+            if self.kind_events[k] <= EVENTS_PER_KIND {
+                self.events.push(Event {
+                    kind: EventKind::Malformed,
+                    line: d.line,
+                    time_s: f64::NAN,
+                    channel: None,
+                    detail: d.message.clone(),
+                });
+            }
+        }
+        let n_acc = self.accepted;
+        let rate = 1.0 / self.nominal_s;
+
+        // Stuck runs: at least 20 samples and `stuck_min_s`, and longer than
+        // chance allows for the channel's repeat rate p: n·p^(L−1) < 1e-3.
+        let fixed_min = 20usize.max((self.cfg.stuck_min_s * rate).ceil() as usize);
+        let mut stuck_ranges: Vec<(usize, usize)> = Vec::new();
+        let mut channel_stuck = [0usize; 6];
+        let mut channel_sat = [0usize; 6];
+        let mut sat_values: [Vec<f64>; 6] = Default::default();
+        for c in 0..6 {
+            let st = &mut self.ch[c];
+            if st.run.len >= 20 {
+                st.stuck.push(st.run.clone());
+            }
+            let in_cands: usize = st.stuck.iter().map(|r| r.len - 1).sum();
+            let denom = (n_acc - 1).saturating_sub(in_cands).max(1) as f64;
+            let p = ((st.repeats.saturating_sub(in_cands)) as f64 / denom).clamp(1e-12, 0.999);
+            let chance_len = 1.0 + (1e-3 / n_acc as f64).ln() / p.ln();
+            // Saturation: a flat top at the extreme, as long as chance rules
+            // out (≥ 3), or a declared range reached.
+            let sat_len = 3f64.max(chance_len.ceil()) as usize;
+            for ext in [&st.max, &st.min] {
+                if ext.longest >= sat_len
+                    && let Some(v) = ext.value
+                {
+                    channel_sat[c] += ext.in_runs;
+                    sat_values[c].push(v);
+                }
+            }
+        }
+        for c in 0..6 {
+            let scale = if self.format == ImuLogFormat::KfGins {
+                1.0 / self.nominal_s
+            } else {
+                1.0
+            };
+            let runs = std::mem::take(&mut self.ch[c].stuck);
+            let st = &self.ch[c];
+            let in_cands: usize = runs.iter().map(|r| r.len - 1).sum();
+            let denom = (n_acc - 1).saturating_sub(in_cands).max(1) as f64;
+            let p = ((st.repeats.saturating_sub(in_cands)) as f64 / denom).clamp(1e-12, 0.999);
+            let chance_len = 1.0 + (1e-3 / n_acc as f64).ln() / p.ln();
+            let min_len = (fixed_min as f64).max(chance_len.ceil()) as usize;
+            for r in runs.iter().filter(|r| r.len >= min_len) {
+                // A long flat top at a saturated extreme is saturation.
+                if sat_values[c].contains(&(r.value * scale)) {
+                    continue;
+                }
+                channel_stuck[c] += 1;
+                stuck_ranges.push((r.first_idx + 1, r.first_idx + r.len));
+                self.counts.stuck_segments += 1;
+                self.event(
+                    EventKind::Stuck,
+                    r.first_line,
+                    r.first_ns,
+                    Some(c),
+                    format!(
+                        "value {} repeated {} times ({:.3} s)",
+                        r.value,
+                        r.len,
+                        r.len as f64 * self.nominal_s
+                    ),
+                );
+            }
+        }
+        // Union of stuck sample ranges over channels.
+        stuck_ranges.sort();
+        let mut stuck_samples = 0;
+        let mut cur: Option<(usize, usize)> = None;
+        for (a, b) in stuck_ranges {
+            match cur {
+                Some((ca, cb)) if a <= cb => cur = Some((ca, cb.max(b))),
+                Some((ca, cb)) => {
+                    stuck_samples += cb - ca;
+                    cur = Some((a, b));
+                }
+                None => cur = Some((a, b)),
+            }
+        }
+        if let Some((a, b)) = cur {
+            stuck_samples += b - a;
+        }
+        self.counts.stuck_samples = stuck_samples;
+        for c in 0..6 {
+            let st = &self.ch[c];
+            if st.range_hits > 0 {
+                channel_sat[c] = channel_sat[c].max(st.range_hits);
+                self.counts.saturation_events += 1;
+                let line = st.range_first_line;
+                self.event(
+                    EventKind::Saturation,
+                    line,
+                    0,
+                    Some(c),
+                    format!(
+                        "{} samples at ≥ 99.9 % of the declared full scale",
+                        st.range_hits
+                    ),
+                );
+            } else if channel_sat[c] > 0 {
+                let tops: Vec<(usize, usize, usize, f64)> = [&self.ch[c].max, &self.ch[c].min]
+                    .iter()
+                    .filter_map(|ext| {
+                        ext.value
+                            .filter(|v| sat_values[c].contains(v))
+                            .map(|v| (ext.longest_line, ext.longest, ext.in_runs, v))
+                    })
+                    .collect();
+                for (line, longest, n, v) in tops {
+                    self.counts.saturation_events += 1;
+                    self.event(
+                        EventKind::Saturation,
+                        line,
+                        0,
+                        Some(c),
+                        format!(
+                            "flat top at the channel's extreme {v:.6e}: {n} samples in runs, longest {longest} (clipped at full scale?)"
+                        ),
+                    );
+                }
+            }
+        }
+        for e in self
+            .events
+            .iter_mut()
+            .filter(|e| e.kind == EventKind::Saturation)
+        {
+            e.time_s = f64::NAN;
+        }
+        self.counts.saturated_samples = channel_sat.iter().sum();
+
+        // Intervals.
+        let hist_total: u64 = self.hist.iter().map(|&h| h as u64).sum();
+        let hist_q = |q: f64| -> f64 {
+            let target = (q * hist_total as f64).ceil() as u64;
+            let mut acc = 0u64;
+            for (i, &h) in self.hist.iter().enumerate() {
+                acc += h as u64;
+                if acc >= target.max(1) {
+                    return (i as f64 + 0.5) * self.hist_bin_ns * 1e-9;
+                }
+            }
+            f64::NAN
+        };
+        // |dt − nominal| percentile: fold the histogram around the nominal bin.
+        let nominal_bin = 1000usize;
+        let mut dev = vec![0u64; 4000];
+        for (i, &h) in self.hist.iter().enumerate() {
+            dev[i.abs_diff(nominal_bin)] += h as u64;
+        }
+        let overflow = (self.dt_all.n as u64).saturating_sub(hist_total);
+        let target = (0.99 * self.dt_all.n as f64).ceil() as u64;
+        let mut acc = 0u64;
+        let mut p99 = f64::NAN;
+        for (i, &h) in dev.iter().enumerate() {
+            acc += h;
+            if acc >= target {
+                p99 = i as f64 * self.hist_bin_ns * 1e-9;
+                break;
+            }
+        }
+        if p99.is_nan() && overflow > 0 {
+            p99 = self.dt_all.max - self.nominal_s;
+        }
+        let jitter = self.dt_regular.std();
+        let intervals = IntervalStats {
+            nominal_s: self.nominal_s,
+            mean_s: self.dt_all.mean(),
+            median_s: hist_q(0.5),
+            min_s: self.dt_all.min,
+            max_s: self.dt_all.max,
+            jitter_rms_s: if jitter.is_finite() { jitter } else { 0.0 },
+            jitter_rms_frac: if jitter.is_finite() {
+                jitter / self.nominal_s
+            } else {
+                0.0
+            },
+            p99_abs_dev_s: p99,
+        };
+        let period = if self.reg_sxx > 0.0 {
+            self.reg_sxy / self.reg_sxx
+        } else {
+            self.nominal_s
+        };
+        let true_rate = 1.0 / period;
+        let nominal_rate = 1.0 / self.nominal_s;
+        let round_rate = ROUND_RATES
+            .iter()
+            .copied()
+            .find(|r| (r / true_rate - 1.0).abs() < 0.01);
+        let ref_rate = round_rate.unwrap_or(nominal_rate);
+        let rate_error_ppm = (true_rate / ref_rate - 1.0) * 1e6;
+
+        // Channels.
+        let mut channels = Vec::with_capacity(6);
+        for c in 0..6 {
+            let st = &mut self.ch[c];
+            let scale = if self.format == ImuLogFormat::KfGins {
+                1.0 / self.nominal_s
+            } else {
+                1.0
+            };
+            // Typical written resolution: the median step exponent.
+            let total: u32 = st.step_hist.iter().sum();
+            let mut acc = 0u32;
+            let mut e_med = 0i32;
+            for (i, &h) in st.step_hist.iter().enumerate() {
+                acc += h;
+                if acc * 2 >= total {
+                    e_med = i as i32 - 50;
+                    break;
+                }
+            }
+            let print_step = 10f64.powi(e_med) * scale;
+            // Robust noise: median |d| of d = x_k − (x_{k−1}+x_{k+1})/2, whose
+            // σ is √1.5 σ_x for white noise; MAD → σ by 1.4826.
+            let mut dd: Vec<f64> = st.second.data.iter().map(|x| x.abs()).collect();
+            let mad = quantile(&mut dd, 0.5);
+            let noise_sd = 1.4826 * mad / 1.5f64.sqrt();
+            let rounding = print_step / 12f64.sqrt();
+            let quant = quantization_step(&st.diffs.data);
+            channels.push(ChannelReport {
+                name: CHANNELS[c],
+                unit: if c < 3 { "rad/s" } else { "m/s^2" },
+                mean: st.moments.mean(),
+                std: st.moments.std(),
+                min: st.moments.min,
+                max: st.moments.max,
+                repeat_fraction: st.repeats as f64 / (n_acc - 1) as f64,
+                quantization_step: quant,
+                min_significant_digits: if st.min_sig == u8::MAX { 0 } else { st.min_sig },
+                typical_significant_digits: {
+                    let total: u32 = st.sig_hist.iter().sum();
+                    let mut acc = 0;
+                    st.sig_hist
+                        .iter()
+                        .position(|&h| {
+                            acc += h;
+                            total > 0 && acc * 2 >= total
+                        })
+                        .unwrap_or(0) as u8
+                },
+                print_step,
+                noise_sd,
+                rounding_to_noise: if noise_sd > 0.0 {
+                    rounding / noise_sd
+                } else {
+                    f64::INFINITY
+                },
+                stuck_segments: channel_stuck[c],
+                saturated_samples: channel_sat[c],
+                spikes: st.spikes,
+            });
+        }
+
+        // Static segments and Allan deviation.
+        let mut static_segments = Vec::new();
+        let mut allan = None;
+        if let Some(mut s) = self.statics.take() {
+            s.finalize();
+            static_segments = s.segments.clone();
+            if let Some((seg, data, decim)) = s.best.take() {
+                let tau0 = self.nominal_s * decim as f64;
+                let mut chans = Vec::new();
+                for c in 0..6 {
+                    let y: Vec<f64> = data.iter().map(|x| x[c]).collect();
+                    let curve = overlapping_adev(&y, tau0);
+                    // Correlated short-τ noise (e.g. increments made by the
+                    // trapezoid from white rates: lag-1 0.5) bends the first
+                    // points below the white-noise line; the fit then uses
+                    // τ ≥ 16 τ0 only (the bend is then < 2 %: σ²(m) ∝ 2m − 3/2).
+                    let rho1 = lag_corr(&y, 1);
+                    let fit = if rho1.abs() > 0.2 {
+                        let tail: Vec<AllanPoint> = curve
+                            .iter()
+                            .copied()
+                            .filter(|p| p.tau_s >= 15.9 * tau0)
+                            .collect();
+                        fit_noise(&tail)
+                    } else {
+                        fit_noise(&curve)
+                    };
+                    // The floor is resolved when the minimum lies inside the
+                    // curve, not at its longest τ.
+                    let resolved = curve
+                        .last()
+                        .is_some_and(|l| fit.bias_instability_tau_s < 0.9 * l.tau_s);
+                    let (rw_k, bi_k) = if c < 3 {
+                        (60.0f64.to_degrees(), 3600.0f64.to_degrees())
+                    } else {
+                        (60.0, 1e5)
+                    };
+                    chans.push(AllanChannel {
+                        name: CHANNELS[c],
+                        random_walk: fit.random_walk,
+                        random_walk_display: fit.random_walk * rw_k,
+                        bias_instability: fit.bias_instability,
+                        bias_instability_display: fit.bias_instability * bi_k,
+                        bias_instability_tau_s: fit.bias_instability_tau_s,
+                        bias_instability_resolved: resolved,
+                        lag1_correlation: rho1,
+                        lag2_correlation: lag_corr(&y, 2),
+                        curve,
+                    });
+                }
+                allan = Some(AllanReport {
+                    segment: seg,
+                    tau0_s: tau0,
+                    channels: chans,
+                });
+            }
+        }
+        let lowpass = self.cfg.lowpass.as_ref().map(|f| {
+            let delay = f.group_delay(self.cfg.dynamics_band_hz);
+            LowPassReport {
+                warning: f.warning(&delay),
+                filter: f.clone(),
+                delay,
+            }
+        });
+
+        let c = &self.counts;
+        let bad = c.malformed_lines
+            + c.duplicates
+            + c.out_of_order
+            + c.stale_records
+            + c.spike_records
+            + c.saturated_samples
+            + c.stuck_samples;
+        let records = self.records + malformed;
+        let loss_rate = c.lost_samples as f64 / (n_acc + c.lost_samples) as f64;
+        let bad_rate = bad as f64 / records.max(1) as f64;
+        self.events.sort_by_key(|e| (e.line, e.kind as u8));
+        let first = self.first_ns.unwrap_or(0) as f64 * 1e-9;
+        let last = self.last.map(|l| l.time_ns).unwrap_or(0) as f64 * 1e-9;
+        let mut report = QualityReport {
+            file: self.path.display().to_string(),
+            format: self.format.name(),
+            records,
+            accepted: n_acc,
+            first_time_s: first,
+            last_time_s: last,
+            duration_s: last - first,
+            nominal_rate_hz: nominal_rate,
+            round_rate_hz: round_rate,
+            true_rate_hz: true_rate,
+            rate_error_ppm,
+            intervals,
+            longest_gap_s: self.longest_gap_s,
+            longest_gap_line: self.longest_gap_line,
+            counts: self.counts.clone(),
+            bad_records: bad,
+            loss_rate,
+            bad_data_rate: bad_rate,
+            channels,
+            static_segments,
+            allan,
+            lowpass,
+            criteria: Vec::new(),
+            verdict: Status::Pass,
+            events: self.events,
+            notes: self.notes,
+        };
+        if report.round_rate_hz.is_none() && report.rate_error_ppm.abs() > 100.0 {
+            report.notes.push(format!(
+                "the median interval ({:.6} ms) and the mean rate ({:.4} Hz) disagree by {:.0} ppm: the time stamps come in coarse clock ticks or unevenly (e.g. stamped at arrival)",
+                report.intervals.median_s * 1e3,
+                report.true_rate_hz,
+                report.rate_error_ppm
+            ));
+        }
+        report.criteria = criteria(&report, &self.cfg);
+        report.verdict = report
+            .criteria
+            .iter()
+            .map(|c| c.status)
+            .filter(|s| *s != Status::Info)
+            .max()
+            .unwrap_or(Status::Pass);
+        Ok(report)
+    }
+}
+
+/// The sensor resolution, when the value differences sit on a grid: the
+/// median of the smallest differences (within 1.5× the smallest), accepted
+/// when ≥ 90 % of all differences are within 0.15 of a multiple of it.
+fn quantization_step(diffs: &[f64]) -> Option<f64> {
+    let min = diffs.iter().copied().fold(f64::INFINITY, f64::min);
+    if !min.is_finite() || diffs.len() < 16 {
+        return None;
+    }
+    let mut small: Vec<f64> = diffs.iter().copied().filter(|&d| d < 1.5 * min).collect();
+    let q = quantile(&mut small, 0.5);
+    let on_grid = diffs
+        .iter()
+        .filter(|&&d| {
+            let k = d / q;
+            (k - k.round()).abs() < 0.15
+        })
+        .count();
+    // A continuous signal puts only ~30 % within ±0.15 of a multiple.
+    (on_grid as f64 >= 0.9 * diffs.len() as f64 && diffs.iter().any(|&d| d > 1.5 * q)).then_some(q)
+}
+
+/// Lag-`lag` autocorrelation of a series.
+fn lag_corr(y: &[f64], lag: usize) -> f64 {
+    if y.len() < lag + 2 {
+        return f64::NAN;
+    }
+    let m = y.iter().sum::<f64>() / y.len() as f64;
+    let (mut num, mut den) = (0.0, 0.0);
+    for k in 0..y.len() {
+        let a = y[k] - m;
+        den += a * a;
+        if k + lag < y.len() {
+            num += a * (y[k + lag] - m);
+        }
+    }
+    if den > 0.0 { num / den } else { f64::NAN }
+}
+
+fn fmt_rate(x: f64) -> String {
+    if x == 0.0 {
+        "0".into()
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+/// One verdict row per seed 001 §1 criterion.
+fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
+    let mut out = Vec::new();
+    let log_rate = r.round_rate_hz.unwrap_or(r.true_rate_hz);
+    // §1.1: data type.
+    out.push(Criterion {
+        seed: "§1.1",
+        rule: "increments for navigation (rates converted by trapezoid)".into(),
+        status: Status::Info,
+        measured: if r.format == "kf-gins" {
+            "increments (used as they are)".into()
+        } else {
+            "rates: `navsync imu convert` integrates them by trapezoid".into()
+        },
+        limit: "increments".into(),
+    });
+    // §1.2 / §1.5-1: raw rate.
+    let (status, measured) = match cfg.raw_rate_hz {
+        Some(raw) => (
+            if raw >= cfg.min_raw_rate_hz {
+                Status::Pass
+            } else {
+                Status::Fail
+            },
+            format!("raw {raw:.0} Hz (declared), log {log_rate:.2} Hz"),
+        ),
+        None if log_rate >= cfg.min_raw_rate_hz * 0.999 => (
+            Status::Pass,
+            format!("log {log_rate:.2} Hz (the raw rate is at least this)"),
+        ),
+        None => (
+            Status::Warn,
+            format!(
+                "log {log_rate:.2} Hz; raw rate unknown (fine only if the IMU averages a >= {:.0} Hz raw stream; declare it with --raw-rate)",
+                cfg.min_raw_rate_hz
+            ),
+        ),
+    };
+    out.push(Criterion {
+        seed: "§1.2, §1.5-1",
+        rule: "raw sampling rate >= 10-20x the dynamics (vehicle: 200 Hz)".into(),
+        status,
+        measured,
+        limit: format!(">= {:.0} Hz", cfg.min_raw_rate_hz),
+    });
+    out.push(Criterion {
+        seed: "§1.3, §1.5-2",
+        rule: "decimation by averaging/accumulation, not point sampling".into(),
+        status: Status::Info,
+        measured: "not visible in a log; `navsync imu convert --decimate N` averages".into(),
+        limit: "average".into(),
+    });
+    // §1.4 / §1.5-3: low-pass filter.
+    // Noise colour of the static segment: lag 1 for rates, lag 2 for
+    // increments (see `AllanChannel::lag2_correlation`).
+    let (lag, rho_limit) = if r.format == "kf-gins" {
+        (2, 0.2)
+    } else {
+        (1, 0.3)
+    };
+    let max_rho = r.allan.as_ref().map(|a| {
+        a.channels
+            .iter()
+            .map(|c| {
+                if lag == 1 {
+                    c.lag1_correlation
+                } else {
+                    c.lag2_correlation
+                }
+            })
+            .fold(f64::NAN, f64::max)
+    });
+    let (status, measured) = match (&r.lowpass, max_rho) {
+        (Some(lp), _) => (
+            Status::Fail,
+            format!(
+                "declared {}: delay {:.3} ms (compensated by `navsync imu convert --lowpass`)",
+                lp.filter.name,
+                lp.delay.dc_s * 1e3
+            ),
+        ),
+        (None, Some(rho)) if rho > rho_limit => (
+            Status::Warn,
+            format!(
+                "none declared, but the static noise is correlated (lag-{lag} {rho:.2} > {rho_limit}): a filter looks active"
+            ),
+        ),
+        (None, Some(rho)) => (
+            Status::Pass,
+            format!("none declared; static noise uncorrelated (lag-{lag} correlation <= {rho:.2})"),
+        ),
+        (None, None) => (
+            Status::Info,
+            "none declared (no static segment to test the noise colour)".into(),
+        ),
+    };
+    out.push(Criterion {
+        seed: "§1.4, §1.5-3",
+        rule: "no low-pass filter (or the widest; its delay compensated)".into(),
+        status,
+        measured,
+        limit: "off".into(),
+    });
+    // §1.5-4: precision.
+    let worst = r
+        .channels
+        .iter()
+        .max_by(|a, b| a.rounding_to_noise.total_cmp(&b.rounding_to_noise));
+    let typ_sig = r
+        .channels
+        .iter()
+        .map(|c| c.typical_significant_digits)
+        .min()
+        .unwrap_or(0);
+    if let Some(w) = worst {
+        let status = if !w.rounding_to_noise.is_finite() {
+            Status::Warn
+        } else if w.rounding_to_noise <= 0.1 {
+            Status::Pass
+        } else {
+            Status::Fail
+        };
+        let quant = r
+            .channels
+            .iter()
+            .filter_map(|c| c.quantization_step.map(|q| (c.name, q, c.unit)))
+            .map(|(n, q, u)| format!("{n} {q:.3e} {u}"))
+            .collect::<Vec<_>>();
+        out.push(Criterion {
+            seed: "§1.5-4",
+            rule: "full precision kept (no truncation when written)".into(),
+            status,
+            measured: format!(
+                "typically {typ_sig} significant digits; print rounding {:.1e} of the noise ({}){}",
+                w.rounding_to_noise,
+                w.name,
+                if quant.is_empty() {
+                    String::new()
+                } else {
+                    format!("; sensor resolution {}", quant.join(", "))
+                }
+            ),
+            limit: "rounding <= 0.1 x noise".into(),
+        });
+    }
+    // §1.5-5: continuity.
+    out.push(Criterion {
+        seed: "§1.5-5",
+        rule: format!("no gap longer than {} s", cfg.max_gap_s),
+        status: if r.counts.gaps_over_limit == 0 {
+            Status::Pass
+        } else {
+            Status::Fail
+        },
+        measured: format!(
+            "longest interval {:.4} s; {} gaps, {} over the limit",
+            r.intervals.max_s, r.counts.gaps, r.counts.gaps_over_limit
+        ),
+        limit: format!("<= {} s", cfg.max_gap_s),
+    });
+    out.push(Criterion {
+        seed: "§1.5-5",
+        rule: "loss rate".into(),
+        status: if r.loss_rate < cfg.max_loss_rate {
+            Status::Pass
+        } else {
+            Status::Fail
+        },
+        measured: format!(
+            "{} lost of {} expected ({})",
+            r.counts.lost_samples,
+            r.accepted + r.counts.lost_samples,
+            fmt_rate(r.loss_rate)
+        ),
+        limit: format!("< {:.0e}", cfg.max_loss_rate),
+    });
+    let c = &r.counts;
+    out.push(Criterion {
+        seed: "§1.5-5",
+        rule: "bad-data rate".into(),
+        status: if r.bad_data_rate < cfg.max_bad_rate { Status::Pass } else { Status::Fail },
+        measured: format!(
+            "{} bad of {} records ({}): malformed {}, duplicated {}, out of order {}, stale {}, spikes {}, saturated {}, stuck {}",
+            r.bad_records,
+            r.records,
+            fmt_rate(r.bad_data_rate),
+            c.malformed_lines,
+            c.duplicates,
+            c.out_of_order,
+            c.stale_records,
+            c.spike_records,
+            c.saturated_samples,
+            c.stuck_samples
+        ),
+        limit: format!("< {:.0e}", cfg.max_bad_rate),
+    });
+    let fail_if = |n: usize| if n == 0 { Status::Pass } else { Status::Fail };
+    out.push(Criterion {
+        seed: "§1.5-5",
+        rule: "no duplicated or out-of-order records".into(),
+        status: fail_if(c.duplicates + c.out_of_order + c.stale_records),
+        measured: format!(
+            "{} duplicated, {} out of order, {} stale",
+            c.duplicates, c.out_of_order, c.stale_records
+        ),
+        limit: "0".into(),
+    });
+    out.push(Criterion {
+        seed: "§1.5-5",
+        rule: "no saturated, stuck or spiking channel".into(),
+        status: fail_if(c.saturation_events + c.stuck_segments + c.spikes),
+        measured: format!(
+            "saturation {} ({} samples), stuck {} ({} samples), spikes {}",
+            c.saturation_events, c.saturated_samples, c.stuck_segments, c.stuck_samples, c.spikes
+        ),
+        limit: "0".into(),
+    });
+    out.push(Criterion {
+        seed: "§1.5-5",
+        rule: "stable acquisition interval (jitter)".into(),
+        status: if r.intervals.jitter_rms_frac <= cfg.max_jitter_frac {
+            Status::Pass
+        } else {
+            Status::Fail
+        },
+        measured: format!(
+            "RMS {:.1} us ({:.2} % of {:.3} ms); 99 % within {:.1} us",
+            r.intervals.jitter_rms_s * 1e6,
+            r.intervals.jitter_rms_frac * 100.0,
+            r.intervals.nominal_s * 1e3,
+            r.intervals.p99_abs_dev_s * 1e6
+        ),
+        limit: format!(
+            "RMS <= {:.0} % (navsync's limit)",
+            cfg.max_jitter_frac * 100.0
+        ),
+    });
+    out.push(Criterion {
+        seed: "§1.5-5",
+        rule: "true sampling rate".into(),
+        status: Status::Info,
+        measured: match r.round_rate_hz {
+            Some(round) => format!(
+                "{:.4} Hz ({:+.1} ppm from {round} Hz)",
+                r.true_rate_hz, r.rate_error_ppm
+            ),
+            None => format!(
+                "{:.4} Hz (no round rate; the median interval alone would say {:.3} Hz)",
+                r.true_rate_hz, r.nominal_rate_hz
+            ),
+        },
+        limit: "-".into(),
+    });
+    match &r.allan {
+        Some(a) => {
+            let g: Vec<String> = a.channels[..3]
+                .iter()
+                .map(|c| format!("{:.3}", c.random_walk_display))
+                .collect();
+            let v: Vec<String> = a.channels[3..]
+                .iter()
+                .map(|c| format!("{:.4}", c.random_walk_display))
+                .collect();
+            let bi: Vec<String> = a.channels[..3]
+                .iter()
+                .map(|c| {
+                    format!(
+                        "{}{:.2}",
+                        if c.bias_instability_resolved {
+                            ""
+                        } else {
+                            "<="
+                        },
+                        c.bias_instability_display
+                    )
+                })
+                .collect();
+            out.push(Criterion {
+                seed: "noise",
+                rule: "Allan deviation of the longest static segment".into(),
+                status: Status::Info,
+                measured: format!(
+                    "{:.1} s at line {}: ARW {} deg/sqrt(h), VRW {} m/s/sqrt(h), gyro bias instability {} deg/h",
+                    a.segment.duration_s,
+                    a.segment.first_line,
+                    g.join("/"),
+                    v.join("/"),
+                    bi.join("/")
+                ),
+                limit: "-".into(),
+            });
+        }
+        None => out.push(Criterion {
+            seed: "noise",
+            rule: "Allan deviation of the longest static segment".into(),
+            status: Status::Info,
+            measured: format!("no static segment of {} s or more", cfg.min_static_s),
+            limit: "-".into(),
+        }),
+    }
+    out
+}
+
+/// Checks a log file. One thread reads blocks, worker threads parse them
+/// ([`super::log::parse_line`]), the calling thread puts them back in
+/// order ([`ImuLogReader::sequence`]) and analyzes. Malformed lines are
+/// reported in `diag` (and counted as bad data).
+pub fn check_file(
+    path: &Path,
+    format: Option<ImuLogFormat>,
+    cfg: QualityConfig,
+    diag: &mut Diagnostics,
+) -> Result<QualityReport, Error> {
+    use super::log::{Parsed, parse_line};
+    use std::collections::BTreeMap;
+    use std::io::Read;
+    use std::sync::{Arc, Mutex};
+
+    const BLOCK: usize = 1 << 20;
+    let workers = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+        .clamp(1, 4);
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let (chunk_tx, chunk_rx) = mpsc::sync_channel::<(usize, Vec<u8>)>(2 * workers);
+    let (res_tx, res_rx) = mpsc::sync_channel::<(usize, Vec<Parsed>)>(4 * workers);
+    let p = path.to_path_buf();
+    let chunker = std::thread::spawn(move || -> Result<(), Error> {
+        let mut file = file;
+        let mut carry: Vec<u8> = Vec::new();
+        let mut idx = 0usize;
+        loop {
+            let mut buf = std::mem::take(&mut carry);
+            let start = buf.len();
+            buf.resize(start + BLOCK, 0);
+            let n = loop {
+                match file.read(&mut buf[start..]) {
+                    Ok(n) => break n,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    Err(e) => return Err(Error::io(&p, e)),
+                }
+            };
+            buf.truncate(start + n);
+            if n == 0 {
+                if !buf.is_empty() && chunk_tx.send((idx, buf)).is_err() {
+                    return Ok(());
+                }
+                return Ok(());
+            }
+            match memchr::memrchr(b'\n', &buf) {
+                Some(pos) => {
+                    carry = buf[pos + 1..].to_vec();
+                    buf.truncate(pos + 1);
+                    if chunk_tx.send((idx, buf)).is_err() {
+                        return Ok(());
+                    }
+                    idx += 1;
+                }
+                // No line end yet: keep reading into the same line.
+                None => carry = buf,
+            }
+        }
+    });
+    let chunk_rx = Arc::new(Mutex::new(chunk_rx));
+    let mut parsers = Vec::new();
+    for _ in 0..workers {
+        let rx = Arc::clone(&chunk_rx);
+        let tx = res_tx.clone();
+        parsers.push(std::thread::spawn(move || {
+            loop {
+                let msg = match rx.lock() {
+                    Ok(guard) => guard.recv(),
+                    Err(_) => return,
+                };
+                let Ok((idx, buf)) = msg else { return };
+                let mut out = Vec::with_capacity(buf.len() / 64);
+                let body = buf.strip_suffix(b"\n").unwrap_or(&buf);
+                for (i, line) in body.split(|&b| b == b'\n').enumerate() {
+                    let want = idx == 0 || i % 8 == 0;
+                    out.push(parse_line(line, want));
+                }
+                if tx.send((idx, out)).is_err() {
+                    return;
+                }
+            }
+        }));
+    }
+    drop(res_tx);
+    drop(chunk_rx);
+
+    let mut seq = ImuLogReader::sequencer(path, format);
+    let mut rdiag = Diagnostics::with_cap(1000);
+    let mut analyzer: Option<QualityAnalyzer> = None;
+    let mut pending: BTreeMap<usize, Vec<Parsed>> = BTreeMap::new();
+    let mut next = 0usize;
+    let mut line_base = 0usize;
+    let feed = |rec: &LogRecord,
+                fmt: Option<ImuLogFormat>,
+                analyzer: &mut Option<QualityAnalyzer>|
+     -> Result<(), Error> {
+        if analyzer.is_none() {
+            let f = fmt.unwrap_or(ImuLogFormat::KfGins);
+            *analyzer = Some(QualityAnalyzer::new(cfg.clone(), f, path));
+        }
+        analyzer.as_mut().expect("set").push(rec)
+    };
+    let mut result: Result<(), Error> = Ok(());
+    'outer: for (idx, lines) in res_rx.iter() {
+        pending.insert(idx, lines);
+        while let Some(lines) = pending.remove(&next) {
+            let n = lines.len();
+            for (i, parsed) in lines.into_iter().enumerate() {
+                let step = seq
+                    .sequence(line_base + i + 1, parsed, &mut rdiag)
+                    .and_then(|_| {
+                        while let Some(rec) = seq.take_record()? {
+                            feed(&rec, seq.format(), &mut analyzer)?;
+                        }
+                        Ok(())
+                    });
+                if let Err(e) = step {
+                    result = Err(e);
+                    break 'outer;
+                }
+            }
+            line_base += n;
+            next += 1;
+        }
+    }
+    drop(res_rx);
+    for h in parsers {
+        let _ = h.join();
+    }
+    chunker
+        .join()
+        .unwrap_or_else(|_| Err(Error::Invalid("IMU reader thread failed".into())))?;
+    result?;
+    for rec in seq.finish_sequence()? {
+        feed(&rec, seq.format(), &mut analyzer)?;
+    }
+    let analyzer = analyzer.ok_or_else(|| Error::NoData {
+        path: path.to_path_buf(),
+        msg: "no IMU records".into(),
+    })?;
+    let report = analyzer.finish(seq.malformed(), &rdiag)?;
+    diag.extend(rdiag);
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::imu::synthetic::SyntheticImu;
+    use std::fmt::Write as _;
+
+    const RATE: f64 = 200.0;
+
+    /// 120 s at 200 Hz of rates: 40 s static, then motion (rate-csv rows:
+    /// time, gyro, accel).
+    fn clean_rows() -> Vec<(i64, [f64; 6])> {
+        let mut imu = SyntheticImu::new(RATE, 1_000 * 1_000_000_000, 40.0, 3);
+        (0..24_000)
+            .map(|_| {
+                let s = imu.next_rate();
+                (
+                    s.time.ns(),
+                    [
+                        s.gyro.x, s.gyro.y, s.gyro.z, s.accel.x, s.accel.y, s.accel.z,
+                    ],
+                )
+            })
+            .collect()
+    }
+
+    fn write_rows(name: &str, rows: &[(i64, [f64; 6])], extra: &[(usize, &str)]) -> PathBuf {
+        let mut s = String::from("time,gx,gy,gz,ax,ay,az\n");
+        for (k, (t, v)) in rows.iter().enumerate() {
+            for (at, line) in extra {
+                if *at == k {
+                    s.push_str(line);
+                    s.push('\n');
+                }
+            }
+            let _ = write!(s, "{}.{:09}", t / 1_000_000_000, t % 1_000_000_000);
+            for x in v {
+                let _ = write!(s, ",{x:.12e}");
+            }
+            s.push('\n');
+        }
+        let dir = std::env::temp_dir().join(format!("navsync-quality-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(name);
+        std::fs::write(&p, s).unwrap();
+        p
+    }
+
+    fn check(p: &Path) -> Result<QualityReport, Error> {
+        let mut d = Diagnostics::default();
+        check_file(
+            p,
+            Some(ImuLogFormat::RateCsv),
+            QualityConfig::default(),
+            &mut d,
+        )
+    }
+
+    #[test]
+    fn clean_data_raises_nothing() {
+        let p = write_rows("clean.csv", &clean_rows(), &[]);
+        let r = check(&p).unwrap();
+        assert_eq!(r.counts, Counts::default(), "{:#?}", r.events);
+        assert!(r.events.is_empty());
+        assert_eq!(r.accepted, 24_000);
+        assert!((r.true_rate_hz - RATE).abs() < 1e-6);
+        assert_eq!(r.round_rate_hz, Some(RATE));
+        assert_eq!(r.verdict, Status::Pass, "{:#?}", r.criteria);
+        // The static start is found and its Allan deviation gives back the
+        // generator's ARW (0.15 deg/√h) and VRW (0.04 m/s/√h): 40 s hold 40
+        // clusters at τ = 1 s, a ±25 % (≈ 3σ) band.
+        let a = r.allan.as_ref().expect("static segment");
+        assert!(
+            a.segment.duration_s >= 35.0 && a.segment.duration_s <= 41.0,
+            "{:?}",
+            a.segment
+        );
+        for c in &a.channels[..3] {
+            assert!(
+                (c.random_walk_display / 0.15 - 1.0).abs() < 0.25,
+                "{} {}",
+                c.name,
+                c.random_walk_display
+            );
+        }
+        for c in &a.channels[3..] {
+            assert!(
+                (c.random_walk_display / 0.04 - 1.0).abs() < 0.25,
+                "{} {}",
+                c.name,
+                c.random_walk_display
+            );
+        }
+        assert!(r.channels.iter().all(|c| c.rounding_to_noise < 1e-6));
+    }
+
+    #[test]
+    fn every_injected_fault_is_found_by_kind() {
+        let clean = clean_rows();
+        let mut rows: Vec<(i64, [f64; 6])> = Vec::new();
+        let mut injected = Counts::default();
+        for (k, row) in clean.iter().enumerate() {
+            let mut row = *row;
+            // Gaps: 1 lost sample, 30 lost (0.155 s > 0.1 s), 5 lost.
+            if k == 5000 || (9000..9030).contains(&k) || (14000..14005).contains(&k) {
+                continue;
+            }
+            // Stale record: all six values of the previous record re-sent.
+            if k == 16000 {
+                row.1 = rows.last().unwrap().1;
+            }
+            // Stuck gyro y for 1 s in motion.
+            if (18000..18200).contains(&k) {
+                row.1[1] = clean[18000].1[1];
+            }
+            // Accel x clipped at a 4 g full scale for 10 samples.
+            if (20000..20010).contains(&k) {
+                row.1[3] = 39.2266;
+            }
+            // Spikes: static gyro x, moving gyro z and accel y, static accel z.
+            match k {
+                6000 => row.1[0] -= 0.3,
+                22000 => row.1[2] += 0.5,
+                23000 => row.1[4] += 20.0,
+                7000 => row.1[5] += 1.0,
+                _ => {}
+            }
+            rows.push(row);
+            // A duplicated sample and a duplicate time stamp.
+            if k == 3000 {
+                rows.push(row);
+            }
+            if k == 12000 {
+                let mut other = row;
+                other.1[0] += 1e-3;
+                rows.push(other);
+            }
+            // A record re-sent out of order (an old one).
+            if k == 11000 {
+                rows.push(clean[10990]);
+            }
+        }
+        injected.gaps = 3;
+        injected.gaps_over_limit = 1;
+        injected.lost_samples = 36;
+        injected.duplicates = 2;
+        injected.out_of_order = 1;
+        injected.stale_records = 1;
+        injected.stuck_segments = 1;
+        injected.stuck_samples = 199;
+        injected.saturation_events = 1;
+        injected.saturated_samples = 10;
+        injected.spikes = 4;
+        injected.spike_records = 4;
+        injected.malformed_lines = 3;
+        let extra = [
+            (100, "garbage line"),
+            (2000, "1000.5,0.1,0.2"),
+            (2500, "1012.5,0.1,nan,0.1,0.1,0.1,-9.8"),
+        ];
+        let p = write_rows("faults.csv", &rows, &extra);
+        let r = check(&p).unwrap();
+        for kind in KINDS {
+            let got: Vec<usize> = r
+                .events
+                .iter()
+                .filter(|e| e.kind == kind)
+                .map(|e| e.line)
+                .collect();
+            assert_eq!(
+                r.counts.of(kind),
+                injected.of(kind),
+                "{kind:?}: detected at lines {got:?}"
+            );
+        }
+        assert_eq!(r.counts, injected, "{:#?}", r.events);
+        let stuck = r
+            .events
+            .iter()
+            .find(|e| e.kind == EventKind::Stuck)
+            .unwrap();
+        assert_eq!(stuck.channel, Some("gyro y"));
+        let sat = r
+            .events
+            .iter()
+            .find(|e| e.kind == EventKind::Saturation)
+            .unwrap();
+        assert_eq!(sat.channel, Some("accel x"));
+        let spike_channels: Vec<_> = r
+            .events
+            .iter()
+            .filter(|e| e.kind == EventKind::Spike)
+            .map(|e| e.channel.unwrap())
+            .collect();
+        assert_eq!(
+            spike_channels,
+            vec!["gyro x", "accel z", "gyro z", "accel y"]
+        );
+        assert!((r.longest_gap_s - 0.155).abs() < 1e-9);
+        assert_eq!(r.verdict, Status::Fail);
+        let gap_row = r
+            .criteria
+            .iter()
+            .find(|c| c.rule.starts_with("no gap"))
+            .unwrap();
+        assert_eq!(gap_row.status, Status::Fail);
+        // Loss: 36 of 24 000 expected; bad data: 3 + 2 + 1 + 1 + 4 + 10 + 199.
+        assert!((r.loss_rate - 36.0 / 24_000.0).abs() < 1e-12);
+        assert_eq!(r.bad_records, 220);
+    }
+
+    #[test]
+    fn increments_are_checked_like_rates() {
+        // The same clean signal as KF-GINS increments: nothing raised, the
+        // true rate found, and a declared filter fails §1.4 with its delay.
+        use crate::imu::convert::{RateKind, RateToIncrement};
+        let mut buf = Vec::new();
+        let mut conv = RateToIncrement::new(RateKind::Instantaneous);
+        let mut imu = SyntheticImu::new(RATE, 1_000 * 1_000_000_000, 40.0, 4);
+        for _ in 0..12_000 {
+            if let Some(inc) = conv.push(&imu.next_rate()) {
+                crate::io::kfgins::format_imu_line(&mut buf, &inc);
+            }
+        }
+        let dir = std::env::temp_dir().join(format!("navsync-quality-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("inc.txt");
+        std::fs::write(&p, buf).unwrap();
+        let mut d = Diagnostics::default();
+        let cfg = QualityConfig {
+            lowpass: Some(LowPassFilter::bartlett(4, 2000.0).unwrap()),
+            ..Default::default()
+        };
+        let r = check_file(&p, None, cfg, &mut d).unwrap();
+        assert_eq!(r.format, "kf-gins");
+        assert_eq!(r.counts, Counts::default(), "{:#?}", r.events);
+        assert!((r.true_rate_hz - RATE).abs() < 1e-6);
+        let lp = r
+            .criteria
+            .iter()
+            .find(|c| c.seed.starts_with("§1.4"))
+            .unwrap();
+        assert_eq!(lp.status, Status::Fail);
+        assert!(lp.measured.contains("1.500 ms"), "{}", lp.measured);
+        assert_eq!(r.verdict, Status::Fail);
+    }
+
+    #[test]
+    fn a_time_reset_is_an_error_naming_its_line() {
+        let mut rows = clean_rows();
+        rows.truncate(2000);
+        let later: Vec<(i64, [f64; 6])> = rows[..100].to_vec();
+        rows.extend(later);
+        let p = write_rows("reset.csv", &rows, &[]);
+        let err = check(&p).unwrap_err().to_string();
+        // Line 1 is the header: record k sits on line k + 2.
+        assert!(err.contains("reset.csv:2002: time goes back"), "{err}");
+    }
+
+    #[test]
+    fn quantization_and_truncated_printing_are_told_apart() {
+        // Values on a 1e-3 grid written with 3 decimals: the grid is the
+        // print step, and against σ = 6e-4 the rounding (2.9e-4) fails §1.5-4.
+        let mut rows = clean_rows();
+        rows.truncate(4000);
+        let mut s = String::new();
+        for (t, v) in &rows {
+            let _ = write!(s, "{}.{:09}", t / 1_000_000_000, t % 1_000_000_000);
+            for x in v {
+                let _ = write!(s, " {x:.3}");
+            }
+            s.push('\n');
+        }
+        let dir = std::env::temp_dir().join(format!("navsync-quality-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("trunc.txt");
+        std::fs::write(&p, s).unwrap();
+        let r = check(&p).unwrap();
+        let gx = &r.channels[0];
+        assert_eq!(gx.print_step, 1e-3);
+        assert!(gx.rounding_to_noise > 0.1, "{}", gx.rounding_to_noise);
+        let row = r.criteria.iter().find(|c| c.seed == "§1.5-4").unwrap();
+        assert_eq!(row.status, Status::Fail);
+        assert_eq!(
+            quantization_step(&[
+                1e-3, 2e-3, 1e-3, 3e-3, 1e-3, 1e-3, 2e-3, 1e-3, 5e-3, 1e-3, 1e-3, 2e-3, 4e-3, 1e-3,
+                1e-3, 2e-3
+            ]),
+            Some(1e-3)
+        );
+    }
+
+    #[test]
+    fn bad_input_through_the_parallel_reader_names_file_and_line() {
+        let mut rows = clean_rows();
+        rows.truncate(3000);
+        let p = write_rows(
+            "bad.csv",
+            &rows,
+            &[(10, "1000.05,0.1,zz,0,0,0,-9.8"), (20, "1000.1,1,2")],
+        );
+        let mut d = Diagnostics::default();
+        let r = check_file(&p, None, QualityConfig::default(), &mut d).unwrap();
+        assert_eq!(r.counts.malformed_lines, 2);
+        let m: Vec<String> = d.items.iter().map(|x| x.to_string()).collect();
+        assert!(
+            m[0].contains("bad.csv:12: field 3: 'zz' is not a number"),
+            "{m:?}"
+        );
+        assert!(m[1].contains("bad.csv:23: expected 7 fields"), "{m:?}");
+        // Rates joined to increments: a mixed-format error at the join.
+        let mut s = std::fs::read_to_string(&p).unwrap();
+        for k in 0..100 {
+            let _ = writeln!(
+                s,
+                "{:.3} 1e-5 2e-5 -3e-5 1e-4 2e-4 -4.9e-2",
+                1015.0 + k as f64 * 0.005
+            );
+        }
+        std::fs::write(&p, s).unwrap();
+        let err = check(&p).unwrap_err().to_string();
+        assert!(err.contains("bad.csv:3004: mixed formats"), "{err}");
+        // Increments declared as rates.
+        let err = check_file(
+            &p,
+            Some(ImuLogFormat::KfGins),
+            QualityConfig::default(),
+            &mut d,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("look like rates") && err.contains("--format rate-csv"),
+            "{err}"
+        );
+    }
+}
