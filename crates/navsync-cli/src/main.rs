@@ -2,6 +2,7 @@
 //! binary parses arguments, shows progress and prints results.
 
 mod commands;
+mod procstat;
 mod progress;
 
 use clap::{Parser, Subcommand};

@@ -31,6 +31,7 @@ use serde::Serialize;
 
 use crate::earth::{Geodetic, LocalEarth};
 use crate::error::{Diagnostics, Error};
+use crate::filter::dense::{self, Mat};
 use crate::filter::gnss::{self, GnssFix};
 use crate::filter::nhc::VehicleConstraint;
 use crate::filter::{
@@ -215,6 +216,10 @@ pub struct FusionStats {
     pub gnss_velocity_rejected: usize,
     pub gnss_split_intervals: usize,
     pub gate_reopened: usize,
+    /// Fixes over the gate accepted because they agreed with the previous
+    /// rejected fix (the INS had drifted beyond its covariance, which was
+    /// inflated); see `Core::gnss_update`.
+    pub gnss_fixes_accepted_consistent: usize,
     pub nhc_updates: usize,
     pub odometer_updates: usize,
     pub gaps: usize,
@@ -249,6 +254,23 @@ impl Kinematics {
     }
 }
 
+/// A GNSS position fix the gate rejected: its innovation and noise, and the
+/// NIS ratio (NIS / gate) of the first rejection of its run.
+#[derive(Clone)]
+struct RejectedFix {
+    time: GpsTime,
+    z: Vec<f64>,
+    r: Mat,
+    first_ratio: f64,
+}
+
+/// Fixes further apart than this (s) are not compared with each other.
+const CONSISTENCY_MAX_GAP_S: f64 = 5.0;
+/// A run of rejections that began with a NIS above this multiple of the
+/// gate (an innovation more than twice the gate's radius) started with a
+/// jump: a GNSS fault, never taken for INS drift.
+const SMOOTH_START_RATIO: f64 = 4.0;
+
 /// The filter and navigation state: everything that a delayed-state update
 /// must be able to restore (cloned at each IMU epoch in that mode).
 #[derive(Clone)]
@@ -263,6 +285,8 @@ struct Core {
     nominal_dt: f64,
     gate: Option<f64>,
     consecutive_rejects: usize,
+    /// The last fix rejected by the gate in the current run of rejections.
+    last_rejected: Option<RejectedFix>,
     pending: VecDeque<GnssFix>,
     last_w_ib: Vector3<f64>,
     kin: Kinematics,
@@ -317,6 +341,7 @@ impl Core {
             nominal_dt: 1.0 / cfg.imu_rate_hz,
             gate,
             consecutive_rejects: 0,
+            last_rejected: None,
             pending: VecDeque::new(),
             last_w_ib: Vector3::zeros(),
             kin: Kinematics::default(),
@@ -575,18 +600,44 @@ impl Core {
             self.gate
         };
         let outcome = self.apply(&obs, gate, &frozen)?;
-        if !outcome.accepted {
-            self.consecutive_rejects += 1;
-            self.stats.gnss_fixes_rejected += 1;
-            self.notes.push(format!(
-                "GNSS fix at {} rejected by the innovation gate (innovation {:.3} m, NIS {:.1} > {:.1})",
-                fix.time,
-                Vector3::from_column_slice(&obs.z).norm(),
-                outcome.nis,
-                gate.unwrap_or(f64::INFINITY)
-            ));
-            return Ok(());
+        if !outcome.accepted
+            && let Some(threshold) = gate
+        {
+            match self.consistent_with_last_rejected(&obs, fix.time, threshold) {
+                Some(factor) => {
+                    self.notes.push(format!(
+                        "GNSS fix at {} over the gate (NIS {:.1} > {:.1}) accepted: it agrees with the previous rejected fix, so the INS drifted beyond its covariance; covariance inflated x{:.2}",
+                        fix.time, outcome.nis, threshold, factor
+                    ));
+                    self.filter.inflate(factor);
+                    self.apply(&obs, None, &frozen)?;
+                    self.stats.gnss_fixes_accepted_consistent += 1;
+                }
+                None => {
+                    self.consecutive_rejects += 1;
+                    self.stats.gnss_fixes_rejected += 1;
+                    self.notes.push(format!(
+                        "GNSS fix at {} rejected by the innovation gate (innovation {:.3} m, NIS {:.1} > {:.1})",
+                        fix.time,
+                        Vector3::from_column_slice(&obs.z).norm(),
+                        outcome.nis,
+                        threshold
+                    ));
+                    let first_ratio = match &self.last_rejected {
+                        Some(prev) => prev.first_ratio,
+                        None => outcome.nis / threshold,
+                    };
+                    self.last_rejected = Some(RejectedFix {
+                        time: fix.time,
+                        z: obs.z.clone(),
+                        r: obs.r.clone(),
+                        first_ratio,
+                    });
+                    return Ok(());
+                }
+            }
         }
+        self.last_rejected = None;
         if gate.is_none() && self.gate.is_some() {
             self.stats.gate_reopened += 1;
             self.notes.push(format!(
@@ -615,6 +666,51 @@ impl Core {
             }
         }
         Ok(())
+    }
+
+    /// Tells INS drift from a GNSS fault when a fix fails the gate. A fault
+    /// (multipath, a wrong fix) makes the innovation jump; a filter whose
+    /// model left errors out (axis misalignment, vibration, a rough
+    /// nonlinearity) sees it grow smoothly past the gate while consecutive
+    /// fixes keep agreeing with each other. So the fix is taken when the
+    /// run of rejections began just over the gate and the difference of
+    /// this innovation and the last rejected one passes the same gate with
+    /// covariance S_k + R_{k−1}. Returns the covariance inflation that
+    /// makes the innovation's size match its covariance
+    /// (λ = (zᵀz − tr R) / tr(H P Hᵀ), the moment estimate of an adaptive
+    /// fading factor, Xia et al. 1994), at least 1.
+    fn consistent_with_last_rejected(
+        &self,
+        obs: &Observation,
+        time: GpsTime,
+        threshold: f64,
+    ) -> Option<f64> {
+        let prev = self.last_rejected.as_ref()?;
+        if prev.first_ratio > SMOOTH_START_RATIO
+            || time.seconds_since(prev.time) > CONSISTENCY_MAX_GAP_S
+            || prev.z.len() != obs.z.len()
+        {
+            return None;
+        }
+        let s = self.filter.innovation_covariance(obs);
+        let mut c = s.clone();
+        for (x, y) in c.data.iter_mut().zip(&prev.r.data) {
+            *x += y;
+        }
+        let l = dense::cholesky(&c)?;
+        let d: Vec<f64> = obs.z.iter().zip(&prev.z).map(|(a, b)| a - b).collect();
+        let mut c_inv_d = d.clone();
+        dense::cholesky_solve(&l, &mut c_inv_d);
+        let chi2: f64 = d.iter().zip(&c_inv_d).map(|(a, b)| a * b).sum();
+        if chi2.is_nan() || chi2 > threshold {
+            return None;
+        }
+        let m = obs.dim();
+        let z2: f64 = obs.z.iter().map(|x| x * x).sum();
+        let tr_r: f64 = (0..m).map(|i| obs.r.get(i, i)).sum();
+        let tr_hph: f64 = (0..m).map(|i| s.get(i, i) - obs.r.get(i, i)).sum();
+        let factor = ((z2 - tr_r) / tr_hph).clamp(1.0, 1e6);
+        factor.is_finite().then_some(factor)
     }
 
     fn vehicle_updates(&mut self) -> Result<(), Error> {
@@ -1182,5 +1278,67 @@ mod tests {
             assert!(stats.gnss_fixes_used >= 28, "{mode:?}: {stats:?}");
             assert_eq!(stats.gnss_fixes_late, 0, "{mode:?}");
         }
+    }
+
+    /// Runs 60 s at rest with 1 Hz fixes displaced north by `shift(t)` (m,
+    /// t in s from the start); returns the final north error against the
+    /// fixes' track and the statistics.
+    fn run_with_shifted_fixes(shift: impl Fn(f64) -> f64) -> (f64, FusionStats) {
+        let (m, cfg) = setup(LatencyMode::Offline);
+        let mut f = Fusion::new(cfg);
+        let dt = 5_000_000;
+        let mut t = m.t0;
+        let mut next_fix = m.t0.add_seconds(1.0);
+        let mut last = None;
+        for _ in 0..(60 * 200) {
+            if t >= next_fix.add_seconds(-0.5) {
+                let mut pos = m.state(next_fix).pos;
+                let le = LocalEarth::new(&pos, &Vector3::zeros());
+                pos.lat_rad += shift(next_fix.seconds_since(m.t0)) / le.rm_h;
+                f.push_gnss(GnssFix {
+                    time: next_fix,
+                    pos,
+                    pos_sd: Vector3::repeat(0.02),
+                    vel: None,
+                    vel_sd: None,
+                })
+                .unwrap();
+                next_fix = next_fix.add_seconds(1.0);
+            }
+            if let Some(o) = f.push_imu(&m.sample(t + -dt, t)).unwrap() {
+                last = Some(o.nav);
+            }
+            t = t + dt;
+        }
+        let nav = last.unwrap();
+        let truth = m.state(nav.time);
+        let le = LocalEarth::new(&truth.pos, &truth.vel);
+        let north = (nav.pos.lat_rad - truth.pos.lat_rad) * le.rm_h;
+        (
+            north - shift(nav.time.seconds_since(m.t0)),
+            f.stats().clone(),
+        )
+    }
+
+    #[test]
+    fn smooth_drift_past_the_gate_is_followed_and_a_jump_is_rejected() {
+        // The fixes accelerate away from the INS at 0.05 m/s² from 20 s on:
+        // to this overconfident filter (accelerometer bias σ 1 mm/s²) it is
+        // an error its model left out, growing smoothly past the gate while
+        // consecutive fixes agree. The filter must follow the fixes.
+        let (err, stats) = run_with_shifted_fixes(|t| 0.025 * (t - 20.0).max(0.0).powi(2));
+        assert!(stats.gnss_fixes_accepted_consistent >= 1, "{stats:?}");
+        assert!(
+            stats.gnss_fixes_rejected <= 3 && stats.gate_reopened == 0,
+            "{stats:?}"
+        );
+        assert!(err.abs() < 0.1, "north error against the fixes {err} m");
+        // A 3 m jump for three epochs is a GNSS fault: all three rejected,
+        // none taken for drift, and the solution stays on the true track.
+        let (err, stats) =
+            run_with_shifted_fixes(|t| if (30.0..33.0).contains(&t) { 3.0 } else { 0.0 });
+        assert_eq!(stats.gnss_fixes_rejected, 3, "{stats:?}");
+        assert_eq!(stats.gnss_fixes_accepted_consistent, 0, "{stats:?}");
+        assert!(err.abs() < 0.01, "north error {err} m");
     }
 }

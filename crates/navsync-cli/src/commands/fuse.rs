@@ -309,7 +309,12 @@ pub fn run(args: Args) -> Result<()> {
     })?;
     sink.finish()?;
     pb.finish_and_clear();
-    let json = serde_json::to_string_pretty(&summary)?;
+    let mut json = serde_json::to_value(&summary)?;
+    // The process's peak memory, for users and `navsync bench`.
+    if let (Some(m), Some(obj)) = (crate::procstat::peak_rss_mb(), json.as_object_mut()) {
+        obj.insert("peak_memory_mb".into(), m.into());
+    }
+    let json = serde_json::to_string_pretty(&json)?;
     let summary_path = out_dir.join("summary.json");
     std::fs::write(&summary_path, json)
         .with_context(|| format!("writing {}", summary_path.display()))?;

@@ -337,26 +337,6 @@ fn print_summary(sim: &Simulation, r: &SimReport, out: &Path) {
     );
 }
 
-/// Peak resident memory (VmHWM) in MB, from /proc/self/status.
-fn peak_rss_mb() -> Option<f64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb / 1024.0)
-}
-
-/// CPU time (user + system) of this process in seconds, from
-/// /proc/self/stat (fields 14 and 15, in clock ticks of 1/100 s).
-fn cpu_time_s() -> Option<f64> {
-    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
-    // The command name (field 2) may hold spaces: split after its ')'.
-    let rest = s.rsplit_once(')')?.1;
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let utime: f64 = f.get(11)?.parse().ok()?;
-    let stime: f64 = f.get(12)?.parse().ok()?;
-    Some((utime + stime) / 100.0)
-}
-
 fn dir_size_mb(dir: &Path) -> f64 {
     std::fs::read_dir(dir)
         .map(|rd| {
@@ -406,12 +386,12 @@ fn bench(args: &Args) -> Result<()> {
         std::env::temp_dir().join(format!("navsync-simbench-{}", std::process::id()))
     });
     let sim = Simulation::new(scn)?;
-    let cpu0 = cpu_time_s();
+    let cpu0 = crate::procstat::cpu_seconds();
     let t0 = Instant::now();
     let report = sim.run(&dir, &["navsync simulate --bench".into()], &mut |_| {})?;
     let wall = t0.elapsed().as_secs_f64();
-    let cpu = cpu_time_s().zip(cpu0).map(|(a, b)| a - b);
-    let rss = peak_rss_mb();
+    let cpu = crate::procstat::cpu_seconds().zip(cpu0).map(|(a, b)| a - b);
+    let rss = crate::procstat::peak_rss_mb();
     let size = dir_size_mb(&dir);
     let s = &sim.scenario;
     let internal = if s.imu.internal_rate_hz > 0.0 {

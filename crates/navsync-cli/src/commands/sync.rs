@@ -434,25 +434,6 @@ fn push_imu_line(out: &mut Vec<u8>, s: &ImuSample) {
     out.push(b'\n');
 }
 
-/// CPU time of this process, all threads (s), from /proc/self/stat.
-fn cpu_seconds() -> Option<f64> {
-    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
-    let rest = s.rsplit_once(')')?.1;
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let utime: f64 = f.get(11)?.parse().ok()?;
-    let stime: f64 = f.get(12)?.parse().ok()?;
-    Some((utime + stime) / 100.0)
-}
-
-/// Peak resident memory of this process (kB), from /proc/self/status.
-fn peak_rss_kb() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    s.lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|v| v.parse().ok())
-}
-
 /// `--bench`: a generated hardware-sync log of `hours` at 200 Hz.
 fn bench(args: &Args) -> Result<()> {
     let hours = args.hours;
@@ -469,19 +450,19 @@ fn bench(args: &Args) -> Result<()> {
         hours,
         size as f64 / 1e9
     );
-    let rss_before = peak_rss_kb().unwrap_or(0);
+    let rss_before = crate::procstat::peak_rss_mb().unwrap_or(0.0);
     let cfg = SyncConfig {
         causal: args.causal,
         source: rig.display().to_string(),
         ..Default::default()
     };
     let t1 = Instant::now();
-    let cpu0 = cpu_seconds().unwrap_or(0.0);
+    let cpu0 = crate::procstat::cpu_seconds().unwrap_or(0.0);
     let out = dir.join("out");
     let res = sync_file(&rig, &out, cfg, RateRule::Trapezoid, None);
     let wall = t1.elapsed().as_secs_f64();
-    let cpu = cpu_seconds().unwrap_or(0.0) - cpu0;
-    let rss = peak_rss_kb().unwrap_or(0);
+    let cpu = crate::procstat::cpu_seconds().unwrap_or(0.0) - cpu0;
+    let rss = crate::procstat::peak_rss_mb().unwrap_or(0.0);
     let _ = std::fs::remove_dir_all(&dir);
     let summary = res?;
     println!(
@@ -490,15 +471,12 @@ fn bench(args: &Args) -> Result<()> {
         summary.report.records.imu,
         summary.records as f64 / wall / 1e6,
         size as f64 / wall / 1e6,
-        rss as f64 / 1024.0,
-        rss_before as f64 / 1024.0
+        rss,
+        rss_before
     );
     println!(
         "  CPU time {cpu:.2} s over all threads (load average now {})",
-        std::fs::read_to_string("/proc/loadavg")
-            .ok()
-            .and_then(|l| l.split_whitespace().next().map(str::to_string))
-            .unwrap_or_default()
+        crate::procstat::load_average().unwrap_or_default()
     );
     println!(
         "  imu rate {:.4} Hz, lost {}, pps accepted {} of {}",

@@ -381,6 +381,45 @@ impl ErrorStateFilter {
         // Every block above was written symmetrically: P stays exactly symmetric.
     }
 
+    /// H's sparsity, HP (m × n, through that sparsity) and the innovation
+    /// covariance S = H P Hᵀ + R of `obs`.
+    fn innovation_parts(&self, obs: &Observation) -> (RowPattern, Mat, Mat) {
+        let m = obs.dim();
+        let mut hpat = RowPattern::default();
+        RowPattern::scan(&obs.h, &mut hpat);
+        // PHᵀ = (HP)ᵀ since P is symmetric.
+        let mut hp = Mat::zeros(0, 0);
+        dense::sparse_mul(&obs.h, &hpat, &self.p, &mut hp);
+        let mut s = obs.r.clone();
+        for a in 0..m {
+            for b in 0..m {
+                let mut v = 0.0;
+                for &k in hpat.row(b) {
+                    v += hp.get(a, k) * obs.h.get(b, k);
+                }
+                s.add_at(a, b, v);
+            }
+        }
+        s.symmetrize();
+        (hpat, hp, s)
+    }
+
+    /// The innovation covariance S = H P Hᵀ + R of `obs` at the current P.
+    pub fn innovation_covariance(&self, obs: &Observation) -> Mat {
+        self.innovation_parts(obs).2
+    }
+
+    /// Multiplies the whole covariance by `factor` ≥ 1 (a fading-memory
+    /// step, Fagin 1964; Xia et al. 1994): the filter admits that its model
+    /// left errors out.
+    pub fn inflate(&mut self, factor: f64) {
+        if factor.is_finite() && factor > 1.0 {
+            for i in 0..self.n {
+                self.p.row_mut(i).iter_mut().for_each(|x| *x *= factor);
+            }
+        }
+    }
+
     /// Kalman update with `obs` (Joseph form). With `gate = Some(t)` the
     /// measurement is rejected when its NIS exceeds `t`. Errors when the
     /// innovation covariance or the updated P is not positive definite.
@@ -407,24 +446,7 @@ impl ErrorStateFilter {
         let n = self.n;
         let m = obs.dim();
         debug_assert_eq!(obs.h.cols, n);
-        let mut hpat = RowPattern::default();
-        RowPattern::scan(&obs.h, &mut hpat);
-
-        // HP (m × n) through H's sparsity; PHᵀ = (HP)ᵀ since P is symmetric.
-        let mut hp = Mat::zeros(0, 0);
-        dense::sparse_mul(&obs.h, &hpat, &self.p, &mut hp);
-        // S = H P Hᵀ + R
-        let mut s = obs.r.clone();
-        for a in 0..m {
-            for b in 0..m {
-                let mut v = 0.0;
-                for &k in hpat.row(b) {
-                    v += hp.get(a, k) * obs.h.get(b, k);
-                }
-                s.add_at(a, b, v);
-            }
-        }
-        s.symmetrize();
+        let (hpat, hp, s) = self.innovation_parts(obs);
         let l = dense::cholesky(&s).ok_or_else(|| Error::Covariance {
             time,
             msg: format!(
