@@ -32,9 +32,10 @@ pub struct Args {
     #[arg(long)]
     pub causal: bool,
     /// Known output delay T_c of an IMU timed by its serial frame (s),
-    /// subtracted from every IMU stamp (seed 000).
-    #[arg(long, default_value_t = 0.0)]
-    pub imu_output_delay: f64,
+    /// subtracted from every IMU stamp (seed 000) [default: the log
+    /// header's `imu_output_delay_s`, else 0].
+    #[arg(long)]
+    pub imu_output_delay: Option<f64>,
     /// The counter's oscillator: how fast holdover error bounds grow.
     #[arg(long, value_enum, default_value_t = Osc::Xo)]
     pub oscillator: Osc,

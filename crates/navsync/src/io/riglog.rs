@@ -26,6 +26,19 @@ pub enum ImuKind {
     Increment,
 }
 
+/// What the counter of an `imu` record latched (header `imu_timing`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ImuTiming {
+    /// The IMU's data-ready edge (hardware sync).
+    DataReady,
+    /// The start of the IMU's serial frame (no sync pin, seed 000): the
+    /// data are `imu_output_delay_s` older.
+    FrameStart,
+    /// The receipt of the frame by the host (software sync).
+    Receive,
+}
+
 /// The header of a rig log.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct RigHeader {
@@ -37,6 +50,12 @@ pub struct RigHeader {
     pub imu_kind: ImuKind,
     /// Nominal IMU rate (Hz) when the header gives `imu_rate_hz`.
     pub imu_rate_hz: Option<f64>,
+    /// What the `imu` counters latch, when the header gives `imu_timing`.
+    pub imu_timing: Option<ImuTiming>,
+    /// The IMU's known output delay T_c (s, seed 000) from the frame's
+    /// data instant to the frame start, when the header gives
+    /// `imu_output_delay_s`.
+    pub imu_output_delay_s: Option<f64>,
     /// Other `key: value` header lines, in order.
     pub extra: Vec<(String, String)>,
 }
@@ -103,6 +122,8 @@ impl<R: Read> RigLogReader<R> {
         let mut counter_bits = None;
         let mut imu_kind = None;
         let mut imu_rate_hz = None;
+        let mut imu_timing = None;
+        let mut imu_output_delay_s = None;
         let mut extra = Vec::new();
         let mut pending = None;
         let mut first_line = true;
@@ -183,6 +204,30 @@ impl<R: Read> RigLogReader<R> {
                         format!("imu_rate_hz: '{value}' is not a positive rate; ignored"),
                     ),
                 },
+                "imu_timing" => match first {
+                    "data-ready" => imu_timing = Some(ImuTiming::DataReady),
+                    "frame-start" => imu_timing = Some(ImuTiming::FrameStart),
+                    "receive" => imu_timing = Some(ImuTiming::Receive),
+                    _ => diag.push(
+                        &path,
+                        no,
+                        format!(
+                            "imu_timing: expected 'data-ready', 'frame-start' or 'receive', found '{value}'; ignored"
+                        ),
+                    ),
+                },
+                "imu_output_delay_s" => match first.parse::<f64>() {
+                    Ok(v) if v.is_finite() && (0.0..1.0).contains(&v) => {
+                        imu_output_delay_s = Some(v)
+                    }
+                    _ => diag.push(
+                        &path,
+                        no,
+                        format!(
+                            "imu_output_delay_s: expected a delay in seconds in [0, 1), found '{value}'; ignored"
+                        ),
+                    ),
+                },
                 _ => {
                     diag.push(
                         &path,
@@ -229,6 +274,8 @@ impl<R: Read> RigLogReader<R> {
                 counter_bits,
                 imu_kind,
                 imu_rate_hz,
+                imu_timing,
+                imu_output_delay_s,
                 extra,
             },
             pending,
@@ -605,6 +652,29 @@ mod tests {
         assert_eq!(g.sd_m, [0.02, 0.02, 0.03]);
         assert!(r.next_record(&mut diag).unwrap().is_none());
         assert!(diag.is_empty(), "{diag:?}");
+    }
+
+    #[test]
+    fn imu_timing_and_output_delay_headers() {
+        let text = format!(
+            "{HEAD}# imu_timing: frame-start\n# imu_output_delay_s: 0.0015  T_c\nimu,1,1,2,3,4,5,6\n"
+        );
+        let mut diag = Diagnostics::default();
+        let lines = LineReader::new(text.as_bytes(), Path::new("rig.csv"));
+        let r = RigLogReader::new(lines, &mut diag).unwrap();
+        assert_eq!(r.header().imu_timing, Some(ImuTiming::FrameStart));
+        assert_eq!(r.header().imu_output_delay_s, Some(0.0015));
+        assert!(diag.is_empty(), "{diag:?}");
+        // Bad values are reported with their line and ignored.
+        let text = format!("{HEAD}# imu_timing: sometimes\n# imu_output_delay_s: -1\n");
+        let lines = LineReader::new(text.as_bytes(), Path::new("rig.csv"));
+        let r = RigLogReader::new(lines, &mut diag).unwrap();
+        assert_eq!(r.header().imu_timing, None);
+        assert_eq!(r.header().imu_output_delay_s, None);
+        let msgs: Vec<String> = diag.items.iter().map(|d| d.to_string()).collect();
+        assert_eq!(msgs.len(), 2, "{msgs:?}");
+        assert!(msgs[0].contains("rig.csv:6") && msgs[0].contains("imu_timing"), "{msgs:?}");
+        assert!(msgs[1].contains("rig.csv:7") && msgs[1].contains("imu_output_delay_s"), "{msgs:?}");
     }
 
     #[test]

@@ -32,8 +32,9 @@ pub struct SyncConfig {
     /// Stamp each sample from past data only (real time).
     pub causal: bool,
     /// The IMU's known output delay T_c (s), subtracted from every IMU
-    /// stamp: for an IMU timed by its serial frame (seed 000).
-    pub imu_output_delay_s: f64,
+    /// stamp: for an IMU timed by its serial frame (seed 000). `None`: the
+    /// log header's `imu_output_delay_s`, else 0.
+    pub imu_output_delay_s: Option<f64>,
     /// Clock-model settings (defaults follow the header's counter).
     pub clock: Option<ClockConfig>,
     /// The counter's oscillator, for the default clock settings: sets how
@@ -58,7 +59,7 @@ impl Default for SyncConfig {
         SyncConfig {
             mode: SyncMode::Auto,
             causal: false,
-            imu_output_delay_s: 0.0,
+            imu_output_delay_s: None,
             clock: None,
             oscillator: Oscillator::Xo,
             sw: SwConfig::default(),
@@ -184,7 +185,12 @@ pub struct SyncEngine {
 
 impl SyncEngine {
     /// A new engine for a log with `header`.
-    pub fn new(header: &RigHeader, cfg: SyncConfig) -> Self {
+    pub fn new(header: &RigHeader, mut cfg: SyncConfig) -> Self {
+        cfg.imu_output_delay_s = Some(
+            cfg.imu_output_delay_s
+                .or(header.imu_output_delay_s)
+                .unwrap_or(0.0),
+        );
         let hz = header.counter_hz;
         let clock_cfg = cfg
             .clock
@@ -481,7 +487,7 @@ impl SyncEngine {
     }
 
     fn drain_hw(&mut self, out: &mut Vec<SyncOutput>, flush: bool) {
-        let tc = self.cfg.imu_output_delay_s;
+        let tc = self.cfg.imu_output_delay_s.unwrap_or(0.0);
         let locked_once = self.clock.has_model();
         while let Some(p) = self.pending_imu.front().copied() {
             if p.flags.unstamped {
@@ -532,7 +538,7 @@ impl SyncEngine {
     }
 
     fn drain_sw(&mut self, out: &mut Vec<SyncOutput>, flush: bool) {
-        let tc = self.cfg.imu_output_delay_s;
+        let tc = self.cfg.imu_output_delay_s.unwrap_or(0.0);
         let causal = self.cfg.causal;
         while let Some(p) = self.pending_imu.front().copied() {
             if p.flags.unstamped {
@@ -796,7 +802,7 @@ impl SyncEngine {
                     samples: c,
                 })
                 .collect(),
-            output_delay_s: self.cfg.imu_output_delay_s,
+            output_delay_s: self.cfg.imu_output_delay_s.unwrap_or(0.0),
             timestamps_not_increasing: self.nonincreasing,
         };
         let pps = hw.then(|| PpsReport {

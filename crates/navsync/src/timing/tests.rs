@@ -344,7 +344,7 @@ fn software_sync_jitter_is_below_a_tenth_of_a_millisecond() {
     };
     let g = generate(&s);
     let c = SyncConfig {
-        imu_output_delay_s: 0.002,
+        imu_output_delay_s: Some(0.002),
         ..cfg(false)
     };
     let (imu, gnss, rep) = run(&g, c).unwrap();
@@ -366,7 +366,7 @@ fn software_sync_jitter_is_below_a_tenth_of_a_millisecond() {
     assert!(!gnss.is_empty());
     assert!(strictly_increasing(&imu));
     let c = SyncConfig {
-        imu_output_delay_s: 0.002,
+        imu_output_delay_s: Some(0.002),
         ..cfg(true)
     };
     let (imu_c, _, _) = run(&g, c).unwrap();
@@ -418,7 +418,7 @@ fn a_16_bit_counter_and_the_output_delay() {
     };
     let g = generate(&s);
     let c = SyncConfig {
-        imu_output_delay_s: 0.0015,
+        imu_output_delay_s: Some(0.0015),
         ..cfg(false)
     };
     let (imu, _, rep) = run(&g, c).unwrap();

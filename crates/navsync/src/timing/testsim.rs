@@ -315,6 +315,8 @@ pub fn generate(s: &Scenario) -> Generated {
             counter_bits: s.counter_bits,
             imu_kind: s.imu_kind,
             imu_rate_hz: Some(s.imu_rate_hz),
+            imu_timing: None,
+            imu_output_delay_s: None,
             extra: Vec::new(),
         },
         records,
