@@ -105,9 +105,19 @@ impl Default for Scenario {
     }
 }
 
+/// Tag keys of the scenario's internally tagged enums (`model`, `kind`).
+const TAGS: [&str; 2] = ["model", "kind"];
+
 /// Merges `patch` into `base`: objects key by key, anything else replaced.
+/// An object whose enum tag (`model`, `kind`) changes is replaced whole:
+/// a `ramp` temperature keeps none of a `constant` one's fields.
 pub fn deep_merge(base: &mut Value, patch: Value) {
+    let retagged = |b: &Map<String, Value>, p: &Map<String, Value>| {
+        TAGS.iter()
+            .any(|t| matches!((b.get(*t), p.get(*t)), (Some(x), Some(y)) if x != y))
+    };
     match (base, patch) {
+        (Value::Object(b), Value::Object(p)) if retagged(b, &p) => *b = p,
         (Value::Object(b), Value::Object(p)) => {
             for (k, v) in p {
                 match b.get_mut(&k) {
@@ -304,6 +314,8 @@ fn scenario_error(msg: &str) -> String {
 mod tests {
     use super::*;
     use crate::sim::imu::Decimation;
+    use crate::sim::clock::TemperatureSpec;
+    use serde_json::json;
 
     #[test]
     fn layers_apply_in_order() {
@@ -375,6 +387,29 @@ speed_mps = 10
         assert!(parse_override("nokey").is_err());
         let (k, v) = parse_override("rig.sync=sw").unwrap();
         assert_eq!((k.as_str(), v), ("rig.sync", Value::String("sw".into())));
+    }
+
+    #[test]
+    fn a_new_enum_tag_replaces_the_whole_table() {
+        let mut base = json!({"rig": {"temperature": {"model": "constant", "celsius": 25.0}}});
+        deep_merge(
+            &mut base,
+            json!({"rig": {"temperature": {"model": "ramp", "t0_c": 20.0, "rate_c_per_min": 1.0}}}),
+        );
+        assert_eq!(
+            base,
+            json!({"rig": {"temperature": {"model": "ramp", "t0_c": 20.0, "rate_c_per_min": 1.0}}})
+        );
+        // The same tag merges field by field.
+        deep_merge(&mut base, json!({"rig": {"temperature": {"model": "ramp", "t0_c": 30.0}}}));
+        assert_eq!(base["rig"]["temperature"]["rate_c_per_min"], json!(1.0));
+        assert_eq!(base["rig"]["temperature"]["t0_c"], json!(30.0));
+        let s = Scenario::from_layer(json!({
+            "trajectory": "static",
+            "rig": {"temperature": {"model": "ramp", "t0_c": 25.0, "rate_c_per_min": 1.0}}
+        }))
+        .unwrap();
+        assert!(matches!(s.rig.temperature, TemperatureSpec::Ramp { .. }));
     }
 
     #[test]
