@@ -444,12 +444,16 @@ struct ChannelState {
     range_hits: usize,
     range_first_line: usize,
     // Spike test: the two previous rate values (contiguous).
-    hist: [f64; 2],
-    hist_line: [usize; 2],
-    hist_ns: [i64; 2],
+    /// The last three values (oldest first), their lines and times.
+    hist: [f64; 3],
+    hist_line: [usize; 3],
+    hist_ns: [i64; 3],
     hist_n: usize,
     scale: f64,
     scale_n: usize,
+    /// The running level before each of the last two updates (to undo what
+    /// a two-sample spike added to it before it was recognised).
+    scale_before: [f64; 2],
     min_step: f64,
     spikes: usize,
     // Precision.
@@ -478,12 +482,13 @@ impl ChannelState {
             min: Extreme::default(),
             range_hits: 0,
             range_first_line: 0,
-            hist: [0.0; 2],
-            hist_line: [0; 2],
-            hist_ns: [0; 2],
+            hist: [0.0; 3],
+            hist_line: [0; 3],
+            hist_ns: [0; 3],
             hist_n: 0,
             scale: 0.0,
             scale_n: 0,
+            scale_before: [0.0; 2],
             min_step: f64::INFINITY,
             spikes: 0,
             min_sig: u8::MAX,
@@ -1109,33 +1114,41 @@ impl QualityAnalyzer {
             } else {
                 0.0
             };
-            // Spike test on the middle of three contiguous samples.
+            // Spike test on the middle of three contiguous samples, and on
+            // the middle pair of four: a one-sample spike in rates becomes
+            // two equal halves in trapezoid increments (seed 001 §1.1).
             if gap {
                 st.hist_n = 0;
             }
+            let thr = (k_spike * st.scale).max(10.0 * q[c]);
+            let mut spike: Option<(f64, usize, i64)> = None;
             if st.hist_n >= 2 {
-                let (a, b) = (st.hist[0], st.hist[1]);
+                let (a, b) = (st.hist[1], st.hist[2]);
                 let d = b - 0.5 * (a + x);
                 let spread = (x - a).abs();
-                let thr = (k_spike * st.scale).max(10.0 * q[c]);
                 if st.scale_n >= 32 && d.abs() > thr && spread < 0.25 * d.abs() {
-                    st.spikes += 1;
-                    let (line, t_ns) = (st.hist_line[1], st.hist_ns[1]);
-                    st.hist[1] = 0.5 * (a + x);
-                    let detail = format!(
-                        "{:+.6e} off its neighbours ({:.1} × the channel's running level)",
-                        d,
-                        d.abs() / st.scale.max(f64::MIN_POSITIVE)
-                    );
-                    self.counts.spikes += 1;
-                    if line != self.last_spike_line {
-                        self.counts.spike_records += 1;
-                        self.last_spike_line = line;
+                    spike = Some((d, st.hist_line[2], st.hist_ns[2]));
+                    st.hist[2] = 0.5 * (a + x);
+                } else if st.hist_n >= 3 {
+                    let (a, b1, b2) = (st.hist[0], st.hist[1], st.hist[2]);
+                    let base = 0.5 * (a + x);
+                    let d2 = 0.5 * (b1 + b2) - base;
+                    let thr2 = (k_spike * st.scale_before[0]).max(10.0 * q[c]);
+                    if st.scale_n >= 34
+                        && d2.abs() > thr2
+                        && (b1 - b2).abs() < 0.25 * d2.abs()
+                        && (x - a).abs() < 0.25 * d2.abs()
+                    {
+                        // The two updates the pair made to the level are undone.
+                        st.scale = st.scale_before[0];
+                        spike = Some((d2, st.hist_line[1], st.hist_ns[1]));
+                        st.hist[1] = base;
+                        st.hist[2] = base;
                     }
-                    self.event(EventKind::Spike, line, t_ns, Some(c), detail);
-                } else {
-                    let st = &mut self.ch[c];
+                }
+                if spike.is_none() {
                     st.second.push(d);
+                    st.scale_before = [st.scale_before[1], st.scale];
                     if st.scale_n < 32 {
                         st.scale =
                             (st.scale * st.scale_n as f64 + d.abs()) / (st.scale_n + 1) as f64;
@@ -1145,11 +1158,25 @@ impl QualityAnalyzer {
                     st.scale_n += 1;
                 }
             }
+            if let Some((d, line, t_ns)) = spike {
+                st.spikes += 1;
+                let detail = format!(
+                    "{:+.6e} off its neighbours ({:.1} × the channel's running level)",
+                    d,
+                    d.abs() / st.scale.max(f64::MIN_POSITIVE)
+                );
+                self.counts.spikes += 1;
+                if line != self.last_spike_line {
+                    self.counts.spike_records += 1;
+                    self.last_spike_line = line;
+                }
+                self.event(EventKind::Spike, line, t_ns, Some(c), detail);
+            }
             let st = &mut self.ch[c];
-            st.hist = [st.hist[1], x];
-            st.hist_line = [st.hist_line[1], rec.line];
-            st.hist_ns = [st.hist_ns[1], rec.time_ns];
-            st.hist_n = (st.hist_n + 1).min(2);
+            st.hist = [st.hist[1], st.hist[2], x];
+            st.hist_line = [st.hist_line[1], st.hist_line[2], rec.line];
+            st.hist_ns = [st.hist_ns[1], st.hist_ns[2], rec.time_ns];
+            st.hist_n = (st.hist_n + 1).min(3);
         }
         if let Some(s) = self.statics.as_mut() {
             s.push(&r, rec.line, rec.time_ns, &q);
@@ -2190,6 +2217,9 @@ mod tests {
                 22000 => row.1[2] += 0.5,
                 23000 => row.1[4] += 20.0,
                 7000 => row.1[5] += 1.0,
+                // A one-sample rate spike after trapezoid conversion: two
+                // equal halves (moving gyro y).
+                21000 | 21001 => row.1[1] += 0.25,
                 _ => {}
             }
             rows.push(row);
@@ -2217,8 +2247,8 @@ mod tests {
         injected.stuck_samples = 199;
         injected.saturation_events = 1;
         injected.saturated_samples = 10;
-        injected.spikes = 4;
-        injected.spike_records = 4;
+        injected.spikes = 5;
+        injected.spike_records = 5;
         injected.malformed_lines = 3;
         let extra = [
             (100, "garbage line"),
@@ -2261,7 +2291,7 @@ mod tests {
             .collect();
         assert_eq!(
             spike_channels,
-            vec!["gyro x", "accel z", "gyro z", "accel y"]
+            vec!["gyro x", "accel z", "gyro y", "gyro z", "accel y"]
         );
         assert!((r.longest_gap_s - 0.155).abs() < 1e-9);
         assert_eq!(r.verdict, Status::Fail);
@@ -2271,9 +2301,9 @@ mod tests {
             .find(|c| c.rule.starts_with("no gap"))
             .unwrap();
         assert_eq!(gap_row.status, Status::Fail);
-        // Loss: 36 of 24 000 expected; bad data: 3 + 2 + 1 + 1 + 4 + 10 + 199.
+        // Loss: 36 of 24 000 expected; bad data: 3 + 2 + 1 + 1 + 5 + 10 + 199.
         assert!((r.loss_rate - 36.0 / 24_000.0).abs() < 1e-12);
-        assert_eq!(r.bad_records, 220);
+        assert_eq!(r.bad_records, 221);
     }
 
     #[test]

@@ -673,8 +673,14 @@ mod tests {
         assert_eq!(r.header().imu_output_delay_s, None);
         let msgs: Vec<String> = diag.items.iter().map(|d| d.to_string()).collect();
         assert_eq!(msgs.len(), 2, "{msgs:?}");
-        assert!(msgs[0].contains("rig.csv:6") && msgs[0].contains("imu_timing"), "{msgs:?}");
-        assert!(msgs[1].contains("rig.csv:7") && msgs[1].contains("imu_output_delay_s"), "{msgs:?}");
+        assert!(
+            msgs[0].contains("rig.csv:6") && msgs[0].contains("imu_timing"),
+            "{msgs:?}"
+        );
+        assert!(
+            msgs[1].contains("rig.csv:7") && msgs[1].contains("imu_output_delay_s"),
+            "{msgs:?}"
+        );
     }
 
     #[test]

@@ -313,8 +313,8 @@ fn scenario_error(msg: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::imu::Decimation;
     use crate::sim::clock::TemperatureSpec;
+    use crate::sim::imu::Decimation;
     use serde_json::json;
 
     #[test]
@@ -401,7 +401,10 @@ speed_mps = 10
             json!({"rig": {"temperature": {"model": "ramp", "t0_c": 20.0, "rate_c_per_min": 1.0}}})
         );
         // The same tag merges field by field.
-        deep_merge(&mut base, json!({"rig": {"temperature": {"model": "ramp", "t0_c": 30.0}}}));
+        deep_merge(
+            &mut base,
+            json!({"rig": {"temperature": {"model": "ramp", "t0_c": 30.0}}}),
+        );
         assert_eq!(base["rig"]["temperature"]["rate_c_per_min"], json!(1.0));
         assert_eq!(base["rig"]["temperature"]["t0_c"], json!(30.0));
         let s = Scenario::from_layer(json!({
