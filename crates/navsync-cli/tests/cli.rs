@@ -174,3 +174,47 @@ fn bad_inputs_give_clear_errors() {
     }
     assert!(!err.contains("panicked"));
 }
+
+#[test]
+fn time_offset_is_found_and_held_through_a_standstill() {
+    // docs/offset/standstill.toml: manoeuvres, a 60 s stop (199.5–259.5 s
+    // after the start), more driving; GNSS time tags 50 ms late.
+    let dir = temp_dir("standstill");
+    let scn = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/offset/standstill.toml");
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args(["simulate", "--quiet", "--internal-rate", "0", "--scenario"])
+        .arg(&scn)
+        .arg("--output")
+        .arg(&sim));
+    assert!(ok, "{err}");
+    let (ok, out, err) = run(bin()
+        .args(["fuse", "--estimate-time-offset", "--config"])
+        .arg(sim.join("kf-gins.yaml"))
+        .arg("--output")
+        .arg(dir.join("out")));
+    assert!(ok, "{out}\n{err}");
+    let text = std::fs::read_to_string(dir.join("out/time_offset.txt")).unwrap();
+    let rows: Vec<[f64; 3]> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            [v[0] - 100_000.0, v[1], v[2]]
+        })
+        .collect();
+    // While standing (after the braking settles) the estimate may not move
+    // by 0.1 ms: it is unobservable there.
+    let still: Vec<f64> = rows
+        .iter()
+        .filter(|r| (202.0..259.5).contains(&r[0]))
+        .map(|r| r[1])
+        .collect();
+    assert!(still.len() > 100);
+    let moved = still.iter().cloned().fold(f64::MIN, f64::max)
+        - still.iter().cloned().fold(f64::MAX, f64::min);
+    assert!(moved < 1e-4, "moved {moved} s during the standstill");
+    // And it was found: within 3σ of the true 50 ms, σ below 2 ms.
+    let [_, est, sd] = *rows.last().unwrap();
+    assert!(sd < 2e-3 && (est - 0.05).abs() < 3.0 * sd, "{est} ± {sd}");
+}
