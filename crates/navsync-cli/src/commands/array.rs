@@ -1,12 +1,16 @@
 //! `navsync array`: an IMU array with unknown relative time offsets
-//! (seed 004): estimate each IMU's offset, shift every stream onto GNSS
-//! time with a Lagrange fractional-delay filter, average into one virtual
-//! IMU and fuse it.
+//! (seed 004): the units' delays relative to the first from their gyros,
+//! every stream shifted onto the first unit's time with a Lagrange
+//! fractional-delay filter and averaged into one virtual IMU, which is
+//! fused with the time-offset state (the offset common to all units). Each
+//! unit is also fused alone with its own offset state, for its score and
+//! as a GNSS-only check of the delays.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use navsync::Diagnostics;
+use navsync::array::RelativeDelay;
 use navsync::eval::{self, EvalReport};
 use navsync::fusion::TimeOffsetOptions;
 use navsync::io::config::KfGinsConfig;
@@ -34,19 +38,33 @@ pub struct Args {
     /// Order of the Lagrange fractional-delay filter (1–7).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u8).range(1..=7))]
     pub fd_order: u8,
+    /// Largest relative delay searched between two units (s).
+    #[arg(long, default_value_t = 0.5)]
+    pub max_delay: f64,
 }
 
 #[derive(Serialize)]
 struct ImuRow {
     file: String,
+    /// Offset of this unit's tags to GNSS time (GNSS tag − true validity
+    /// on this unit's time base): the array's common offset minus the
+    /// unit's delay relative to the first.
     offset_s: f64,
     offset_sd_s: f64,
-    offset_relative_to_first_s: f64,
+    /// The unit's data are this much later than the first unit's (gyros).
+    delay_relative_to_first: RelativeDelay,
+    /// This unit fused alone with its own offset state.
+    alone_offset_s: f64,
+    alone_offset_sd_s: f64,
     score: Option<EvalReport>,
 }
 
 #[derive(Serialize)]
 struct ArrayReport {
+    /// The offset common to the array (first unit's tags), from the fused
+    /// aligned array.
+    common_offset_s: f64,
+    common_offset_sd_s: f64,
     imus: Vec<ImuRow>,
     array_score: Option<EvalReport>,
     combined_imu: String,
@@ -72,7 +90,12 @@ pub fn run(args: Args) -> Result<()> {
         .with_context(|| format!("creating {}", args.output.display()))?;
     let period_s = 1.0 / base.imu_rate_hz;
 
-    // 1. Each IMU with the GNSS and the time-offset state.
+    // 1. The units' delays relative to the first, from their gyros.
+    let paths: Vec<&Path> = args.imus.iter().map(PathBuf::as_path).collect();
+    let mut d = Diagnostics::default();
+    let delays = navsync::array::relative_delays(&paths, period_s, args.max_delay, 0, &mut d)?;
+
+    // 2. Each IMU alone with the GNSS and the time-offset state.
     let mut rows = Vec::new();
     for (i, imu) in args.imus.iter().enumerate() {
         let mut cfg = base.clone();
@@ -89,38 +112,32 @@ pub fn run(args: Args) -> Result<()> {
         let mut sink = KfGinsSink::create(&dir, 0)?;
         let summary = pipeline::run(&cfg, &opts, &mut sink, &mut |_| {})?;
         sink.finish()?;
-        let (o, sd) = (
-            summary.time_offset_s.unwrap_or(0.0),
-            summary.time_offset_sd_s.unwrap_or(f64::NAN),
-        );
         rows.push(ImuRow {
             file: imu.display().to_string(),
-            offset_s: o,
-            offset_sd_s: sd,
-            offset_relative_to_first_s: 0.0,
+            offset_s: f64::NAN,
+            offset_sd_s: f64::NAN,
+            delay_relative_to_first: delays[i],
+            alone_offset_s: summary.time_offset_s.unwrap_or(0.0),
+            alone_offset_sd_s: summary.time_offset_sd_s.unwrap_or(f64::NAN),
             score: score(args.truth.as_deref(), &dir.join("navresult.nav"))?,
         });
     }
-    let first = rows[0].offset_s;
-    for r in &mut rows {
-        r.offset_relative_to_first_s = r.offset_s - first;
-    }
 
-    // 2. Align every stream onto GNSS time and average (delay = τ_i / T).
+    // 3. Align every stream onto the first unit's time (advance unit i by
+    // its delay d_i: a delay of −d_i / T samples) and average.
     let combined = args.output.join("array_imu.txt");
-    let paths: Vec<&Path> = args.imus.iter().map(PathBuf::as_path).collect();
-    let delays: Vec<f64> = rows.iter().map(|r| r.offset_s / period_s).collect();
-    let mut d = Diagnostics::default();
+    let shifts: Vec<f64> = delays.iter().map(|r| -r.delay_s / period_s).collect();
     let samples = navsync::array::combine(
         &paths,
-        &delays,
+        &shifts,
         args.fd_order as usize,
         0,
         &combined,
         &mut d,
     )?;
 
-    // 3. Fuse the virtual IMU: independent units average their white noise
+    // 4. Fuse the virtual IMU with the time-offset state (the offset
+    // common to the array): independent units average their white noise
     // and instabilities down by 1/√N.
     let n = args.imus.len() as f64;
     let mut cfg = base.clone();
@@ -140,16 +157,39 @@ pub fn run(args: Args) -> Result<()> {
     let dir = args.output.join("array");
     let opts = FuseOptions {
         output_dir: Some(dir.clone()),
+        time_offset: Some(TimeOffsetOptions::default()),
+        output_gnss_time: true,
         ..FuseOptions::default()
     };
     let mut sink = KfGinsSink::create(&dir, 0)?;
-    pipeline::run(&cfg, &opts, &mut sink, &mut |_| {})?;
+    let summary = pipeline::run(&cfg, &opts, &mut sink, &mut |_| {})?;
     sink.finish()?;
     let array_score = score(args.truth.as_deref(), &dir.join("navresult.nav"))?;
+    let common = summary.time_offset_s.unwrap_or(0.0);
+    let common_sd = summary.time_offset_sd_s.unwrap_or(f64::NAN);
+    // An IMU whose data are late by d sees GNSS fixes early: τ_i = τ_1 − d_i.
+    for r in &mut rows {
+        let d = r.delay_relative_to_first;
+        r.offset_s = common - d.delay_s;
+        r.offset_sd_s = (common_sd * common_sd + d.sd_s * d.sd_s).sqrt();
+    }
 
     println!(
-        "{:<4} {:>14} {:>10} {:>16} {:>12} {:>10}",
-        "IMU", "offset (ms)", "σ (ms)", "vs IMU 1 (ms)", "horiz RMS m", "yaw RMS °"
+        "common offset of the array (first unit's tags − GNSS validity): {:.3} ± {:.3} ms",
+        common * 1e3,
+        common_sd * 1e3
+    );
+    println!(
+        "{:<4} {:>12} {:>10} {:>14} {:>9} {:>12} {:>10} {:>12} {:>10}",
+        "IMU",
+        "delay (ms)",
+        "σ (ms)",
+        "offset (ms)",
+        "σ (ms)",
+        "alone (ms)",
+        "σ (ms)",
+        "horiz RMS m",
+        "yaw RMS °"
     );
     for (i, r) in rows.iter().enumerate() {
         let (h, y) = r
@@ -163,22 +203,27 @@ pub fn run(args: Args) -> Result<()> {
             })
             .unwrap_or_default();
         println!(
-            "{:<4} {:>14.3} {:>10.3} {:>16.3} {:>12} {:>10}",
+            "{:<4} {:>12.3} {:>10.3} {:>14.3} {:>9.3} {:>12.3} {:>10.3} {:>12} {:>10}",
             i + 1,
+            r.delay_relative_to_first.delay_s * 1e3,
+            r.delay_relative_to_first.sd_s * 1e3,
             r.offset_s * 1e3,
             r.offset_sd_s * 1e3,
-            r.offset_relative_to_first_s * 1e3,
+            r.alone_offset_s * 1e3,
+            r.alone_offset_sd_s * 1e3,
             h,
             y
         );
     }
     if let Some(s) = &array_score {
         println!(
-            "{:<4} {:>14} {:>10} {:>16} {:>12.4} {:>10.4}",
-            "all", "aligned", "", "", s.pos_horizontal_m.rms, s.yaw_deg.rms
+            "{:<4} {:>12} {:>10} {:>14} {:>9} {:>12} {:>10} {:>12.4} {:>10.4}",
+            "all", "aligned", "", "", "", "", "", s.pos_horizontal_m.rms, s.yaw_deg.rms
         );
     }
     let report = ArrayReport {
+        common_offset_s: common,
+        common_offset_sd_s: common_sd,
         imus: rows,
         array_score,
         combined_imu: combined.display().to_string(),
