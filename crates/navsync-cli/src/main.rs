@@ -37,6 +37,9 @@ enum Command {
     Imu(commands::imu::Args),
     /// Simulate a drive: exact truth, IMU, GNSS, clocks and a raw rig log.
     Simulate(commands::simulate::Args),
+    /// Simulate → sync → fuse → eval over many seeds in parallel: accuracy
+    /// percentiles and the filter's consistency (NEES).
+    Montecarlo(commands::montecarlo::Args),
 }
 
 fn main() {
@@ -52,6 +55,7 @@ fn main() {
         Command::SpeedSim(a) => commands::speed_sim::run(a),
         Command::Imu(a) => commands::imu::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
+        Command::Montecarlo(a) => commands::montecarlo::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");
