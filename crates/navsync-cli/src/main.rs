@@ -16,6 +16,12 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The whole chain on a built-in drive (simulate → sync → fuse → eval)
+    /// and its HTML report: navsync-demo/report.html.
+    Demo(commands::demo::Args),
+    /// One self-contained HTML report of a run: trajectory, errors with
+    /// ±3σ, IMU errors, time offset, synchronization timeline, metrics.
+    Report(commands::report::Args),
     /// Fuse IMU and GNSS files described by a KF-GINS configuration.
     Fuse(commands::fuse::Args),
     /// Score a navigation result against a reference trajectory.
@@ -45,6 +51,8 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Demo(a) => commands::demo::run(a),
+        Command::Report(a) => commands::report::run(a),
         Command::Fuse(a) => commands::fuse::run(a),
         Command::Eval(a) => commands::eval::run(a),
         Command::Convert(a) => commands::convert::run(a),

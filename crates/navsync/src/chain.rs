@@ -5,6 +5,7 @@
 //! over [`run_chain`]; scoring is [`crate::eval`]'s.
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use crate::error::{Diagnostics, Error};
 use crate::fusion::TimeOffsetOptions;
@@ -134,6 +135,8 @@ pub struct ChainRun {
     pub fuse: FuseSummary,
     /// The configuration the fusion ran with (`synced/kf-gins.yaml`).
     pub config: KfGinsConfig,
+    /// Wall time of each stage (s).
+    pub stage_times_s: Vec<(Stage, f64)>,
 }
 
 /// Runs the chain on `sim` into `dirs`; the solution goes to `sink`.
@@ -146,8 +149,12 @@ pub fn run_chain(
     progress: &mut dyn FnMut(Stage, f64),
 ) -> Result<ChainRun, Error> {
     let argv = vec![format!("navsync chain (seed {})", sim.scenario.seed)];
+    let mut times = Vec::with_capacity(3);
+    let t = Instant::now();
     let sim_report = sim.run(&dirs.sim, &argv, &mut |f| progress(Stage::Simulate, f))?;
+    times.push((Stage::Simulate, t.elapsed().as_secs_f64()));
     progress(Stage::Sync, 0.0);
+    let t = Instant::now();
     let rig = dirs.sim.join("rig.csv");
     let sync_cfg = SyncConfig {
         source: rig.display().to_string(),
@@ -162,6 +169,8 @@ pub fn run_chain(
     )?;
     write_kfgins_config(&dirs.sim.join("kf-gins.yaml"), &dirs.synced, &sync.report)?;
     progress(Stage::Sync, 1.0);
+    times.push((Stage::Sync, t.elapsed().as_secs_f64()));
+    let t = Instant::now();
     // The file's relative paths are resolved next to it (notes only).
     let mut notes = Diagnostics::default();
     let mut config = KfGinsConfig::load(&dirs.synced.join("kf-gins.yaml"), &mut notes)?;
@@ -172,11 +181,13 @@ pub fn run_chain(
         ..opts.fuse.clone()
     };
     let fuse = pipeline::run(&config, &fuse_opts, sink, &mut |f| progress(Stage::Fuse, f))?;
+    times.push((Stage::Fuse, t.elapsed().as_secs_f64()));
     Ok(ChainRun {
         sim: sim_report,
         sync,
         fuse,
         config,
+        stage_times_s: times,
     })
 }
 

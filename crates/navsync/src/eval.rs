@@ -75,6 +75,27 @@ pub struct EvalReport {
     pub outage_worst_3d_m: Option<f64>,
 }
 
+impl EvalReport {
+    /// The error components in display order: (name, unit, statistics).
+    pub fn rows(&self) -> [(&'static str, &'static str, ErrorStats); 13] {
+        [
+            ("position north", "m", self.pos_north_m),
+            ("position east", "m", self.pos_east_m),
+            ("position down", "m", self.pos_down_m),
+            ("position horizontal", "m", self.pos_horizontal_m),
+            ("position 3D", "m", self.pos_3d_m),
+            ("velocity north", "m/s", self.vel_north_mps),
+            ("velocity east", "m/s", self.vel_east_mps),
+            ("velocity down", "m/s", self.vel_down_mps),
+            ("velocity horizontal", "m/s", self.vel_horizontal_mps),
+            ("velocity 3D", "m/s", self.vel_3d_mps),
+            ("roll", "deg", self.roll_deg),
+            ("pitch", "deg", self.pitch_deg),
+            ("yaw", "deg", self.yaw_deg),
+        ]
+    }
+}
+
 /// One epoch's errors (solution minus truth).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EpochError {

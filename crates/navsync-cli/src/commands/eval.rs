@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use navsync::Diagnostics;
-use navsync::eval::{self, ErrorStats, EvalReport};
+use navsync::eval::{self, EvalReport};
 
 use super::print_diagnostics;
 
@@ -54,7 +54,7 @@ pub fn format_report(r: &EvalReport) -> String {
         "{:<22} {:>12} {:>12} {:>12}",
         "error", "RMS", "max", "mean"
     );
-    let row = |s: &mut String, name: &str, e: &ErrorStats, unit: &str| {
+    for (name, unit, e) in r.rows() {
         let _ = writeln!(
             s,
             "{:<22} {:>12.4} {:>12.4} {:>12.4}",
@@ -63,20 +63,7 @@ pub fn format_report(r: &EvalReport) -> String {
             e.max,
             e.mean
         );
-    };
-    row(&mut s, "position north", &r.pos_north_m, "m");
-    row(&mut s, "position east", &r.pos_east_m, "m");
-    row(&mut s, "position down", &r.pos_down_m, "m");
-    row(&mut s, "position horizontal", &r.pos_horizontal_m, "m");
-    row(&mut s, "position 3D", &r.pos_3d_m, "m");
-    row(&mut s, "velocity north", &r.vel_north_mps, "m/s");
-    row(&mut s, "velocity east", &r.vel_east_mps, "m/s");
-    row(&mut s, "velocity down", &r.vel_down_mps, "m/s");
-    row(&mut s, "velocity horizontal", &r.vel_horizontal_mps, "m/s");
-    row(&mut s, "velocity 3D", &r.vel_3d_mps, "m/s");
-    row(&mut s, "roll", &r.roll_deg, "deg");
-    row(&mut s, "pitch", &r.pitch_deg, "deg");
-    row(&mut s, "yaw", &r.yaw_deg, "deg");
+    }
     if !r.outages.is_empty() {
         let _ = writeln!(s, "GNSS outages ({}):", r.outages.len());
         for o in &r.outages {

@@ -1,10 +1,12 @@
 pub mod array;
 pub mod bench;
 pub mod convert;
+pub mod demo;
 pub mod eval;
 pub mod fuse;
 pub mod imu;
 pub mod montecarlo;
+pub mod report;
 pub mod simulate;
 pub mod speed_sim;
 pub mod sync;
