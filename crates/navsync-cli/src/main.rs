@@ -20,7 +20,9 @@ enum Command {
     /// and its HTML report: navsync-demo/report.html.
     Demo(commands::demo::Args),
     /// One self-contained HTML report of a run: trajectory, errors with
-    /// ±3σ, IMU errors, time offset, synchronization timeline, metrics.
+    /// ±3σ, IMU errors, time offset, synchronization timeline, metrics
+    /// (std.txt, imu_err.txt, time_offset.txt, summary.json beside --nav
+    /// are used unless given).
     Report(commands::report::Args),
     /// Fuse IMU and GNSS files described by a KF-GINS configuration.
     Fuse(commands::fuse::Args),

@@ -113,16 +113,43 @@ fn section(html: &mut String, id: &str, title: &str, note: &str, svg: &str) {
     );
 }
 
+/// A navigation error quantity: its components and where its σ are in
+/// std.txt.
+struct Quantity {
+    name: &'static str,
+    unit: &'static str,
+    comps: [&'static str; 3],
+    std_col0: usize,
+}
+
+const NED: [&str; 3] = ["north", "east", "down"];
+const POSITION: Quantity = Quantity {
+    name: "position",
+    unit: "m",
+    comps: NED,
+    std_col0: 1,
+};
+const VELOCITY: Quantity = Quantity {
+    name: "velocity",
+    unit: "m/s",
+    comps: NED,
+    std_col0: 4,
+};
+const ATTITUDE: Quantity = Quantity {
+    name: "attitude",
+    unit: "deg",
+    comps: ["roll", "pitch", "yaw"],
+    std_col0: 7,
+};
+
 fn error_figure(
     ep: &Epochs,
     std: Option<&Rows>,
     shades: &[Shade],
-    quantity: &str,
-    unit: &str,
-    comps: [&str; 3],
+    q: &Quantity,
     value: impl Fn(usize, usize) -> f64,
-    std_col0: usize,
 ) -> Result<String, Error> {
+    let (quantity, unit, comps, std_col0) = (q.name, q.unit, q.comps, q.std_col0);
     let x1 = ep.t.last().copied().unwrap_or(1.0).max(1e-3);
     let panels = (0..3)
         .map(|c| Panel {
@@ -346,21 +373,14 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         color: OUTAGE,
         spans: outage_spans.clone(),
     };
-    let std = inp
-        .std
-        .as_deref()
-        .map(|p| read_table(p, 22, STD_LAYOUT).map(|r| Rows::new(r, t0)))
-        .transpose()?;
-    let imu_err = inp
-        .imu_err
-        .as_deref()
-        .map(|p| read_table(p, 13, IMU_ERR_LAYOUT).map(|r| Rows::new(r, t0)))
-        .transpose()?;
-    let imu_err_truth = inp
-        .imu_err_truth
-        .as_deref()
-        .map(|p| read_table(p, 13, IMU_ERR_LAYOUT).map(|r| Rows::new(r, t0)))
-        .transpose()?;
+    let rows = |p: &Option<std::path::PathBuf>, columns: usize, layout: &str| {
+        p.as_deref()
+            .map(|p| read_table(p, columns, layout).map(|r| Rows::new(r, t0)))
+            .transpose()
+    };
+    let std = rows(&inp.std, 22, STD_LAYOUT)?;
+    let imu_err = rows(&inp.imu_err, 13, IMU_ERR_LAYOUT)?;
+    let imu_err_truth = rows(&inp.imu_err_truth, 13, IMU_ERR_LAYOUT)?;
     let offset = inp
         .time_offset
         .as_deref()
@@ -498,38 +518,17 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     } else {
         "Shaded: GNSS outages (no std.txt given: no ±3σ bands)."
     };
-    let svg = error_figure(
-        &ep,
-        std.as_ref(),
-        &shades,
-        "position",
-        "m",
-        ["north", "east", "down"],
-        |i, c| ep.pos_err[i][c],
-        1,
-    )?;
+    let svg = error_figure(&ep, std.as_ref(), &shades, &POSITION, |i, c| {
+        ep.pos_err[i][c]
+    })?;
     section(&mut html, "position", "Position error", nav_note, &svg);
-    let svg = error_figure(
-        &ep,
-        std.as_ref(),
-        &shades,
-        "velocity",
-        "m/s",
-        ["north", "east", "down"],
-        |i, c| ep.vel_err[i][c],
-        4,
-    )?;
+    let svg = error_figure(&ep, std.as_ref(), &shades, &VELOCITY, |i, c| {
+        ep.vel_err[i][c]
+    })?;
     section(&mut html, "velocity", "Velocity error", nav_note, &svg);
-    let svg = error_figure(
-        &ep,
-        std.as_ref(),
-        &shades,
-        "attitude",
-        "deg",
-        ["roll", "pitch", "yaw"],
-        |i, c| ep.att_err[i][c],
-        7,
-    )?;
+    let svg = error_figure(&ep, std.as_ref(), &shades, &ATTITUDE, |i, c| {
+        ep.att_err[i][c]
+    })?;
     section(
         &mut html,
         "attitude",

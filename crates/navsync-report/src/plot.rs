@@ -111,9 +111,9 @@ fn side_legend<DB: DrawingBackend>(
     entries: &[(String, Swatch)],
     top: i32,
 ) -> Result<(), Error> {
-    let style = (FONT, 13).into_font().color(&BLACK);
+    let style = (FONT, 15).into_font().color(&BLACK);
     for (k, (name, sw)) in entries.iter().enumerate() {
-        let y = top + 20 * k as i32;
+        let y = top + 22 * k as i32;
         let (x0, x1) = (8, 30);
         match *sw {
             Swatch::Line(c, w) => area
@@ -159,6 +159,68 @@ pub fn tick(v: f64, dec: usize) -> String {
     }
 }
 
+/// Axes of a chart: caption, ranges, descriptions and label-area sizes.
+struct Axes<'t> {
+    caption: &'t str,
+    x: (f64, f64),
+    y: (f64, f64),
+    x_desc: &'t str,
+    y_desc: &'t str,
+    /// Height of the x label area and width of the y label area (px).
+    label_px: (u32, u32),
+    /// Name the four rows of the timeline instead of numbering y.
+    rows: bool,
+}
+
+type Chart<'a, DB> = ChartContext<
+    'a,
+    DB,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// A chart in the report's style (fonts, light grid, tick labels).
+fn chart_on<'a, DB: DrawingBackend + 'a>(
+    area: &DrawingArea<DB, Shift>,
+    a: &Axes,
+) -> Result<Chart<'a, DB>, Error> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(a.caption, (FONT, 17))
+        .margin(8)
+        .margin_right(12)
+        .x_label_area_size(a.label_px.0)
+        .y_label_area_size(a.label_px.1)
+        .build_cartesian_2d(a.x.0..a.x.1, a.y.0..a.y.1)
+        .map_err(pe)?;
+    let (xd, yd) = (decimals(a.x.1 - a.x.0), decimals(a.y.1 - a.y.0));
+    let row_name = |v: &f64| {
+        let r = v - v.floor();
+        if (r - 0.5).abs() < 1e-6 && *v >= 0.0 && *v < 4.0 {
+            ROWS[v.floor() as usize].to_string()
+        } else {
+            String::new()
+        }
+    };
+    let number = |v: &f64| tick(*v, yd);
+    let x_number = |v: &f64| tick(*v, xd);
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(a.x_desc)
+        .y_desc(a.y_desc)
+        .x_label_formatter(&x_number)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 15))
+        .light_line_style(BLACK.mix(0.05))
+        .bold_line_style(BLACK.mix(0.12));
+    if a.rows {
+        mesh.disable_y_mesh()
+            .y_labels(9)
+            .y_label_formatter(&row_name);
+    } else {
+        mesh.y_label_formatter(&number);
+    }
+    mesh.draw().map_err(pe)?;
+    Ok(chart)
+}
+
 /// Stacked time series with bands and shaded intervals.
 pub fn time_series(fig: &Figure) -> Result<String, Error> {
     let mut svg = String::new();
@@ -196,28 +258,19 @@ fn draw_panel<DB: DrawingBackend>(
         )
     });
     let clamp = |y: f64| y.clamp(y0, y1);
-    let (xd, yd) = (decimals(x1 - x0), decimals(y1 - y0));
     let (plot_area, legend_area) = area.split_horizontally(fig.width.saturating_sub(LEGEND_W));
-    let mut chart = ChartBuilder::on(&plot_area)
-        .caption(&p.title, (FONT, 15))
-        .margin(8)
-        .margin_right(12)
-        .x_label_area_size(if last { 40 } else { 25 })
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(pe)?;
-    chart
-        .configure_mesh()
-        .x_desc(if last { fig.x_label.as_str() } else { "" })
-        .y_desc(p.y_label.as_str())
-        .x_label_formatter(&|v: &f64| tick(*v, xd))
-        .y_label_formatter(&|v: &f64| tick(*v, yd))
-        .label_style((FONT, 12))
-        .axis_desc_style((FONT, 13))
-        .light_line_style(BLACK.mix(0.05))
-        .bold_line_style(BLACK.mix(0.12))
-        .draw()
-        .map_err(pe)?;
+    let mut chart = chart_on(
+        &plot_area,
+        &Axes {
+            caption: &p.title,
+            x: (x0, x1),
+            y: (y0, y1),
+            x_desc: if last { fig.x_label.as_str() } else { "" },
+            y_desc: &p.y_label,
+            label_px: (if last { 40 } else { 25 }, 70),
+            rows: false,
+        },
+    )?;
     let mut legend = Vec::new();
     for s in &fig.shades {
         let color = s.color;
@@ -279,27 +332,18 @@ pub fn trajectory(t: &Trajectory, width: u32, height: u32) -> Result<String, Err
         let (ec, nc) = (0.5 * (e0 + e1), 0.5 * (n0 + n1));
         let (e0, e1) = (ec - 0.5 * scale * pw, ec + 0.5 * scale * pw);
         let (n0, n1) = (nc - 0.5 * scale * ph, nc + 0.5 * scale * ph);
-        let (ed, nd) = (decimals(e1 - e0), decimals(n1 - n0));
-        let mut chart = ChartBuilder::on(&plot_area)
-            .caption("Trajectory (horizontal)", (FONT, 15))
-            .margin(10)
-            .margin_right(12)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d(e0..e1, n0..n1)
-            .map_err(pe)?;
-        chart
-            .configure_mesh()
-            .x_desc("east of the start (m)")
-            .y_desc("north of the start (m)")
-            .x_label_formatter(&|v: &f64| tick(*v, ed))
-            .y_label_formatter(&|v: &f64| tick(*v, nd))
-            .label_style((FONT, 12))
-            .axis_desc_style((FONT, 13))
-            .light_line_style(BLACK.mix(0.05))
-            .bold_line_style(BLACK.mix(0.12))
-            .draw()
-            .map_err(pe)?;
+        let mut chart = chart_on(
+            &plot_area,
+            &Axes {
+                caption: "Trajectory (horizontal)",
+                x: (e0, e1),
+                y: (n0, n1),
+                x_desc: "east of the start (m)",
+                y_desc: "north of the start (m)",
+                label_px: (40, 70),
+                rows: false,
+            },
+        )?;
         let en = |v: &[(f64, f64)]| v.iter().map(|p| (p.1, p.0)).collect::<Vec<_>>();
         let truth_c = RGBColor(60, 60, 60);
         let mut legend = vec![
@@ -373,35 +417,18 @@ pub fn timeline(t: &Timeline, width: u32, height: u32) -> Result<String, Error> 
         root.fill(&WHITE).map_err(pe)?;
         let (plot_area, legend_area) = root.split_horizontally(width.saturating_sub(LEGEND_W));
         let (x0, x1) = t.x_range;
-        let xd = decimals(x1 - x0);
-        let mut chart = ChartBuilder::on(&plot_area)
-            .caption("Synchronization timeline", (FONT, 15))
-            .margin(8)
-            .margin_right(12)
-            .x_label_area_size(40)
-            .y_label_area_size(110)
-            .build_cartesian_2d(x0..x1, 0.0..4.0)
-            .map_err(pe)?;
-        chart
-            .configure_mesh()
-            .disable_y_mesh()
-            .y_labels(9)
-            .y_label_formatter(&|v: &f64| {
-                let r = v - v.floor();
-                if (r - 0.5).abs() < 1e-6 && *v >= 0.0 && *v < 4.0 {
-                    ROWS[v.floor() as usize].to_string()
-                } else {
-                    String::new()
-                }
-            })
-            .x_label_formatter(&|v: &f64| tick(*v, xd))
-            .x_desc("time since the first epoch (s)")
-            .label_style((FONT, 12))
-            .axis_desc_style((FONT, 13))
-            .light_line_style(BLACK.mix(0.05))
-            .bold_line_style(BLACK.mix(0.12))
-            .draw()
-            .map_err(pe)?;
+        let mut chart = chart_on(
+            &plot_area,
+            &Axes {
+                caption: "Synchronization timeline",
+                x: (x0, x1),
+                y: (0.0, 4.0),
+                x_desc: "time since the first epoch (s)",
+                y_desc: "",
+                label_px: (40, 110),
+                rows: true,
+            },
+        )?;
         let row = |i: f64| (i + 0.2, i + 0.8);
         let mut legend: Vec<(String, Swatch)> = Vec::new();
         let (lo, hi) = row(3.0);
@@ -420,7 +447,7 @@ pub fn timeline(t: &Timeline, width: u32, height: u32) -> Result<String, Error> 
         }
         let (lo, hi) = row(2.0);
         let span = (x1 - x0).max(1e-9);
-        let label = (FONT, 12).into_font().color(&BLACK);
+        let label = (FONT, 14).into_font().color(&BLACK);
         for (a, b, bound) in &t.holdover {
             chart
                 .draw_series(std::iter::once(Rectangle::new(
@@ -486,27 +513,18 @@ pub fn histogram(
         root.fill(&WHITE).map_err(pe)?;
         let x1 = start + width_bin * counts.len().max(1) as f64;
         let top = counts.iter().copied().max().unwrap_or(1).max(1) as f64 * 1.1;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, (FONT, 15))
-            .margin(8)
-            .margin_right(20)
-            .x_label_area_size(40)
-            .y_label_area_size(60)
-            .build_cartesian_2d(start..x1, 0.0..top)
-            .map_err(pe)?;
-        let xd = decimals(x1 - start);
-        chart
-            .configure_mesh()
-            .x_desc(x_label)
-            .y_desc("count")
-            .x_label_formatter(&|v: &f64| tick(*v, xd))
-            .y_label_formatter(&|v: &f64| tick(*v, 0))
-            .label_style((FONT, 12))
-            .axis_desc_style((FONT, 13))
-            .light_line_style(BLACK.mix(0.05))
-            .bold_line_style(BLACK.mix(0.12))
-            .draw()
-            .map_err(pe)?;
+        let mut chart = chart_on(
+            &root,
+            &Axes {
+                caption: title,
+                x: (start, x1),
+                y: (0.0, top),
+                x_desc: x_label,
+                y_desc: "count",
+                label_px: (40, 60),
+                rows: false,
+            },
+        )?;
         chart
             .draw_series(counts.iter().enumerate().map(|(i, &c)| {
                 let a = start + i as f64 * width_bin;
@@ -575,7 +593,7 @@ mod tests {
             "GNSS outage",
             "±3σ",
             "north",
-            ">error<",
+            "\nerror\n",
         ] {
             assert!(svg.contains(label), "missing {label}");
         }

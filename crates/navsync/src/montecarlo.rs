@@ -359,7 +359,7 @@ pub fn run(
     if opts.runs == 0 || opts.jobs == 0 {
         return Err(Error::Invalid("runs and jobs must be at least 1".into()));
     }
-    if !(opts.nees_step_s > 0.0) {
+    if opts.nees_step_s.is_nan() || opts.nees_step_s <= 0.0 {
         return Err(Error::Invalid("the NEES step must be positive".into()));
     }
     // Check the scenario once before starting the workers.

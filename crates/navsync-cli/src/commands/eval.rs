@@ -10,24 +10,18 @@ use super::print_diagnostics;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Reference trajectory (11-column nav format).
-    #[arg(long)]
-    pub truth: PathBuf,
-    /// Solution to score (11-column nav format).
-    #[arg(long)]
-    pub nav: PathBuf,
-    /// GNSS outage windows "sow:len,sow:len" in which drift is measured.
-    #[arg(long, default_value = "")]
-    pub outages: String,
+    #[command(flatten)]
+    pub scored: super::Scored,
     /// Also write the report as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let outages = eval::parse_outages(&args.outages, 0)?;
+    let s = &args.scored;
+    let outages = eval::parse_outages(&s.outages, 0)?;
     let mut diag = Diagnostics::default();
-    let report = eval::eval_files(&args.truth, &args.nav, &outages, &mut diag)?;
+    let report = eval::eval_files(&s.truth, &s.nav, &outages, &mut diag)?;
     print!("{}", format_report(&report));
     if let Some(p) = &args.json {
         std::fs::write(p, serde_json::to_string_pretty(&report)?)

@@ -10,13 +10,8 @@ use super::print_diagnostics;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Reference trajectory (11-column nav format).
-    #[arg(long)]
-    pub truth: PathBuf,
-    /// The solution (navresult.nav); std.txt, imu_err.txt, time_offset.txt
-    /// and summary.json beside it are used unless given.
-    #[arg(long)]
-    pub nav: PathBuf,
+    #[command(flatten)]
+    pub scored: super::Scored,
     /// sync_report.json of `navsync sync`: timeline and latency histogram.
     #[arg(long)]
     pub sync_report: Option<PathBuf>,
@@ -41,9 +36,6 @@ pub struct Args {
     /// The true time offset (s), drawn beside the estimate.
     #[arg(long, allow_negative_numbers = true)]
     pub time_offset_truth: Option<f64>,
-    /// GNSS outage windows "sow:len,sow:len" [default: summary.json's].
-    #[arg(long, default_value = "")]
-    pub outages: String,
     /// Page title.
     #[arg(long, default_value = "navsync report")]
     pub title: String,
@@ -55,8 +47,8 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let inputs = ReportInputs {
         title: a.title,
-        truth: a.truth,
-        nav: a.nav,
+        truth: a.scored.truth,
+        nav: a.scored.nav,
         sync_report: a.sync_report,
         summary: a.summary,
         std: a.std,
@@ -65,7 +57,7 @@ pub fn run(a: Args) -> Result<()> {
         gnss: a.gnss,
         time_offset: a.time_offset,
         time_offset_truth_s: a.time_offset_truth,
-        outages: parse_outages(&a.outages, 0)?,
+        outages: parse_outages(&a.scored.outages, 0)?,
     }
     .with_siblings_of_nav();
     let report = navsync_report::build(&inputs)?;
