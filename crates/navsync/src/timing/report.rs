@@ -146,6 +146,9 @@ impl Histogram {
     /// Bins of `width` (widened so that at most `max_bins` cover the
     /// values) starting at a multiple of the width; `None` without values.
     pub fn of(values: &[f64], width: f64, max_bins: usize) -> Option<Histogram> {
+        if !(width.is_finite() && width > 0.0) {
+            return None;
+        }
         let finite = || values.iter().copied().filter(|v| v.is_finite());
         let lo = finite().reduce(f64::min)?;
         let hi = finite().reduce(f64::max)?;
@@ -377,5 +380,6 @@ mod tests {
         let h = Histogram::of(&[0.0, 95.0], 1.0, 10).unwrap();
         assert_eq!((h.width, h.counts.len()), (16.0, 6));
         assert!(Histogram::of(&[], 1.0, 10).is_none());
+        assert!(Histogram::of(&[1.0], 0.0, 10).is_none());
     }
 }
