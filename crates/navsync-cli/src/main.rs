@@ -17,6 +17,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The whole chain on a built-in drive (simulate → sync → fuse → eval)
+    /// and its HTML report: navsync-demo/report.html.
+    Demo(commands::demo::Args),
+    /// One self-contained HTML report of a run: trajectory, errors with
+    /// ±3σ, IMU errors, time offset, synchronization timeline, metrics
+    /// (std.txt, imu_err.txt, time_offset.txt, summary.json beside --nav
+    /// are used unless given).
+    Report(commands::report::Args),
     /// Fuse IMU and GNSS files described by a KF-GINS configuration.
     Fuse(commands::fuse::Args),
     /// Score a navigation result against a reference trajectory.
@@ -38,11 +46,16 @@ enum Command {
     Imu(commands::imu::Args),
     /// Simulate a drive: exact truth, IMU, GNSS, clocks and a raw rig log.
     Simulate(commands::simulate::Args),
+    /// Simulate → sync → fuse → eval over many seeds in parallel: accuracy
+    /// percentiles and the filter's consistency (NEES).
+    Montecarlo(commands::montecarlo::Args),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Demo(a) => commands::demo::run(a),
+        Command::Report(a) => commands::report::run(a),
         Command::Fuse(a) => commands::fuse::run(a),
         Command::Eval(a) => commands::eval::run(a),
         Command::Convert(a) => commands::convert::run(a),
@@ -53,6 +66,7 @@ fn main() {
         Command::SpeedSim(a) => commands::speed_sim::run(a),
         Command::Imu(a) => commands::imu::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
+        Command::Montecarlo(a) => commands::montecarlo::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

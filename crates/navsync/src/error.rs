@@ -7,7 +7,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Everything that can stop a navsync operation.
 #[derive(Debug, thiserror::Error)]
@@ -72,7 +72,7 @@ impl Error {
 
 /// A reported skip or warning: something was wrong with one record and that
 /// record alone was dropped (or a condition worth telling the user).
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Diagnostic {
     /// The file concerned (empty when not file-related).
     pub file: String,
@@ -95,7 +95,7 @@ impl fmt::Display for Diagnostic {
 /// A bounded collector of diagnostics: keeps the first `cap` in full and
 /// counts the rest, so that a file with a million bad lines cannot exhaust
 /// memory.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Diagnostics {
     /// The first diagnostics, in order.
     pub items: Vec<Diagnostic>,

@@ -75,6 +75,27 @@ pub struct EvalReport {
     pub outage_worst_3d_m: Option<f64>,
 }
 
+impl EvalReport {
+    /// The error components in display order: (name, unit, statistics).
+    pub fn rows(&self) -> [(&'static str, &'static str, ErrorStats); 13] {
+        [
+            ("position north", "m", self.pos_north_m),
+            ("position east", "m", self.pos_east_m),
+            ("position down", "m", self.pos_down_m),
+            ("position horizontal", "m", self.pos_horizontal_m),
+            ("position 3D", "m", self.pos_3d_m),
+            ("velocity north", "m/s", self.vel_north_mps),
+            ("velocity east", "m/s", self.vel_east_mps),
+            ("velocity down", "m/s", self.vel_down_mps),
+            ("velocity horizontal", "m/s", self.vel_horizontal_mps),
+            ("velocity 3D", "m/s", self.vel_3d_mps),
+            ("roll", "deg", self.roll_deg),
+            ("pitch", "deg", self.pitch_deg),
+            ("yaw", "deg", self.yaw_deg),
+        ]
+    }
+}
+
 /// One epoch's errors (solution minus truth).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EpochError {
@@ -363,12 +384,54 @@ impl TruthStream {
     }
 }
 
+/// Scores navigation states as they come (a [`crate::pipeline::NavSink`]'s
+/// view) against a truth file, matched by seconds of week.
+pub struct TruthScorer {
+    truth: TruthStream,
+    pub without_truth: usize,
+    pub diag: Diagnostics,
+}
+
+impl TruthScorer {
+    pub fn open(truth_path: &Path) -> Result<Self, Error> {
+        Ok(TruthScorer {
+            truth: TruthStream::open(truth_path)?,
+            without_truth: 0,
+            diag: Diagnostics::with_cap(100),
+        })
+    }
+
+    /// The errors of `nav` (`None`, and counted, where there is no truth).
+    /// Calls must have increasing times.
+    pub fn score(&mut self, nav: &crate::ins::NavState) -> Result<Option<EpochError>, Error> {
+        match self.truth.at(nav.time, true, &mut self.diag)? {
+            Some(t) => Ok(Some(epoch_error(&t, &nav.pos, &nav.vel, &nav.euler()))),
+            None => {
+                self.without_truth += 1;
+                Ok(None)
+            }
+        }
+    }
+}
+
 /// Scores the navigation file `nav_path` against `truth_path`.
 pub fn eval_files(
     truth_path: &Path,
     nav_path: &Path,
     outages: &[(GpsTime, f64)],
     diag: &mut Diagnostics,
+) -> Result<EvalReport, Error> {
+    eval_files_with(truth_path, nav_path, outages, diag, &mut |_, _, _| {})
+}
+
+/// [`eval_files`], also handing every compared epoch to `each`: the
+/// solution record, the truth interpolated to it and the errors.
+pub fn eval_files_with(
+    truth_path: &Path,
+    nav_path: &Path,
+    outages: &[(GpsTime, f64)],
+    diag: &mut Diagnostics,
+    each: &mut dyn FnMut(&NavRecord, &TruthState, &EpochError),
 ) -> Result<EvalReport, Error> {
     let mut truth = TruthStream::open(truth_path)?;
     let mut nav = NavReader::open(nav_path)?;
@@ -404,7 +467,9 @@ pub fn eval_files(
             Some(ts) => {
                 let pos = Geodetic::from_deg(rec.lat_deg, rec.lon_deg, rec.h_m);
                 let att = Euler::from_deg(rec.att_deg[0], rec.att_deg[1], rec.att_deg[2]);
-                e.push(&epoch_error(&ts, &pos, &Vector3::from(rec.vel), &att));
+                let err = epoch_error(&ts, &pos, &Vector3::from(rec.vel), &att);
+                e.push(&err);
+                each(&rec, &ts, &err);
             }
             None => e.epochs_without_truth += 1,
         }

@@ -923,6 +923,14 @@ impl Fusion {
             .collect()
     }
 
+    /// Covariance of the position error δr^n (m², NED) as of the last
+    /// propagation (call [`Self::std_devs`] first for the current time).
+    pub fn position_covariance(&self) -> nalgebra::Matrix3<f64> {
+        let p = self.core.filter.covariance();
+        let i0 = crate::filter::idx::POS;
+        nalgebra::Matrix3::from_fn(|r, c| p.get(i0 + r, i0 + c))
+    }
+
     /// Sets the odometer speed (m/s) used at the next odometer update.
     pub fn push_speed(&mut self, speed_mps: f64) {
         self.core.pending_speed = Some(speed_mps);

@@ -15,6 +15,7 @@
 pub mod allan;
 pub mod array;
 pub mod attitude;
+pub mod chain;
 pub mod earth;
 pub mod error;
 pub mod eval;
@@ -24,6 +25,7 @@ pub mod imu;
 pub mod ins;
 pub mod interp;
 pub mod io;
+pub mod montecarlo;
 pub mod offset_search;
 pub mod pipeline;
 pub mod reduced;

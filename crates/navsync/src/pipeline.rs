@@ -240,6 +240,15 @@ pub trait NavSink {
     fn nav_at(&mut self, _nav: &NavState) -> Result<(), Error> {
         Ok(())
     }
+    /// Right after [`Self::aux`]: the position-error covariance (m², NED),
+    /// for consistency tests (NEES).
+    fn position_covariance(
+        &mut self,
+        _time: GpsTime,
+        _p_ned_m2: &nalgebra::Matrix3<f64>,
+    ) -> Result<(), Error> {
+        Ok(())
+    }
 }
 
 /// States handed to the navigation writer thread at a time.
@@ -605,7 +614,12 @@ pub fn run(
                 && out.nav.time >= na
             {
                 let sd = fusion.std_devs();
-                if let Err(e) = sink.aux(out.nav.time, &out.imu, &sd, fusion.time_offset()) {
+                if let Err(e) = sink
+                    .aux(out.nav.time, &out.imu, &sd, fusion.time_offset())
+                    .and_then(|()| {
+                        sink.position_covariance(out.nav.time, &fusion.position_covariance())
+                    })
+                {
                     result = Err(e);
                     break 'outer;
                 }

@@ -4,30 +4,24 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use navsync::Diagnostics;
-use navsync::eval::{self, ErrorStats, EvalReport};
+use navsync::eval::{self, EvalReport};
 
 use super::print_diagnostics;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Reference trajectory (11-column nav format).
-    #[arg(long)]
-    pub truth: PathBuf,
-    /// Solution to score (11-column nav format).
-    #[arg(long)]
-    pub nav: PathBuf,
-    /// GNSS outage windows "sow:len,sow:len" in which drift is measured.
-    #[arg(long, default_value = "")]
-    pub outages: String,
+    #[command(flatten)]
+    pub scored: super::Scored,
     /// Also write the report as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<()> {
-    let outages = eval::parse_outages(&args.outages, 0)?;
+    let s = &args.scored;
+    let outages = eval::parse_outages(&s.outages, 0)?;
     let mut diag = Diagnostics::default();
-    let report = eval::eval_files(&args.truth, &args.nav, &outages, &mut diag)?;
+    let report = eval::eval_files(&s.truth, &s.nav, &outages, &mut diag)?;
     print!("{}", format_report(&report));
     if let Some(p) = &args.json {
         std::fs::write(p, serde_json::to_string_pretty(&report)?)
@@ -54,7 +48,7 @@ pub fn format_report(r: &EvalReport) -> String {
         "{:<22} {:>12} {:>12} {:>12}",
         "error", "RMS", "max", "mean"
     );
-    let row = |s: &mut String, name: &str, e: &ErrorStats, unit: &str| {
+    for (name, unit, e) in r.rows() {
         let _ = writeln!(
             s,
             "{:<22} {:>12.4} {:>12.4} {:>12.4}",
@@ -63,20 +57,7 @@ pub fn format_report(r: &EvalReport) -> String {
             e.max,
             e.mean
         );
-    };
-    row(&mut s, "position north", &r.pos_north_m, "m");
-    row(&mut s, "position east", &r.pos_east_m, "m");
-    row(&mut s, "position down", &r.pos_down_m, "m");
-    row(&mut s, "position horizontal", &r.pos_horizontal_m, "m");
-    row(&mut s, "position 3D", &r.pos_3d_m, "m");
-    row(&mut s, "velocity north", &r.vel_north_mps, "m/s");
-    row(&mut s, "velocity east", &r.vel_east_mps, "m/s");
-    row(&mut s, "velocity down", &r.vel_down_mps, "m/s");
-    row(&mut s, "velocity horizontal", &r.vel_horizontal_mps, "m/s");
-    row(&mut s, "velocity 3D", &r.vel_3d_mps, "m/s");
-    row(&mut s, "roll", &r.roll_deg, "deg");
-    row(&mut s, "pitch", &r.pitch_deg, "deg");
-    row(&mut s, "yaw", &r.yaw_deg, "deg");
+    }
     if !r.outages.is_empty() {
         let _ = writeln!(s, "GNSS outages ({}):", r.outages.len());
         for o in &r.outages {

@@ -1,13 +1,31 @@
 pub mod array;
 pub mod bench;
 pub mod convert;
+pub mod demo;
 pub mod eval;
 pub mod fuse;
 pub mod imu;
+pub mod montecarlo;
+pub mod report;
 pub mod simulate;
 pub mod speed_sim;
 pub mod sync;
 pub mod track;
+
+/// A solution and the reference it is scored against (`eval`, `report`).
+#[derive(clap::Args)]
+pub struct Scored {
+    /// Reference trajectory (11-column nav format).
+    #[arg(long)]
+    pub truth: std::path::PathBuf,
+    /// Solution to score (11-column nav format).
+    #[arg(long)]
+    pub nav: std::path::PathBuf,
+    /// GNSS outage windows "sow:len,sow:len" in which drift is measured
+    /// (`report`: by default those in summary.json).
+    #[arg(long, default_value = "")]
+    pub outages: String,
+}
 
 /// Parses "a,b,c" into three numbers.
 pub fn parse_triplet(s: &str) -> Result<[f64; 3], String> {

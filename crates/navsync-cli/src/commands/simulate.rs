@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use navsync::sim::scenario::{Scenario, parse_override, set_path};
+use navsync::sim::scenario::{Scenario, base_layer, parse_override, set_path};
 use navsync::sim::{SimReport, Simulation};
 use serde_json::{Value, json};
 
@@ -53,8 +53,9 @@ pub enum Vibration {
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A built-in scenario (test-track, urban, figure8, static) or a TOML
-    /// file with [[segments]] and any other setting.
+    /// A built-in scenario (test-track, urban, figure8, static), a preset
+    /// (demo: the `navsync demo` drive) or a TOML file with [[segments]]
+    /// and any other setting.
     #[arg(long, default_value = "urban")]
     pub scenario: String,
     /// Seed of every random error source.
@@ -168,12 +169,7 @@ fn vibration_layer(v: Vibration) -> Value {
 
 /// The scenario from the arguments: file or built-in, then overrides.
 pub fn scenario_from_args(a: &Args) -> Result<Scenario> {
-    let path = Path::new(&a.scenario);
-    let mut layer = if a.scenario.ends_with(".toml") || path.is_file() {
-        Scenario::read_toml_layer(path)?
-    } else {
-        json!({ "trajectory": a.scenario })
-    };
+    let mut layer = base_layer(&a.scenario)?;
     let mut set = |k: &str, v: Value| set_path(&mut layer, k, v);
     if let Some(s) = a.seed {
         set("seed", json!(s))?;

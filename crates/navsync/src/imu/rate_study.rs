@@ -17,9 +17,8 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::decimate::{DecRate, DecimationMethod, IncrementDecimator};
-use crate::attitude::Euler;
 use crate::error::{Diagnostics, Error};
-use crate::eval::{EpochError, Evaluator, TruthStream, epoch_error};
+use crate::eval::{EpochError, Evaluator, TruthScorer};
 use crate::ins::{ImuErrors, NavState};
 use crate::io::config::KfGinsConfig;
 use crate::io::kfgins::{ImuReader, TextWriter, format_imu_line};
@@ -66,20 +65,14 @@ pub struct RateStudyRow {
 /// Scores every navigation epoch against the truth (kept in memory; the
 /// outage windows are known only after the run).
 struct EvalSink {
-    truth: TruthStream,
+    truth: TruthScorer,
     errors: Vec<EpochError>,
-    without_truth: usize,
-    diag: Diagnostics,
 }
 
 impl NavSink for EvalSink {
     fn nav(&mut self, nav: &NavState, _imu: &ImuErrors) -> Result<(), Error> {
-        match self.truth.at(nav.time, true, &mut self.diag)? {
-            Some(t) => {
-                let e: Euler = nav.euler();
-                self.errors.push(epoch_error(&t, &nav.pos, &nav.vel, &e));
-            }
-            None => self.without_truth += 1,
+        if let Some(e) = self.truth.score(nav)? {
+            self.errors.push(e);
         }
         Ok(())
     }
@@ -180,10 +173,8 @@ pub fn rate_study(
         fo.outages = Some(opts.outages);
         fo.dry_run = true;
         let mut sink = EvalSink {
-            truth: TruthStream::open(&opts.truth)?,
+            truth: TruthScorer::open(&opts.truth)?,
             errors: Vec::new(),
-            without_truth: 0,
-            diag: Diagnostics::default(),
         };
         let summary = pipeline::run(&c, &fo, &mut sink, &mut |f| progress(k, f))?;
         let t0 = GpsTime::from_week_sow(fo.week, summary.start_sow);

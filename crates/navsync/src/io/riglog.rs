@@ -17,7 +17,7 @@ use crate::error::{Diagnostics, Error};
 use crate::time::{GpsTime, NS_PER_WEEK};
 
 /// What the six values of an `imu` record are.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ImuKind {
     /// Gyro rates (rad/s) then specific forces (m/s²), FRD.

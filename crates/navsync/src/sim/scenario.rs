@@ -105,20 +105,22 @@ impl Default for Scenario {
     }
 }
 
-/// Tag keys of the scenario's internally tagged enums (`model`, `kind`).
-const TAGS: [&str; 2] = ["model", "kind"];
+/// Keys that tag a variant of an internally tagged enum (temperature
+/// `model`, segment and filter `kind`).
+const TAG_KEYS: [&str; 2] = ["model", "kind"];
 
 /// Merges `patch` into `base`: objects key by key, anything else replaced.
-/// An object whose enum tag (`model`, `kind`) changes is replaced whole:
-/// a `ramp` temperature keeps none of a `constant` one's fields.
+/// An object that names another variant (a different `model` or `kind`)
+/// replaces the base object whole: the old variant's fields do not apply.
 pub fn deep_merge(base: &mut Value, patch: Value) {
-    let retagged = |b: &Map<String, Value>, p: &Map<String, Value>| {
-        TAGS.iter()
-            .any(|t| matches!((b.get(*t), p.get(*t)), (Some(x), Some(y)) if x != y))
+    let other_variant = |b: &Map<String, Value>, p: &Map<String, Value>| {
+        TAG_KEYS.iter().any(|k| {
+            p.get(*k)
+                .is_some_and(|v| b.get(*k).is_some_and(|bv| bv != v))
+        })
     };
     match (base, patch) {
-        (Value::Object(b), Value::Object(p)) if retagged(b, &p) => *b = p,
-        (Value::Object(b), Value::Object(p)) => {
+        (Value::Object(b), Value::Object(p)) if !other_variant(b, &p) => {
             for (k, v) in p {
                 match b.get_mut(&k) {
                     Some(slot) => deep_merge(slot, v),
@@ -196,6 +198,54 @@ fn toml_to_json(v: &toml::Value) -> Value {
     }
 }
 
+/// Named presets: a built-in trajectory with sensor and rig settings.
+pub const PRESETS: &[&str] = &["demo"];
+
+/// The layer of a named preset:
+/// - `demo`: the `navsync demo` drive. The test track with an ADIS16465
+///   (the default IMU) at 200 Hz and 1 Hz RTK; a logger whose 1 MHz
+///   counter runs 20 ppm fast and drifts 7.5 ppm more as the board warms
+///   up (0.5 ppm/°C, +15 °C with a 300 s time constant); one 40 s PPS
+///   dropout, a few spurious and displaced pulses; GNSS messages 70–100 ms
+///   late (receiver processing plus 38400 baud); GNSS time tags 10 ms late
+///   (a receiver offset no clock synchronization can see, left for the
+///   filter's time-offset state); two 30 s GNSS outages.
+pub fn preset_layer(name: &str) -> Option<Value> {
+    match name {
+        "demo" => Some(serde_json::json!({
+            "trajectory": "test-track",
+            "duration_s": 600.0,
+            "imu": { "grade": "adis16465" },
+            "gnss": {
+                "outages": [[240.0, 30.0], [420.0, 30.0]],
+                "time_offset_s": 0.010
+            },
+            "rig": {
+                "sync": "hw",
+                "counter": { "freq_error_ppm": 20.0, "temp_coeff_ppm_per_c": 0.5 },
+                "temperature": { "model": "exponential", "t0_c": 20.0, "delta_c": 15.0, "tau_s": 300.0 },
+                "pps": {
+                    "dropouts": [[150.0, 40.0]],
+                    "spurious_per_hour": 30.0,
+                    "displaced_fraction": 0.005
+                }
+            }
+        })),
+        _ => None,
+    }
+}
+
+/// The base layer named by `--scenario`: a TOML file, a preset or a
+/// built-in trajectory.
+pub fn base_layer(name_or_path: &str) -> Result<Value, Error> {
+    let path = Path::new(name_or_path);
+    if name_or_path.ends_with(".toml") || path.is_file() {
+        return Scenario::read_toml_layer(path);
+    }
+    Ok(preset_layer(name_or_path)
+        .unwrap_or_else(|| serde_json::json!({ "trajectory": name_or_path })))
+}
+
 impl Scenario {
     /// Reads a user scenario file (TOML) as a sparse layer; unknown keys
     /// and bad values are reported with the file and line.
@@ -250,8 +300,9 @@ impl Scenario {
             && !BUILTIN_SCENARIOS.contains(&name.as_str())
         {
             return bad(format!(
-                "unknown scenario '{name}' (built-in: {}; or give a TOML file with [[segments]])",
-                BUILTIN_SCENARIOS.join(", ")
+                "unknown scenario '{name}' (built-in: {}, {}; or give a TOML file with [[segments]])",
+                BUILTIN_SCENARIOS.join(", "),
+                PRESETS.join(", ")
             ));
         }
         if self.trajectory.is_some() && !self.segments.is_empty() {
@@ -313,9 +364,7 @@ fn scenario_error(msg: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::clock::TemperatureSpec;
     use crate::sim::imu::Decimation;
-    use serde_json::json;
 
     #[test]
     fn layers_apply_in_order() {
@@ -390,29 +439,37 @@ speed_mps = 10
     }
 
     #[test]
-    fn a_new_enum_tag_replaces_the_whole_table() {
-        let mut base = json!({"rig": {"temperature": {"model": "constant", "celsius": 25.0}}});
-        deep_merge(
-            &mut base,
-            json!({"rig": {"temperature": {"model": "ramp", "t0_c": 20.0, "rate_c_per_min": 1.0}}}),
-        );
+    fn another_variant_replaces_the_default_one() {
+        let mut layer = serde_json::json!({});
+        let (k, v) =
+            parse_override("rig.temperature={model=\"ramp\",t0_c=20,rate_c_per_min=1}").unwrap();
+        set_path(&mut layer, &k, v).unwrap();
+        let scn = Scenario::from_layer(layer).unwrap();
+        assert!(matches!(
+            scn.rig.temperature,
+            crate::sim::clock::TemperatureSpec::Ramp { rate_c_per_min, .. } if rate_c_per_min == 1.0
+        ));
+        // The same variant still merges field by field.
+        let mut base = serde_json::json!({"model": "constant", "celsius": 25.0, "x": 1});
+        deep_merge(&mut base, serde_json::json!({"celsius": 30.0}));
         assert_eq!(
             base,
-            json!({"rig": {"temperature": {"model": "ramp", "t0_c": 20.0, "rate_c_per_min": 1.0}}})
+            serde_json::json!({"model": "constant", "celsius": 30.0, "x": 1})
         );
-        // The same tag merges field by field.
-        deep_merge(
-            &mut base,
-            json!({"rig": {"temperature": {"model": "ramp", "t0_c": 30.0}}}),
-        );
-        assert_eq!(base["rig"]["temperature"]["rate_c_per_min"], json!(1.0));
-        assert_eq!(base["rig"]["temperature"]["t0_c"], json!(30.0));
-        let s = Scenario::from_layer(json!({
-            "trajectory": "static",
-            "rig": {"temperature": {"model": "ramp", "t0_c": 25.0, "rate_c_per_min": 1.0}}
-        }))
-        .unwrap();
-        assert!(matches!(s.rig.temperature, TemperatureSpec::Ramp { .. }));
+    }
+
+    #[test]
+    fn the_demo_preset_builds() {
+        let scn = Scenario::from_layer(base_layer("demo").unwrap()).unwrap();
+        assert_eq!(scn.trajectory.as_deref(), Some("test-track"));
+        assert_eq!(scn.rig.pps.dropouts.len(), 1);
+        assert_eq!(scn.gnss.outages.len(), 2);
+        assert!(matches!(
+            scn.rig.temperature,
+            crate::sim::clock::TemperatureSpec::Exponential { .. }
+        ));
+        let err = Scenario::from_layer(base_layer("moon").unwrap()).unwrap_err();
+        assert!(err.to_string().contains("demo"), "{err}");
     }
 
     #[test]

@@ -213,7 +213,7 @@ pub struct LockEvent {
 }
 
 /// Counts of pulse outcomes.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PulseCounts {
     pub received: u64,
     pub accepted: u64,

@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use super::clock::{ClockConfig, LockState, Oscillator, PpsClock, Smoother};
+use super::clock::{ClockConfig, LockState, Oscillator, PpsClock, Rejection, Smoother};
 use super::imu::{ImuFlags, ImuTracker, RateEstimator};
 use super::report::*;
 use super::swsync::{SwClock, SwConfig};
@@ -181,6 +181,7 @@ pub struct SyncEngine {
     unstamped: u64,
     diag: Diagnostics,
     out_of_order_imu: u64,
+    rejected_pulses: Vec<RejectedPulse>,
 }
 
 impl SyncEngine {
@@ -238,6 +239,7 @@ impl SyncEngine {
             unstamped: 0,
             diag: Diagnostics::default(),
             out_of_order_imu: 0,
+            rejected_pulses: Vec::new(),
         }
     }
 
@@ -419,7 +421,9 @@ impl SyncEngine {
             match rec {
                 RigRecord::Pps { .. } => {
                     if hw {
-                        let _ = self.clock.push_pulse(c);
+                        if let Err(r) = self.clock.push_pulse(c) {
+                            self.note_rejection(c, r);
+                        }
                     } else {
                         self.pps_ignored += 1;
                     }
@@ -443,6 +447,24 @@ impl SyncEngine {
             }
         }
         self.drain(out, false);
+    }
+
+    /// Keeps the time of a pulse rejected after lock (the first 1000);
+    /// pulses pending acquisition or confirmation are not rejections yet.
+    fn note_rejection(&mut self, c: u64, r: Rejection) {
+        let reason = match r {
+            Rejection::Spurious => "spurious",
+            Rejection::Displaced => "displaced",
+            Rejection::Duplicate => "duplicate",
+            Rejection::Unconfirmed | Rejection::Acquisition => return,
+        };
+        if self.clock.has_model() && self.rejected_pulses.len() < 1000 {
+            let (t, _) = self.clock.causal_time(c);
+            self.rejected_pulses.push(RejectedPulse {
+                time: WeekSow::from(t),
+                reason: reason.into(),
+            });
+        }
     }
 
     fn note_time(&mut self, c: u64) {
@@ -758,6 +780,11 @@ impl SyncEngine {
                 max: q(1.0),
             },
             negative_latency: self.negative_latency,
+            latency_histogram_ms: Histogram::of(
+                &lat.iter().map(|&v| f64::from(v)).collect::<Vec<_>>(),
+                1.0,
+                100,
+            ),
         };
         let timeline = self.timeline(hw);
         let clock = &self.clock;
@@ -830,6 +857,7 @@ impl SyncEngine {
             counter,
             lock_timeline: timeline,
             pps,
+            rejected_pulses: self.rejected_pulses.clone(),
             holdover: self.holdover.clone(),
             imu,
             gnss,

@@ -30,7 +30,7 @@ pub struct ImuFlags {
 }
 
 /// A gap in the IMU stream.
-#[derive(Copy, Clone, Debug, serde::Serialize)]
+#[derive(Copy, Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct ImuGap {
     /// Index (0-based among `imu` records) of the sample after the gap.
     pub record: u64,

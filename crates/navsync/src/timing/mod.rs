@@ -17,6 +17,7 @@
 
 pub mod clock;
 pub mod engine;
+pub mod file;
 pub mod fit;
 pub mod imu;
 pub mod report;

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::clock::PulseCounts;
 use super::imu::ImuGap;
@@ -14,7 +14,7 @@ use crate::io::text::{LineReader, is_blank_or_comment, parse_seconds_ns, split_f
 use crate::time::{GpsTime, NS_PER_S};
 
 /// A GPS time as week and seconds of week.
-#[derive(Copy, Clone, Debug, Serialize, PartialEq)]
+#[derive(Copy, Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct WeekSow {
     pub week: i64,
     pub sow: f64,
@@ -36,21 +36,21 @@ impl WeekSow {
     }
 }
 
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct RecordCounts {
     pub imu: u64,
     pub pps: u64,
     pub gnss: u64,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RangeStats {
     pub mean: f64,
     pub min: f64,
     pub max: f64,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CounterReport {
     pub nominal_hz: f64,
     pub bits: u32,
@@ -66,14 +66,14 @@ pub struct CounterReport {
     pub freq_error_ppm: Option<RangeStats>,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LockSpan {
     pub state: String,
     pub start: WeekSow,
     pub end: WeekSow,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct HoldoverSpan {
     /// First and last IMU stamp made without a pulse within 1.5 s.
     pub start: WeekSow,
@@ -84,7 +84,7 @@ pub struct HoldoverSpan {
     pub samples: u64,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PpsReport {
     #[serde(flatten)]
     pub counts: PulseCounts,
@@ -93,13 +93,13 @@ pub struct PpsReport {
     pub ignored: u64,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct OddSecond {
     pub gps_second: i64,
     pub samples: u32,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ImuReport {
     pub records: u64,
     pub kind: ImuKind,
@@ -125,7 +125,7 @@ pub struct ImuReport {
     pub timestamps_not_increasing: u64,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LatencyStats {
     pub min: Option<f64>,
     pub median: Option<f64>,
@@ -133,7 +133,45 @@ pub struct LatencyStats {
     pub max: Option<f64>,
 }
 
-#[derive(Clone, Debug, Serialize)]
+/// Counts in equal bins: bin `i` holds values in
+/// `[start + i·width, start + (i+1)·width)`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Histogram {
+    pub start: f64,
+    pub width: f64,
+    pub counts: Vec<u64>,
+}
+
+impl Histogram {
+    /// Bins of `width` (widened so that at most `max_bins` cover the
+    /// values) starting at a multiple of the width; `None` without values.
+    pub fn of(values: &[f64], width: f64, max_bins: usize) -> Option<Histogram> {
+        if !(width.is_finite() && width > 0.0) {
+            return None;
+        }
+        let finite = || values.iter().copied().filter(|v| v.is_finite());
+        let lo = finite().reduce(f64::min)?;
+        let hi = finite().reduce(f64::max)?;
+        let mut w = width;
+        while ((hi - lo) / w).floor() as usize + 1 > max_bins.max(1) {
+            w *= 2.0;
+        }
+        let start = (lo / w).floor() * w;
+        let n = ((hi - start) / w).floor() as usize + 1;
+        let mut counts = vec![0u64; n];
+        for v in finite() {
+            let i = (((v - start) / w).floor() as usize).min(n - 1);
+            counts[i] += 1;
+        }
+        Some(Histogram {
+            start,
+            width: w,
+            counts,
+        })
+    }
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GnssReport {
     pub messages: u64,
     pub stamped: u64,
@@ -141,9 +179,22 @@ pub struct GnssReport {
     /// last byte (ms), seed 002.
     pub latency_ms: LatencyStats,
     pub negative_latency: u64,
+    /// The latencies (ms) in bins of 1 ms (or wider: at most 100 bins).
+    #[serde(default)]
+    pub latency_histogram_ms: Option<Histogram>,
 }
 
-#[derive(Clone, Debug, Serialize)]
+/// A 1PPS edge the clock model did not use, at its GPS time (causal
+/// estimate).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RejectedPulse {
+    pub time: WeekSow,
+    /// `spurious` (far from any GPS second), `displaced` (near one but
+    /// outside the gate) or `duplicate`.
+    pub reason: String,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SoftwareReport {
     pub imu_envelope_mean_delay_ms: f64,
     pub gnss_envelope_mean_delay_ms: f64,
@@ -156,14 +207,14 @@ pub struct SoftwareReport {
     pub pps_records_ignored: u64,
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct BoundStats {
     pub mean: Option<f64>,
     pub max: Option<f64>,
 }
 
 /// Stamps compared with the true times.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct TruthComparison {
     pub compared: u64,
     pub rms_us: f64,
@@ -183,7 +234,7 @@ pub struct TruthComparison {
 }
 
 /// Everything `navsync sync` learned.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SyncReport {
     pub mode: String,
     pub causal: bool,
@@ -191,6 +242,9 @@ pub struct SyncReport {
     pub counter: CounterReport,
     pub lock_timeline: Vec<LockSpan>,
     pub pps: Option<PpsReport>,
+    /// Rejected pulses after lock (the first 1000).
+    #[serde(default)]
+    pub rejected_pulses: Vec<RejectedPulse>,
     pub holdover: Vec<HoldoverSpan>,
     pub imu: ImuReport,
     pub gnss: GnssReport,
@@ -307,4 +361,25 @@ pub fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
 /// Whole GPS seconds of `t`.
 pub fn gps_second(t: GpsTime) -> i64 {
     t.ns().div_euclid(NS_PER_S)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Histogram;
+
+    #[test]
+    fn histogram_bins_hold_every_value_once() {
+        let v = [69.1, 70.0, 70.9, 83.7, 99.0, f64::NAN];
+        let h = Histogram::of(&v, 1.0, 100).unwrap();
+        assert_eq!((h.start, h.width, h.counts.len()), (69.0, 1.0, 31));
+        assert_eq!(h.counts[0], 1); // 69.1
+        assert_eq!(h.counts[1], 2); // 70.0, 70.9
+        assert_eq!(h.counts[30], 1); // 99.0
+        assert_eq!(h.counts.iter().sum::<u64>(), 5);
+        // A wide range doubles the width until 10 bins suffice.
+        let h = Histogram::of(&[0.0, 95.0], 1.0, 10).unwrap();
+        assert_eq!((h.width, h.counts.len()), (16.0, 6));
+        assert!(Histogram::of(&[], 1.0, 10).is_none());
+        assert!(Histogram::of(&[1.0], 0.0, 10).is_none());
+    }
 }

@@ -274,10 +274,38 @@ fn displaced_and_spurious_pulses_are_never_accepted() {
     // Acquisition uses a few pulses at once; nearly all good ones are used.
     assert!(accepted_good + 20 >= good.len());
     // Accuracy unchanged.
-    let (imu, _, _) = run(&g, cfg(false)).unwrap();
+    let (imu, _, report) = run(&g, cfg(false)).unwrap();
     let c = compare(&imu, &g.truth.imu_times);
     show("displaced+spurious post", &c);
     assert!(c.rms_us <= 0.4 && c.max_abs_us <= 2.0);
+    // The report lists every rejection after lock with its time, inside
+    // the run; all are spurious or displaced here.
+    let pc = &report.pps.as_ref().unwrap().counts;
+    let rejected = pc.rejected_spurious + pc.rejected_displaced + pc.rejected_duplicate;
+    assert!(rejected >= 15, "{pc:?}");
+    assert_eq!(report.rejected_pulses.len() as u64, rejected);
+    let (first, last) = (report.first_stamp.unwrap(), report.last_stamp.unwrap());
+    for p in &report.rejected_pulses {
+        assert!(p.time.seconds_since(&first) >= 0.0 && last.seconds_since(&p.time) >= 0.0);
+        assert!(
+            matches!(p.reason.as_str(), "spurious" | "displaced"),
+            "{p:?}"
+        );
+    }
+    // The JSON reads back (serde_json's float parsing may differ in the
+    // last bit, so compare what is exact).
+    let json = serde_json::to_string(&report).unwrap();
+    let back: SyncReport = serde_json::from_str(&json).unwrap();
+    assert_eq!(back.rejected_pulses.len(), report.rejected_pulses.len());
+    assert_eq!(back.lock_timeline.len(), report.lock_timeline.len());
+    assert_eq!(back.holdover.len(), report.holdover.len());
+    assert_eq!(back.pps.unwrap().counts.accepted, pc.accepted);
+    assert_eq!(
+        back.gnss.latency_histogram_ms,
+        report.gnss.latency_histogram_ms
+    );
+    let h = report.gnss.latency_histogram_ms.as_ref().unwrap();
+    assert_eq!(h.counts.iter().sum::<u64>(), report.gnss.stamped);
 }
 
 #[test]

@@ -1,0 +1,77 @@
+//! `navsync report`: one self-contained HTML page of a run.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use navsync::eval::parse_outages;
+use navsync_report::ReportInputs;
+
+use super::print_diagnostics;
+
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(flatten)]
+    pub scored: super::Scored,
+    /// sync_report.json of `navsync sync`: timeline and latency histogram.
+    #[arg(long)]
+    pub sync_report: Option<PathBuf>,
+    /// summary.json of `navsync fuse`.
+    #[arg(long)]
+    pub summary: Option<PathBuf>,
+    /// std.txt (KF-GINS layout): the filter's ±3σ bounds.
+    #[arg(long)]
+    pub std: Option<PathBuf>,
+    /// imu_err.txt (KF-GINS layout): IMU error estimates.
+    #[arg(long)]
+    pub imu_err: Option<PathBuf>,
+    /// The true IMU errors (the simulator's imu_err_truth.txt).
+    #[arg(long)]
+    pub imu_err_truth: Option<PathBuf>,
+    /// GNSS fixes (7 or 13 columns) for the trajectory plot.
+    #[arg(long)]
+    pub gnss: Option<PathBuf>,
+    /// time_offset.txt of `navsync fuse --estimate-time-offset`.
+    #[arg(long)]
+    pub time_offset: Option<PathBuf>,
+    /// The true time offset (s), drawn beside the estimate.
+    #[arg(long, allow_negative_numbers = true)]
+    pub time_offset_truth: Option<f64>,
+    /// Page title.
+    #[arg(long, default_value = "navsync report")]
+    pub title: String,
+    /// The HTML file to write.
+    #[arg(long)]
+    pub output: PathBuf,
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let inputs = ReportInputs {
+        title: a.title,
+        truth: a.scored.truth,
+        nav: a.scored.nav,
+        sync_report: a.sync_report,
+        summary: a.summary,
+        std: a.std,
+        imu_err: a.imu_err,
+        imu_err_truth: a.imu_err_truth,
+        gnss: a.gnss,
+        time_offset: a.time_offset,
+        time_offset_truth_s: a.time_offset_truth,
+        outages: parse_outages(&a.scored.outages, 0)?,
+    }
+    .with_siblings_of_nav();
+    let report = navsync_report::build(&inputs)?;
+    std::fs::write(&a.output, &report.html)
+        .with_context(|| format!("writing {}", a.output.display()))?;
+    println!(
+        "navsync report: {} epochs scored; wrote {} ({:.0} kB)",
+        report.eval.epochs_compared,
+        a.output.display(),
+        report.html.len() as f64 / 1e3
+    );
+    if !report.diagnostics.is_empty() {
+        eprintln!("{} lines skipped:", report.diagnostics.total);
+        print_diagnostics(&report.diagnostics, 10);
+    }
+    Ok(())
+}

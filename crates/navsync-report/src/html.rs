@@ -1,0 +1,768 @@
+//! The report page: metrics tables and the figures, one HTML file with the
+//! SVG inline (no scripts, no network).
+
+use std::fmt::Write as _;
+
+use navsync::eval::{EvalReport, parse_outages};
+use navsync::timing::SyncReport;
+use navsync::{Diagnostics, Error};
+
+use crate::inputs::{
+    Epochs, IMU_ERR_LAYOUT, ReportInputs, STD_LAYOUT, TIME_OFFSET_LAYOUT, read_gnss, read_summary,
+    read_sync_report, read_table, rel_s, score,
+};
+use crate::plot::{
+    self, AXES, BLUE, Band, Figure, GREY, Line, OUTAGE, PURPLE, Panel, Shade, Timeline, Trajectory,
+};
+
+/// Points per plotted series at most.
+const MAX_POINTS: usize = 1200;
+/// Figure width (px).
+const WIDTH: u32 = 1100;
+
+/// A built report.
+pub struct Report {
+    pub html: String,
+    /// The scores shown, as `navsync eval` computes them.
+    pub eval: EvalReport,
+    /// Lines skipped in the navigation and truth files (as `navsync eval`).
+    pub diagnostics: Diagnostics,
+}
+
+/// Escapes text for HTML.
+pub fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+fn lighter(c: plotters::style::RGBColor) -> plotters::style::RGBColor {
+    let m = |v: u8| (f64::from(v) + 0.55 * (255.0 - f64::from(v))) as u8;
+    plotters::style::RGBColor(m(c.0), m(c.1), m(c.2))
+}
+
+/// Contiguous runs of `flag` over `t` as (start, end) spans.
+fn spans_where(t: &[f64], flag: &[bool]) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    let mut start: Option<f64> = None;
+    for (i, (&ti, &f)) in t.iter().zip(flag).enumerate() {
+        match (f, start) {
+            (true, None) => start = Some(ti),
+            (false, Some(s)) => {
+                out.push((s, t[i - 1].max(s)));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let (Some(s), Some(&e)) = (start, t.last()) {
+        out.push((s, e));
+    }
+    out
+}
+
+/// A downsampled (t, value) series.
+fn series(t: &[f64], v: impl Fn(usize) -> f64) -> Vec<(f64, f64)> {
+    let k = plot::stride(t.len(), MAX_POINTS);
+    (0..t.len()).step_by(k).map(|i| (t[i], v(i))).collect()
+}
+
+/// One rows-per-epoch table resampled to at most [`MAX_POINTS`] rows, with
+/// times relative to `t0_sow`.
+struct Rows {
+    t: Vec<f64>,
+    rows: Vec<Vec<f64>>,
+}
+
+impl Rows {
+    fn new(rows: Vec<Vec<f64>>, t0_sow: f64) -> Rows {
+        let k = plot::stride(rows.len(), MAX_POINTS);
+        let rows: Vec<Vec<f64>> = rows.into_iter().step_by(k).collect();
+        Rows {
+            t: rows.iter().map(|r| rel_s(r[0], t0_sow)).collect(),
+            rows,
+        }
+    }
+    fn col(&self, c: usize, scale: f64) -> Vec<(f64, f64)> {
+        self.t
+            .iter()
+            .zip(&self.rows)
+            .map(|(&t, r)| (t, r[c] * scale))
+            .collect()
+    }
+    fn band(&self, c: usize, sigmas: f64) -> Vec<(f64, f64, f64)> {
+        self.t
+            .iter()
+            .zip(&self.rows)
+            .map(|(&t, r)| (t, -sigmas * r[c], sigmas * r[c]))
+            .collect()
+    }
+}
+
+fn section(html: &mut String, id: &str, title: &str, note: &str, svg: &str) {
+    let _ = write!(
+        html,
+        "<section id=\"{id}\"><h2>{}</h2>\n{}<figure>{svg}</figure></section>\n",
+        escape(title),
+        if note.is_empty() {
+            String::new()
+        } else {
+            format!("<p class=\"note\">{}</p>\n", escape(note))
+        }
+    );
+}
+
+/// A navigation error quantity: its components and where its σ are in
+/// std.txt.
+struct Quantity {
+    name: &'static str,
+    unit: &'static str,
+    comps: [&'static str; 3],
+    std_col0: usize,
+}
+
+const NED: [&str; 3] = ["north", "east", "down"];
+const POSITION: Quantity = Quantity {
+    name: "position",
+    unit: "m",
+    comps: NED,
+    std_col0: 1,
+};
+const VELOCITY: Quantity = Quantity {
+    name: "velocity",
+    unit: "m/s",
+    comps: NED,
+    std_col0: 4,
+};
+const ATTITUDE: Quantity = Quantity {
+    name: "attitude",
+    unit: "deg",
+    comps: ["roll", "pitch", "yaw"],
+    std_col0: 7,
+};
+
+fn error_figure(
+    ep: &Epochs,
+    std: Option<&Rows>,
+    shades: &[Shade],
+    q: &Quantity,
+    value: impl Fn(usize, usize) -> f64,
+) -> Result<String, Error> {
+    let (quantity, unit, comps, std_col0) = (q.name, q.unit, q.comps, q.std_col0);
+    let x1 = ep.t.last().copied().unwrap_or(1.0).max(1e-3);
+    let panels = (0..3)
+        .map(|c| Panel {
+            title: format!("{quantity} error, {}", comps[c]),
+            y_label: format!("{} ({unit})", comps[c]),
+            lines: vec![Line {
+                name: "solution − truth".into(),
+                color: AXES[c],
+                width: 1,
+                pts: series(&ep.t, |i| value(i, c)),
+            }],
+            bands: std
+                .map(|s| Band {
+                    name: "filter ±3σ".into(),
+                    color: GREY,
+                    pts: s.band(std_col0 + c, 3.0),
+                })
+                .into_iter()
+                .collect(),
+            y_range: None,
+        })
+        .collect();
+    plot::time_series(&Figure {
+        x_label: "time since the first epoch (s)".into(),
+        x_range: (0.0, x1),
+        shades: shades.to_vec(),
+        panels,
+        width: WIDTH,
+        panel_height: 210,
+    })
+}
+
+fn row(html: &mut String, cells: &[String]) {
+    html.push_str("<tr>");
+    for c in cells {
+        let _ = write!(html, "<td>{c}</td>");
+    }
+    html.push_str("</tr>\n");
+}
+
+fn f4(v: f64) -> String {
+    format!("{v:.4}")
+}
+
+/// The metrics tables (values as `navsync eval` prints them).
+fn metrics_tables(html: &mut String, e: &EvalReport) {
+    html.push_str("<table class=\"metrics\"><tr><th>error (solution − truth)</th><th>unit</th><th>RMS</th><th>max |·|</th><th>mean</th></tr>\n");
+    for (name, unit, s) in e.rows() {
+        row(
+            html,
+            &[
+                name.to_string(),
+                unit.to_string(),
+                f4(s.rms),
+                f4(s.max),
+                f4(s.mean),
+            ],
+        );
+    }
+    html.push_str("</table>\n");
+    let _ = writeln!(
+        html,
+        "<p>{} epochs compared ({} without truth).</p>",
+        e.epochs_compared, e.epochs_without_truth
+    );
+    if !e.outages.is_empty() {
+        html.push_str("<table class=\"metrics\"><tr><th>GNSS outage start (sow)</th><th>length (s)</th><th>max horizontal drift (m)</th><th>max 3D drift (m)</th></tr>\n");
+        for o in &e.outages {
+            row(
+                html,
+                &[
+                    format!("{:.3}", o.start_sow),
+                    format!("{:.1}", o.len_s),
+                    format!("{:.3}", o.max_horizontal_m),
+                    format!("{:.3}", o.max_3d_m),
+                ],
+            );
+        }
+        html.push_str("</table>\n");
+        if let (Some(h), Some(d)) = (e.outage_rms_max_horizontal_m, e.outage_rms_max_3d_m) {
+            let _ = writeln!(
+                html,
+                "<p>RMS over outages of the maximum drift: horizontal <b>{h:.3} m</b>, 3D {d:.3} m (Niu et al. 2010 protocol, as KF-GINS).</p>"
+            );
+        }
+    }
+}
+
+fn sync_tables(html: &mut String, s: &SyncReport, t0_sow: f64) {
+    html.push_str("<table class=\"metrics kv\">\n");
+    let mut kv = |k: &str, v: String| row(html, &[escape(k), v]);
+    kv(
+        "mode",
+        format!(
+            "{} ({})",
+            s.mode,
+            if s.causal {
+                "causal"
+            } else {
+                "post-processing"
+            }
+        ),
+    );
+    kv(
+        "records",
+        format!(
+            "{} imu, {} pps, {} gnss",
+            s.records.imu, s.records.pps, s.records.gnss
+        ),
+    );
+    if let Some(f) = &s.counter.freq_error_ppm {
+        kv(
+            "counter frequency error",
+            format!("{:.2} ppm ({:.2} … {:.2})", f.mean, f.min, f.max),
+        );
+    }
+    if let Some(p) = &s.pps {
+        let c = &p.counts;
+        let rejected: Vec<String> = [
+            (c.rejected_spurious, "spurious"),
+            (c.rejected_displaced, "displaced"),
+            (c.rejected_duplicate, "duplicate"),
+            (c.rejected_unconfirmed, "unconfirmed"),
+            (c.rejected_acquisition, "at acquisition"),
+        ]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+        kv(
+            "1PPS pulses",
+            format!(
+                "{} received, {} accepted{}",
+                c.received,
+                c.accepted,
+                if rejected.is_empty() {
+                    String::new()
+                } else {
+                    format!("; rejected {}", rejected.join(", "))
+                }
+            ),
+        );
+    }
+    for h in &s.holdover {
+        kv(
+            "holdover",
+            format!(
+                "t = {} s for {:.1} s, bound ≤ {:.2} µs",
+                plot::tick(rel_s(h.start.sow, t0_sow), 1),
+                h.duration_s,
+                h.max_bound_us
+            ),
+        );
+    }
+    if let (Some(m), Some(x)) = (s.stamp_bound_us.mean, s.stamp_bound_us.max) {
+        kv(
+            "IMU stamp-error bound",
+            format!("mean {m:.3} µs, max {x:.3} µs"),
+        );
+    }
+    if let Some(t) = &s.truth {
+        kv(
+            "IMU stamps vs truth",
+            format!(
+                "<b>RMS {:.3} µs</b>, max {:.3} µs; {:.2} % within bound",
+                t.rms_us,
+                t.max_abs_us,
+                100.0 * t.within_bound
+            ),
+        );
+    }
+    let l = &s.gnss.latency_ms;
+    if let (Some(a), Some(m), Some(b)) = (l.min, l.median, l.max) {
+        kv(
+            "GNSS latency",
+            format!("min {a:.1}, median {m:.1}, max {b:.1} ms"),
+        );
+    }
+    kv(
+        "IMU",
+        format!(
+            "{:.6} Hz; lost {}, duplicated {}, unstamped {}",
+            s.imu.rate_hz.unwrap_or(f64::NAN),
+            s.imu.lost,
+            s.imu.duplicated,
+            s.imu.unstamped
+        ),
+    );
+    html.push_str("</table>\n");
+}
+
+/// Builds the report.
+pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
+    let mut diag = Diagnostics::with_cap(100);
+    let summary = inp.summary.as_deref().map(read_summary).transpose()?;
+    let outages = if inp.outages.is_empty() {
+        let text = summary
+            .as_ref()
+            .and_then(|s| s.get("outages"))
+            .and_then(|v| v.as_str())
+            .unwrap_or("");
+        parse_outages(text, 0).map_err(|e| match (e, &inp.summary) {
+            (Error::Invalid(m), Some(p)) => Error::config(p, format!("\"outages\": {m}")),
+            (e, _) => e,
+        })?
+    } else {
+        inp.outages.clone()
+    };
+    let (eval, ep) = score(&inp.truth, &inp.nav, &outages, &mut diag)?;
+    let t0 = ep.t0_sow;
+    let x1 = ep.t.last().copied().unwrap_or(1.0).max(1e-3);
+    let outage_spans: Vec<(f64, f64)> = outages
+        .iter()
+        .map(|(s, l)| {
+            let a = rel_s(s.sow(), t0);
+            (a, a + l)
+        })
+        .collect();
+    let outage_shade = Shade {
+        name: "GNSS outage".into(),
+        color: OUTAGE,
+        spans: outage_spans.clone(),
+    };
+    let rows = |p: &Option<std::path::PathBuf>, columns: usize, layout: &str| {
+        p.as_deref()
+            .map(|p| read_table(p, columns, layout).map(|r| Rows::new(r, t0)))
+            .transpose()
+    };
+    let std = rows(&inp.std, 22, STD_LAYOUT)?;
+    let imu_err = rows(&inp.imu_err, 13, IMU_ERR_LAYOUT)?;
+    let imu_err_truth = rows(&inp.imu_err_truth, 13, IMU_ERR_LAYOUT)?;
+    let offset = inp
+        .time_offset
+        .as_deref()
+        .map(|p| read_table(p, 4, TIME_OFFSET_LAYOUT))
+        .transpose()?;
+    let sync = inp
+        .sync_report
+        .as_deref()
+        .map(read_sync_report)
+        .transpose()?;
+    let gnss = match (&inp.gnss, ep.origin) {
+        (Some(p), Some(o)) => read_gnss(p, &o, &mut diag)?,
+        _ => Vec::new(),
+    };
+
+    let mut html = String::with_capacity(1 << 20);
+    let title = if inp.title.is_empty() {
+        "navsync report"
+    } else {
+        inp.title.as_str()
+    };
+    let _ = write!(
+        html,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>{t}</title>\n<style>\n\
+         body{{font-family:sans-serif;max-width:1140px;margin:1em auto;padding:0 1em;color:#222}}\n\
+         h1{{font-size:1.5em}} h2{{font-size:1.2em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}}\n\
+         table.metrics{{border-collapse:collapse;margin:.5em 0}} table.metrics td,table.metrics th{{border:1px solid #ccc;padding:.2em .6em;text-align:right}}\n\
+         table.metrics td:first-child,table.metrics th:first-child{{text-align:left}} table.metrics th{{background:#f2f2f2}} table.kv td{{text-align:left}} table.kv td:first-child{{white-space:nowrap}}\n\
+         .cols{{display:flex;flex-wrap:wrap;gap:0 2em;align-items:flex-start}} .cols>div{{flex:1 1 480px;min-width:0}} h3{{font-size:1.05em;margin:.6em 0 .3em}}\n\
+         figure{{margin:.5em 0}} figure svg{{max-width:100%;height:auto}} .note{{color:#555;font-size:.92em}} code{{font-size:.95em}}\n\
+         </style></head><body>\n<h1>{t}</h1>\n",
+        t = escape(title)
+    );
+    let _ = writeln!(
+        html,
+        "<p class=\"note\">navsync {} — solution <code>{}</code> against <code>{}</code>; first epoch GPS week {} SOW {:.3} (t = 0 below). Errors are solution − truth, with the truth interpolated to each epoch; figures show at most {} points per curve.</p>",
+        env!("CARGO_PKG_VERSION"),
+        escape(&inp.nav.display().to_string()),
+        escape(&inp.truth.display().to_string()),
+        ep.week,
+        t0,
+        MAX_POINTS
+    );
+
+    // Metrics first.
+    html.push_str("<section id=\"metrics\"><h2>Metrics</h2>\n<div class=\"cols\"><div>\n");
+    metrics_tables(&mut html, &eval);
+    let final_offset = offset.as_ref().and_then(|r| r.last()).map(|r| (r[1], r[2]));
+    if let Some((o, sd)) = final_offset {
+        let truth = inp
+            .time_offset_truth_s
+            .map(|t| {
+                format!(
+                    "; truth {:.3} ms, error {:+.3} ms ({:+.1}σ)",
+                    t * 1e3,
+                    (o - t) * 1e3,
+                    (o - t) / sd
+                )
+            })
+            .unwrap_or_default();
+        let _ = writeln!(
+            html,
+            "<p>Time offset (GNSS time tag − true validity), final estimate: <b>{:.3} ms ± {:.3} ms</b> (1σ){truth}.</p>",
+            o * 1e3,
+            sd * 1e3
+        );
+    }
+    if let Some(s) = &summary {
+        let stats = s.get("stats");
+        let get = |k: &str| {
+            stats
+                .and_then(|st| st.get(k))
+                .and_then(|v| v.as_u64())
+                .map_or("-".to_string(), |v| v.to_string())
+        };
+        let _ = writeln!(
+            html,
+            "<p>Fusion: {} IMU samples, GNSS fixes {} used, {} rejected by the innovation gate, {} withheld by scheduled outages.</p>",
+            get("imu_samples"),
+            get("gnss_fixes_used"),
+            get("gnss_fixes_rejected"),
+            s.get("gnss_fixes_withheld_by_outages")
+                .and_then(|v| v.as_u64())
+                .unwrap_or(0)
+        );
+    }
+    html.push_str("</div>\n");
+    if let Some(s) = &sync {
+        html.push_str("<div><h3>Synchronization</h3>\n");
+        sync_tables(&mut html, s, t0);
+        html.push_str("</div>\n");
+    }
+    html.push_str("</div></section>\n");
+
+    // Trajectory.
+    let k = plot::stride(ep.t.len(), 3000);
+    let idx: Vec<usize> = (0..ep.t.len()).step_by(k).collect();
+    let truth_ne: Vec<(f64, f64)> = idx.iter().map(|&i| ep.truth_ne[i]).collect();
+    let sol_ne: Vec<(f64, f64)> = idx.iter().map(|&i| ep.sol_ne[i]).collect();
+    let inside = |a: f64, b: f64| -> Vec<usize> {
+        (0..ep.t.len())
+            .filter(|&i| ep.t[i] >= a && ep.t[i] <= b)
+            .step_by(plot::stride(ep.t.len(), 3000))
+            .collect()
+    };
+    let gnss_ne: Vec<(f64, f64)> = gnss.iter().map(|g| (g.1, g.2)).collect();
+    let svg = plot::trajectory(
+        &Trajectory {
+            truth: &truth_ne,
+            solution: &sol_ne,
+            gnss: &gnss_ne,
+            truth_in_outage: outage_spans
+                .iter()
+                .map(|&(a, b)| inside(a, b).iter().map(|&i| ep.truth_ne[i]).collect())
+                .collect(),
+            solution_in_outage: outage_spans
+                .iter()
+                .map(|&(a, b)| inside(a, b).iter().map(|&i| ep.sol_ne[i]).collect())
+                .collect(),
+        },
+        900,
+        720,
+    )?;
+    section(
+        &mut html,
+        "trajectory",
+        "Trajectory",
+        "North/east of the first truth position, equal scales.",
+        &svg,
+    );
+
+    let shades = [outage_shade.clone()];
+    let nav_note = if std.is_some() {
+        "Grey band: the filter's ±3σ (std.txt); shaded: GNSS outages."
+    } else {
+        "Shaded: GNSS outages (no std.txt given: no ±3σ bands)."
+    };
+    let svg = error_figure(&ep, std.as_ref(), &shades, &POSITION, |i, c| {
+        ep.pos_err[i][c]
+    })?;
+    section(&mut html, "position", "Position error", nav_note, &svg);
+    let svg = error_figure(&ep, std.as_ref(), &shades, &VELOCITY, |i, c| {
+        ep.vel_err[i][c]
+    })?;
+    section(&mut html, "velocity", "Velocity error", nav_note, &svg);
+    let svg = error_figure(&ep, std.as_ref(), &shades, &ATTITUDE, |i, c| {
+        ep.att_err[i][c]
+    })?;
+    section(
+        &mut html,
+        "attitude",
+        "Attitude error",
+        "Roll/pitch/yaw differences; the band is the φ-angle σ (std.txt), which equals the Euler-angle σ near level attitude.",
+        &svg,
+    );
+
+    if let Some(est) = &imu_err {
+        let names = [
+            ("gyro bias", "deg/h"),
+            ("accelerometer bias", "mGal"),
+            ("gyro scale-factor error", "ppm"),
+            ("accelerometer scale-factor error", "ppm"),
+        ];
+        let panels = names
+            .iter()
+            .enumerate()
+            .map(|(g, (name, unit))| {
+                let mut lines = Vec::new();
+                for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+                    let c = 1 + 3 * g + a;
+                    if let Some(tr) = &imu_err_truth {
+                        lines.push(Line {
+                            name: format!("{axis} truth"),
+                            color: lighter(AXES[a]),
+                            width: 2,
+                            pts: tr.col(c, 1.0),
+                        });
+                    }
+                    lines.push(Line {
+                        name: format!("{axis} estimate"),
+                        color: AXES[a],
+                        width: 2,
+                        pts: est.col(c, 1.0),
+                    });
+                }
+                Panel {
+                    title: name.to_string(),
+                    y_label: format!("{name} ({unit})"),
+                    lines,
+                    bands: Vec::new(),
+                    y_range: None,
+                }
+            })
+            .collect();
+        let svg = plot::time_series(&Figure {
+            x_label: "time since the first epoch (s)".into(),
+            x_range: (0.0, x1),
+            shades: shades.to_vec(),
+            panels,
+            width: WIDTH,
+            panel_height: 230,
+        })?;
+        section(
+            &mut html,
+            "imu",
+            "IMU error estimates",
+            if imu_err_truth.is_some() {
+                "Estimates (imu_err.txt, dark) against the simulator's true errors (imu_err_truth.txt, light), body axes x/y/z. The simulated IMU also has axis misalignment, which the 21-state filter does not model: it shows up in these estimates (a 0.05° tilt of a horizontal accelerometer reads g·0.05° ≈ 860 mGal)."
+            } else {
+                "Estimates (imu_err.txt), body axes x/y/z."
+            },
+            &svg,
+        );
+    }
+
+    if let Some(rows) = &offset {
+        let t: Vec<f64> = rows.iter().map(|r| rel_s(r[0], t0)).collect();
+        let sd_final = rows.last().map_or(0.0, |r| r[2]);
+        // Scale on the converged part: σ within 3× its final value.
+        let conv: Vec<&Vec<f64>> = rows.iter().filter(|r| r[2] <= 3.0 * sd_final).collect();
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for r in &conv {
+            lo = lo.min(r[1] - 3.0 * r[2]);
+            hi = hi.max(r[1] + 3.0 * r[2]);
+        }
+        if let Some(tt) = inp.time_offset_truth_s {
+            lo = lo.min(tt);
+            hi = hi.max(tt);
+        }
+        let pad = 0.15 * (hi - lo).max(1e-4);
+        let held: Vec<bool> = rows.iter().map(|r| r[3] == 0.0).collect();
+        let k = plot::stride(rows.len(), MAX_POINTS);
+        let mut lines = vec![Line {
+            name: "estimate τ̂".into(),
+            color: BLUE,
+            width: 2,
+            pts: rows
+                .iter()
+                .step_by(k)
+                .map(|r| (rel_s(r[0], t0), r[1] * 1e3))
+                .collect(),
+        }];
+        if let Some(tt) = inp.time_offset_truth_s {
+            lines.push(Line {
+                name: "truth".into(),
+                color: plotters::style::RGBColor(0, 0, 0),
+                width: 1,
+                pts: vec![(0.0, tt * 1e3), (x1, tt * 1e3)],
+            });
+        }
+        let svg = plot::time_series(&Figure {
+            x_label: "time since the first epoch (s)".into(),
+            x_range: (0.0, x1),
+            shades: vec![
+                Shade {
+                    name: "τ̂ held (no information)".into(),
+                    color: PURPLE,
+                    spans: spans_where(&t, &held),
+                },
+                outage_shade.clone(),
+            ],
+            panels: vec![Panel {
+                title: "IMU–GNSS time offset (GNSS time tag − true validity)".into(),
+                y_label: "time offset (ms)".into(),
+                lines,
+                bands: vec![Band {
+                    name: "±3σ".into(),
+                    color: BLUE,
+                    pts: rows
+                        .iter()
+                        .step_by(k)
+                        .map(|r| {
+                            (
+                                rel_s(r[0], t0),
+                                (r[1] - 3.0 * r[2]) * 1e3,
+                                (r[1] + 3.0 * r[2]) * 1e3,
+                            )
+                        })
+                        .collect(),
+                }],
+                y_range: Some(((lo - pad) * 1e3, (hi + pad) * 1e3)),
+            }],
+            width: WIDTH,
+            panel_height: 300,
+        })?;
+        section(
+            &mut html,
+            "time-offset",
+            "Time-offset state",
+            "The y scale covers the converged estimate (σ within 3× its final value); the band is clipped at the edges before that.",
+            &svg,
+        );
+    }
+
+    if let Some(s) = &sync {
+        let lock = s
+            .lock_timeline
+            .iter()
+            .map(|l| {
+                (
+                    rel_s(l.start.sow, t0),
+                    rel_s(l.end.sow, t0),
+                    l.state.clone(),
+                )
+            })
+            .collect();
+        let holdover = s
+            .holdover
+            .iter()
+            .map(|h| (rel_s(h.start.sow, t0), rel_s(h.end.sow, t0), h.max_bound_us))
+            .collect();
+        let rejected = s
+            .rejected_pulses
+            .iter()
+            .map(|p| (rel_s(p.time.sow, t0), p.reason.clone()))
+            .collect();
+        let svg = plot::timeline(
+            &Timeline {
+                x_range: (0.0, x1),
+                lock,
+                holdover,
+                rejected,
+                outages: outage_spans.clone(),
+            },
+            WIDTH,
+            300,
+        )?;
+        section(
+            &mut html,
+            "sync",
+            "Synchronization timeline",
+            "From sync_report.json: clock lock states, holdover spans (stamps made without a pulse within 1.5 s) with their largest error bound, 1PPS pulses rejected after lock, and GNSS outages for reference.",
+            &svg,
+        );
+        if let Some(h) = &s.gnss.latency_histogram_ms {
+            let svg = plot::histogram(
+                "GNSS message latency",
+                "latency from validity to the message's last byte (ms)",
+                h.start,
+                h.width,
+                &h.counts,
+                (WIDTH, 300),
+            )?;
+            section(
+                &mut html,
+                "latency",
+                "GNSS latency",
+                &format!(
+                    "{} fixes in bins of {} ms (measured by the logger's counter against 1PPS-derived GPS time).",
+                    s.gnss.stamped, h.width
+                ),
+                &svg,
+            );
+        }
+    }
+
+    // The scores as data, for tools and tests.
+    let json = serde_json::to_string(&eval).map_err(|e| Error::Invalid(e.to_string()))?;
+    let _ = write!(
+        html,
+        "<script type=\"application/json\" id=\"navsync-eval\">{json}</script>\n</body></html>\n"
+    );
+    Ok(Report {
+        html,
+        eval,
+        diagnostics: diag,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spans_of_flags() {
+        let t = [0.0, 1.0, 2.0, 3.0, 4.0];
+        assert_eq!(
+            spans_where(&t, &[true, true, false, true, true]),
+            vec![(0.0, 1.0), (3.0, 4.0)]
+        );
+        assert!(spans_where(&t, &[false; 5]).is_empty());
+        assert_eq!(escape("<a&\"b\">"), "&lt;a&amp;&quot;b&quot;&gt;");
+    }
+}

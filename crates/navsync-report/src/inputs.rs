@@ -1,0 +1,244 @@
+//! Reading what a report shows: the solution scored against the truth by
+//! [`navsync::eval`] (the code of `navsync eval`), KF-GINS auxiliary
+//! outputs, GNSS fixes and the synchronization report.
+//!
+//! The navigation and truth files are read as `navsync eval` reads them
+//! (bad lines skipped and reported). The auxiliary tables (`std.txt`,
+//! `imu_err.txt`, `time_offset.txt`) are machine-written with a fixed
+//! number of columns, so any other line is an error naming file and line:
+//! it catches one file given for another.
+
+use std::path::{Path, PathBuf};
+
+use navsync::earth::{Geodetic, ned_offset};
+use navsync::eval::{self, EvalReport};
+use navsync::io::kfgins::{GnssLayout, GnssReader};
+use navsync::io::text::{LineReader, is_blank_or_comment, parse_f64, split_fields};
+use navsync::time::GpsTime;
+use navsync::timing::SyncReport;
+use navsync::{Diagnostics, Error};
+
+/// The files (and facts) a report is made from.
+#[derive(Clone, Debug, Default)]
+pub struct ReportInputs {
+    pub title: String,
+    /// Reference trajectory (11-column nav format).
+    pub truth: PathBuf,
+    /// The solution (11-column nav format).
+    pub nav: PathBuf,
+    pub sync_report: Option<PathBuf>,
+    /// `summary.json` of `navsync fuse`.
+    pub summary: Option<PathBuf>,
+    /// `std.txt` (KF-GINS layout).
+    pub std: Option<PathBuf>,
+    /// `imu_err.txt` and the simulator's `imu_err_truth.txt` (KF-GINS layout).
+    pub imu_err: Option<PathBuf>,
+    pub imu_err_truth: Option<PathBuf>,
+    /// GNSS fixes (7 or 13 columns).
+    pub gnss: Option<PathBuf>,
+    /// `time_offset.txt` of `navsync fuse --estimate-time-offset`.
+    pub time_offset: Option<PathBuf>,
+    /// The true time offset (s), when known.
+    pub time_offset_truth_s: Option<f64>,
+    /// GNSS outage windows (sow, length s); empty: the summary's, if any.
+    pub outages: Vec<(GpsTime, f64)>,
+}
+
+impl ReportInputs {
+    /// Fills the optional files `navsync fuse` writes beside `nav` when they
+    /// exist and were not given.
+    pub fn with_siblings_of_nav(mut self) -> Self {
+        let dir = self.nav.parent().map(Path::to_path_buf).unwrap_or_default();
+        let fill = |slot: &mut Option<PathBuf>, name: &str| {
+            let p = dir.join(name);
+            if slot.is_none() && p.is_file() {
+                *slot = Some(p);
+            }
+        };
+        fill(&mut self.std, "std.txt");
+        fill(&mut self.imu_err, "imu_err.txt");
+        fill(&mut self.time_offset, "time_offset.txt");
+        fill(&mut self.summary, "summary.json");
+        self
+    }
+}
+
+/// Seconds from `t0_sow` to `sow`, across one week rollover.
+pub fn rel_s(sow: f64, t0_sow: f64) -> f64 {
+    let d = sow - t0_sow;
+    if d < -302_400.0 {
+        d + 604_800.0
+    } else if d > 302_400.0 {
+        d - 604_800.0
+    } else {
+        d
+    }
+}
+
+/// Every compared epoch of the solution (times relative to its first
+/// epoch; horizontal positions relative to the first truth state, m).
+#[derive(Clone, Debug, Default)]
+pub struct Epochs {
+    pub t0_sow: f64,
+    pub week: i64,
+    pub t: Vec<f64>,
+    pub truth_ne: Vec<(f64, f64)>,
+    pub sol_ne: Vec<(f64, f64)>,
+    pub pos_err: Vec<[f64; 3]>,
+    pub vel_err: Vec<[f64; 3]>,
+    pub att_err: Vec<[f64; 3]>,
+    pub origin: Option<Geodetic>,
+}
+
+/// The scores and the epochs, from one pass of [`eval::eval_files_with`].
+pub fn score(
+    truth: &Path,
+    nav: &Path,
+    outages: &[(GpsTime, f64)],
+    diag: &mut Diagnostics,
+) -> Result<(EvalReport, Epochs), Error> {
+    let mut ep = Epochs::default();
+    let report = eval::eval_files_with(truth, nav, outages, diag, &mut |rec, ts, e| {
+        let origin = *ep.origin.get_or_insert(ts.pos);
+        if ep.t.is_empty() {
+            ep.t0_sow = rec.time.sow();
+            ep.week = rec.week;
+        }
+        let sol = Geodetic::from_deg(rec.lat_deg, rec.lon_deg, rec.h_m);
+        let dt = ned_offset(&origin, &ts.pos);
+        let ds = ned_offset(&origin, &sol);
+        ep.t.push(rel_s(rec.time.sow(), ep.t0_sow));
+        ep.truth_ne.push((dt.x, dt.y));
+        ep.sol_ne.push((ds.x, ds.y));
+        ep.pos_err.push(e.pos_ned_m.into());
+        ep.vel_err.push(e.vel_ned_mps.into());
+        ep.att_err.push(e.att_deg.into());
+    })?;
+    Ok((report, ep))
+}
+
+/// Reads a whitespace/comma table whose every record has exactly
+/// `columns` numbers; `layout` names the expected columns in messages.
+pub fn read_table(path: &Path, columns: usize, layout: &str) -> Result<Vec<Vec<f64>>, Error> {
+    let mut lines = LineReader::open(path)?;
+    let mut rows = Vec::new();
+    while let Some((line, no)) = lines.next_line()? {
+        if is_blank_or_comment(line) {
+            continue;
+        }
+        let mut fields: [&[u8]; 32] = [b""; 32];
+        let n = split_fields(line, &mut fields);
+        if n != columns {
+            return Err(Error::parse(
+                path,
+                no,
+                format!("expected {columns} columns ({layout}), found {n}"),
+            ));
+        }
+        let mut row = Vec::with_capacity(columns);
+        for (k, f) in fields[..n.min(32)].iter().enumerate() {
+            let v = parse_f64(f)
+                .map_err(|e| Error::parse(path, no, format!("column {}: {e}", k + 1)))?;
+            row.push(v);
+        }
+        rows.push(row);
+    }
+    if rows.is_empty() {
+        return Err(Error::NoData {
+            path: path.to_path_buf(),
+            msg: format!("no records (expected lines of {layout})"),
+        });
+    }
+    Ok(rows)
+}
+
+/// KF-GINS `std.txt`: sow and 21 standard deviations.
+pub const STD_LAYOUT: &str = "KF-GINS std.txt: sow, position n e d (m), velocity (m/s), attitude (deg), gyro bias (deg/h), accel bias (mGal), gyro scale (ppm), accel scale (ppm)";
+/// KF-GINS `imu_err.txt`: sow and 12 IMU errors.
+pub const IMU_ERR_LAYOUT: &str = "KF-GINS imu_err.txt: sow, gyro bias x y z (deg/h), accel bias (mGal), gyro scale (ppm), accel scale (ppm)";
+/// `time_offset.txt`.
+pub const TIME_OFFSET_LAYOUT: &str = "navsync time_offset.txt: sow offset_s sd_s observable";
+
+/// The synchronization report (`sync_report.json`).
+pub fn read_sync_report(path: &Path) -> Result<SyncReport, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| {
+        Error::parse(
+            path,
+            e.line(),
+            format!("not a navsync sync_report.json: {e}"),
+        )
+    })
+}
+
+/// A `summary.json` of `navsync fuse` (read loosely: only a few fields
+/// are shown).
+pub fn read_summary(path: &Path) -> Result<serde_json::Value, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| Error::parse(path, e.line(), format!("not JSON: {e}")))?;
+    if !v.is_object() {
+        return Err(Error::parse(
+            path,
+            1,
+            "expected a JSON object (navsync fuse's summary.json)",
+        ));
+    }
+    Ok(v)
+}
+
+/// GNSS fix positions (sow, north, east relative to `origin`, m).
+pub fn read_gnss(
+    path: &Path,
+    origin: &Geodetic,
+    diag: &mut Diagnostics,
+) -> Result<Vec<(f64, f64, f64)>, Error> {
+    let mut r = GnssReader::open(path, 0, GnssLayout::Cpp)?;
+    let mut out = Vec::new();
+    while let Some(f) = r.next_fix(diag)? {
+        let d = ned_offset(origin, &f.pos);
+        out.push((f.time.sow(), d.x, d.y));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp(name: &str, text: &str) -> PathBuf {
+        let p = std::env::temp_dir().join(format!("navsync-report-{}-{name}", std::process::id()));
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn tables_name_file_and_line() {
+        let p = temp("t1.txt", "# c\n1 2 3\n\n4 5\n");
+        let e = read_table(&p, 3, "a b c").unwrap_err().to_string();
+        assert!(
+            e.contains("t1.txt:4") && e.contains("expected 3 columns (a b c), found 2"),
+            "{e}"
+        );
+        let p = temp("t2.txt", "1 2 x\n");
+        let e = read_table(&p, 3, "a b c").unwrap_err().to_string();
+        assert!(e.contains("t2.txt:1") && e.contains("column 3"), "{e}");
+        let p = temp("t3.txt", "1 2 3 4\n");
+        let e = read_table(&p, 3, "a b c").unwrap_err().to_string();
+        assert!(e.contains("found 4"), "{e}");
+        let p = temp("t4.txt", "# nothing\n");
+        assert!(read_table(&p, 3, "a b c").is_err());
+        let p = temp("t5.txt", "1,2 3\n4\t5 6\n");
+        assert_eq!(read_table(&p, 3, "a b c").unwrap()[1], vec![4.0, 5.0, 6.0]);
+        let e = read_sync_report(&temp("s.json", "{\"mode\": \"hw\"}"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("s.json:1") && e.contains("missing field"), "{e}");
+    }
+
+    #[test]
+    fn relative_seconds_cross_the_week() {
+        assert_eq!(rel_s(100.0, 604_790.0), 110.0);
+        assert_eq!(rel_s(100_010.5, 100_000.0), 10.5);
+    }
+}
