@@ -15,7 +15,7 @@ for seed in $(seq 1 "$runs"); do
   tau=$(python3 -c "import random; random.seed($seed); print(round(random.uniform(-0.1, 0.1), 6))")
   d=$out/$seed
   $B simulate --scenario "$scn" --seed "$seed" --traj-seed "$seed" --set gnss.time_offset_s="$tau" --set output.rig_log=false --internal-rate 0 ${SIM_EXTRA:-} --output "$d" --quiet
-  $B fuse --config "$d/kf-gins.yaml" --output "$d/out" --estimate-time-offset > /dev/null 2>&1
+  $B fuse --config "$d/kf-gins.yaml" --output "$d/out" --estimate-time-offset ${FUSE_EXTRA:-} > /dev/null 2>&1
   python3 -c "import json; s=json.load(open('$d/out/summary.json')); print($tau, s['time_offset_s'], s['time_offset_sd_s'])" >> "$out/rows.txt"
   rm -rf "$d"
 done

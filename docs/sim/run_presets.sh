@@ -11,9 +11,9 @@ printf '| preset | horiz. RMS (m) | 3D RMS (m) | yaw RMS (deg) | RMS of max hori
 for g in nav tactical adis16465 icm20602; do
   d=$out/$g
   $B simulate --scenario "$scn" --seed "$seed" --imu-grade "$g" --output "$d" --quiet
-  $B fuse --config "$d/kf-gins.yaml" --output "$d/all" > /dev/null 2>&1
+  $B fuse --config "$d/kf-gins.yaml" --output "$d/all" ${FUSE_EXTRA:-} > /dev/null 2>&1
   $B eval --truth "$d/truth.nav" --nav "$d/all/navresult.nav" --json "$d/all.json" > /dev/null
-  $B fuse --config "$d/kf-gins.yaml" --output "$d/out" --outage-period 180 --outage-len 60 --outage-first 120 > "$d/fuse.txt" 2>&1
+  $B fuse --config "$d/kf-gins.yaml" --output "$d/out" --outage-period 180 --outage-len 60 --outage-first 120 ${FUSE_EXTRA:-} > "$d/fuse.txt" 2>&1
   o=$(sed -n 's/.*outages (for `navsync eval --outages`): //p' "$d/fuse.txt")
   $B eval --truth "$d/truth.nav" --nav "$d/out/navresult.nav" --outages "$o" --json "$d/out.json" > /dev/null
   python3 - "$g" "$d/all.json" "$d/out.json" <<'PY'

@@ -53,7 +53,9 @@ impl ChainOptions {
     /// What a user who knows the rig would choose: hardware sync when the
     /// rig has PPS (T_c subtracted for a serial-timed IMU, seed 000), the
     /// average rule for rates from an averaging IMU (seed 001 §1.3.1), and
-    /// fusion with the time-offset state, in the scenario's GPS week.
+    /// fusion with the time-offset state (and the misalignment states for
+    /// an IMU whose datasheet gives a misalignment), in the scenario's GPS
+    /// week.
     pub fn for_scenario(scn: &Scenario) -> Self {
         let rig = &scn.rig;
         let sync = SyncConfig {
@@ -73,9 +75,16 @@ impl ChainOptions {
         } else {
             RateRule::Average
         };
+        // The datasheet's axis misalignment, when the IMU has one, as
+        // the initial σ of the misalignment states.
+        let (mg, ma) = (
+            scn.imu.gyro.misalignment_deg,
+            scn.imu.accel.misalignment_deg,
+        );
         let fuse = FuseOptions {
             time_offset: Some(TimeOffsetOptions::default()),
             week: scn.gps_week,
+            misalignment_sd_deg: (mg > 0.0 && ma > 0.0).then_some([mg, ma]),
             ..FuseOptions::default()
         };
         ChainOptions {

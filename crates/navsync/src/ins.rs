@@ -63,26 +63,54 @@ impl NavState {
     }
 }
 
-/// IMU biases and scale factors (SI: rad/s, m/s², dimensionless).
-/// Measurement model (KF-GINS algorithm doc, IMU error compensation):
-/// Δθ̃ = (1 + s_g) Δθ + b_g Δt, likewise for Δv.
+/// IMU biases, scale factors and axis misalignments (SI: rad/s, m/s²,
+/// dimensionless, rad). Measurement model (KF-GINS algorithm doc, IMU
+/// error compensation, extended by the off-diagonal terms of the usual
+/// 12-parameter triad model, e.g. Groves 2013 §4.4.2):
+/// Δθ̃ = (I + diag(s_g) + M_g) Δθ + b_g Δt, likewise for Δv, with
+/// M = [[0, m₀, m₁], [m₂, 0, m₃], [m₄, m₅, 0]].
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct ImuErrors {
     pub gyro_bias: Vector3<f64>,
     pub accel_bias: Vector3<f64>,
     pub gyro_scale: Vector3<f64>,
     pub accel_scale: Vector3<f64>,
+    /// Off-diagonal terms m₀…m₅ of M_g (rad); zero unless estimated.
+    pub gyro_misalign: [f64; 6],
+    /// Off-diagonal terms of M_a (rad).
+    pub accel_misalign: [f64; 6],
+}
+
+/// M v for the off-diagonal matrix M of `m` (see [`ImuErrors`]).
+#[inline]
+pub fn misalign_times(m: &[f64; 6], v: &Vector3<f64>) -> Vector3<f64> {
+    Vector3::new(
+        m[0] * v.y + m[1] * v.z,
+        m[2] * v.x + m[3] * v.z,
+        m[4] * v.x + m[5] * v.y,
+    )
 }
 
 impl ImuErrors {
     /// Removes the errors from raw increments over `dt`:
     /// Δθ = (I + diag(s_g))⁻¹ (Δθ̃ − b_g Δt) (KF-GINS algorithm doc eq for
-    /// IMU error compensation).
+    /// IMU error compensation); with misalignments, to first order in M:
+    /// Δθ = D⁻¹ (u − M D⁻¹ u), u = Δθ̃ − b_g Δt, D = I + diag(s_g).
     #[inline]
     pub fn compensate(&self, dtheta: &Vector3<f64>, dvel: &Vector3<f64>, dt: f64) -> Increment {
+        let d_g = self.gyro_scale.add_scalar(1.0);
+        let d_a = self.accel_scale.add_scalar(1.0);
+        let mut th = (dtheta - self.gyro_bias * dt).component_div(&d_g);
+        let mut dv = (dvel - self.accel_bias * dt).component_div(&d_a);
+        if self.gyro_misalign.iter().any(|&m| m != 0.0) {
+            th -= misalign_times(&self.gyro_misalign, &th).component_div(&d_g);
+        }
+        if self.accel_misalign.iter().any(|&m| m != 0.0) {
+            dv -= misalign_times(&self.accel_misalign, &dv).component_div(&d_a);
+        }
         Increment {
-            dtheta: (dtheta - self.gyro_bias * dt).component_div(&self.gyro_scale.add_scalar(1.0)),
-            dvel: (dvel - self.accel_bias * dt).component_div(&self.accel_scale.add_scalar(1.0)),
+            dtheta: th,
+            dvel: dv,
             dt,
         }
     }

@@ -121,6 +121,9 @@ pub struct FuseOptions {
     pub reduced_imu: Option<crate::reduced::ReducedImu>,
     /// Odometer/CAN speed updates from a speed file.
     pub odometer: Option<crate::reduced::OdometerSettings>,
+    /// Estimate the gyro and accelerometer axis misalignments with these
+    /// initial σ (deg): 12 more states (see `FusionConfig`).
+    pub misalignment_sd_deg: Option<[f64; 2]>,
 }
 
 impl Default for FuseOptions {
@@ -147,6 +150,7 @@ impl Default for FuseOptions {
             output_gnss_time: false,
             reduced_imu: None,
             odometer: None,
+            misalignment_sd_deg: None,
         }
     }
 }
@@ -186,6 +190,10 @@ pub struct FuseSummary {
     pub final_accel_scale_ppm: [f64; 3],
     /// Estimated odometer scale factor (when odometer updates ran).
     pub final_odometer_scale: Option<f64>,
+    /// Estimated axis misalignments m₀…m₅ of the gyro and accelerometer
+    /// triads (deg), when estimated.
+    pub final_gyro_misalign_deg: Option<[f64; 6]>,
+    pub final_accel_misalign_deg: Option<[f64; 6]>,
     pub options: FuseOptions,
     pub run_time_s: f64,
     pub diagnostics: Diagnostics,
@@ -220,6 +228,7 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
         .odometer
         .as_ref()
         .map(|o| crate::reduced::odometer_options(o, opts.nhc.as_ref()));
+    fc.misalignment_sd_rad = opts.misalignment_sd_deg.map(|d| d.map(f64::to_radians));
     fc
 }
 
@@ -716,6 +725,12 @@ pub fn run(
             .as_ref()
             .filter(|o| o.scale_sd.is_some())
             .map(|_| fusion.odometer_scale()),
+        final_gyro_misalign_deg: opts
+            .misalignment_sd_deg
+            .map(|_| imu.gyro_misalign.map(f64::to_degrees)),
+        final_accel_misalign_deg: opts
+            .misalignment_sd_deg
+            .map(|_| imu.accel_misalign.map(f64::to_degrees)),
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,

@@ -141,6 +141,32 @@ pub struct Args {
     /// [default: the NHC lever arm].
     #[arg(long, value_parser = parse_triplet, requires = "odometer")]
     pub odo_lever: Option<[f64; 3]>,
+    /// Estimate the gyro and accelerometer axis misalignments (12 more
+    /// states) with this initial σ (deg), or GYRO,ACCEL: e.g. 0.05 for an
+    /// ADIS16465's datasheet figure. Off by default (KF-GINS's 21 states).
+    #[arg(long, value_parser = parse_sd_pair, value_name = "SD_DEG[,SD_DEG]")]
+    pub misalignment: Option<[f64; 2]>,
+}
+
+/// "a" or "a,b" (degrees, ≥ 0) into [a, a] or [a, b].
+fn parse_sd_pair(s: &str) -> Result<[f64; 2], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| {
+            x.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("'{x}' is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    let pair = match v.as_slice() {
+        [a] => [*a, *a],
+        [a, b] => [*a, *b],
+        _ => return Err(format!("'{s}': expected SD or GYRO_SD,ACCEL_SD")),
+    };
+    if pair.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(format!("'{s}': standard deviations must be positive"));
+    }
+    Ok(pair)
 }
 
 #[derive(Copy, Clone, PartialEq, clap::ValueEnum)]
@@ -286,6 +312,7 @@ impl Args {
                     lever_m: self.odo_lever,
                     ..navsync::reduced::OdometerSettings::new(path)
                 }),
+            misalignment_sd_deg: self.misalignment,
         })
     }
 }

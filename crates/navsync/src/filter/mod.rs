@@ -26,7 +26,7 @@ pub mod nhc;
 #[cfg(test)]
 mod tests;
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, SMatrix, Vector3};
 
 use crate::earth::LocalEarth;
 use crate::error::Error;
@@ -35,7 +35,7 @@ use crate::time::GpsTime;
 use dense::{Mat, RowPattern};
 
 /// Largest supported number of error states.
-pub const MAX_STATES: usize = 32;
+pub const MAX_STATES: usize = 40;
 
 /// Indices of the 21 core error states.
 pub mod idx {
@@ -63,7 +63,26 @@ pub struct ExtraState {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct StateLayout {
     pub extras: Vec<ExtraState>,
+    /// First index of the 12 misalignment states (6 gyro, then 6
+    /// accelerometer), when estimated.
+    pub misalign: Option<usize>,
 }
+
+/// Names of the misalignment states (see [`crate::ins::ImuErrors`]).
+const MISALIGN_NAMES: [&str; 12] = [
+    "gyro_misalign_xy",
+    "gyro_misalign_xz",
+    "gyro_misalign_yx",
+    "gyro_misalign_yz",
+    "gyro_misalign_zx",
+    "gyro_misalign_zy",
+    "accel_misalign_xy",
+    "accel_misalign_xz",
+    "accel_misalign_yx",
+    "accel_misalign_yz",
+    "accel_misalign_zx",
+    "accel_misalign_zy",
+];
 
 impl StateLayout {
     /// Total number of states.
@@ -80,6 +99,17 @@ impl StateLayout {
             random_walk_psd,
         });
         index
+    }
+
+    /// Appends the 12 axis-misalignment states (random constants) and
+    /// returns the first index.
+    pub fn add_misalignment(&mut self) -> usize {
+        let first = self.n();
+        for name in MISALIGN_NAMES {
+            self.add(name, 0.0);
+        }
+        self.misalign = Some(first);
+        first
     }
 
     /// Index of the extra state called `name`.
@@ -135,9 +165,33 @@ pub struct Window {
     pub c_diag_dv: Matrix3<f64>,
     /// Σ C_b^n diag(Δθ^b).
     pub c_diag_dth: Matrix3<f64>,
+    /// Σ C_b^n J(Δθ^b) and Σ C_b^n J(Δv^b), J(v) = ∂(M v)/∂m (3 × 6):
+    /// only summed when misalignments are estimated.
+    pub c_j_dth: SMatrix<f64, 3, 6>,
+    pub c_j_dv: SMatrix<f64, 3, 6>,
+}
+
+/// J(v) = ∂(M v)/∂m for the off-diagonal M of [`crate::ins::ImuErrors`].
+#[inline]
+pub fn misalign_jacobian(v: &Vector3<f64>) -> SMatrix<f64, 3, 6> {
+    let mut j = SMatrix::<f64, 3, 6>::zeros();
+    j[(0, 0)] = v.y;
+    j[(0, 1)] = v.z;
+    j[(1, 2)] = v.x;
+    j[(1, 3)] = v.z;
+    j[(2, 4)] = v.x;
+    j[(2, 5)] = v.y;
+    j
 }
 
 impl Window {
+    /// The misalignment sums of one step.
+    #[inline]
+    pub fn add_misalign(&mut self, s: &StepInfo) {
+        self.c_j_dth += s.c_nb * misalign_jacobian(&s.inc.dtheta);
+        self.c_j_dv += s.c_nb * misalign_jacobian(&s.inc.dvel);
+    }
+
     #[inline]
     pub fn add(&mut self, s: &StepInfo) {
         self.dt += s.dt;
@@ -284,6 +338,9 @@ impl ErrorStateFilter {
     #[inline]
     pub fn accumulate(&mut self, step: &StepInfo) {
         self.window.add(step);
+        if self.layout.misalign.is_some() {
+            self.window.add_misalign(step);
+        }
     }
 
     /// Propagates P over the accumulated window, linearised at `nav` (the
@@ -300,7 +357,14 @@ impl ErrorStateFilter {
         }
         self.window = Window::default();
         let le = LocalEarth::new(&nav.pos, &nav.vel);
-        model::fill_transition(&mut self.a, &w, &le, &nav.vel, self.noise.corr_time_s);
+        model::fill_transition(
+            &mut self.a,
+            &w,
+            &le,
+            &nav.vel,
+            self.noise.corr_time_s,
+            &self.layout,
+        );
         model::fill_noise(&mut self.q, &w, &self.noise, &self.layout);
 
         const NN: usize = 9;
@@ -579,7 +643,7 @@ fn add_half_q(p: &mut Mat, q: &Mat) {
 /// Applies the estimated error state to the navigation state and the IMU
 /// error estimates (closed-loop feedback; KF-GINS doc §3.8 "Error State
 /// Feedback", with this module's sign convention δx = x̂ − x).
-pub fn feedback(dx: &[f64], nav: &mut NavState, imu: &mut ImuErrors) {
+pub fn feedback(dx: &[f64], layout: &StateLayout, nav: &mut NavState, imu: &mut ImuErrors) {
     let v3 = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
     let le = LocalEarth::new(&nav.pos, &nav.vel);
     let dp = le.ned_to_geodetic_delta(&v3(idx::POS));
@@ -594,4 +658,10 @@ pub fn feedback(dx: &[f64], nav: &mut NavState, imu: &mut ImuErrors) {
     imu.accel_bias -= v3(idx::BA);
     imu.gyro_scale -= v3(idx::SG);
     imu.accel_scale -= v3(idx::SA);
+    if let Some(m) = layout.misalign {
+        for k in 0..6 {
+            imu.gyro_misalign[k] -= dx[m + k];
+            imu.accel_misalign[k] -= dx[m + 6 + k];
+        }
+    }
 }

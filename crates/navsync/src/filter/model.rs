@@ -104,6 +104,7 @@ pub fn fill_transition(
     le: &LocalEarth,
     v: &Vector3<f64>,
     corr_time_s: f64,
+    layout: &StateLayout,
 ) {
     let dt = w.dt;
     let p = partials(le, v);
@@ -127,6 +128,16 @@ pub fn fill_transition(
     let decay = -dt / corr_time_s;
     for i in BG..CORE {
         a.set(i, i, decay);
+    }
+    // Misalignments (random constants): δω_ib = −J(ω) δm_g, δf = −J(f) δm_a,
+    // entering like the scale factors above.
+    if let Some(m) = layout.misalign {
+        for r in 0..3 {
+            for c in 0..6 {
+                a.set(ATT + r, m + c, w.c_j_dth[(r, c)]);
+                a.set(VEL + r, m + 6 + c, -w.c_j_dv[(r, c)]);
+            }
+        }
     }
 }
 

@@ -121,11 +121,35 @@ fn zero_noise() -> ImuNoise {
 
 #[test]
 fn error_model_matches_nonlinear_propagation() {
-    // Perturb the initial state and the IMU error estimates, integrate both
-    // the truth and the perturbed estimate through the nonlinear
-    // mechanization, and compare the error after 20 s with the filter's
-    // linear propagation of a rank-one covariance δx₀ δx₀ᵀ (no process
-    // noise): P(T) must equal δx(T) δx(T)ᵀ up to second-order terms.
+    check_error_model(&ImuErrors {
+        gyro_bias: Vector3::new(3e-6, -2e-6, 4e-6),
+        accel_bias: Vector3::new(2e-3, -1e-3, 1.5e-3),
+        gyro_scale: Vector3::new(0.0, 0.0, 300e-6),
+        accel_scale: Vector3::new(0.0, 0.0, 200e-6),
+        ..ImuErrors::default()
+    });
+}
+
+#[test]
+fn misalignment_error_model_matches_nonlinear_propagation() {
+    // The turn's rate about down reaches the horizontal gyros through
+    // m_xz, m_yz; gravity reaches the horizontal accelerometers likewise.
+    check_error_model(&ImuErrors {
+        gyro_bias: Vector3::new(3e-6, -2e-6, 4e-6),
+        accel_bias: Vector3::new(2e-3, -1e-3, 1.5e-3),
+        gyro_misalign: [2e-4, 6e-4, -3e-4, -5e-4, 4e-4, 1e-4],
+        accel_misalign: [1e-4, 4e-4, -2e-4, -3e-4, 2e-4, 5e-4],
+        ..ImuErrors::default()
+    });
+}
+
+/// Perturbs the initial state and the IMU error estimates by `err`,
+/// integrates both the truth and the perturbed estimate through the
+/// nonlinear mechanization, and compares the error after 20 s with the
+/// filter's linear propagation of a rank-one covariance δx₀ δx₀ᵀ (no
+/// process noise): P(T) must equal δx(T) δx(T)ᵀ up to second-order terms.
+/// Misalignment states are in the layout when `err` has misalignments.
+fn check_error_model(err: &ImuErrors) {
     let m = motion(6.0);
     let truth0 = m.state(m.t0);
     let d_pos = Vector3::new(0.8, -0.5, 0.3);
@@ -142,18 +166,23 @@ fn error_model_matches_nonlinear_propagation() {
     est0.vel += d_vel;
     // Ĉ = (I − φ×) C = exp(−φ×) C
     est0.q_nb = rotvec_to_quat(&(-phi0)) * truth0.q_nb;
-    let err = ImuErrors {
-        gyro_bias: Vector3::new(3e-6, -2e-6, 4e-6),
-        accel_bias: Vector3::new(2e-3, -1e-3, 1.5e-3),
-        gyro_scale: Vector3::new(0.0, 0.0, 300e-6),
-        accel_scale: Vector3::new(0.0, 0.0, 200e-6),
-    };
 
     let mut dx0 = error_state(&est0, &truth0);
     dx0.extend_from_slice(err.gyro_bias.as_slice());
     dx0.extend_from_slice(err.accel_bias.as_slice());
     dx0.extend_from_slice(err.gyro_scale.as_slice());
     dx0.extend_from_slice(err.accel_scale.as_slice());
+    let mut layout = StateLayout::default();
+    if err
+        .gyro_misalign
+        .iter()
+        .chain(&err.accel_misalign)
+        .any(|&x| x != 0.0)
+    {
+        layout.add_misalignment();
+        dx0.extend_from_slice(&err.gyro_misalign);
+        dx0.extend_from_slice(&err.accel_misalign);
+    }
 
     let zero_std = InitialStd {
         pos: Vector3::zeros(),
@@ -164,15 +193,15 @@ fn error_model_matches_nonlinear_propagation() {
         gyro_scale: Vector3::zeros(),
         accel_scale: Vector3::zeros(),
     };
-    let mut f = ErrorStateFilter::new(StateLayout::default(), zero_noise(), &zero_std, &[]);
-    let n = idx::CORE;
+    let n = layout.n();
+    let mut f = ErrorStateFilter::new(layout, zero_noise(), &zero_std, &vec![0.0; n - idx::CORE]);
     for i in 0..n {
         for j in 0..n {
             f.covariance_mut().set(i, j, dx0[i] * dx0[j]);
         }
     }
     let secs = 20.0;
-    let est = integrate(&m, est0, &err, secs, 200.0, Some(&mut f));
+    let est = integrate(&m, est0, err, secs, 200.0, Some(&mut f));
     let truth = integrate(&m, truth0, &ImuErrors::default(), secs, 200.0, None);
     let dx = error_state(&est, &truth);
     let p = f.covariance();
@@ -236,6 +265,7 @@ fn perturb(truth: &NavState, dx: &[f64]) -> (NavState, ImuErrors) {
         accel_bias: v(idx::BA),
         gyro_scale: v(idx::SG),
         accel_scale: v(idx::SA),
+        ..ImuErrors::default()
     };
     (est, e)
 }
@@ -406,7 +436,7 @@ fn feedback_undoes_a_known_error() {
     dx[..9].copy_from_slice(&[1.0, -2.0, 0.5, 0.1, 0.2, -0.1, 1e-3, -2e-3, 5e-3]);
     dx[idx::BG] = 1e-5;
     let (mut est, mut e) = perturb(&truth, &dx);
-    feedback(&dx, &mut est, &mut e);
+    feedback(&dx, &StateLayout::default(), &mut est, &mut e);
     assert!(pos_error_m(&est, &truth).norm() < 1e-6);
     assert!((est.vel - truth.vel).norm() < 1e-12);
     assert!(est.q_nb.angle_to(&truth.q_nb) < 1e-8);

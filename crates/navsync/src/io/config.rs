@@ -279,6 +279,7 @@ impl KfGinsConfig {
                 accel_bias: cx.vec3("initaccbias")? * 1e-5,
                 gyro_scale: cx.vec3("initgyrscale")? * 1e-6,
                 accel_scale: cx.vec3("initaccscale")? * 1e-6,
+                ..ImuErrors::default()
             },
             init_std: InitialStd {
                 pos: cx.vec3("initposstd")?,

@@ -684,6 +684,19 @@ impl Triad {
     }
 
     #[inline]
+    /// The off-diagonal terms of M in [`ImuErrors`]' order.
+    fn misalign(&self) -> [f64; 6] {
+        let m = &self.m;
+        [
+            m[(0, 1)],
+            m[(0, 2)],
+            m[(1, 0)],
+            m[(1, 2)],
+            m[(2, 0)],
+            m[(2, 1)],
+        ]
+    }
+
     fn bias(&self) -> Vector3<f64> {
         self.turn_on + self.drift_sum
     }
@@ -845,6 +858,8 @@ impl ImuSensor {
             accel_bias: self.accel.bias(),
             gyro_scale: self.gyro.scale,
             accel_scale: self.accel.scale,
+            gyro_misalign: self.gyro.misalign(),
+            accel_misalign: self.accel.misalign(),
         }
     }
 
