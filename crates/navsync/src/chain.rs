@@ -11,7 +11,7 @@ use crate::error::{Diagnostics, Error};
 use crate::fusion::TimeOffsetOptions;
 use crate::io::config::KfGinsConfig;
 use crate::pipeline::{self, FuseOptions, FuseSummary, NavSink};
-use crate::sim::imu::{Decimation, OutputKind};
+use crate::sim::imu::OutputKind;
 use crate::sim::rig::SyncMode as RigSync;
 use crate::sim::scenario::Scenario;
 use crate::sim::{SimReport, Simulation};
@@ -68,7 +68,7 @@ impl ChainOptions {
                 .then_some(rig.imu_link.output_delay_s),
             ..SyncConfig::default()
         };
-        let averaged = scn.imu.decimation == Decimation::Average || scn.imu.internal_rate_hz == 0.0;
+        let averaged = scn.imu.rates_are_interval_averages();
         let rates = rig.imu_record.unwrap_or(scn.imu.output) == OutputKind::Rate;
         let rate_rule = if rates && !averaged {
             RateRule::Trapezoid
@@ -171,7 +171,7 @@ pub fn run_chain(
         &rig,
         &dirs.synced,
         sync_cfg,
-        opts.rate_rule,
+        Some(opts.rate_rule),
         Some(&dirs.sim.join("imu_times_truth.txt")),
     )?;
     write_kfgins_config(&dirs.sim.join("kf-gins.yaml"), &dirs.synced, &sync.report)?;
@@ -201,6 +201,7 @@ pub fn run_chain(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::imu::Decimation;
     use crate::sim::scenario::base_layer;
 
     #[test]

@@ -37,9 +37,10 @@ pub struct Args {
     pub gnss_min_latency: f64,
     /// Rate → increment rule: trapezoid of consecutive samples (seed 001
     /// §1.1, for instantaneous rates) or average (rate already averaged
-    /// over the interval, as an averaging/decimating IMU outputs).
-    #[arg(long, value_enum, default_value_t = Rule::Trapezoid)]
-    pub rate_rule: Rule,
+    /// over the interval, as an averaging/decimating IMU outputs)
+    /// [default: the log header's `imu_rates`, else trapezoid].
+    #[arg(long, value_enum)]
+    pub rate_rule: Option<Rule>,
     /// True GPS time of each imu record ("week sow" lines): print the
     /// stamp errors and add them to the report.
     #[arg(long)]
@@ -108,10 +109,10 @@ pub fn run(args: Args) -> Result<()> {
         ..Default::default()
     };
     let t0 = Instant::now();
-    let rule = match args.rate_rule {
+    let rule = args.rate_rule.map(|r| match r {
         Rule::Trapezoid => RateRule::Trapezoid,
         Rule::Average => RateRule::Average,
-    };
+    });
     let summary = sync_file(rig, out_dir, cfg, rule, args.truth.as_deref())?;
     let wall = t0.elapsed().as_secs_f64();
     if let Some(tpl) = &args.kfgins_template {
@@ -257,7 +258,7 @@ fn bench(args: &Args) -> Result<()> {
     let t1 = Instant::now();
     let cpu0 = crate::procstat::cpu_seconds().unwrap_or(0.0);
     let out = dir.join("out");
-    let res = sync_file(&rig, &out, cfg, RateRule::Trapezoid, None);
+    let res = sync_file(&rig, &out, cfg, Some(RateRule::Trapezoid), None);
     let wall = t1.elapsed().as_secs_f64();
     let cpu = crate::procstat::cpu_seconds().unwrap_or(0.0) - cpu0;
     let rss = crate::procstat::peak_rss_mb().unwrap_or(0.0);

@@ -39,6 +39,16 @@ pub enum ImuTiming {
     Receive,
 }
 
+/// What an `imu` rate value is (header `imu_rates`): it decides how rates
+/// become increments (seed 001 §1.1 trapezoid for instantaneous samples;
+/// the rectangle over its own interval for an average, §1.3.1).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RateSampling {
+    Instantaneous,
+    IntervalAverage,
+}
+
 /// The header of a rig log.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct RigHeader {
@@ -56,6 +66,9 @@ pub struct RigHeader {
     /// data instant to the frame start, when the header gives
     /// `imu_output_delay_s`.
     pub imu_output_delay_s: Option<f64>,
+    /// Whether `imu` rates are instantaneous samples or averages over
+    /// their interval, when the header gives `imu_rates`.
+    pub imu_rates: Option<RateSampling>,
     /// Other `key: value` header lines, in order.
     pub extra: Vec<(String, String)>,
 }
@@ -124,6 +137,7 @@ impl<R: Read> RigLogReader<R> {
         let mut imu_rate_hz = None;
         let mut imu_timing = None;
         let mut imu_output_delay_s = None;
+        let mut imu_rates = None;
         let mut extra = Vec::new();
         let mut pending = None;
         let mut first_line = true;
@@ -216,6 +230,17 @@ impl<R: Read> RigLogReader<R> {
                         ),
                     ),
                 },
+                "imu_rates" => match first {
+                    "instantaneous" => imu_rates = Some(RateSampling::Instantaneous),
+                    "interval-average" => imu_rates = Some(RateSampling::IntervalAverage),
+                    _ => diag.push(
+                        &path,
+                        no,
+                        format!(
+                            "imu_rates: expected 'instantaneous' or 'interval-average', found '{value}'; ignored"
+                        ),
+                    ),
+                },
                 "imu_output_delay_s" => match first.parse::<f64>() {
                     Ok(v) if v.is_finite() && (0.0..1.0).contains(&v) => {
                         imu_output_delay_s = Some(v)
@@ -276,6 +301,7 @@ impl<R: Read> RigLogReader<R> {
                 imu_rate_hz,
                 imu_timing,
                 imu_output_delay_s,
+                imu_rates,
                 extra,
             },
             pending,
@@ -657,13 +683,14 @@ mod tests {
     #[test]
     fn imu_timing_and_output_delay_headers() {
         let text = format!(
-            "{HEAD}# imu_timing: frame-start\n# imu_output_delay_s: 0.0015  T_c\nimu,1,1,2,3,4,5,6\n"
+            "{HEAD}# imu_timing: frame-start\n# imu_output_delay_s: 0.0015  T_c\n# imu_rates: interval-average\nimu,1,1,2,3,4,5,6\n"
         );
         let mut diag = Diagnostics::default();
         let lines = LineReader::new(text.as_bytes(), Path::new("rig.csv"));
         let r = RigLogReader::new(lines, &mut diag).unwrap();
         assert_eq!(r.header().imu_timing, Some(ImuTiming::FrameStart));
         assert_eq!(r.header().imu_output_delay_s, Some(0.0015));
+        assert_eq!(r.header().imu_rates, Some(RateSampling::IntervalAverage));
         assert!(diag.is_empty(), "{diag:?}");
         // Bad values are reported with their line and ignored.
         let text = format!("{HEAD}# imu_timing: sometimes\n# imu_output_delay_s: -1\n");

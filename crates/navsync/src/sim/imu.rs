@@ -314,6 +314,13 @@ impl Default for ImuSpec {
 pub const IMU_PRESETS: &[&str] = &["nav", "tactical", "adis16465", "icm20602", "perfect"];
 
 impl ImuSpec {
+    /// Whether output rates are averages over their output interval (an
+    /// averaging decimation, or the ideal integrating IMU) rather than
+    /// instantaneous samples (point decimation).
+    pub fn rates_are_interval_averages(&self) -> bool {
+        self.decimation == Decimation::Average || self.internal_rate_hz == 0.0
+    }
+
     /// A preset by name:
     /// - `nav`: navigation grade, Leador-A15 class (i2Nav reference IMU):
     ///   ARW 0.003°/√h, gyro bias instability 0.027°/h, VRW 0.03 m/s/√h,

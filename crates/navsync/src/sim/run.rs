@@ -261,6 +261,13 @@ impl Simulation {
                 SyncMode::Sw => "receive",
             };
             h.push_str(&format!("# imu_timing: {timing}\n"));
+            if record_kind == OutputKind::Rate {
+                h.push_str(if imu_spec.rates_are_interval_averages() {
+                    "# imu_rates: interval-average\n"
+                } else {
+                    "# imu_rates: instantaneous\n"
+                });
+            }
             if rig.sync == SyncMode::Serial {
                 h.push_str(&format!(
                     "# imu_output_delay_s: {}\n",

@@ -12,7 +12,7 @@ use super::{IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncOutput};
 use crate::error::{Diagnostics, Error};
 use crate::ins::ImuSample;
 use crate::io::kfgins::{TextWriter, format_gnss_line};
-use crate::io::riglog::{RigLogReader, RigRecord};
+use crate::io::riglog::{RateSampling, RigLogReader, RigRecord};
 
 /// What a synchronization run produced.
 pub struct SyncSummary {
@@ -30,13 +30,15 @@ fn thread_failed(what: &str) -> Error {
 }
 
 /// Reads `rig`, synchronizes it, and writes `imu.txt`, `gnss.txt`,
-/// `imu_times.txt` and `sync_report.json` into `out_dir`. With `truth` (a
-/// `week sow` line per `imu` record), stamps are compared with it.
+/// `imu_times.txt` and `sync_report.json` into `out_dir`. Rates become
+/// increments by `rule`, or by what the header's `imu_rates` says. With
+/// `truth` (a `week sow` line per `imu` record), stamps are compared with
+/// it.
 pub fn sync_file(
     rig: &Path,
     out_dir: &Path,
     cfg: SyncConfig,
-    rule: RateRule,
+    rule: Option<RateRule>,
     truth: Option<&Path>,
 ) -> Result<SyncSummary, Error> {
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
@@ -44,6 +46,12 @@ pub fn sync_file(
     let mut reader = RigLogReader::open(rig, &mut read_diag)?;
     let header = reader.header().clone();
     let kind = header.imu_kind;
+    // Unless told: the header's `imu_rates`, else instantaneous samples
+    // (seed 001 §1.1's trapezoid).
+    let rule = rule.unwrap_or(match header.imu_rates {
+        Some(RateSampling::IntervalAverage) => RateRule::Average,
+        _ => RateRule::Trapezoid,
+    });
 
     // Reader thread: parsed records in batches.
     let (rec_tx, rec_rx) = mpsc::sync_channel::<Vec<(RigRecord, usize)>>(8);

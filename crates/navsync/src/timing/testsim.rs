@@ -317,6 +317,7 @@ pub fn generate(s: &Scenario) -> Generated {
             imu_rate_hz: Some(s.imu_rate_hz),
             imu_timing: None,
             imu_output_delay_s: None,
+            imu_rates: None,
             extra: Vec::new(),
         },
         records,
