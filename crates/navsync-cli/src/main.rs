@@ -37,6 +37,9 @@ enum Command {
     Imu(commands::imu::Args),
     /// Simulate a drive: exact truth, IMU, GNSS, clocks and a raw rig log.
     Simulate(commands::simulate::Args),
+    /// Live on Linux: GNSS and IMU serial ports + kernel PPS, synchronized
+    /// and fused in real time (--selftest: measured on pseudo-terminals).
+    Live(commands::live::Args),
 }
 
 fn main() {
@@ -52,6 +55,7 @@ fn main() {
         Command::SpeedSim(a) => commands::speed_sim::run(a),
         Command::Imu(a) => commands::imu::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
+        Command::Live(a) => commands::live::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

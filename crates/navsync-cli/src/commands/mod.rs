@@ -4,6 +4,7 @@ pub mod convert;
 pub mod eval;
 pub mod fuse;
 pub mod imu;
+pub mod live;
 pub mod simulate;
 pub mod speed_sim;
 pub mod sync;
