@@ -16,11 +16,16 @@
 //! 000): the host stamps each line's arrival, `h_k = t_k + T_c + μ_k` with
 //! the output delay `T_c` (configured, subtracted by the engine) and a
 //! transmission/scheduling delay `μ_k ≥ 0`. Several lines read together
-//! share one stamp, so raw arrivals would look duplicated or irregular.
+//! share one stamp, so raw arrivals would look duplicated or irregular:
+//! a line read with `n` more behind it arrived at least `n` periods before
+//! the read.
 //! [`ArrivalTimer`] replaces each arrival by the lower envelope of
 //! arrival vs sample index (seed 001 §2.2, TICSync; [`EnvelopeFit`]) fitted
-//! causally over the last seconds: the sample clock up to the fastest
-//! delay. The index comes from the line count: a corrupted sample line
+//! causally over the last seconds (for the first 200 samples, with the
+//! nominal period as slope): the sample clock up to the fastest delay.
+//! When the envelope improves (a faster arrival than any before, a refit)
+//! the stamps come down to it by at most a quarter period per sample, so
+//! consecutive stamps stay 0.75–1.25 periods apart. The index comes from the line count: a corrupted sample line
 //! (a bad line of about a sample line's length; one twice as long is two
 //! merged samples) advances it, a short junk line does not. A sample that
 //! vanishes without a trace is not inferred from timing: on a loaded host,
@@ -139,6 +144,9 @@ fn memchr_lf(b: &[u8]) -> Option<usize> {
     b.iter().position(|&c| c == b'\n')
 }
 
+/// Points before the envelope's slope is fitted (at 200 Hz, one second).
+const MIN_FIT_POINTS: usize = 200;
+
 /// Causal lower-envelope timing of periodic samples from their arrivals
 /// (see the module notes).
 #[derive(Clone, Debug)]
@@ -149,7 +157,13 @@ pub struct ArrivalTimer {
     points: VecDeque<(f64, f64)>,
     origin: Option<u64>,
     next_k: i64,
+    /// Lower envelope with the nominal period until a fit exists:
+    /// min over samples of (arrival − index · nominal period).
+    base: f64,
     fit: Option<EnvelopeFit>,
+    /// The previous stamp (index, ns from origin): stamps come down to a
+    /// lower envelope by at most a quarter period per sample.
+    last: Option<(i64, f64)>,
     since_fit: usize,
     /// Typical length of a sample line (bytes, running mean).
     line_len: Option<f64>,
@@ -169,7 +183,9 @@ impl ArrivalTimer {
             points: VecDeque::new(),
             origin: None,
             next_k: 0,
+            base: f64::INFINITY,
             fit: None,
+            last: None,
             since_fit: 0,
             line_len: None,
             lost: 0,
@@ -182,7 +198,9 @@ impl ArrivalTimer {
         self.points.clear();
         self.origin = None;
         self.next_k = 0;
+        self.base = f64::INFINITY;
         self.fit = None;
+        self.last = None;
         self.since_fit = 0;
         self.restarts += 1;
     }
@@ -226,8 +244,11 @@ impl ArrivalTimer {
         slots
     }
 
-    /// The sample whose line arrived at host counter `arrival_ns`.
-    pub fn push(&mut self, arrival_ns: u64) -> u64 {
+    /// The sample whose line arrived at host counter `arrival_ns`, read
+    /// together with `behind` more sample lines: those queued behind it, so
+    /// it arrived at least that many nominal periods earlier.
+    pub fn push(&mut self, arrival_ns: u64, behind: usize) -> u64 {
+        let arrival_ns = arrival_ns.saturating_sub((behind as f64 * self.nominal_period_ns) as u64);
         let origin = *self.origin.get_or_insert(arrival_ns);
         let h = arrival_ns.saturating_sub(origin) as f64;
         let k = self.next_k;
@@ -236,8 +257,9 @@ impl ArrivalTimer {
         {
             // Earlier than the sample clock allows: the rate changed.
             self.restart();
-            return self.push(arrival_ns);
+            return self.push(arrival_ns, 0);
         }
+        self.base = self.base.min(h - k as f64 * self.nominal_period_ns);
         self.points.push_back((k as f64, h));
         let span = self.window_s * 1e9;
         while self.points.front().is_some_and(|&(_, h0)| h - h0 > span) {
@@ -245,19 +267,30 @@ impl ArrivalTimer {
         }
         self.next_k = k + 1;
         self.since_fit += 1;
-        let n = self.points.len();
-        // Fit early and often while few points exist, then once a second-ish.
-        if n >= 4 && (self.fit.is_none() || self.since_fit >= n.min(200)) {
+        // A free slope needs a second of points (a few jittered points give
+        // a poor one); refit about once a second.
+        if self.points.len() >= MIN_FIT_POINTS && self.since_fit >= MIN_FIT_POINTS {
             self.refit();
         }
         self.stamp(k, h, origin)
     }
 
-    fn stamp(&self, k: i64, h: f64, origin: u64) -> u64 {
-        let t = match &self.fit {
-            Some(f) => f.eval(k as f64).min(h),
-            None => h,
+    fn stamp(&mut self, k: i64, h: f64, origin: u64) -> u64 {
+        let env = match &self.fit {
+            Some(f) => f.eval(k as f64),
+            None => self.base + k as f64 * self.nominal_period_ns,
         };
+        // Not after the arrival; but a better envelope (a faster arrival
+        // than all before, a refit) lowers the stamps gradually: never
+        // closer than 3/4 of a period to the previous one, which takes
+        // precedence (the engine would take a closer pair for a duplicate).
+        let t = match self.last {
+            Some((kl, tl)) => env
+                .min(h)
+                .max(tl + (k - kl) as f64 * 0.75 * self.nominal_period_ns),
+            None => env.min(h),
+        };
+        self.last = Some((k, t));
         origin + t.max(0.0).round() as u64
     }
 }
@@ -319,24 +352,47 @@ mod tests {
         let t0 = 1_000_000_000u64;
         let mut worst = 0.0f64;
         let mut prev = 0u64;
+        let mut last_stamp: Option<(u64, u64)> = None;
+        // (k, true time, arrival); a read returns every line that arrived
+        // by then: lines sharing an arrival are one read.
+        let mut arrivals = Vec::new();
         for k in 0..4000u64 {
             if k == 3000 {
-                assert_eq!(t.bad_line(118), 1); // corrupted sample line
-                continue;
-            }
-            if k == 3500 {
-                assert_eq!(t.bad_line(20), 0); // junk between samples
+                continue; // its line is corrupted
             }
             let true_ns = t0 as f64 + k as f64 * period;
             let mut d = 1e5 + ((k * 7919) % 1000) as f64 * 900.0;
             if k % 50 == 0 {
                 d += 12e6;
             }
+            if k == 0 {
+                d += 40e6; // the first lines come in one read
+            }
             // bytes arrive in order: a held line holds up its successors
             let arrival = ((true_ns + d) as u64).max(prev);
             prev = arrival;
+            arrivals.push((k, true_ns, arrival));
+        }
+        for (i, &(k, true_ns, arrival)) in arrivals.iter().enumerate() {
+            if k == 3001 {
+                assert_eq!(t.bad_line(118), 1); // corrupted sample line
+            }
+            if k == 3500 {
+                assert_eq!(t.bad_line(20), 0); // junk between samples
+            }
+            let behind = arrivals[i + 1..]
+                .iter()
+                .take_while(|a| a.2 == arrival)
+                .count();
             t.note_line_len(120);
-            let s = t.push(arrival);
+            let s = t.push(arrival, behind);
+            // Regular spacing from the first sample on (the engine would
+            // call a closer pair a duplicate).
+            if let Some((kp, sp)) = last_stamp {
+                let d = (s - sp) as f64 / ((k - kp) as f64 * period);
+                assert!((0.74..1.26).contains(&d), "sample {k}: spacing {d} periods");
+            }
+            last_stamp = Some((k, s));
             if k > 300 {
                 worst = worst.max((s as f64 - (true_ns + 1e5)).abs());
             }

@@ -193,6 +193,7 @@ pub struct LiveCounts {
     pub imu_dropped_no_time: u64,
     pub solutions: u64,
     pub gnss_fixes: u64,
+    /// Fixes the filter used (fused at their time of validity).
     pub gnss_fused: u64,
     pub gnss_problems: u64,
     pub pps_edges: u64,
@@ -415,7 +416,9 @@ fn spawn_imu(
                 stop,
                 retry,
                 |bytes, stamp, tx| {
-                    let mut ok = true;
+                    // The lines of one read, in order: Ok(values, length) or
+                    // Err(message, length).
+                    let mut items: Vec<(Result<[f64; 6], String>, usize)> = Vec::new();
                     split.borrow_mut().push(bytes, |line, too_long| {
                         let parsed = if too_long {
                             Err("line longer than 512 bytes".to_string())
@@ -423,10 +426,26 @@ fn spawn_imu(
                             fmt.parse(line)
                         };
                         match parsed {
-                            Ok(Some(values)) => {
-                                let mut t = timer.borrow_mut();
-                                t.note_line_len(line.len());
-                                let sample_ns = t.push(stamp);
+                            Ok(Some(v)) => items.push((Ok(v), line.len())),
+                            Ok(None) => {}
+                            Err(e) => {
+                                let shown = String::from_utf8_lossy(&line[..line.len().min(60)]);
+                                items.push((
+                                    Err(format!("bad IMU line '{shown}': {e}")),
+                                    line.len(),
+                                ));
+                            }
+                        }
+                    });
+                    let mut t = timer.borrow_mut();
+                    let mut behind = items.iter().filter(|i| i.0.is_ok()).count();
+                    let mut ok = true;
+                    for (item, len) in items {
+                        match item {
+                            Ok(values) => {
+                                behind -= 1;
+                                t.note_line_len(len);
+                                let sample_ns = t.push(stamp, behind);
                                 ok &= tx
                                     .send(Input::Imu {
                                         arrival_ns: stamp,
@@ -435,19 +454,15 @@ fn spawn_imu(
                                     })
                                     .is_ok();
                             }
-                            Ok(None) => {}
-                            Err(e) => {
-                                let slots = timer.borrow_mut().bad_line(line.len());
-                                let shown = String::from_utf8_lossy(&line[..line.len().min(60)]);
-                                let what = match slots {
+                            Err(msg) => {
+                                let what = match t.bad_line(len) {
                                     0 => "skipped".to_string(),
                                     n => format!("counted as {n} lost sample(s)"),
                                 };
-                                let msg = format!("bad IMU line '{shown}': {e}; {what}");
-                                ok &= tx.send(Input::BadImuLine(msg)).is_ok();
+                                ok &= tx.send(Input::BadImuLine(format!("{msg}; {what}"))).is_ok();
                             }
                         }
-                    });
+                    }
                     ok
                 },
                 || {
@@ -572,6 +587,9 @@ struct Core {
     fusion_cfg: FusionConfig,
     init_from_gnss: bool,
     fusion: Option<Fusion>,
+    /// Latest IMU stamp out of the engine.
+    last_imu_time: Option<GpsTime>,
+    max_gnss_latency_s: f64,
     /// (engine seq, arrival ns) of IMU lines not yet stamped.
     arrivals: VecDeque<(u64, u64)>,
     imu_seq: u64,
@@ -623,6 +641,8 @@ impl Core {
             inc: IncrementBuilder::new(cfg.imu_format.kind()),
             init_from_gnss: cfg.init_from_gnss,
             fusion: (!cfg.init_from_gnss).then(|| Fusion::new(fusion_cfg.clone())),
+            last_imu_time: None,
+            max_gnss_latency_s: cfg.max_gnss_latency_s,
             fusion_cfg,
             arrivals: VecDeque::new(),
             imu_seq: 0,
@@ -714,6 +734,7 @@ impl Core {
                         continue;
                     }
                     self.counts.imu_stamped += 1;
+                    self.last_imu_time = Some(s.time);
                     let Some(sample) = self.inc.push(s.time, &s.values, &s.flags) else {
                         continue;
                     };
@@ -741,6 +762,14 @@ impl Core {
                     if let Some(full) = self.recent_fixes.iter().find(|f| f.time == g.time) {
                         fix = *full;
                     }
+                    // Fixes stamped in a backlog (the clock just locked) are
+                    // too old to start from or to fuse.
+                    let stale = self
+                        .last_imu_time
+                        .is_some_and(|t| t.seconds_since(g.received) > self.max_gnss_latency_s);
+                    if self.fusion.is_none() && stale {
+                        continue;
+                    }
                     if self.fusion.is_none() && self.init_from_gnss {
                         let mut fc = self.fusion_cfg.clone();
                         fc.init_nav.time = fix.time;
@@ -760,7 +789,7 @@ impl Core {
                     }
                     if let Some(f) = self.fusion.as_mut() {
                         f.push_gnss(fix)?;
-                        self.counts.gnss_fused += 1;
+                        self.counts.gnss_fused = f.stats().gnss_fixes_used as u64;
                     }
                 }
             }

@@ -9,10 +9,11 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use navsync::Diagnostics;
+use nalgebra::Vector3;
+use navsync::attitude::Euler;
+use navsync::filter::{ImuNoise, InitialStd};
 use navsync::fusion::{FusionConfig, NavOutput};
-use navsync::io::config::KfGinsConfig;
-use navsync::pipeline::{FuseOptions, fusion_config};
+use navsync::ins::NavState;
 use navsync::timing::LockState;
 use serde::Serialize;
 
@@ -84,6 +85,9 @@ pub struct SelftestReport {
     /// Seconds into the run when the clock entered holdover and relocked.
     pub holdover_at_s: Vec<f64>,
     pub relocked_at_s: Vec<f64>,
+    /// The engine's holdover spans (first and last stamp in holdover), in
+    /// GPS seconds since the replay's start.
+    pub holdover_spans_s: Vec<(f64, f64)>,
     pub stamp_errors: StampErrors,
     /// Largest position distance from the true position (m) after 5 s of fusion.
     pub max_pos_error_m: f64,
@@ -91,44 +95,37 @@ pub struct SelftestReport {
 }
 
 /// The filter settings of the self-test: the replay's position, level,
-/// heading north, MEMS noise.
-pub fn builtin_fusion(r: &ReplayConfig) -> Result<FusionConfig, navsync::Error> {
-    let yaml = format!(
-        r#"imupath: "./imu.txt"
-gnsspath: "./gnss.txt"
-outputpath: "./out"
-imudatalen: 7
-imudatarate: {}
-starttime: 0
-endtime: -1
-initpos: [ {:.9}, {:.9}, {:.3} ]
-initvel: [ 0, 0, 0 ]
-initatt: [ 0, 0, 0 ]
-initgyrbias: [ 0, 0, 0 ]
-initaccbias: [ 0, 0, 0 ]
-initgyrscale: [ 0, 0, 0 ]
-initaccscale: [ 0, 0, 0 ]
-initposstd: [ 1.0, 1.0, 1.5 ]
-initvelstd: [ 0.1, 0.1, 0.1 ]
-initattstd: [ 0.5, 0.5, 1.0 ]
-imunoise:
-  arw: [ 0.15, 0.15, 0.15 ]
-  vrw: [ 0.04, 0.04, 0.04 ]
-  gbstd: [ 2, 2, 2 ]
-  abstd: [ 3.6, 3.6, 3.6 ]
-  gsstd: [ 500, 500, 500 ]
-  asstd: [ 500, 500, 500 ]
-  corrtime: 1
-antlever: [ 0, 0, 0 ]
-"#,
-        r.imu_rate_hz,
-        r.pos.lat_rad.to_degrees(),
-        r.pos.lon_rad.to_degrees(),
-        r.pos.h_m
+/// heading north; ADIS16465-class MEMS noise (ARW 0.15 deg/√h, VRW
+/// 0.04 m/s/√h, bias instability 2 deg/h and 3.6 mGal over 1 h, scale
+/// factors 500 ppm).
+pub fn builtin_fusion(r: &ReplayConfig) -> FusionConfig {
+    let deg = std::f64::consts::PI / 180.0;
+    let v = |x: f64| Vector3::new(x, x, x);
+    let noise = ImuNoise {
+        arw: v(0.15 * deg / 60.0),
+        vrw: v(0.04 / 60.0),
+        gyro_bias_sd: v(2.0 * deg / 3600.0),
+        accel_bias_sd: v(3.6e-5),
+        gyro_scale_sd: v(500e-6),
+        accel_scale_sd: v(500e-6),
+        corr_time_s: 3600.0,
+    };
+    let init_std = InitialStd {
+        pos: Vector3::new(1.0, 1.0, 1.5),
+        vel: v(0.1),
+        att: Vector3::new(0.5 * deg, 0.5 * deg, 1.0 * deg),
+        gyro_bias: noise.gyro_bias_sd,
+        accel_bias: noise.accel_bias_sd,
+        gyro_scale: noise.gyro_scale_sd,
+        accel_scale: noise.accel_scale_sd,
+    };
+    let nav = NavState::new(
+        r.start,
+        r.pos,
+        Vector3::zeros(),
+        &Euler::from_deg(0.0, 0.0, 0.0),
     );
-    let mut diag = Diagnostics::default();
-    let cfg = KfGinsConfig::parse(&yaml, Path::new("selftest.yaml"), &mut diag)?;
-    Ok(fusion_config(&cfg, &FuseOptions::default()))
+    FusionConfig::new(nav, init_std, noise, r.imu_rate_hz)
 }
 
 struct Measure<'a> {
@@ -181,10 +178,7 @@ impl LiveSink for Measure<'_> {
 pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
     std::fs::create_dir_all(dir)?;
     let r = &cfg.replay;
-    let fusion = match &cfg.fusion {
-        Some(f) => f.clone(),
-        None => builtin_fusion(r).map_err(|e| io::Error::other(e.to_string()))?,
-    };
+    let fusion = cfg.fusion.clone().unwrap_or_else(|| builtin_fusion(r));
     let (inj, src) = pps::injected();
     let replay = Replay::start(r.clone(), dir, inj, 0.5)?;
     let baud = 921600;
@@ -239,6 +233,19 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
     for v in holdover_at_s.iter_mut().chain(relocked_at_s.iter_mut()) {
         *v -= 0.5;
     }
+    let since_start = |w: &navsync::timing::report::WeekSow| {
+        (w.week - r.start.week()) as f64 * 604_800.0 + w.sow - r.start.sow()
+    };
+    let holdover_spans_s = report
+        .sync
+        .as_ref()
+        .map(|s| {
+            s.holdover
+                .iter()
+                .map(|h| (since_start(&h.start), since_start(&h.end)))
+                .collect()
+        })
+        .unwrap_or_default();
     Ok(SelftestReport {
         duration_s: report.duration_s,
         imu_written: stats.imu_written,
@@ -260,6 +267,7 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
         replay_max_late_ms: stats.max_late_s * 1e3,
         holdover_at_s,
         relocked_at_s,
+        holdover_spans_s,
         stamp_errors: m.err,
         max_pos_error_m: m.max_pos_m,
         live: report,

@@ -108,7 +108,7 @@ impl LiveSink for Collect {
 
 #[test]
 fn missing_devices_are_reported_and_retried_and_bad_bauds_refused() {
-    let fusion = builtin_fusion(&Default::default()).unwrap();
+    let fusion = builtin_fusion(&Default::default());
     let port = |p: &str| PortConfig {
         path: PathBuf::from(p),
         baud: 115200,

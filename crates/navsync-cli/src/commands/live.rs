@@ -279,10 +279,23 @@ fn run_selftest(args: &Args) -> Result<()> {
         r.pps_injected, r.pps_gap, r.holdover_at_s, r.relocked_at_s
     );
     if let Some(s) = &r.live.sync {
-        for h in &s.holdover {
+        for (h, span) in s.holdover.iter().zip(&r.holdover_spans_s) {
             println!(
-                "  holdover {:.1} s, stamp bound up to {:.1} µs ({} samples)",
-                h.duration_s, h.max_bound_us, h.samples
+                "  holdover stamps from {:.2} s to {:.2} s of GPS time ({:.1} s, {} samples), stamp bound up to {:.1} µs",
+                span.0, span.1, h.duration_s, h.samples, h.max_bound_us
+            );
+        }
+        if let Some(p) = &s.pps {
+            println!(
+                "  pulses: {} received, {} accepted; innovation RMS {:.2} µs; counter {:.3} ppm",
+                p.counts.received,
+                p.counts.accepted,
+                p.innovation_rms_us.unwrap_or(f64::NAN),
+                s.counter
+                    .freq_error_ppm
+                    .as_ref()
+                    .map(|f| f.mean)
+                    .unwrap_or(f64::NAN)
             );
         }
     }
