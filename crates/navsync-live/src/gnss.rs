@@ -9,9 +9,16 @@
 //! its receive time is that of its own last sentence, one epoch before it
 //! is delivered. Once the port has given a NAV-PVT fix, NMEA fixes are
 //! ignored (the same epochs twice).
+//!
+//! With [`GnssDecoder::enable_esf`], the port's UBX ESF-RAW (or, without
+//! it, ESF-MEAS) data of a receiver's own IMU come out as rate samples on
+//! the sensor time-tag axis with the arrival of their message
+//! ([`EsfImu`] pairs the gyro and accelerometer triads; values in the
+//! sensor's axes as sent).
 
 use navsync::filter::gnss::GnssFix;
 use navsync_receivers::fixes::{FixOptions, NmeaFixes, NmeaOutcome, TimeContext, nav_pvt_fix};
+use navsync_receivers::imu::{EsfImu, RateSample};
 use navsync_receivers::stream::{EventKind, StreamReader, StreamStats};
 use navsync_receivers::ubx::UbxMessage;
 
@@ -20,6 +27,33 @@ use navsync_receivers::ubx::UbxMessage;
 pub struct ReceivedFix {
     pub fix: GnssFix,
     pub received_ns: u64,
+}
+
+/// An IMU sample from ESF messages and the arrival of its message.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct EsfSample {
+    /// Sensor time (time tag × tick, ns from the sensor's origin).
+    pub sensor_ns: i64,
+    /// Gyro rad/s then specific force m/s², sensor axes.
+    pub values: [f64; 6],
+    pub arrival_ns: u64,
+}
+
+/// What a push produced.
+#[derive(Clone, Debug, Default)]
+pub struct Decoded {
+    pub fixes: Vec<ReceivedFix>,
+    pub imu: Vec<EsfSample>,
+    /// Problems: corrupt runs, invalid frames, unusable epochs.
+    pub notes: Vec<String>,
+}
+
+/// ESF decoding state: ESF-RAW once seen (full rate), else ESF-MEAS.
+struct Esf {
+    raw: EsfImu,
+    meas: EsfImu,
+    raw_seen: bool,
+    rates: Vec<RateSample>,
 }
 
 /// Incremental decoder of one receiver port.
@@ -31,6 +65,7 @@ pub struct GnssDecoder {
     /// Arrival of the latest NMEA sentence (the open epoch's last so far).
     last_nmea_ns: Option<u64>,
     seen_pvt: bool,
+    esf: Option<Esf>,
     /// Fixes delivered.
     pub fixes: u64,
 }
@@ -50,8 +85,20 @@ impl GnssDecoder {
             nmea_out: Vec::new(),
             last_nmea_ns: None,
             seen_pvt: false,
+            esf: None,
             fixes: 0,
         }
+    }
+
+    /// Also decode ESF-RAW/ESF-MEAS IMU data; `tick_s` is the sensor
+    /// time-tag tick (u-blox: 1 ms for ESF-MEAS; check ESF-RAW's).
+    pub fn enable_esf(&mut self, tick_s: f64) {
+        self.esf = Some(Esf {
+            raw: EsfImu::new(tick_s),
+            meas: EsfImu::new(tick_s),
+            raw_seen: false,
+            rates: Vec::new(),
+        });
     }
 
     /// Forgets a partial frame (after a reconnect); keeps the time context.
@@ -63,24 +110,32 @@ impl GnssDecoder {
         self.reader.stats()
     }
 
-    /// Bytes that arrived at host counter `arrival_ns`. Fixes go to `out`,
-    /// problems (corrupt runs, invalid frames, unusable epochs) to `notes`.
-    pub fn push(
-        &mut self,
-        bytes: &[u8],
-        arrival_ns: u64,
-        out: &mut Vec<ReceivedFix>,
-        notes: &mut Vec<String>,
-    ) {
+    /// Bytes that arrived at host counter `arrival_ns`; what they complete
+    /// is appended to `out`.
+    pub fn push(&mut self, bytes: &[u8], arrival_ns: u64, out: &mut Decoded) {
         self.reader.push(bytes);
+        let notes = &mut out.notes;
         while let Some(ev) = self.reader.next_event() {
             match &ev.kind {
+                EventKind::Ubx(UbxMessage::EsfRaw(m)) if self.esf.is_some() => {
+                    if let Some(e) = self.esf.as_mut() {
+                        e.raw_seen = true;
+                        e.raw.push_raw(m, &mut e.rates);
+                    }
+                }
+                EventKind::Ubx(UbxMessage::EsfMeas(m)) if self.esf.is_some() => {
+                    if let Some(e) = self.esf.as_mut()
+                        && !e.raw_seen
+                    {
+                        e.meas.push_meas(m, &mut e.rates);
+                    }
+                }
                 EventKind::Ubx(UbxMessage::NavTimeGps(t)) => self.ctx.push_timegps(t),
                 EventKind::Ubx(UbxMessage::NavPvt(p)) => match nav_pvt_fix(p, &self.ctx) {
                     Ok(Some(f)) => {
                         self.seen_pvt = true;
                         self.fixes += 1;
-                        out.push(ReceivedFix {
+                        out.fixes.push(ReceivedFix {
                             fix: f.fix,
                             received_ns: arrival_ns,
                         });
@@ -97,7 +152,7 @@ impl GnssDecoder {
                         match o {
                             NmeaOutcome::Fix(f) if !self.seen_pvt => {
                                 self.fixes += 1;
-                                out.push(ReceivedFix {
+                                out.fixes.push(ReceivedFix {
                                     fix: f.fix,
                                     received_ns: epoch_end,
                                 });
@@ -108,6 +163,16 @@ impl GnssDecoder {
                     }
                 }
                 EventKind::Invalid { .. } | EventKind::Corrupt(_) => notes.push(ev.to_string()),
+            }
+        }
+        if let Some(e) = self.esf.as_mut() {
+            for r in e.rates.drain(..) {
+                let (g, a) = (r.gyro_radps, r.accel_mps2);
+                out.imu.push(EsfSample {
+                    sensor_ns: r.time.ns(),
+                    values: [g.x, g.y, g.z, a.x, a.y, a.z],
+                    arrival_ns,
+                });
             }
         }
     }

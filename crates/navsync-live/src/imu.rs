@@ -163,7 +163,7 @@ pub struct ArrivalTimer {
     fit: Option<EnvelopeFit>,
     /// The previous stamp (index, ns from origin): stamps come down to a
     /// lower envelope by at most a quarter period per sample.
-    last: Option<(i64, f64)>,
+    last: Option<(f64, f64)>,
     since_fit: usize,
     /// Typical length of a sample line (bytes, running mean).
     line_len: Option<f64>,
@@ -249,48 +249,57 @@ impl ArrivalTimer {
     /// it arrived at least that many nominal periods earlier.
     pub fn push(&mut self, arrival_ns: u64, behind: usize) -> u64 {
         let arrival_ns = arrival_ns.saturating_sub((behind as f64 * self.nominal_period_ns) as u64);
+        let x = self.next_k as f64;
+        self.next_k += 1;
+        self.add(x, arrival_ns)
+    }
+
+    /// A sample that carries its own time tag: `x` is its sensor time in
+    /// nominal periods (from any origin), `arrival_ns` the arrival of the
+    /// message that held it (ESF-RAW: several samples per message).
+    pub fn push_tagged(&mut self, x: f64, arrival_ns: u64) -> u64 {
+        self.add(x, arrival_ns)
+    }
+
+    fn add(&mut self, x: f64, arrival_ns: u64) -> u64 {
         let origin = *self.origin.get_or_insert(arrival_ns);
         let h = arrival_ns.saturating_sub(origin) as f64;
-        let k = self.next_k;
         if let Some(f) = &self.fit
-            && h - f.eval(k as f64) < -0.5 * self.period()
+            && h - f.eval(x) < -0.5 * self.period()
         {
             // Earlier than the sample clock allows: the rate changed.
+            let k = self.next_k;
             self.restart();
-            return self.push(arrival_ns, 0);
+            self.next_k = k;
+            return self.add(x, arrival_ns);
         }
-        self.base = self.base.min(h - k as f64 * self.nominal_period_ns);
-        self.points.push_back((k as f64, h));
+        self.base = self.base.min(h - x * self.nominal_period_ns);
+        self.points.push_back((x, h));
         let span = self.window_s * 1e9;
         while self.points.front().is_some_and(|&(_, h0)| h - h0 > span) {
             self.points.pop_front();
         }
-        self.next_k = k + 1;
         self.since_fit += 1;
         // A free slope needs a second of points (a few jittered points give
         // a poor one); refit about once a second.
         if self.points.len() >= MIN_FIT_POINTS && self.since_fit >= MIN_FIT_POINTS {
             self.refit();
         }
-        self.stamp(k, h, origin)
-    }
-
-    fn stamp(&mut self, k: i64, h: f64, origin: u64) -> u64 {
         let env = match &self.fit {
-            Some(f) => f.eval(k as f64),
-            None => self.base + k as f64 * self.nominal_period_ns,
+            Some(f) => f.eval(x),
+            None => self.base + x * self.nominal_period_ns,
         };
         // Not after the arrival; but a better envelope (a faster arrival
         // than all before, a refit) lowers the stamps gradually: never
         // closer than 3/4 of a period to the previous one, which takes
         // precedence (the engine would take a closer pair for a duplicate).
         let t = match self.last {
-            Some((kl, tl)) => env
+            Some((xl, tl)) => env
                 .min(h)
-                .max(tl + (k - kl) as f64 * 0.75 * self.nominal_period_ns),
+                .max(tl + (x - xl) * 0.75 * self.nominal_period_ns),
             None => env.min(h),
         };
-        self.last = Some((k, t));
+        self.last = Some((x, t));
         origin + t.max(0.0).round() as u64
     }
 }

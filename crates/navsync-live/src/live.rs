@@ -43,7 +43,7 @@ use navsync::timing::{
 };
 use serde::Serialize;
 
-use crate::gnss::{GnssDecoder, ReceivedFix};
+use crate::gnss::{Decoded, GnssDecoder, ReceivedFix};
 use crate::hostclock::{self, COUNTER_HZ};
 use crate::imu::{ArrivalTimer, ImuLineFormat, LineSplitter};
 use crate::latency::LatencyHistogram;
@@ -75,8 +75,13 @@ pub enum PpsInput {
 /// Settings of a live run.
 pub struct LiveConfig {
     pub gnss: PortConfig,
-    pub imu: PortConfig,
+    /// The IMU's own port (text lines of `imu_format`); `None` when the
+    /// IMU data come in ESF messages on the GNSS port (`esf_tick_s`).
+    pub imu: Option<PortConfig>,
     pub imu_format: ImuLineFormat,
+    /// Read the receiver's UBX ESF-RAW/ESF-MEAS IMU data on the GNSS port,
+    /// with this sensor time-tag tick (s).
+    pub esf_tick_s: Option<f64>,
     pub pps: PpsInput,
     /// Filter settings (from the KF-GINS configuration). Its initial
     /// position and time are replaced by the first stamped GNSS fix when
@@ -103,12 +108,18 @@ pub struct LiveConfig {
 
 impl LiveConfig {
     /// Defaults around ports, a PPS input and filter settings.
-    pub fn new(gnss: PortConfig, imu: PortConfig, pps: PpsInput, fusion: FusionConfig) -> Self {
+    pub fn new(
+        gnss: PortConfig,
+        imu: Option<PortConfig>,
+        pps: PpsInput,
+        fusion: FusionConfig,
+    ) -> Self {
         let imu_rate_hz = fusion.imu_rate_hz;
         LiveConfig {
             gnss,
             imu,
             imu_format: ImuLineFormat::Rate,
+            esf_tick_s: None,
             pps,
             fusion,
             init_from_gnss: true,
@@ -397,10 +408,10 @@ fn port_loop(
 
 fn spawn_imu(
     cfg: &LiveConfig,
+    port: PortConfig,
     tx: SyncSender<Input>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<JoinHandle<()>> {
-    let port = cfg.imu.clone();
     let fmt = cfg.imu_format;
     let retry = cfg.reopen_interval;
     let rate = cfg.imu_rate_hz;
@@ -480,12 +491,20 @@ fn spawn_gnss(
 ) -> io::Result<JoinHandle<()>> {
     let port = cfg.gnss.clone();
     let retry = cfg.reopen_interval;
+    let esf = cfg.esf_tick_s;
+    let period_ns = 1e9 / cfg.imu_rate_hz;
+    let rate = cfg.imu_rate_hz;
     std::thread::Builder::new()
         .name("live-gnss".into())
         .spawn(move || {
-            let dec = std::cell::RefCell::new(GnssDecoder::default());
-            let mut fixes = Vec::new();
-            let mut notes = Vec::new();
+            let mut d = GnssDecoder::default();
+            if let Some(tick) = esf {
+                d.enable_esf(tick);
+            }
+            let dec = std::cell::RefCell::new(d);
+            // ESF samples: timed by their tags against message arrivals.
+            let timer = std::cell::RefCell::new((ArrivalTimer::new(rate, 10.0), None::<i64>));
+            let mut out = Decoded::default();
             port_loop(
                 port,
                 SourceId::Gnss,
@@ -493,17 +512,35 @@ fn spawn_gnss(
                 stop,
                 retry,
                 |bytes, stamp, tx| {
-                    dec.borrow_mut().push(bytes, stamp, &mut fixes, &mut notes);
+                    dec.borrow_mut().push(bytes, stamp, &mut out);
                     let mut ok = true;
-                    for f in fixes.drain(..) {
+                    let (t, tag0) = &mut *timer.borrow_mut();
+                    for e in out.imu.drain(..) {
+                        let t0 = *tag0.get_or_insert(e.sensor_ns);
+                        let x = (e.sensor_ns - t0) as f64 / period_ns;
+                        let sample_ns = t.push_tagged(x, e.arrival_ns);
+                        ok &= tx
+                            .send(Input::Imu {
+                                arrival_ns: e.arrival_ns,
+                                sample_ns,
+                                values: e.values,
+                            })
+                            .is_ok();
+                    }
+                    for f in out.fixes.drain(..) {
                         ok &= tx.send(Input::Gnss(f)).is_ok();
                     }
-                    for msg in notes.drain(..) {
+                    for msg in out.notes.drain(..) {
                         ok &= note(tx, SourceId::Gnss, msg, None);
                     }
                     ok
                 },
-                || dec.borrow_mut().reset_stream(),
+                || {
+                    dec.borrow_mut().reset_stream();
+                    let (t, tag0) = &mut *timer.borrow_mut();
+                    t.restart();
+                    *tag0 = None;
+                },
             );
         })
 }
@@ -554,14 +591,34 @@ fn spawn_pps(
                     },
                     (None, None) => break,
                 };
+                let mut quiet = 0u32;
                 while !stop.load(Ordering::Relaxed) {
                     match src.next_edge(Duration::from_millis(500)) {
                         Ok(Some(e)) => {
+                            if quiet >= 10 {
+                                let msg = format!("{}: edges again", src.name());
+                                if !note(&tx, SourceId::Pps, msg, None) {
+                                    break 'outer;
+                                }
+                            }
+                            quiet = 0;
                             if tx.send(Input::Pps(e)).is_err() {
                                 break 'outer;
                             }
                         }
-                        Ok(None) => {}
+                        Ok(None) => {
+                            quiet += 1;
+                            // 5 s: holdover has begun; say why once.
+                            if quiet == 10 {
+                                let msg = format!(
+                                    "{}: no edge for 5 s (no signal, or assert capture not enabled)",
+                                    src.name()
+                                );
+                                if !note(&tx, SourceId::Pps, msg, None) {
+                                    break 'outer;
+                                }
+                            }
+                        }
                         Err(e) => {
                             let msg = format!("{e}; reopening");
                             if !note(&tx, SourceId::Pps, msg, Some(false)) {
@@ -576,6 +633,14 @@ fn spawn_pps(
             let _ = tx.send(Input::Done);
         })?;
     Ok(Some(h))
+}
+
+/// Meaning of the IMU values (ESF data are rates).
+fn imu_kind(cfg: &LiveConfig) -> navsync::io::riglog::ImuKind {
+    match cfg.esf_tick_s {
+        Some(_) => navsync::io::riglog::ImuKind::Rate,
+        None => cfg.imu_format.kind(),
+    }
 }
 
 /// Engine-side state of a run.
@@ -614,7 +679,7 @@ impl Core {
         let header = RigHeader {
             counter_hz: COUNTER_HZ,
             counter_bits: 64,
-            imu_kind: cfg.imu_format.kind(),
+            imu_kind: imu_kind(cfg),
             imu_rate_hz: Some(cfg.imu_rate_hz),
             extra: Vec::new(),
         };
@@ -638,7 +703,7 @@ impl Core {
             engine: SyncEngine::new(&header, sync_cfg.clone()),
             header,
             sync_cfg,
-            inc: IncrementBuilder::new(cfg.imu_format.kind()),
+            inc: IncrementBuilder::new(imu_kind(cfg)),
             init_from_gnss: cfg.init_from_gnss,
             fusion: (!cfg.init_from_gnss).then(|| Fusion::new(fusion_cfg.clone())),
             last_imu_time: None,
@@ -838,8 +903,25 @@ impl Core {
 
 /// Runs live until `stop` is set or the configured duration ends.
 pub fn run(cfg: LiveConfig, stop: &AtomicBool, sink: &mut dyn LiveSink) -> io::Result<LiveReport> {
-    crate::serial::check_baud(cfg.imu.baud)
-        .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("--imu-baud: {e}")))?;
+    let bad = |msg: String| io::Error::new(io::ErrorKind::InvalidInput, msg);
+    match (&cfg.imu, cfg.esf_tick_s) {
+        (Some(p), None) => {
+            crate::serial::check_baud(p.baud).map_err(|e| bad(format!("--imu-baud: {e}")))?
+        }
+        (None, Some(t)) if t.is_finite() && t > 0.0 => {}
+        (None, Some(t)) => return Err(bad(format!("ESF time-tag tick {t} s is not positive"))),
+        (Some(_), Some(_)) => {
+            return Err(bad(
+                "the IMU is either on its own port or in ESF messages on the GNSS port, not both"
+                    .into(),
+            ));
+        }
+        (None, None) => {
+            return Err(bad(
+                "no IMU: give its port, or read ESF messages on the GNSS port".into(),
+            ));
+        }
+    }
     crate::serial::check_baud(cfg.gnss.baud)
         .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("--gnss-baud: {e}")))?;
     if !(cfg.imu_rate_hz.is_finite() && cfg.imu_rate_hz > 0.0) {
@@ -855,10 +937,11 @@ pub fn run(cfg: LiveConfig, stop: &AtomicBool, sink: &mut dyn LiveSink) -> io::R
     let mut core = Core::new(&cfg);
     let retry = cfg.reopen_interval;
     let has_pps = !matches!(cfg.pps, PpsInput::None);
-    let mut handles = vec![
-        spawn_imu(&cfg, tx.clone(), halt.clone())?,
-        spawn_gnss(&cfg, tx.clone(), halt.clone())?,
-    ];
+    let mut handles = vec![spawn_gnss(&cfg, tx.clone(), halt.clone())?];
+    if let Some(p) = cfg.imu.clone() {
+        handles.push(spawn_imu(&cfg, p, tx.clone(), halt.clone())?);
+    }
+    let sources = handles.len() + usize::from(has_pps);
     let status_every = cfg.status_interval;
     let duration = cfg.duration;
     if let Some(h) = spawn_pps(cfg.pps, retry, tx.clone(), halt.clone())? {
@@ -873,7 +956,7 @@ pub fn run(cfg: LiveConfig, stop: &AtomicBool, sink: &mut dyn LiveSink) -> io::R
         started,
         duration,
         status_every,
-        has_pps,
+        sources,
     );
     halt.store(true, Ordering::SeqCst);
     drop(rx);
@@ -919,12 +1002,11 @@ fn engine_loop(
     started: Instant,
     duration: Option<Duration>,
     status_every: Duration,
-    has_pps: bool,
+    sources: usize,
 ) -> io::Result<()> {
     let (mut imu_up, mut gnss_up, mut pps_up) = (false, false, false);
     let mut next_status = Instant::now() + status_every;
     let mut done = 0;
-    let sources = 2 + usize::from(has_pps);
     let to_io = |e: navsync::Error| io::Error::other(e.to_string());
     loop {
         if stop.load(Ordering::Relaxed) || duration.is_some_and(|d| started.elapsed() >= d) {
@@ -937,6 +1019,7 @@ fn engine_loop(
                 sample_ns,
                 values,
             }) => {
+                imu_up = true;
                 core.counts.imu_lines += 1;
                 core.arrivals.push_back((core.imu_seq, arrival_ns));
                 core.imu_seq += 1;

@@ -24,7 +24,7 @@ use navsync::sim::rng;
 use navsync::time::{GpsTime, NS_PER_S};
 use navsync_receivers::gnsstime::{UtcTime, gps_to_unix_ns};
 use navsync_receivers::nmea::{Date, Gga, Gst, Rmc};
-use navsync_receivers::ubx::{NavPvt, encode_frame};
+use navsync_receivers::ubx::{EsfRaw, EsfRawBlock, NavPvt, encode_frame, esf_type};
 
 use crate::hostclock;
 use crate::pps::PpsInjector;
@@ -159,6 +159,9 @@ pub struct ReplayConfig {
     pub pps_gap: Option<(f64, f64)>,
     /// The IMU device unplugged from `start_s` for `len_s` seconds.
     pub imu_unplug: Option<(f64, f64)>,
+    /// The IMU in UBX ESF-RAW messages on the GNSS port (5 samples a
+    /// message, 1 ms time-tag ticks) instead of text lines on its own port.
+    pub imu_esf: bool,
     /// A garbage line on the IMU port after every this many samples.
     pub imu_garbage_every: Option<u64>,
     /// White-noise σ of gyro (rad/s) and accelerometer (m/s²) samples.
@@ -180,6 +183,7 @@ impl Default for ReplayConfig {
             host_ppm: 25.0,
             pps_gap: None,
             imu_unplug: None,
+            imu_esf: false,
             imu_garbage_every: None,
             gyro_sd: 1e-4,
             accel_sd: 2e-3,
@@ -428,6 +432,7 @@ fn write_loop(
     let n_pps = cfg.duration_s.floor() as u64;
     let (mut k, mut m, mut s) = (0u64, 1u64, 1u64);
     let mut line = Vec::with_capacity(160);
+    let mut esf_blocks: Vec<EsfRawBlock> = Vec::new();
     loop {
         // Next event of each stream (GPS time of its write).
         let t_imu = (k < n_imu).then(|| imu_truth(&cfg, k));
@@ -460,7 +465,6 @@ fn write_loop(
                 _ => {}
             }
             if imu.is_plugged() {
-                line.clear();
                 let vals = [
                     w_ie.x + cfg.gyro_sd * rng::normal(&mut noise),
                     w_ie.y + cfg.gyro_sd * rng::normal(&mut noise),
@@ -469,20 +473,53 @@ fn write_loop(
                     cfg.accel_sd * rng::normal(&mut noise),
                     -g + cfg.accel_sd * rng::normal(&mut noise),
                 ];
-                for (i, v) in vals.iter().enumerate() {
-                    if i > 0 {
-                        line.push(b' ');
+                if cfg.imu_esf {
+                    // [F9K] Table 11 scaling: gyro deg/s · 2¹², accel m/s² · 2¹⁰.
+                    let tag = (123_456 + k * (1000.0 / cfg.imu_rate_hz).round() as u64) as u32;
+                    let types = [
+                        esf_type::GYRO_X,
+                        esf_type::GYRO_Y,
+                        esf_type::GYRO_Z,
+                        esf_type::ACC_X,
+                        esf_type::ACC_Y,
+                        esf_type::ACC_Z,
+                    ];
+                    for (i, (&ty, v)) in types.iter().zip(vals).enumerate() {
+                        let lsb = if i < 3 {
+                            v.to_degrees() * 4096.0
+                        } else {
+                            v * 1024.0
+                        };
+                        esf_blocks.push(EsfRawBlock {
+                            data_type: ty,
+                            field: (lsb.round() as i32 as u32) & 0x00FF_FFFF,
+                            s_ttag: tag,
+                        });
                     }
-                    push_f64(&mut line, *v);
+                    if k % 5 == 4 {
+                        let m = EsfRaw {
+                            reserved1: [0; 4],
+                            blocks: std::mem::take(&mut esf_blocks),
+                        };
+                        gnss.write(&encode_frame(0x10, 0x03, &m.encode()).unwrap_or_default())?;
+                    }
+                } else {
+                    line.clear();
+                    for (i, v) in vals.iter().enumerate() {
+                        if i > 0 {
+                            line.push(b' ');
+                        }
+                        push_f64(&mut line, *v);
+                    }
+                    line.push(b'\n');
+                    if cfg
+                        .imu_garbage_every
+                        .is_some_and(|n| n > 0 && k % n == n - 1)
+                    {
+                        line.extend_from_slice(b"\x00\xffnoise on the line 1 2\r\n");
+                    }
+                    imu.write(&line)?;
                 }
-                line.push(b'\n');
-                if cfg
-                    .imu_garbage_every
-                    .is_some_and(|n| n > 0 && k % n == n - 1)
-                {
-                    line.extend_from_slice(b"\x00\xffnoise on the line 1 2\r\n");
-                }
-                imu.write(&line)?;
                 st.imu_written += 1;
             } else {
                 st.imu_unplugged += 1;

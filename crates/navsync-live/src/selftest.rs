@@ -182,18 +182,22 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
     let (inj, src) = pps::injected();
     let replay = Replay::start(r.clone(), dir, inj, 0.5)?;
     let baud = 921600;
+    let imu_port = PortConfig {
+        path: replay.imu_port.clone(),
+        baud,
+    };
     let mut lc = LiveConfig::new(
         PortConfig {
             path: replay.gnss_port.clone(),
             baud,
         },
-        PortConfig {
-            path: replay.imu_port.clone(),
-            baud,
-        },
+        (!r.imu_esf).then_some(imu_port),
         PpsInput::Source(Box::new(src)),
         fusion,
     );
+    if r.imu_esf {
+        lc.esf_tick_s = Some(1e-3);
+    }
     lc.imu_rate_hz = r.imu_rate_hz;
     lc.reopen_interval = Duration::from_millis(200);
     // Until the writer's last line has been read.

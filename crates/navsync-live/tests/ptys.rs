@@ -65,9 +65,9 @@ fn ubx_with_a_pps_gap_loses_nothing_holds_over_and_relocks() {
 
 #[test]
 fn nmea_fixes_and_an_unplugged_imu_port() {
-    let mut cfg = SelftestConfig::new(9.5, 0.0, 0.0);
+    let mut cfg = SelftestConfig::new(8.0, 0.0, 0.0);
     cfg.replay.gnss = GnssKind::Nmea;
-    cfg.replay.imu_unplug = Some((5.5, 1.0));
+    cfg.replay.imu_unplug = Some((5.2, 1.0));
     let dir = tmp("nmea");
     let r = selftest::run(&cfg, &dir).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
@@ -83,8 +83,32 @@ fn nmea_fixes_and_an_unplugged_imu_port() {
     assert_eq!(r.imu_received, r.imu_written);
     assert_eq!(c.imu_stamped, r.imu_written);
     assert!((150..=260).contains(&c.imu_lost), "{c:?}");
-    assert!(c.gnss_fused >= 40, "{c:?}");
-    assert!(r.solutions > 400, "{}", r.solutions);
+    assert!(c.gnss_fused >= 25, "{c:?}");
+    assert!(r.solutions > 250, "{}", r.solutions);
+    assert!(r.max_pos_error_m < 5.0, "{}", r.max_pos_error_m);
+}
+
+#[test]
+fn esf_raw_imu_on_the_receiver_port() {
+    let mut cfg = SelftestConfig::new(7.0, 0.0, 0.0);
+    cfg.replay.imu_esf = true;
+    let dir = tmp("esf");
+    let r = selftest::run(&cfg, &dir).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let c = &r.live.counts;
+    // The replay writes 5 samples a message; the last message may still
+    // be in flight: at most one message short.
+    assert!(r.imu_written >= 1395, "{r:#?}");
+    assert!(
+        c.imu_stamped + 5 >= r.imu_written,
+        "{c:?} of {}",
+        r.imu_written
+    );
+    assert_eq!(c.imu_lost, 0, "{c:?}");
+    assert!(r.solutions > 250, "{}", r.solutions);
+    // Messages carry 25 ms of samples; the tags and the envelope put every
+    // sample back on its own time.
+    assert!(r.stamp_errors.max_abs_us < 500.0, "{:?}", r.stamp_errors);
     assert!(r.max_pos_error_m < 5.0, "{}", r.max_pos_error_m);
 }
 
@@ -115,7 +139,7 @@ fn missing_devices_are_reported_and_retried_and_bad_bauds_refused() {
     };
     let mut cfg = LiveConfig::new(
         port("/dev/navsync-no-gnss"),
-        port("/dev/navsync-no-imu"),
+        Some(port("/dev/navsync-no-imu")),
         PpsInput::Kernel(PathBuf::from("/dev/navsync-no-pps")),
         fusion.clone(),
     );
@@ -148,11 +172,24 @@ fn missing_devices_are_reported_and_retried_and_bad_bauds_refused() {
     );
     assert_eq!(r.counts.solutions, 0);
 
-    let mut bad = LiveConfig::new(port("/dev/null"), port("/dev/null"), PpsInput::None, fusion);
-    bad.imu.baud = 12345;
+    let mut bad = LiveConfig::new(
+        port("/dev/null"),
+        Some(port("/dev/null")),
+        PpsInput::None,
+        fusion.clone(),
+    );
+    if let Some(p) = bad.imu.as_mut() {
+        p.baud = 12345;
+    }
     let e = navsync_live::run(bad, &stop, &mut sink)
         .err()
         .unwrap()
         .to_string();
     assert!(e.contains("--imu-baud") && e.contains("12345"), "{e}");
+    let none = LiveConfig::new(port("/dev/null"), None, PpsInput::None, fusion);
+    let e = navsync_live::run(none, &stop, &mut sink)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("no IMU"), "{e}");
 }

@@ -24,16 +24,21 @@ pub struct Args {
     pub gnss: Option<PathBuf>,
     #[arg(long, default_value_t = 115200)]
     pub gnss_baud: u32,
-    /// IMU serial port (one text line per sample, see --imu-format).
-    #[arg(long, required_unless_present = "selftest")]
+    /// IMU serial port (one text line per sample, see --imu-format; not
+    /// with `--imu-format ubx-esf`).
+    #[arg(long)]
     pub imu: Option<PathBuf>,
     #[arg(long, default_value_t = 115200)]
     pub imu_baud: u32,
     /// IMU line format: `rate` = gx gy gz (rad/s) ax ay az (m/s²), FRD;
     /// `increment` = dθ (rad) dv (m/s); `rate-csv` = t then the six rates
-    /// (t not used).
+    /// (t not used); `ubx-esf` = no IMU port: the receiver's ESF-RAW (or
+    /// ESF-MEAS) messages on the GNSS port, values in the sensor's axes.
     #[arg(long, value_enum, default_value_t = Format::Rate)]
     pub imu_format: Format,
+    /// `ubx-esf`: seconds per ESF time-tag tick.
+    #[arg(long, default_value_t = 1e-3)]
+    pub esf_tick: f64,
     /// Nominal IMU rate (Hz) [default: the config's imudatarate].
     #[arg(long)]
     pub imu_rate: Option<f64>,
@@ -80,6 +85,9 @@ pub struct Args {
     /// Self-test GNSS messages.
     #[arg(long, value_enum, default_value_t = Gnss::Ubx, requires = "selftest")]
     pub selftest_gnss: Gnss,
+    /// Self-test: the IMU in ESF-RAW messages on the GNSS port.
+    #[arg(long, requires = "selftest")]
+    pub selftest_esf: bool,
     /// Self-test: write the report here (JSON).
     #[arg(long, requires = "selftest")]
     pub json: Option<PathBuf>,
@@ -90,6 +98,7 @@ pub enum Format {
     Rate,
     Increment,
     RateCsv,
+    UbxEsf,
 }
 
 #[derive(Copy, Clone, clap::ValueEnum)]
@@ -153,8 +162,20 @@ pub fn run(args: Args) -> Result<()> {
     if args.selftest {
         return run_selftest(&args);
     }
-    let (Some(gnss), Some(imu), Some(config)) = (&args.gnss, &args.imu, &args.config) else {
-        bail!("live needs --gnss PORT, --imu PORT and --config kf-gins.yaml");
+    let (Some(gnss), Some(config)) = (&args.gnss, &args.config) else {
+        bail!(
+            "live needs --gnss PORT, --imu PORT (or --imu-format ubx-esf) and --config kf-gins.yaml"
+        );
+    };
+    let esf = matches!(args.imu_format, Format::UbxEsf);
+    let imu = match (&args.imu, esf) {
+        (Some(p), false) => Some(PortConfig {
+            path: p.clone(),
+            baud: args.imu_baud,
+        }),
+        (None, true) => None,
+        (None, false) => bail!("live needs --imu PORT (or --imu-format ubx-esf)"),
+        (Some(_), true) => bail!("--imu-format ubx-esf reads the IMU on the GNSS port: drop --imu"),
     };
     let mut diag = Diagnostics::default();
     let kf = KfGinsConfig::load(config, &mut diag)?;
@@ -174,18 +195,16 @@ pub fn run(args: Args) -> Result<()> {
             path: gnss.clone(),
             baud: args.gnss_baud,
         },
-        PortConfig {
-            path: imu.clone(),
-            baud: args.imu_baud,
-        },
+        imu,
         pps,
         fusion,
     );
     cfg.imu_format = match args.imu_format {
-        Format::Rate => ImuLineFormat::Rate,
         Format::Increment => ImuLineFormat::Increment,
         Format::RateCsv => ImuLineFormat::RateCsv,
+        Format::Rate | Format::UbxEsf => ImuLineFormat::Rate,
     };
+    cfg.esf_tick_s = esf.then_some(args.esf_tick);
     cfg.imu_rate_hz = args.imu_rate.unwrap_or(kf.imu_rate_hz);
     cfg.imu_output_delay_s = args.imu_output_delay;
     cfg.oscillator = args.oscillator.into();
@@ -248,6 +267,7 @@ fn run_selftest(args: &Args) -> Result<()> {
         Gnss::Ubx => navsync_live::replay::GnssKind::Ubx,
         Gnss::Nmea => navsync_live::replay::GnssKind::Nmea,
     };
+    cfg.replay.imu_esf = args.selftest_esf;
     cfg.verbose = true;
     let dir = std::env::temp_dir().join(format!("navsync-live-selftest-{}", std::process::id()));
     println!(
