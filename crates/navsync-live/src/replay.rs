@@ -476,15 +476,7 @@ fn write_loop(
                 if cfg.imu_esf {
                     // [F9K] Table 11 scaling: gyro deg/s · 2¹², accel m/s² · 2¹⁰.
                     let tag = (123_456 + k * (1000.0 / cfg.imu_rate_hz).round() as u64) as u32;
-                    let types = [
-                        esf_type::GYRO_X,
-                        esf_type::GYRO_Y,
-                        esf_type::GYRO_Z,
-                        esf_type::ACC_X,
-                        esf_type::ACC_Y,
-                        esf_type::ACC_Z,
-                    ];
-                    for (i, (&ty, v)) in types.iter().zip(vals).enumerate() {
+                    for (i, (&ty, v)) in esf_type::IMU6.iter().zip(vals).enumerate() {
                         let lsb = if i < 3 {
                             v.to_degrees() * 4096.0
                         } else {
