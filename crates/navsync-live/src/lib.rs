@@ -11,11 +11,13 @@
 //! - [`imu`]: the accepted IMU line formats and the arrival-envelope timing.
 //! - [`gnss`]: receiver bytes → fixes with their receive time.
 //! - [`live`]: the loop (threads, bounded channel, reopen, status).
+//! - [`files`]: the solution as KF-GINS files.
 //! - [`replay`], [`selftest`]: PTYs fed at real rate; the measurement.
 //!
 //! Kept out of `navsync` and `navsync-receivers` so that their users need
 //! neither libc nor Linux.
 
+pub mod files;
 pub mod gnss;
 pub mod hostclock;
 pub mod imu;

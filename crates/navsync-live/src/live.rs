@@ -11,11 +11,14 @@
 //! a rig log whose counter is `CLOCK_MONOTONIC_RAW` at 1 GHz, 64 bits, and
 //! maps it to GPS time from the 1PPS edges labelled by the GNSS fixes
 //! (seed 001 §2.1), with holdover while pulses are missing and relock when
-//! they return (seed 002 step 6; [`navsync::timing::clock`]). Without a PPS
-//! source it runs software synchronization from receive times (seed 001
-//! §2.2). GNSS fixes reach the filter at their arrival and are fused at
-//! their time of validity by the delayed-state update (seed 002 step 5's
-//! latency, [`LatencyMode::DelayedState`]).
+//! they return (seed 002, embodiment step 2: without 1PPS the sample clock
+//! runs on the system clock and is realigned at the next pulses;
+//! [`navsync::timing::clock`]). Without a PPS source it runs software
+//! synchronization from receive times (seed 001 §2.2). GNSS fixes reach the
+//! filter at their arrival, a latency after their epoch (seed 002 step 4),
+//! and are fused at their time of validity by the delayed-state update
+//! ([`LatencyMode::DelayedState`], instead of seed 002 step 5's
+//! extrapolation).
 //!
 //! Robustness: a port that cannot be opened or vanishes is reported and
 //! reopened every `reopen_interval`; the loop keeps going with what
@@ -262,6 +265,11 @@ pub struct LiveReport {
 pub trait LiveSink {
     /// Every IMU epoch's solution.
     fn nav(&mut self, out: &NavOutput, info: &NavInfo) -> Result<(), navsync::Error>;
+    /// Once a second of solution time: the IMU error estimates and every
+    /// state's σ (SI), as KF-GINS writes `imu_err.txt` and `std.txt`.
+    fn aux(&mut self, _out: &NavOutput, _sd: &[f64]) -> Result<(), navsync::Error> {
+        Ok(())
+    }
     /// Every `status_interval`.
     fn status(&mut self, s: &LiveStatus);
     /// A reported condition (ports opened or lost, corrupt data, …).
@@ -667,6 +675,8 @@ struct Core {
     counts: LiveCounts,
     latency: LatencyHistogram,
     last: Option<(NavOutput, NavInfo)>,
+    /// GPS second of the last [`LiveSink::aux`] call.
+    aux_second: Option<i64>,
     state: LockState,
     changes: Vec<StateChange>,
     t0: u64,
@@ -718,6 +728,7 @@ impl Core {
             counts: LiveCounts::default(),
             latency: LatencyHistogram::new(),
             last: None,
+            aux_second: None,
             state: LockState::Acquiring,
             changes: Vec::new(),
             t0: hostclock::now_ns(),
@@ -820,6 +831,12 @@ impl Core {
                         latency_ns: lat,
                     };
                     sink.nav(&nav, &info)?;
+                    let sec = nav.nav.time.ns().div_euclid(navsync::time::NS_PER_S);
+                    if self.aux_second != Some(sec) {
+                        self.aux_second = Some(sec);
+                        let sd = f.std_devs();
+                        sink.aux(&nav, &sd)?;
+                    }
                     self.last = Some((nav, info));
                 }
                 SyncOutput::Gnss(g) => {

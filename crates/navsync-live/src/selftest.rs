@@ -17,6 +17,7 @@ use navsync::ins::NavState;
 use navsync::timing::LockState;
 use serde::Serialize;
 
+use crate::files::FileSink;
 use crate::live::{
     self, LiveConfig, LiveReport, LiveSink, LiveStatus, NavInfo, PortConfig, PpsInput, SourceId,
 };
@@ -31,6 +32,8 @@ pub struct SelftestConfig {
     pub fusion: Option<FusionConfig>,
     /// Print the status line every second.
     pub verbose: bool,
+    /// Also write the solution as KF-GINS files here.
+    pub output: Option<std::path::PathBuf>,
 }
 
 impl SelftestConfig {
@@ -44,6 +47,7 @@ impl SelftestConfig {
             },
             fusion: None,
             verbose: false,
+            output: None,
         }
     }
 }
@@ -135,10 +139,14 @@ struct Measure<'a> {
     first_solution: Option<u64>,
     max_pos_m: f64,
     verbose: bool,
+    files: Option<FileSink>,
 }
 
 impl LiveSink for Measure<'_> {
     fn nav(&mut self, out: &NavOutput, info: &NavInfo) -> Result<(), navsync::Error> {
+        if let Some(f) = self.files.as_mut() {
+            f.nav(out)?;
+        }
         let e_us = (out.nav.time - imu_truth(self.replay, info.seq)) as f64 * 1e-3;
         self.err.compared += 1;
         self.sum_sq += e_us * e_us;
@@ -159,6 +167,13 @@ impl LiveSink for Measure<'_> {
             self.max_pos_m = self.max_pos_m.max(d.norm());
         }
         Ok(())
+    }
+
+    fn aux(&mut self, out: &NavOutput, sd: &[f64]) -> Result<(), navsync::Error> {
+        match self.files.as_mut() {
+            Some(f) => f.aux(out, sd),
+            None => Ok(()),
+        }
     }
 
     fn status(&mut self, s: &LiveStatus) {
@@ -209,11 +224,15 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
         first_solution: None,
         max_pos_m: 0.0,
         verbose: cfg.verbose,
+        files: cfg.output.as_deref().map(FileSink::new),
     };
     let stop = AtomicBool::new(false);
     let report = live::run(lc, &stop, &mut m);
     let stats = replay.finish(true)?;
     let report = report?;
+    if let Some(f) = m.files.take() {
+        f.finish().map_err(|e| io::Error::other(e.to_string()))?;
+    }
     m.err.rms_us = if m.err.compared > 0 {
         (m.sum_sq / m.err.compared as f64).sqrt()
     } else {

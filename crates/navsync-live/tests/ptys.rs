@@ -27,7 +27,20 @@ fn ubx_with_a_pps_gap_loses_nothing_holds_over_and_relocks() {
     let mut cfg = SelftestConfig::new(10.5, 5.2, 3.0);
     cfg.replay.imu_garbage_every = Some(400);
     let dir = tmp("ubx");
+    cfg.output = Some(dir.join("out"));
     let r = selftest::run(&cfg, &dir).unwrap();
+    // The solution at IMU rate in KF-GINS files.
+    let nav = std::fs::read_to_string(dir.join("out/navresult.nav")).unwrap();
+    let rows: Vec<&str> = nav.lines().collect();
+    assert_eq!(rows.len() as u64, r.solutions);
+    assert!(
+        rows.iter().all(|l| l.split_whitespace().count() == 11),
+        "{}",
+        rows[0]
+    );
+    assert!(rows[0].starts_with("2400 "), "{}", rows[0]);
+    let std_lines = std::fs::read_to_string(dir.join("out/std.txt")).unwrap();
+    assert!((4..=8).contains(&std_lines.lines().count()), "{std_lines}");
     let _ = std::fs::remove_dir_all(&dir);
     let c = &r.live.counts;
     assert!(r.imu_written >= 2090, "{r:#?}");

@@ -8,7 +8,8 @@ use anyhow::{Context, Result, bail};
 use navsync::Diagnostics;
 use navsync::fusion::NavOutput;
 use navsync::io::config::KfGinsConfig;
-use navsync::pipeline::{FuseOptions, KfGinsSink, NavSink, fusion_config};
+use navsync::pipeline::{FuseOptions, fusion_config};
+use navsync_live::files::FileSink;
 use navsync_live::imu::ImuLineFormat;
 use navsync_live::live::{NavInfo, SourceId, stop_on_ctrl_c};
 use navsync_live::selftest::{self, SelftestConfig};
@@ -57,7 +58,8 @@ pub struct Args {
     /// start/end times are not used).
     #[arg(long, required_unless_present = "selftest")]
     pub config: Option<PathBuf>,
-    /// Write DIR/navresult.nav (KF-GINS, every IMU epoch) and live_report.json.
+    /// Write DIR/navresult.nav (KF-GINS, every IMU epoch), imu_err.txt and
+    /// std.txt (once a second) and live_report.json.
     #[arg(long)]
     pub output: Option<PathBuf>,
     /// Without --output: solution lines printed per second.
@@ -110,21 +112,15 @@ pub enum Gnss {
 /// Prints the status and the solution at a limited rate; writes every
 /// epoch to navresult.nav with --output.
 struct CliSink {
-    out_dir: Option<PathBuf>,
-    file: Option<KfGinsSink>,
+    file: Option<FileSink>,
     print_every: Option<Duration>,
     next_print: Instant,
 }
 
 impl LiveSink for CliSink {
     fn nav(&mut self, out: &NavOutput, _info: &NavInfo) -> Result<(), navsync::Error> {
-        if let Some(dir) = &self.out_dir {
-            if self.file.is_none() {
-                self.file = Some(KfGinsSink::create(dir, out.nav.time.week())?);
-            }
-            if let Some(f) = self.file.as_mut() {
-                f.nav(&out.nav, &out.imu)?;
-            }
+        if let Some(f) = self.file.as_mut() {
+            f.nav(out)?;
         } else if let Some(every) = self.print_every
             && Instant::now() >= self.next_print
         {
@@ -147,6 +143,13 @@ impl LiveSink for CliSink {
             );
         }
         Ok(())
+    }
+
+    fn aux(&mut self, out: &NavOutput, sd: &[f64]) -> Result<(), navsync::Error> {
+        match self.file.as_mut() {
+            Some(f) => f.aux(out, sd),
+            None => Ok(()),
+        }
     }
 
     fn status(&mut self, s: &LiveStatus) {
@@ -221,8 +224,7 @@ pub fn run(args: Args) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
     let mut sink = CliSink {
-        out_dir: args.output.clone(),
-        file: None,
+        file: args.output.as_deref().map(FileSink::new),
         print_every: (args.print_rate > 0.0)
             .then(|| Duration::from_secs_f64(1.0 / args.print_rate)),
         next_print: Instant::now(),
@@ -251,7 +253,10 @@ pub fn run(args: Args) -> Result<()> {
         let p = dir.join("live_report.json");
         std::fs::write(&p, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", p.display()))?;
-        println!("  wrote {}/navresult.nav, live_report.json", dir.display());
+        println!(
+            "  wrote {}/navresult.nav, imu_err.txt, std.txt, live_report.json",
+            dir.display()
+        );
     }
     Ok(())
 }
