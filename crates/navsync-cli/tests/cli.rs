@@ -174,3 +174,63 @@ fn bad_inputs_give_clear_errors() {
     }
     assert!(!err.contains("panicked"));
 }
+
+#[test]
+fn live_refuses_bad_settings_and_survives_missing_devices() {
+    let dir = temp_dir("live");
+    let cfg = write_static_set(&dir, 2);
+    let cfg = cfg.to_str().unwrap();
+    let (ok, _, err) = run(bin().args([
+        "live",
+        "--gnss",
+        "/dev/null",
+        "--imu",
+        "/dev/null",
+        "--imu-baud",
+        "7",
+        "--config",
+        cfg,
+    ]));
+    assert!(
+        !ok && err.contains("--imu-baud") && err.contains("not a standard rate"),
+        "{err}"
+    );
+    let (ok, _, err) = run(bin().args([
+        "live",
+        "--gnss",
+        "/dev/null",
+        "--imu",
+        "/dev/null",
+        "--imu-format",
+        "ubx-esf",
+        "--config",
+        cfg,
+    ]));
+    assert!(!ok && err.contains("drop --imu"), "{err}");
+    // Devices that are not there: reported, retried, a clean end.
+    let (ok, out, err) = run(bin().args([
+        "live",
+        "--gnss",
+        "/dev/navsync-none-1",
+        "--imu",
+        "/dev/navsync-none-2",
+        "--pps",
+        "/dev/navsync-none-3",
+        "--config",
+        cfg,
+        "--duration",
+        "1.2",
+    ]));
+    assert!(ok, "{err}");
+    for d in ["none-1", "none-2", "none-3"] {
+        assert!(
+            err.contains(&format!("/dev/navsync-{d}: cannot open")),
+            "{err}"
+        );
+    }
+    assert!(
+        out.contains("clock acquiring") && out.contains("0 solutions"),
+        "{out}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
