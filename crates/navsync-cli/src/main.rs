@@ -49,6 +49,9 @@ enum Command {
     /// Simulate → sync → fuse → eval over many seeds in parallel: accuracy
     /// percentiles and the filter's consistency (NEES).
     Montecarlo(commands::montecarlo::Args),
+    /// Live on Linux: GNSS and IMU serial ports + kernel PPS, synchronized
+    /// and fused in real time (--selftest: measured on pseudo-terminals).
+    Live(commands::live::Args),
 }
 
 fn main() {
@@ -67,6 +70,7 @@ fn main() {
         Command::Imu(a) => commands::imu::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Montecarlo(a) => commands::montecarlo::run(a),
+        Command::Live(a) => commands::live::run(a),
     };
     if let Err(e) = result {
         eprintln!("navsync: error: {e:#}");

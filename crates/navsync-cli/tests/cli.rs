@@ -343,3 +343,42 @@ fn turns_reveal_the_gyro_misalignment_that_couples_yaw_rate_into_tilt() {
     }
     assert_eq!(s["stats"]["gnss_fixes_rejected"], 0, "{out}");
 }
+
+#[test]
+fn live_refuses_bad_settings_and_survives_missing_devices() {
+    let dir = temp_dir("live");
+    let cfg = write_static_set(&dir, 2);
+    let cfg = cfg.to_str().unwrap();
+    let live = |extra: &[&str]| {
+        let base = ["live", "--gnss", "/dev/null", "--config", cfg];
+        run(bin().args(base).args(extra))
+    };
+    let (ok, _, err) = live(&["--imu", "/dev/null", "--imu-baud", "7"]);
+    let bad_baud = err.contains("--imu-baud") && err.contains("not a standard rate");
+    assert!(!ok && bad_baud, "{err}");
+    let (ok, _, err) = live(&["--imu", "/dev/null", "--imu-format", "ubx-esf"]);
+    assert!(!ok && err.contains("drop --imu"), "{err}");
+    // Devices that are not there: reported, retried, a clean end.
+    let (ok, out, err) = run(bin()
+        .args(["live", "--config", cfg, "--duration", "1.2"])
+        .args([
+            "--gnss",
+            "/dev/navsync-none-1",
+            "--imu",
+            "/dev/navsync-none-2",
+            "--pps",
+            "/dev/navsync-none-3",
+        ]));
+    assert!(ok, "{err}");
+    for d in ["none-1", "none-2", "none-3"] {
+        assert!(
+            err.contains(&format!("/dev/navsync-{d}: cannot open")),
+            "{err}"
+        );
+    }
+    assert!(
+        out.contains("clock acquiring") && out.contains("0 solutions"),
+        "{out}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

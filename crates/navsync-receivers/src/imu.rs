@@ -343,21 +343,14 @@ mod tests {
         let mut e = EsfImu::new(1e-3);
         let mut out = Vec::new();
         for tag in [u32::MAX - 4, 5] {
-            let blocks = [
-                esf_type::GYRO_X,
-                esf_type::GYRO_Y,
-                esf_type::GYRO_Z,
-                esf_type::ACC_X,
-                esf_type::ACC_Y,
-                esf_type::ACC_Z,
-            ]
-            .iter()
-            .map(|&d| EsfRawBlock {
-                data_type: d,
-                field: 1,
-                s_ttag: tag,
-            })
-            .collect();
+            let blocks = esf_type::IMU6
+                .iter()
+                .map(|&d| EsfRawBlock {
+                    data_type: d,
+                    field: 1,
+                    s_ttag: tag,
+                })
+                .collect();
             e.push_raw(
                 &EsfRaw {
                     reserved1: [0; 4],

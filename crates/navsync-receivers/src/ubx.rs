@@ -630,6 +630,9 @@ pub mod esf_type {
     pub const ACC_X: u8 = 16;
     pub const ACC_Y: u8 = 17;
     pub const ACC_Z: u8 = 18;
+    /// A 6-axis IMU sample's types in the usual order: gyro x, y, z, then
+    /// accelerometer x, y, z.
+    pub const IMU6: [u8; 6] = [GYRO_X, GYRO_Y, GYRO_Z, ACC_X, ACC_Y, ACC_Z];
 }
 
 /// The physical quantity of an ESF sample, in SI units.

@@ -5,6 +5,7 @@ pub mod demo;
 pub mod eval;
 pub mod fuse;
 pub mod imu;
+pub mod live;
 pub mod montecarlo;
 pub mod report;
 pub mod simulate;

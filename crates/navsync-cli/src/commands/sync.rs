@@ -68,6 +68,16 @@ pub enum Osc {
     Ocxo,
 }
 
+impl From<Osc> for Oscillator {
+    fn from(o: Osc) -> Self {
+        match o {
+            Osc::Xo => Oscillator::Xo,
+            Osc::Tcxo => Oscillator::Tcxo,
+            Osc::Ocxo => Oscillator::Ocxo,
+        }
+    }
+}
+
 #[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Rule {
     Trapezoid,
@@ -96,11 +106,7 @@ pub fn run(args: Args) -> Result<()> {
         },
         causal: args.causal,
         imu_output_delay_s: args.imu_output_delay,
-        oscillator: match args.oscillator {
-            Osc::Xo => Oscillator::Xo,
-            Osc::Tcxo => Oscillator::Tcxo,
-            Osc::Ocxo => Oscillator::Ocxo,
-        },
+        oscillator: args.oscillator.into(),
         sw: navsync::timing::SwConfig {
             gnss_min_latency_s: args.gnss_min_latency,
             ..Default::default()
