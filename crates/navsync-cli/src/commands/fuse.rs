@@ -150,14 +150,7 @@ pub struct Args {
 
 /// "a" or "a,b" (degrees, ≥ 0) into [a, a] or [a, b].
 fn parse_sd_pair(s: &str) -> Result<[f64; 2], String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| {
-            x.trim()
-                .parse::<f64>()
-                .map_err(|_| format!("'{x}' is not a number"))
-        })
-        .collect::<Result<_, _>>()?;
+    let v = super::parse_numbers(s)?;
     let pair = match v.as_slice() {
         [a] => [*a, *a],
         [a, b] => [*a, *b],

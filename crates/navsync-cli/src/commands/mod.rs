@@ -28,17 +28,21 @@ pub struct Scored {
     pub outages: String,
 }
 
-/// Parses "a,b,c" into three numbers.
-pub fn parse_triplet(s: &str) -> Result<[f64; 3], String> {
-    let v: Vec<f64> = s
-        .split(',')
+/// Parses "a,b,…" into numbers.
+pub fn parse_numbers(s: &str) -> Result<Vec<f64>, String> {
+    s.split(',')
         .map(|x| {
             x.trim()
                 .parse::<f64>()
                 .map_err(|_| format!("'{x}' is not a number"))
         })
-        .collect::<Result<_, _>>()?;
-    v.try_into()
+        .collect()
+}
+
+/// Parses "a,b,c" into three numbers.
+pub fn parse_triplet(s: &str) -> Result<[f64; 3], String> {
+    parse_numbers(s)?
+        .try_into()
         .map_err(|_| format!("'{s}': expected three comma-separated numbers"))
 }
 

@@ -571,25 +571,14 @@ pub fn parse_line(line: &[u8], want_digits: bool) -> Parsed {
 /// returns the field count (at most `out.len()` stored).
 #[inline]
 fn split_str<'a>(line: &'a str, out: &mut [&'a str]) -> usize {
-    let b = line.as_bytes();
-    let sep = |c: u8| c == b' ' || c == b'\t' || c == b',' || c == b'\r';
-    let (mut count, mut i, n) = (0, 0, b.len());
-    while i < n {
-        while i < n && sep(b[i]) {
-            i += 1;
-        }
-        if i >= n {
-            break;
-        }
-        let s = i;
-        while i < n && !sep(b[i]) {
-            i += 1;
-        }
+    let mut count = 0;
+    // Separators are ASCII: every range is on a character boundary.
+    crate::io::text::for_each_field(line.as_bytes(), |s, e| {
         if count < out.len() {
-            out[count] = &line[s..i];
+            out[count] = &line[s..e];
         }
         count += 1;
-    }
+    });
     count
 }
 

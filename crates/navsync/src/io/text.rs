@@ -127,6 +127,19 @@ pub fn is_blank_or_comment(line: &[u8]) -> bool {
 #[inline]
 pub fn split_fields<'a>(line: &'a [u8], out: &mut [&'a [u8]]) -> usize {
     let mut count = 0;
+    for_each_field(line, |s, e| {
+        if count < out.len() {
+            out[count] = &line[s..e];
+        }
+        count += 1;
+    });
+    count
+}
+
+/// Calls `f(start, end)` for each field of `line` (byte ranges), fields
+/// split at any mix of spaces, tabs, commas and carriage returns.
+#[inline]
+pub fn for_each_field(line: &[u8], mut f: impl FnMut(usize, usize)) {
     let mut i = 0;
     let n = line.len();
     while i < n {
@@ -140,12 +153,8 @@ pub fn split_fields<'a>(line: &'a [u8], out: &mut [&'a [u8]]) -> usize {
         while i < n && !is_sep(line[i]) {
             i += 1;
         }
-        if count < out.len() {
-            out[count] = &line[s..i];
-        }
-        count += 1;
+        f(s, i);
     }
-    count
 }
 
 #[inline]
