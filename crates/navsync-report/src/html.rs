@@ -589,8 +589,12 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
             .and_then(|s| s.get("final_gyro_misalign_deg"))
             .is_some_and(|v| !v.is_null());
         let text = match (imu_err_truth.is_some(), misaligned) {
-            (true, true) => "Estimates (imu_err.txt, dark) against the simulator's true errors (imu_err_truth.txt, light), body axes x/y/z. The axis misalignments were estimated as 12 more states (summary.json: final_gyro_misalign_deg, final_accel_misalign_deg).",
-            (true, false) => "Estimates (imu_err.txt, dark) against the simulator's true errors (imu_err_truth.txt, light), body axes x/y/z. If the IMU has axis misalignment and the fusion did not estimate it (navsync fuse --misalignment), it shows up in these estimates: a 0.05° tilt of a horizontal accelerometer reads g·0.05° ≈ 860 mGal.",
+            (true, true) => {
+                "Estimates (imu_err.txt, dark) against the simulator's true errors (imu_err_truth.txt, light), body axes x/y/z. The axis misalignments were estimated as 12 more states (summary.json: final_gyro_misalign_deg, final_accel_misalign_deg)."
+            }
+            (true, false) => {
+                "Estimates (imu_err.txt, dark) against the simulator's true errors (imu_err_truth.txt, light), body axes x/y/z. If the IMU has axis misalignment and the fusion did not estimate it (navsync fuse --misalignment), it shows up in these estimates: a 0.05° tilt of a horizontal accelerometer reads g·0.05° ≈ 860 mGal."
+            }
             (false, _) => "Estimates (imu_err.txt), body axes x/y/z.",
         };
         section(&mut html, "imu", "IMU error estimates", text, &svg);
