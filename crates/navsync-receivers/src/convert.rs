@@ -368,17 +368,14 @@ impl StreamConverter {
                     }
                     for e in &out.edges {
                         let rising = (e.edge == Edge::Rising) as u8;
-                        self.rig.extend_from_slice(
-                            format!(
-                                "mark,{},{},{},{},{}\n",
-                                e.time.ns(),
-                                e.channel,
-                                rising,
-                                e.count,
-                                e.acc_ns
-                            )
-                            .as_bytes(),
+                        let mut line =
+                            format!("mark,{},{},", e.time.ns(), e.time.week().max(0)).into_bytes();
+                        e.time.write_sow(&mut line);
+                        line.extend_from_slice(
+                            format!(",{},{},{},{}\n", e.channel, rising, e.count, e.acc_ns)
+                                .as_bytes(),
                         );
+                        self.rig.extend_from_slice(&line);
                     }
                     s.mark_edges += out.edges.len();
                     s.strobes += out.strobes.len();
@@ -503,11 +500,12 @@ impl StreamConverter {
 pub const RIG_HEADER: &str = "# rig-log v1
 # counter_hz: 1000000000
 # counter_bits: 64
-# The counter is the receiver's own GNSS (GPS) time in ns since 1980-01-06:
+# imu: rate                  (no imu records here; the header needs the line)
+# The counter is the receiver's own GNSS (GPS) time in ns since 1980-01-06;
 # a receiver stream has no logger counter, so each record carries the
 # receiver's measurement of the event.
 # pps = 1PPS edge from UBX TIM-TP = announced pulse time - qErr (edge early by qErr)
-# mark = UBX TIM-TM2 edge = mark,counter,channel,rising(1)/falling(0),rising-edge count,accuracy ns
+# mark = UBX TIM-TM2 edge = mark,counter,week,tow_s,channel,rising(1)/falling(0),rising-edge count,accuracy ns
 ";
 
 fn write_increments(

@@ -149,8 +149,26 @@ fn ubx_stream_to_kfgins_and_rig_log() {
     let first_pulse = GpsTime::from_week_ns(WEEK, (TOW0_S + 1) * NS_PER_S).ns();
     assert!(rig.contains(&format!("\npps,{}\n", first_pulse + 12)));
     let first_mark = GpsTime::from_week_ns(WEEK, TOW0_S * NS_PER_S + 500_000_000).ns();
-    assert!(rig.contains(&format!("\nmark,{first_mark},0,1,0,21\n")));
-    assert!(rig.contains(&format!("\nmark,{},0,0,0,21\n", first_mark + 4_000_000)));
+    let mark_line = |ns: i64, rising: u8| {
+        let t = GpsTime::from_ns(ns);
+        let mut l = format!("\nmark,{ns},{},", t.week()).into_bytes();
+        t.write_sow(&mut l);
+        format!("{},0,{rising},0,21\n", String::from_utf8(l).unwrap())
+    };
+    assert!(rig.contains(&mark_line(first_mark, 1)), "{rig}");
+    assert!(rig.contains(&mark_line(first_mark + 4_000_000, 0)), "{rig}");
+    // The rig-log reader takes the file: marks carry their GPS time.
+    let mut diag = navsync::Diagnostics::default();
+    let mut r =
+        navsync::io::riglog::RigLogReader::open(&out.join("events.rig"), &mut diag).unwrap();
+    let mut marks = 0;
+    while let Some((rec, _)) = r.next_record(&mut diag).unwrap() {
+        if let navsync::io::riglog::RigRecord::Mark { counter, time } = rec {
+            assert_eq!(counter as i64, time.ns());
+            marks += 1;
+        }
+    }
+    assert!(marks >= 2 && diag.is_empty(), "{marks} marks, {diag:?}");
 }
 
 #[test]

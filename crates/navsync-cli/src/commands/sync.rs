@@ -207,6 +207,21 @@ fn print_summary(r: &SyncReport, wall: f64, out_dir: &Path) {
             sw.unobservable
         );
     }
+    if let Some(m) = &r.marks {
+        println!(
+            "  receiver time marks: {} ({} compared): counter-stamped − receiver time mean {:.3} µs, RMS {:.3} µs, max {:.3} µs{}",
+            m.received,
+            m.compared,
+            m.residual_mean_us,
+            m.residual_rms_us,
+            m.residual_max_abs_us,
+            if m.used_as_clock_reference {
+                "; they map host time to GPS time"
+            } else {
+                ""
+            }
+        );
+    }
     println!(
         "  stamp bound: mean {:.3} µs, max {:.3} µs",
         r.stamp_bound_us.mean.unwrap_or(f64::NAN),

@@ -96,13 +96,20 @@ pub enum RigRecord {
     Gnss(RigGnss),
     /// Raw counter at the IMU data-ready edge (or receipt) and six values.
     Imu { counter: u64, values: [f64; 6] },
+    /// Raw counter latched at an edge that the GNSS receiver time-marked
+    /// too (u-blox TIM-TM2 on EXTINT: a camera strobe, an IMU sync pulse
+    /// divided down), and the receiver's GPS time of that edge:
+    /// `mark,<counter>,<week>,<tow_s>[,…]`.
+    Mark { counter: u64, time: GpsTime },
 }
 
 impl RigRecord {
     /// The raw counter of the record.
     pub fn counter(&self) -> u64 {
         match self {
-            RigRecord::Pps { counter } | RigRecord::Imu { counter, .. } => *counter,
+            RigRecord::Pps { counter }
+            | RigRecord::Imu { counter, .. }
+            | RigRecord::Mark { counter, .. } => *counter,
             RigRecord::Gnss(g) => g.counter,
         }
     }
@@ -477,6 +484,48 @@ fn parse_counter(field: &[u8], counter_max: u64) -> Result<u64, String> {
 }
 
 /// Parses one record line; reports and returns `None` when it is bad.
+/// GPS week and time of week in fields 3 and 4 of a record.
+fn gps_time_fields(
+    week: &[u8],
+    tow: &[u8],
+    no: usize,
+    path: &Path,
+    diag: &mut Diagnostics,
+) -> Option<GpsTime> {
+    let week = match std::str::from_utf8(week)
+        .ok()
+        .and_then(|s| s.parse::<i64>().ok())
+    {
+        Some(w) if (0..=100_000).contains(&w) => w,
+        _ => {
+            diag.push(
+                path,
+                no,
+                format!(
+                    "field 3: week '{}' is not a GPS week number; line skipped",
+                    String::from_utf8_lossy(week)
+                ),
+            );
+            return None;
+        }
+    };
+    match parse_seconds_ns(tow) {
+        Ok(t) if (0..NS_PER_WEEK).contains(&t) => Some(GpsTime::from_week_ns(week, t)),
+        Ok(_) => {
+            diag.push(
+                path,
+                no,
+                "field 4: time of week outside 0..604800 s; line skipped",
+            );
+            None
+        }
+        Err(e) => {
+            diag.push(path, no, format!("field 4: {e}; line skipped"));
+            None
+        }
+    }
+}
+
 fn parse_record(
     line: &[u8],
     no: usize,
@@ -548,38 +597,7 @@ fn parse_record(
                     return None;
                 }
             };
-            let week = match std::str::from_utf8(f[2])
-                .ok()
-                .and_then(|s| s.parse::<i64>().ok())
-            {
-                Some(w) if (0..=100_000).contains(&w) => w,
-                _ => {
-                    diag.push(
-                        path,
-                        no,
-                        format!(
-                            "field 3: week '{}' is not a GPS week number; line skipped",
-                            String::from_utf8_lossy(f[2])
-                        ),
-                    );
-                    return None;
-                }
-            };
-            let tow_ns = match parse_seconds_ns(f[3]) {
-                Ok(t) if (0..NS_PER_WEEK).contains(&t) => t,
-                Ok(_) => {
-                    diag.push(
-                        path,
-                        no,
-                        "field 4: time of week outside 0..604800 s; line skipped",
-                    );
-                    return None;
-                }
-                Err(e) => {
-                    diag.push(path, no, format!("field 4: {e}; line skipped"));
-                    return None;
-                }
-            };
+            let time = gps_time_fields(f[2], f[3], no, path, diag)?;
             let mut v = [0.0; 6];
             for k in 0..6 {
                 match parse_f64(f[4 + k]) {
@@ -604,12 +622,27 @@ fn parse_record(
             }
             Some(RigRecord::Gnss(RigGnss {
                 counter,
-                time: GpsTime::from_week_ns(week, tow_ns),
+                time,
                 lat_deg: v[0],
                 lon_deg: v[1],
                 h_m: v[2],
                 sd_m: [v[3], v[4], v[5]],
             }))
+        }
+        b"mark" => {
+            if n < 4 {
+                expect(diag, 4, "mark,counter,week,tow_s");
+                return None;
+            }
+            let counter = match parse_counter(f[1], counter_max) {
+                Ok(c) => c,
+                Err(e) => {
+                    diag.push(path, no, format!("field 2: {e}; line skipped"));
+                    return None;
+                }
+            };
+            let time = gps_time_fields(f[2], f[3], no, path, diag)?;
+            Some(RigRecord::Mark { counter, time })
         }
         _ => {
             diag.push(
@@ -708,6 +741,27 @@ mod tests {
             msgs[1].contains("rig.csv:7") && msgs[1].contains("imu_output_delay_s"),
             "{msgs:?}"
         );
+    }
+
+    #[test]
+    fn mark_records_carry_the_receivers_time() {
+        let text = format!(
+            "{HEAD}mark,4095479611,2300,100000.512299985,0,1\nmark,7,2300\nmark,8,2300,604800.5\nmark,x,2300,1.0\n"
+        );
+        let (r, diag) = read(&text);
+        let v = r.unwrap();
+        assert_eq!(
+            v,
+            vec![RigRecord::Mark {
+                counter: 4095479611,
+                time: GpsTime::from_week_ns(2300, 100_000_512_299_985),
+            }]
+        );
+        let msgs: Vec<String> = diag.items.iter().map(|d| d.to_string()).collect();
+        assert_eq!(msgs.len(), 3, "{msgs:?}");
+        assert!(msgs[0].contains(":7:") && msgs[0].contains("mark,counter,week,tow_s"));
+        assert!(msgs[1].contains(":8:") && msgs[1].contains("time of week"));
+        assert!(msgs[2].contains(":9:") && msgs[2].contains("field 2"));
     }
 
     #[test]

@@ -149,6 +149,34 @@ impl Default for SoftwareSpec {
     }
 }
 
+/// External events time-marked by the receiver (u-blox TIM-TM2 on
+/// EXTINT: a camera strobe, an IMU sync pulse divided down), the same edge
+/// latched by the logger's counter: `mark` records.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MarkSpec {
+    /// Edges per second (0: none).
+    pub rate_hz: f64,
+    /// The first edge, seconds after the start.
+    pub first_s: f64,
+    /// The receiver's time-mark error, white (s, 1σ; TIM-TM2 ~20 ns).
+    pub receiver_sd_s: f64,
+    /// The logger's latch error, uniform in [0, this] (s): an input
+    /// capture is exact to a tick; a host's GPIO interrupt is not.
+    pub latch_delay_s: f64,
+}
+
+impl Default for MarkSpec {
+    fn default() -> Self {
+        MarkSpec {
+            rate_hz: 0.0,
+            first_s: 0.5123,
+            receiver_sd_s: 2e-8,
+            latch_delay_s: 0.0,
+        }
+    }
+}
+
 /// The whole rig.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -163,6 +191,7 @@ pub struct RigSpec {
     pub gnss_link: GnssLinkSpec,
     pub imu_link: ImuLinkSpec,
     pub software: SoftwareSpec,
+    pub marks: MarkSpec,
 }
 
 fn check_range(r: [f64; 2], what: &str) -> Result<(), String> {
@@ -222,6 +251,18 @@ impl RigSpec {
                 imu_period_s * 1e3
             ));
         }
+        let m = &self.marks;
+        if !(is_non_negative(m.rate_hz)
+            && m.rate_hz <= 1000.0
+            && is_non_negative(m.first_s)
+            && is_non_negative(m.receiver_sd_s)
+            && is_non_negative(m.latch_delay_s))
+        {
+            return Err(
+                "marks need 0 <= rate_hz <= 1000 and first_s, receiver_sd_s, latch_delay_s >= 0"
+                    .into(),
+            );
+        }
         check_range(self.software.imu_latency_s, "software imu_latency_s")?;
         check_range(self.software.gnss_latency_s, "software gnss_latency_s")?;
         Ok(())
@@ -233,6 +274,8 @@ impl RigSpec {
 pub enum RigRecord {
     Pps,
     Gnss(Box<GnssFix>),
+    /// A time-marked edge and the receiver's GPS time of it.
+    Mark(GpsTime),
 }
 
 #[derive(Debug)]

@@ -93,6 +93,8 @@ pub struct SimReport {
     pub gnss_messages: u64,
     pub gnss_latency_s: [f64; 3],
     pub pps_pulses: u64,
+    /// Time-marked edges written as `mark` records.
+    pub marks: u64,
     pub pps_dropped: u64,
     pub pps_displaced: Listed<f64>,
     pub pps_spurious: Listed<f64>,
@@ -201,6 +203,9 @@ impl Simulation {
         let gnss_spec = gnss.spec().clone();
         let mut pps =
             (rig.sync != SyncMode::Sw).then(|| PpsSource::new(&rig.pps, start, dur, seed));
+        // Time-marked edges: k-th at first_s + k / rate_hz.
+        let mut mark_rng = rng::stream(seed, "rig.marks");
+        let mut next_mark = (rig.marks.rate_hz > 0.0).then_some(0u64);
         let mut counter = Counter::new(&rig.counter, temp, rng::stream(seed, "rig.counter.rw"))
             .map_err(Error::Invalid)?;
         let mut report = SimReport {
@@ -419,6 +424,23 @@ impl Simulation {
                     report.pps_pulses += 1;
                     pending.push(e.time_s, RigRecord::Pps);
                 }
+            }
+
+            while let Some(k) = next_mark {
+                let edge = rig.marks.first_s + k as f64 / rig.marks.rate_hz;
+                if edge > t_k + lookahead_s {
+                    break;
+                }
+                if edge >= dur {
+                    next_mark = None;
+                    break;
+                }
+                let gps =
+                    start.add_seconds(edge + rig.marks.receiver_sd_s * rng::normal(&mut mark_rng));
+                let latch = edge + rng::uniform_in(&mut mark_rng, 0.0, rig.marks.latch_delay_s);
+                report.marks += 1;
+                pending.push(latch, RigRecord::Mark(gps));
+                next_mark = Some(k + 1);
             }
 
             // The logged IMU record: transport faults, then timing.
@@ -781,6 +803,7 @@ fn flush_pending(
                 counter: c,
                 fix: *fix,
             },
+            RigRecord::Mark(time) => Out::RigMark { counter: c, time },
         });
     }
 }
@@ -808,6 +831,10 @@ enum Out {
         fix: GnssFix,
     },
     RigHeader(String),
+    RigMark {
+        counter: u64,
+        time: GpsTime,
+    },
     RigPps {
         counter: u64,
     },
@@ -972,6 +999,18 @@ fn write_files(rx: Receiver<Vec<Out>>, mut f: Files) -> Result<Vec<String>, Erro
                     if let Some(r) = &mut f.rig {
                         r.buf.extend_from_slice(b"pps,");
                         push_u64(&mut r.buf, counter);
+                        r.buf.push(b'\n');
+                        r.done_line()?;
+                    }
+                }
+                Out::RigMark { counter, time } => {
+                    if let Some(r) = &mut f.rig {
+                        r.buf.extend_from_slice(b"mark,");
+                        push_u64(&mut r.buf, counter);
+                        r.buf.push(b',');
+                        push_u64(&mut r.buf, time.week().max(0) as u64);
+                        r.buf.push(b',');
+                        time.write_sow(&mut r.buf);
                         r.buf.push(b'\n');
                         r.done_line()?;
                     }

@@ -139,6 +139,14 @@ struct PendingGnss {
     fix: RigGnss,
 }
 
+/// A receiver time mark waiting to be stamped through the counter.
+#[derive(Copy, Clone, Debug)]
+struct PendingMark {
+    counter: u64,
+    h: f64,
+    time: GpsTime,
+}
+
 enum Engine {
     /// Auto mode before the decision: raw records buffered.
     Undecided(Vec<(RigRecord, usize)>),
@@ -159,6 +167,9 @@ pub struct SyncEngine {
     rate: RateEstimator,
     pending_imu: VecDeque<PendingImu>,
     pending_gnss: VecDeque<PendingGnss>,
+    pending_marks: VecDeque<PendingMark>,
+    /// Counter-stamped time − receiver time of each mark (s).
+    mark_residuals: crate::stats::Moments,
     imu_seq: u64,
     now: u64,
     first_counter: Option<u64>,
@@ -218,6 +229,8 @@ impl SyncEngine {
             rate: RateEstimator::default(),
             pending_imu: VecDeque::new(),
             pending_gnss: VecDeque::new(),
+            pending_marks: VecDeque::new(),
+            mark_residuals: crate::stats::Moments::default(),
             imu_seq: 0,
             now: 0,
             first_counter: None,
@@ -261,6 +274,7 @@ impl SyncEngine {
             RigRecord::Imu { .. } => self.counts.imu += 1,
             RigRecord::Pps { .. } => self.counts.pps += 1,
             RigRecord::Gnss(_) => self.counts.gnss += 1,
+            RigRecord::Mark { .. } => self.counts.marks += 1,
         }
         if let Engine::Undecided(buf) = &mut self.state {
             let c = rec.counter();
@@ -443,6 +457,20 @@ impl SyncEngine {
                         fix: g,
                     });
                 }
+                RigRecord::Mark { time, .. } => {
+                    let h = if hw {
+                        0.0
+                    } else {
+                        let h = self.sw.host(c);
+                        self.sw.push_mark(h, time);
+                        h
+                    };
+                    self.pending_marks.push_back(PendingMark {
+                        counter: c,
+                        h,
+                        time,
+                    });
+                }
                 RigRecord::Imu { .. } => {}
             }
         }
@@ -545,6 +573,15 @@ impl SyncEngine {
                 self.emit_gnss(g.fix, rx, out);
             }
         }
+        while let Some(m) = self.pending_marks.front().copied() {
+            if !self.hw_ready(m.counter, flush) {
+                break;
+            }
+            self.pending_marks.pop_front();
+            if let Some((t, _, _)) = self.hw_time(m.counter) {
+                self.mark_residuals.push((t - m.time) as f64 * 1e-9);
+            }
+        }
         // Memory: history needed only around the oldest pending record.
         let oldest = self
             .pending_imu
@@ -552,6 +589,7 @@ impl SyncEngine {
             .map(|p| p.counter)
             .into_iter()
             .chain(self.pending_gnss.front().map(|g| g.counter))
+            .chain(self.pending_marks.front().map(|m| m.counter))
             .min()
             .unwrap_or(self.now);
         if locked_once {
@@ -568,7 +606,7 @@ impl SyncEngine {
                 self.emit_unstamped(p, out);
                 continue;
             }
-            if !self.sw.has_gnss() && !flush {
+            if !self.sw.has_map() && !flush {
                 break;
             }
             if !causal && !flush && !self.sw.ready(p.h) {
@@ -596,12 +634,22 @@ impl SyncEngine {
                 self.emit_gnss(g.fix, rx, out);
             }
         }
+        while let Some(m) = self.pending_marks.front().copied() {
+            if !causal && !flush && !self.sw.ready(m.h) {
+                break;
+            }
+            self.pending_marks.pop_front();
+            if let Some(t) = self.sw.host_to_gps(m.h, causal) {
+                self.mark_residuals.push((t - m.time) as f64 * 1e-9);
+            }
+        }
         let oldest = self
             .pending_imu
             .front()
             .map(|p| p.h)
             .into_iter()
             .chain(self.pending_gnss.front().map(|g| g.h))
+            .chain(self.pending_marks.front().map(|m| m.h))
             .fold(self.sw.now(), f64::min);
         let keep = if causal {
             oldest
@@ -622,7 +670,11 @@ impl SyncEngine {
         } else {
             0.0
         };
-        let gg = if self.sw.gnss_fit_points > 0 {
+        let gg = if self.sw.uses_marks() {
+            // A least-squares line through the marks: their scatter over √n.
+            let n = self.mark_residuals.n.max(1) as f64;
+            self.mark_residuals.std() / n.sqrt()
+        } else if self.sw.gnss_fit_points > 0 {
             2.0 * self.sw.last_gnss_fit_excess * 3f64.sqrt() / self.sw.gnss_fit_points as f64
         } else {
             0.0
@@ -846,7 +898,11 @@ impl SyncEngine {
                 jitter_sd_ms: sd * 1e3,
                 assumed_fastest_gnss_latency_s: self.sw.cfg.gnss_min_latency_s,
                 assumed_fastest_imu_latency_s: self.sw.cfg.imu_min_latency_s,
-                unobservable: "every IMU stamp is off by the same constant: (fastest true GNSS latency − assumed) − (fastest true IMU latency − assumed). Receive times alone cannot observe it; estimate it in the filter or measure it once with 1PPS.".into(),
+                unobservable: if self.sw.uses_marks() {
+                    "receiver time marks map host time to GPS time; every IMU stamp is still off by the same constant: the fastest true IMU latency − assumed. Estimate it in the filter or measure it once with 1PPS.".into()
+                } else {
+                    "every IMU stamp is off by the same constant: (fastest true GNSS latency − assumed) − (fastest true IMU latency − assumed). Receive times alone cannot observe it; estimate it in the filter, use receiver time marks, or measure it once with 1PPS.".into()
+                },
                 pps_records_ignored: self.pps_ignored,
             }
         });
@@ -862,6 +918,17 @@ impl SyncEngine {
             imu,
             gnss,
             software,
+            marks: (self.counts.marks > 0).then(|| {
+                let r = &self.mark_residuals;
+                MarkReport {
+                    received: self.counts.marks,
+                    compared: r.n as u64,
+                    residual_mean_us: r.mean() * 1e6,
+                    residual_rms_us: r.rms() * 1e6,
+                    residual_max_abs_us: r.max_abs * 1e6,
+                    used_as_clock_reference: !hw && self.sw.uses_marks(),
+                }
+            }),
             stamp_bound_us: BoundStats {
                 mean: (self.bounds.n > 0).then(|| self.bounds.mean() * 1e6),
                 max: (self.bounds.n > 0).then_some(self.max_bound_s * 1e6),

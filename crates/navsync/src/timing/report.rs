@@ -41,6 +41,26 @@ pub struct RecordCounts {
     pub imu: u64,
     pub pps: u64,
     pub gnss: u64,
+    /// `mark` records (edges time-marked by the receiver, TIM-TM2).
+    #[serde(default)]
+    pub marks: u64,
+}
+
+/// Receiver time marks (`mark` records) against the clock model: with
+/// 1PPS they check the whole timing chain; without, they are the
+/// host→GPS map of software sync.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct MarkReport {
+    pub received: u64,
+    /// Marks stamped through the counter and compared with their GPS time.
+    pub compared: u64,
+    /// Counter-stamped time − the receiver's time of the mark (µs).
+    pub residual_mean_us: f64,
+    pub residual_rms_us: f64,
+    pub residual_max_abs_us: f64,
+    /// Software sync: the marks, not the GNSS receive times, map host time
+    /// to GPS time.
+    pub used_as_clock_reference: bool,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -249,6 +269,9 @@ pub struct SyncReport {
     pub imu: ImuReport,
     pub gnss: GnssReport,
     pub software: Option<SoftwareReport>,
+    /// Receiver time marks, when the log has `mark` records.
+    #[serde(default)]
+    pub marks: Option<MarkReport>,
     /// Error bounds of the IMU stamps (µs).
     pub stamp_bound_us: BoundStats,
     pub first_stamp: Option<WeekSow>,

@@ -13,6 +13,11 @@
 //! fastest latencies `μ_min`, `λ_min` are what synchronization alone
 //! cannot observe: they are configured (default 0) and their error is a
 //! constant offset of every stamp, reported as such.
+//!
+//! Receiver time marks (`mark` records: an edge latched on the host clock
+//! and time-marked by the receiver, u-blox TIM-TM2) have no latency: when
+//! the log has them, a least-squares fit of GPS time against host time
+//! over the same window replaces the GNSS envelope, and `λ_min` drops out.
 
 use std::collections::VecDeque;
 
@@ -63,6 +68,54 @@ fn invert(fit: &EnvelopeFit, h: f64) -> Option<f64> {
     Some(t)
 }
 
+/// A least-squares polynomial y = Σ c_i (x − x0)^i of degree ≤ 2.
+#[derive(Copy, Clone, Debug)]
+struct LsMap {
+    x0: f64,
+    coef: [f64; 3],
+    n: usize,
+}
+
+impl LsMap {
+    /// Fits `pts` (x, y) by least squares (normal equations about the mean
+    /// of x, which keeps them well conditioned).
+    fn fit(pts: &[(f64, f64)], deg: usize) -> Option<LsMap> {
+        let n = pts.len();
+        if n < deg + 1 {
+            return None;
+        }
+        let x0 = pts.iter().map(|p| p.0).sum::<f64>() / n as f64;
+        let k = deg + 1;
+        let mut a = nalgebra::DMatrix::<f64>::zeros(k, k);
+        let mut b = nalgebra::DVector::<f64>::zeros(k);
+        for &(x, y) in pts {
+            let u = x - x0;
+            let pw = [1.0, u, u * u];
+            for i in 0..k {
+                b[i] += pw[i] * y;
+                for j in 0..k {
+                    a[(i, j)] += pw[i] * pw[j];
+                }
+            }
+        }
+        let c = a.lu().solve(&b)?;
+        let mut coef = [0.0; 3];
+        coef[..k].copy_from_slice(c.as_slice());
+        coef.iter()
+            .all(|v| v.is_finite())
+            .then_some(LsMap { x0, coef, n })
+    }
+
+    fn eval(&self, x: f64) -> f64 {
+        let u = x - self.x0;
+        self.coef[0] + u * (self.coef[1] + u * self.coef[2])
+    }
+
+    fn slope(&self, x: f64) -> f64 {
+        self.coef[1] + 2.0 * self.coef[2] * (x - self.x0)
+    }
+}
+
 /// Host→GPS envelope over a window, cached per block.
 #[derive(Clone, Debug)]
 struct GnssMap {
@@ -92,6 +145,9 @@ pub struct SwClock {
     imu: VecDeque<(f64, f64)>,
     gnss_maps: Vec<GnssMap>,
     imu_maps: Vec<ImuMap>,
+    /// (T_rel, h) of receiver time marks.
+    marks: VecDeque<(f64, f64)>,
+    mark_maps: Vec<(i64, LsMap)>,
     /// Index of the latest IMU sample and its receive time.
     last_k: Option<i64>,
     /// Latest envelope for loss detection: (k_ref, h_ref, period).
@@ -116,6 +172,8 @@ impl SwClock {
             imu: VecDeque::new(),
             gnss_maps: Vec::new(),
             imu_maps: Vec::new(),
+            marks: VecDeque::new(),
+            mark_maps: Vec::new(),
             last_k: None,
             live: None,
             recent_lat: VecDeque::new(),
@@ -152,6 +210,62 @@ impl SwClock {
         }
         self.gnss.push_back((t, h));
         self.advance(h);
+    }
+
+    /// A receiver time mark: an edge at host `h` that the receiver
+    /// time-marked at GPS time `time`.
+    pub fn push_mark(&mut self, h: f64, time: GpsTime) {
+        let t0 = *self.t0.get_or_insert(time.ns().div_euclid(NS_PER_S));
+        let t = (time.ns() - t0 * NS_PER_S) as f64 * 1e-9;
+        if self.marks.back().is_some_and(|&(tb, _)| t <= tb) {
+            return; // repeated or out-of-order: ignored
+        }
+        self.marks.push_back((t, h));
+        self.advance(h);
+    }
+
+    /// True when the time marks, not the GNSS envelope, map host time.
+    pub fn uses_marks(&self) -> bool {
+        self.marks.len() >= 2
+    }
+
+    /// The host→GPS map of block `block` from the time marks: GPS time as
+    /// a least-squares polynomial of host time over the window (degree 2
+    /// over ≥ 120 s and ≥ 30 marks, as the envelope).
+    fn mark_block(&mut self, block: i64, h: f64, causal: bool) -> Option<LsMap> {
+        if let Some((_, m)) = self.mark_maps.iter().find(|(b, _)| *b == block)
+            && !(causal && m.n < 30)
+        {
+            return Some(*m);
+        }
+        let w = self.cfg.gnss_window_s;
+        let (lo, hi) = if causal {
+            (h - w, h)
+        } else {
+            let mid = (block as f64 + 0.5) * GNSS_BLOCK_S;
+            (mid - 0.5 * w, mid + 0.5 * w)
+        };
+        let mut pts: Vec<(f64, f64)> = self
+            .marks
+            .iter()
+            .filter(|&&(_, hm)| hm >= lo && hm <= hi)
+            .map(|&(t, hm)| (hm, t))
+            .collect();
+        if pts.len() < 2 {
+            pts = self.marks.iter().map(|&(t, hm)| (hm, t)).collect();
+        }
+        let span = pts.last()?.0 - pts.first()?.0;
+        let deg = if pts.len() >= 30 && span >= 120.0 {
+            2
+        } else {
+            1
+        };
+        let map = LsMap::fit(&pts, deg)?;
+        self.host_ppm = Some((1.0 / map.slope(pts[pts.len() / 2].0) - 1.0) * 1e6);
+        self.mark_maps
+            .retain(|(b, _)| *b != block && (b - block).abs() <= 2);
+        self.mark_maps.push((block, map));
+        Some(map)
     }
 
     /// An IMU sample received at host `h`; returns (index, lost before).
@@ -221,13 +335,20 @@ impl SwClock {
         {
             self.imu.pop_front();
         }
-        // GNSS points are pruned by their host time.
+        // GNSS points and marks are pruned by their host time.
         while self
             .gnss
             .front()
             .is_some_and(|&(_, hg)| h - hg > keep_g + 10.0)
         {
             self.gnss.pop_front();
+        }
+        while self
+            .marks
+            .front()
+            .is_some_and(|&(_, hm)| h - hm > keep_g + 10.0)
+        {
+            self.marks.pop_front();
         }
     }
 
@@ -236,9 +357,14 @@ impl SwClock {
         self.now_h - h >= 0.5 * self.cfg.gnss_window_s + 2.0
     }
 
-    /// True when a host→GPS map can be made.
+    /// True when a GNSS latency envelope can be made.
     pub fn has_gnss(&self) -> bool {
         self.gnss.len() >= 3
+    }
+
+    /// True when a host→GPS map can be made (from GNSS or time marks).
+    pub fn has_map(&self) -> bool {
+        self.has_gnss() || self.uses_marks()
     }
 
     /// The host→GPS envelope of block `block` (10 s blocks of host time):
@@ -357,13 +483,23 @@ impl SwClock {
     pub fn host_to_gps(&mut self, h: f64, causal: bool) -> Option<GpsTime> {
         let t0 = self.t0?;
         let (b0, b1, w) = Self::blend(h, GNSS_BLOCK_S, causal);
-        let f0 = self.gnss_block(b0, h, causal)?;
-        let mut t = invert(&f0, h)?;
-        if w > 0.0 {
-            let f1 = self.gnss_block(b1, h, causal)?;
-            let t1 = invert(&f1, h)?;
-            t += w * (t1 - t);
-        }
+        let t = if self.uses_marks() {
+            let mut t = self.mark_block(b0, h, causal)?.eval(h);
+            if w > 0.0 {
+                let t1 = self.mark_block(b1, h, causal)?.eval(h);
+                t += w * (t1 - t);
+            }
+            t
+        } else {
+            let f0 = self.gnss_block(b0, h, causal)?;
+            let mut t = invert(&f0, h)?;
+            if w > 0.0 {
+                let f1 = self.gnss_block(b1, h, causal)?;
+                let t1 = invert(&f1, h)?;
+                t += w * (t1 - t);
+            }
+            t
+        };
         let whole = t.floor();
         Some(GpsTime::from_ns(
             (t0 + whole as i64) * NS_PER_S + ((t - whole) * 1e9).round() as i64,
