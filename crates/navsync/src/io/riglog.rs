@@ -483,7 +483,6 @@ fn parse_counter(field: &[u8], counter_max: u64) -> Result<u64, String> {
     Ok(v)
 }
 
-/// Parses one record line; reports and returns `None` when it is bad.
 /// GPS week and time of week in fields 3 and 4 of a record.
 fn gps_time_fields(
     week: &[u8],
@@ -526,6 +525,7 @@ fn gps_time_fields(
     }
 }
 
+/// Parses one record line; reports and returns `None` when it is bad.
 fn parse_record(
     line: &[u8],
     no: usize,
