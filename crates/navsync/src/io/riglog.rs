@@ -483,6 +483,19 @@ fn parse_counter(field: &[u8], counter_max: u64) -> Result<u64, String> {
     Ok(v)
 }
 
+/// The counter in field 2 of a record, or a reported skip.
+fn counter_field(
+    field: &[u8],
+    counter_max: u64,
+    no: usize,
+    path: &Path,
+    diag: &mut Diagnostics,
+) -> Option<u64> {
+    parse_counter(field, counter_max)
+        .map_err(|e| diag.push(path, no, format!("field 2: {e}; line skipped")))
+        .ok()
+}
+
 /// GPS week and time of week in fields 3 and 4 of a record.
 fn gps_time_fields(
     week: &[u8],
@@ -549,13 +562,7 @@ fn parse_record(
                 expect(diag, 8, "imu,counter,x1..x6");
                 return None;
             }
-            let counter = match parse_counter(f[1], counter_max) {
-                Ok(c) => c,
-                Err(e) => {
-                    diag.push(path, no, format!("field 2: {e}; line skipped"));
-                    return None;
-                }
-            };
+            let counter = counter_field(f[1], counter_max, no, path, diag)?;
             let mut values = [0.0; 6];
             for k in 0..6 {
                 match parse_number(f[2 + k]) {
@@ -573,13 +580,8 @@ fn parse_record(
                 expect(diag, 2, "pps,counter");
                 return None;
             }
-            match parse_counter(f[1], counter_max) {
-                Ok(counter) => Some(RigRecord::Pps { counter }),
-                Err(e) => {
-                    diag.push(path, no, format!("field 2: {e}; line skipped"));
-                    None
-                }
-            }
+            let counter = counter_field(f[1], counter_max, no, path, diag)?;
+            Some(RigRecord::Pps { counter })
         }
         b"gnss" => {
             if n != 10 {
@@ -590,13 +592,7 @@ fn parse_record(
                 );
                 return None;
             }
-            let counter = match parse_counter(f[1], counter_max) {
-                Ok(c) => c,
-                Err(e) => {
-                    diag.push(path, no, format!("field 2: {e}; line skipped"));
-                    return None;
-                }
-            };
+            let counter = counter_field(f[1], counter_max, no, path, diag)?;
             let time = gps_time_fields(f[2], f[3], no, path, diag)?;
             let mut v = [0.0; 6];
             for k in 0..6 {
@@ -634,13 +630,7 @@ fn parse_record(
                 expect(diag, 4, "mark,counter,week,tow_s");
                 return None;
             }
-            let counter = match parse_counter(f[1], counter_max) {
-                Ok(c) => c,
-                Err(e) => {
-                    diag.push(path, no, format!("field 2: {e}; line skipped"));
-                    return None;
-                }
-            };
+            let counter = counter_field(f[1], counter_max, no, path, diag)?;
             let time = gps_time_fields(f[2], f[3], no, path, diag)?;
             Some(RigRecord::Mark { counter, time })
         }

@@ -51,6 +51,17 @@ impl Default for SwConfig {
 const GNSS_BLOCK_S: f64 = 10.0;
 const IMU_BLOCK_S: f64 = 1.0;
 
+/// The host-time window of a fit: `window_s` centred on block `block` (of
+/// `block_s`), or ending at `h` in causal mode.
+fn window(block: i64, block_s: f64, window_s: f64, h: f64, causal: bool) -> (f64, f64) {
+    if causal {
+        (h - window_s, h)
+    } else {
+        let mid = (block as f64 + 0.5) * block_s;
+        (mid - 0.5 * window_s, mid + 0.5 * window_s)
+    }
+}
+
 /// `T` with `fit(T) = h` (Newton from the tangent line at 0).
 fn invert(fit: &EnvelopeFit, h: f64) -> Option<f64> {
     let s = fit.slope(0.0);
@@ -238,13 +249,7 @@ impl SwClock {
         {
             return Some(*m);
         }
-        let w = self.cfg.gnss_window_s;
-        let (lo, hi) = if causal {
-            (h - w, h)
-        } else {
-            let mid = (block as f64 + 0.5) * GNSS_BLOCK_S;
-            (mid - 0.5 * w, mid + 0.5 * w)
-        };
+        let (lo, hi) = window(block, GNSS_BLOCK_S, self.cfg.gnss_window_s, h, causal);
         let mut pts: Vec<(f64, f64)> = self
             .marks
             .iter()
@@ -376,13 +381,7 @@ impl SwClock {
         {
             return Some(m.fit.clone());
         }
-        let w = self.cfg.gnss_window_s;
-        let (lo, hi) = if causal {
-            (h - w, h)
-        } else {
-            let mid = (block as f64 + 0.5) * GNSS_BLOCK_S;
-            (mid - 0.5 * w, mid + 0.5 * w)
-        };
+        let (lo, hi) = window(block, GNSS_BLOCK_S, self.cfg.gnss_window_s, h, causal);
         let mut pts: Vec<(f64, f64)> = self
             .gnss
             .iter()
@@ -419,13 +418,7 @@ impl SwClock {
         {
             return Some(m.fit.clone());
         }
-        let w = self.cfg.imu_window_s;
-        let (lo, hi) = if causal {
-            (h - w, h)
-        } else {
-            let mid = (block as f64 + 0.5) * IMU_BLOCK_S;
-            (mid - 0.5 * w, mid + 0.5 * w)
-        };
+        let (lo, hi) = window(block, IMU_BLOCK_S, self.cfg.imu_window_s, h, causal);
         let pts: Vec<(f64, f64)> = self
             .imu
             .iter()
