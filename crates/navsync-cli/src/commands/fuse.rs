@@ -406,3 +406,24 @@ pub fn run(args: Args) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::parse_sd_pair;
+
+    #[test]
+    fn misalignment_sigmas_parse_or_say_why_not() {
+        assert_eq!(parse_sd_pair("0.05"), Ok([0.05, 0.05]));
+        assert_eq!(parse_sd_pair("0.05, 0.1"), Ok([0.05, 0.1]));
+        for (bad, why) in [
+            ("x", "'x' is not a number"),
+            ("0.1,0.2,0.3", "expected SD or GYRO_SD,ACCEL_SD"),
+            ("0", "must be positive"),
+            ("-0.1", "must be positive"),
+            ("nan", "must be positive"),
+        ] {
+            let e = parse_sd_pair(bad).unwrap_err();
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+    }
+}

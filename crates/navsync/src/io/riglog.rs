@@ -716,13 +716,20 @@ mod tests {
         assert_eq!(r.header().imu_rates, Some(RateSampling::IntervalAverage));
         assert!(diag.is_empty(), "{diag:?}");
         // Bad values are reported with their line and ignored.
-        let text = format!("{HEAD}# imu_timing: sometimes\n# imu_output_delay_s: -1\n");
+        let text = format!(
+            "{HEAD}# imu_timing: sometimes\n# imu_output_delay_s: -1\n# imu_rates: smoothed\n"
+        );
         let lines = LineReader::new(text.as_bytes(), Path::new("rig.csv"));
         let r = RigLogReader::new(lines, &mut diag).unwrap();
         assert_eq!(r.header().imu_timing, None);
         assert_eq!(r.header().imu_output_delay_s, None);
+        assert_eq!(r.header().imu_rates, None);
         let msgs: Vec<String> = diag.items.iter().map(|d| d.to_string()).collect();
-        assert_eq!(msgs.len(), 2, "{msgs:?}");
+        assert_eq!(msgs.len(), 3, "{msgs:?}");
+        assert!(
+            msgs[2].contains("rig.csv:8") && msgs[2].contains("imu_rates"),
+            "{msgs:?}"
+        );
         assert!(
             msgs[0].contains("rig.csv:6") && msgs[0].contains("imu_timing"),
             "{msgs:?}"
