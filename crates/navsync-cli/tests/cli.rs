@@ -119,6 +119,25 @@ fn bad_inputs_give_clear_errors() {
     let cfg = write_static_set(&dir, 5);
     let cfg_text = std::fs::read_to_string(&cfg).unwrap();
 
+    // Settings the engine cannot take: a huge interpolation order (it
+    // once overflowed a buffer's capacity and panicked), crossed robust
+    // thresholds, a non-positive correlated-error time.
+    for (args, want) in [
+        (
+            &["--output-at", "times.txt", "--interp-n", "1000000000000"][..],
+            "interpolation n 1000000000000 is too large",
+        ),
+        (&["--robust-k0", "5", "--robust-k1", "3"][..], "0 < k0 < k1"),
+        (
+            &["--gnss-gm-sd", "0.01,0.01,0.02", "--gnss-gm-time", "0"][..],
+            "positive σ and correlation time",
+        ),
+    ] {
+        let (ok, _, err) = run(bin().args(["fuse", "--config"]).arg(&cfg).args(args));
+        assert!(!ok && err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+
     // A path that does not exist.
     let (ok, _, err) = run(bin().args(["fuse", "--config", "/no/such/kf-gins.yaml"]));
     assert!(!ok && err.contains("/no/such/kf-gins.yaml"), "{err}");

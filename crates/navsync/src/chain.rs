@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Diagnostics, Error};
-use crate::fusion::TimeOffsetOptions;
+use crate::fusion::{GnssErrorModel, TimeOffsetOptions};
 use crate::io::config::KfGinsConfig;
 use crate::pipeline::{self, FuseOptions, FuseSummary, NavSink};
 use crate::sim::imu::OutputKind;
@@ -54,8 +54,8 @@ impl ChainOptions {
     /// rig has PPS (T_c subtracted for a serial-timed IMU, seed 000), the
     /// average rule for rates from an averaging IMU (seed 001 §1.3.1), and
     /// fusion with the time-offset state (and the misalignment states for
-    /// an IMU whose datasheet gives a misalignment), in the scenario's GPS
-    /// week.
+    /// an IMU whose datasheet gives a misalignment, and the receiver's
+    /// time-correlated error as filter states), in the scenario's GPS week.
     pub fn for_scenario(scn: &Scenario) -> Self {
         let rig = &scn.rig;
         let sync = SyncConfig {
@@ -81,10 +81,22 @@ impl ChainOptions {
             scn.imu.gyro.misalignment_deg,
             scn.imu.accel.misalignment_deg,
         );
+        // The receiver's correlated error, as its error model gives it.
+        let gnss = scn.gnss.resolved();
+        let gnss_error = match (gnss.gm_sd_m, gnss.gm_corr_time_s) {
+            (Some(sd), Some(tau)) if sd.iter().all(|s| *s > 0.0) && tau > 0.0 => {
+                Some(GnssErrorModel {
+                    gm_sd_m: sd,
+                    corr_time_s: tau,
+                })
+            }
+            _ => None,
+        };
         let fuse = FuseOptions {
             time_offset: Some(TimeOffsetOptions::default()),
             week: scn.gps_week,
             misalignment_sd_deg: (mg > 0.0 && ma > 0.0).then_some([mg, ma]),
+            gnss_error,
             ..FuseOptions::default()
         };
         ChainOptions {

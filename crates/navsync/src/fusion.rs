@@ -26,7 +26,7 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 use crate::earth::{Geodetic, LocalEarth};
@@ -80,6 +80,175 @@ pub enum LatencyMode {
     /// (c) Delayed-state update: return to the stored state at t_v, update
     /// there and propagate forward again through the buffered IMU samples.
     DelayedState { max_latency_s: f64 },
+}
+
+/// How GNSS fixes that disagree with the INS prediction are weighted.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "kebab-case", tag = "mode")]
+pub enum GnssWeighting {
+    /// Every fix at its stated σ (what KF-GINS does).
+    Off,
+    /// Chi-square gate at probability `prob`: a fix over it is rejected,
+    /// unless it agrees with the previous rejected fix (taken as INS drift:
+    /// P is inflated), and after `max_consecutive_rejects` rejections the
+    /// next fix is accepted without gating.
+    Gate { prob: f64 },
+    /// Robust down-weighting (the default); see [`RobustWeighting`].
+    Robust(RobustWeighting),
+}
+
+impl Default for GnssWeighting {
+    fn default() -> Self {
+        GnssWeighting::Robust(RobustWeighting::default())
+    }
+}
+
+/// Robust GNSS weighting. Real GNSS errors come in episodes (multipath,
+/// float solutions) in which they exceed the receiver's stated σ several
+/// times, correlated over seconds. Two mechanisms (see
+/// `Core::robust_apply`):
+///
+/// - The scale of each axis's noise is estimated by variational Bayes
+///   from the jump between consecutive fixes (measured against the INS,
+///   whose drift cancels), forgetting with the correlation time
+///   `memory_s`; it never drops below the stated σ.
+/// - Gross errors: an IGG-III equivalent-weight function on each NED axis
+///   of the standardised innovation v_i = z_i/√S_ii (Yang, Song & Xu,
+///   "Robust estimator for correlated observations based on bifactor
+///   equivalent weights", Journal of Geodesy 76, 2002; its use in a
+///   Kalman filter: Yang, He & Xu, "Adaptively robust filtering for
+///   kinematic geodetic positioning", Journal of Geodesy 75, 2001):
+///
+///   w = 1 for |v| ≤ k0; w = (k0/|v|)·((k1 − |v|)/(k1 − k0))² for
+///   k0 < |v| ≤ k1; w = 0 beyond k1, and R_ii is divided by w.
+///
+/// A fix rejected on every axis is counted as rejected; only a run of at
+/// least `drift_run` rejected fixes that agree with each other (the INS
+/// drifted beyond its covariance, as after a long outage) inflates P.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct RobustWeighting {
+    /// Below this |v| a fix keeps its stated σ (4: 6e-5 of honest
+    /// Gaussian residuals per axis are touched; real MEMS filters are
+    /// often 2–3× overconfident through GNSS gaps, and a lower k0 then
+    /// blames good fixes for the INS's drift).
+    pub k0: f64,
+    /// Beyond this |v| an axis is rejected.
+    pub k1: f64,
+    /// Correlation time of the noise-scale estimate (s): how long a
+    /// degraded episode is remembered. 0 (the default) judges each fix by
+    /// its jump from the previous one alone: on the real drive tried, any
+    /// memory also discounted the good fixes that end an episode.
+    pub memory_s: f64,
+    /// Weight of the prior (scale 1: the stated σ) in equivalent fixes.
+    pub prior_fixes: f64,
+    /// Consecutive rejected fixes, agreeing with each other, that are
+    /// taken as INS drift.
+    pub drift_run: usize,
+}
+
+impl Default for RobustWeighting {
+    fn default() -> Self {
+        RobustWeighting {
+            k0: 4.0,
+            k1: 10.0,
+            memory_s: 0.0,
+            prior_fixes: 4.0,
+            drift_run: 3,
+        }
+    }
+}
+
+impl RobustWeighting {
+    /// The IGG-III equivalent weight of a standardised residual.
+    pub fn weight(&self, v: f64) -> f64 {
+        let a = v.abs();
+        if a <= self.k0 {
+            1.0
+        } else if a <= self.k1 {
+            let r = (self.k1 - a) / (self.k1 - self.k0);
+            self.k0 / a * r * r
+        } else {
+            0.0
+        }
+    }
+
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.k0 > 0.0 && self.k1 > self.k0 && self.k1.is_finite()) {
+            return Err(format!(
+                "robust GNSS weighting needs 0 < k0 < k1 (k0 {}, k1 {})",
+                self.k0, self.k1
+            ));
+        }
+        let finite = self.memory_s.is_finite() && self.prior_fixes.is_finite();
+        if !finite || self.memory_s < 0.0 || self.prior_fixes < 1.0 || self.drift_run < 2 {
+            return Err(
+                "robust GNSS memory must be >= 0 s, the prior >= 1 fix and the drift run >= 2 fixes"
+                    .into(),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// What happened to one GNSS observation (position or velocity of a fix).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FixStatus {
+    Used,
+    DownWeighted,
+    Rejected,
+    /// Accepted after a run of rejections that agreed with each other.
+    DriftAccepted,
+}
+
+/// One GNSS observation as the filter saw it (for `gnss_residuals.txt`
+/// and the report).
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct FixRecord {
+    #[serde(skip)]
+    pub time: GpsTime,
+    /// Seconds of the GPS week.
+    pub sow: f64,
+    /// "position" or "velocity".
+    pub kind: &'static str,
+    /// Innovation, predicted minus measured (m or m/s, NED).
+    pub innovation: [f64; 3],
+    /// Stated standard deviations (m or m/s).
+    pub sd: [f64; 3],
+    /// Normalised innovation squared with the stated σ (3 degrees of freedom).
+    pub nis: f64,
+    /// Weight per axis (R divided by it, memory included).
+    pub weight: [f64; 3],
+    pub status: FixStatus,
+}
+
+/// A receiver's time-correlated position error (multipath, atmosphere,
+/// ambiguity residuals) modelled as three first-order Gauss–Markov filter
+/// states b (NED): the fix is r_ant + b + white noise, and R keeps only
+/// the white part, R_white = max(R_stated − σ_GM², (0.3 σ_stated)²): the
+/// stated σ is taken as the total. Without it, a filter that averages
+/// many fixes believes it beat an error that does not average down.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct GnssErrorModel {
+    /// Steady-state σ of the correlated error per NED axis (m).
+    pub gm_sd_m: [f64; 3],
+    /// Its correlation time (s).
+    pub corr_time_s: f64,
+}
+
+impl GnssErrorModel {
+    pub fn validate(&self) -> Result<(), String> {
+        if self.gm_sd_m.iter().any(|s| !(s.is_finite() && *s > 0.0))
+            || !(self.corr_time_s.is_finite() && self.corr_time_s > 0.0)
+        {
+            return Err(format!(
+                "the correlated GNSS error needs positive σ and correlation time (σ {:?} m, τ {} s)",
+                self.gm_sd_m, self.corr_time_s
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Non-holonomic constraint settings.
@@ -146,11 +315,10 @@ pub struct FusionConfig {
     pub gap_policy: GapPolicy,
     /// Covariance propagation step (s); 0 propagates at every IMU sample.
     pub cov_step_s: f64,
-    /// Chi-square gate probability for GNSS fixes (e.g. 0.9999); `None`
-    /// disables gating.
-    pub gate_prob: Option<f64>,
-    /// Accept a fix anyway after this many consecutive rejections (the
-    /// filter, not the fixes, is then the likely culprit).
+    /// How disagreeing GNSS fixes are weighted.
+    pub gnss_weighting: GnssWeighting,
+    /// Gate mode: accept a fix anyway after this many consecutive
+    /// rejections (the filter, not the fixes, is then the likely culprit).
     pub max_consecutive_rejects: usize,
     /// Use GNSS velocity when a fix carries it.
     pub use_gnss_velocity: bool,
@@ -164,6 +332,8 @@ pub struct FusionConfig {
     /// which the 21 KF-GINS states leave out (the filter is then
     /// overconfident in turns and outages).
     pub misalignment_sd_rad: Option<[f64; 2]>,
+    /// Time-correlated GNSS position error as filter states.
+    pub gnss_error: Option<GnssErrorModel>,
 }
 
 impl FusionConfig {
@@ -184,7 +354,7 @@ impl FusionConfig {
             gap_factor: 2.5,
             gap_policy: GapPolicy::Auto,
             cov_step_s: 0.1,
-            gate_prob: Some(0.9999),
+            gnss_weighting: GnssWeighting::default(),
             max_consecutive_rejects: 5,
             use_gnss_velocity: true,
             nhc: None,
@@ -192,6 +362,7 @@ impl FusionConfig {
             time_offset: None,
             latency: LatencyMode::Offline,
             misalignment_sd_rad: None,
+            gnss_error: None,
         }
     }
 }
@@ -227,6 +398,15 @@ pub struct FusionStats {
     /// rejected fix (the INS had drifted beyond its covariance, which was
     /// inflated); see `Core::gnss_update`.
     pub gnss_fixes_accepted_consistent: usize,
+    /// Robust weighting: fixes used with an inflated R on some axis.
+    pub gnss_fixes_downweighted: usize,
+    pub gnss_velocity_downweighted: usize,
+    /// Fixes refused before use: non-finite values, σ ≤ 0 or beyond
+    /// [`MAX_GNSS_SD_M`], a time already seen, or a position repeated
+    /// while the vehicle moved (a stale receiver output).
+    pub gnss_fixes_invalid: usize,
+    pub gnss_fixes_duplicate: usize,
+    pub gnss_fixes_stale: usize,
     pub nhc_updates: usize,
     pub odometer_updates: usize,
     pub gaps: usize,
@@ -271,6 +451,83 @@ struct RejectedFix {
     first_ratio: f64,
 }
 
+/// Largest stated GNSS σ (m or m/s) taken at face value: beyond it a fix
+/// carries no usable information and is refused with a diagnostic.
+pub const MAX_GNSS_SD_M: f64 = 1000.0;
+
+/// Why a fix cannot be used at all, if so: non-finite values, σ that are
+/// not positive, or σ beyond [`MAX_GNSS_SD_M`].
+fn invalid_fix(fix: &GnssFix) -> Option<String> {
+    let p = &fix.pos;
+    if !(p.lat_rad.is_finite() && p.lon_rad.is_finite() && p.h_m.is_finite()) {
+        return Some("its position is not a number".into());
+    }
+    if p.lat_rad.abs() > std::f64::consts::FRAC_PI_2 || p.h_m.abs() > 1e6 {
+        return Some(format!(
+            "its position ({:.6}°, {:.1} m) is off the Earth",
+            p.lat_rad.to_degrees(),
+            p.h_m
+        ));
+    }
+    let check = |sd: &Vector3<f64>, what: &str, unit: &str| -> Option<String> {
+        if sd.iter().any(|s| !s.is_finite() || *s <= 0.0) {
+            return Some(format!(
+                "its {what} standard deviations {:?} {unit} must be positive numbers",
+                sd.as_slice()
+            ));
+        }
+        if sd.max() > MAX_GNSS_SD_M {
+            return Some(format!(
+                "its {what} standard deviation {:.3e} {unit} exceeds {MAX_GNSS_SD_M} {unit}: no usable information",
+                sd.max()
+            ));
+        }
+        None
+    };
+    if let Some(w) = check(&fix.pos_sd, "position", "m") {
+        return Some(w);
+    }
+    if let Some(v) = &fix.vel {
+        if v.iter().any(|x| !x.is_finite()) {
+            return Some("its velocity is not a number".into());
+        }
+        match &fix.vel_sd {
+            Some(sd) => return check(sd, "velocity", "m/s"),
+            None => return Some("it has a velocity without standard deviations".into()),
+        }
+    }
+    None
+}
+
+/// Consecutive fixes further apart than this (s) are not differenced:
+/// the INS is then no longer a sharp relative reference.
+const PAIR_MAX_GAP_S: f64 = 2.5;
+
+/// A used fix's posterior residual (robust weighting), for the next
+/// fix's differenced innovation.
+#[derive(Copy, Clone, Debug)]
+struct ResidualMemo {
+    time: GpsTime,
+    /// z⁺ = predicted (after the update) − measured.
+    residual: Vector3<f64>,
+    /// Diagonal of H P⁺ Hᵀ.
+    hph_post: Vector3<f64>,
+    /// Diagonal of the stated R.
+    r_stated: Vector3<f64>,
+}
+/// A fix whose R grew by more than ×2 on some axis is reported as
+/// down-weighted.
+const DOWN_WEIGHTED_BELOW: f64 = 0.5;
+
+/// zᵀ S⁻¹ z, or `None` when S is not positive definite.
+fn nis_of(s: &Mat, z: &[f64]) -> Option<f64> {
+    let l = dense::cholesky(s)?;
+    let mut x = z.to_vec();
+    dense::cholesky_solve(&l, &mut x);
+    let v: f64 = z.iter().zip(&x).map(|(a, b)| a * b).sum();
+    v.is_finite().then_some(v)
+}
+
 /// Fixes further apart than this (s) are not compared with each other.
 const CONSISTENCY_MAX_GAP_S: f64 = 5.0;
 /// A run of rejections that began with a NIS above this multiple of the
@@ -283,6 +540,11 @@ const SMOOTH_START_RATIO: f64 = 4.0;
 /// inflating P for it again and again would let biased fixes tear the
 /// attitude apart. Then the gate and its reopening rule stand.
 const CONSISTENCY_COOLDOWN_S: f64 = 60.0;
+/// Robust weighting: a run of this many rejected fixes that agree with
+/// each other is taken as INS drift however it began (a fault that stays
+/// consistent that long cannot be told from drift; KF-GINS would have
+/// followed it from the start).
+const LONG_DRIFT_RUN: usize = 10;
 /// Largest covariance inflation of one drift acceptance.
 const MAX_INFLATION: f64 = 100.0;
 
@@ -304,6 +566,17 @@ struct Core {
     last_rejected: Option<RejectedFix>,
     /// When a fix over the gate was last accepted as INS drift.
     last_drift_accept: Option<GpsTime>,
+    /// Robust weighting: the run of fixes rejected on every axis.
+    rejected_run: Vec<RejectedFix>,
+    /// Robust weighting: the inverse-gamma posterior (α, β) of the noise
+    /// scale of each axis of position and velocity, and when it was set.
+    noise_scale: [([(f64, f64); 3], GpsTime); 2],
+    /// Robust weighting: the last fix's posterior residual, per slot.
+    last_residual: [Option<ResidualMemo>; 2],
+    /// The last fix used (time and position), to spot repeated ones.
+    last_fix: Option<(GpsTime, Geodetic, Geodetic)>,
+    /// Per-observation records since the wrapper last drained them.
+    fix_log: Vec<FixRecord>,
     pending: VecDeque<GnssFix>,
     last_w_ib: Vector3<f64>,
     kin: Kinematics,
@@ -314,6 +587,10 @@ struct Core {
     odo_scale_index: Option<usize>,
     tau: f64,
     tau_index: Option<usize>,
+    /// Estimated correlated GNSS position error (NED, m) and its first
+    /// state index.
+    gnss_bias: Vector3<f64>,
+    gnss_bias_index: Option<usize>,
     tau_observable: bool,
     stats: FusionStats,
     /// Messages since the wrapper last drained them.
@@ -347,11 +624,22 @@ impl Core {
             extra_var.extend([g * g; 6]);
             extra_var.extend([a * a; 6]);
         }
+        let mut gnss_bias_index = None;
+        if let Some(m) = &cfg.gnss_error {
+            const NAMES: [&str; 3] = ["gnss_error_n", "gnss_error_e", "gnss_error_d"];
+            for (i, name) in NAMES.into_iter().enumerate() {
+                let k = layout.add_gauss_markov(name, m.gm_sd_m[i], m.corr_time_s);
+                gnss_bias_index.get_or_insert(k);
+                extra_var.push(m.gm_sd_m[i] * m.gm_sd_m[i]);
+            }
+        }
         let filter = ErrorStateFilter::new(layout, cfg.noise, &cfg.init_std, &extra_var);
-        let gate = cfg
-            .gate_prob
-            .filter(|p| *p > 0.0 && *p < 1.0)
-            .map(|p| chi2_quantile(p, 3.0));
+        let gate = match cfg.gnss_weighting {
+            GnssWeighting::Gate { prob } if prob > 0.0 && prob < 1.0 => {
+                Some(chi2_quantile(prob, 3.0))
+            }
+            _ => None,
+        };
         let record_steps = cfg.time_offset.is_some_and(|t| t.search_range_s > 0.0);
         Core {
             nav: cfg.init_nav,
@@ -365,6 +653,20 @@ impl Core {
             consecutive_rejects: 0,
             last_rejected: None,
             last_drift_accept: None,
+            rejected_run: Vec::new(),
+            noise_scale: [(
+                [(0.0, 0.0); 3].map(|_| {
+                    let p = match cfg.gnss_weighting {
+                        GnssWeighting::Robust(rw) => 0.5 * rw.prior_fixes,
+                        _ => 1.0,
+                    };
+                    (p, p)
+                }),
+                cfg.init_nav.time,
+            ); 2],
+            last_residual: [None; 2],
+            last_fix: None,
+            fix_log: Vec::new(),
             pending: VecDeque::new(),
             last_w_ib: Vector3::zeros(),
             kin: Kinematics::default(),
@@ -375,6 +677,8 @@ impl Core {
             odo_scale_index,
             tau,
             tau_index,
+            gnss_bias: Vector3::zeros(),
+            gnss_bias_index,
             tau_observable: false,
             stats: FusionStats::default(),
             notes: Vec::new(),
@@ -401,7 +705,20 @@ impl Core {
     }
 
     fn queue(&mut self, fix: GnssFix) {
-        if self.pending.iter().any(|p| p.time == fix.time) {
+        if self.pending.iter().any(|p| p.time == fix.time)
+            || self.last_fix.is_some_and(|(t, _, _)| t == fix.time)
+        {
+            self.stats.gnss_fixes_duplicate += 1;
+            self.notes.push(format!(
+                "GNSS fix at {} repeats the time of an earlier fix; ignored",
+                fix.time
+            ));
+            return;
+        }
+        if let Some(why) = invalid_fix(&fix) {
+            self.stats.gnss_fixes_invalid += 1;
+            self.notes
+                .push(format!("GNSS fix at {} ignored: {why}", fix.time));
             return;
         }
         if self.started && self.proc_time(&fix) <= self.nav.time {
@@ -580,6 +897,11 @@ impl Core {
             if let Some(i) = self.tau_index {
                 self.tau -= outcome.dx[i];
             }
+            if let Some(i) = self.gnss_bias_index {
+                for k in 0..3 {
+                    self.gnss_bias[k] -= outcome.dx[i + k];
+                }
+            }
         }
         Ok(outcome)
     }
@@ -608,11 +930,21 @@ impl Core {
         }
     }
 
-    fn gnss_update(&mut self, fix: &GnssFix) -> Result<(), Error> {
-        let n = self.filter.n();
+    /// The position observation of a fix, with the time-offset column.
+    fn position_obs(&self, fix: &GnssFix) -> Observation {
         let lever = self.cfg.antenna_lever_b;
-        let mut obs = gnss::position(&self.nav, fix, &lever, n);
-        let frozen = self.frozen_states();
+        let mut obs = gnss::position(&self.nav, fix, &lever, self.filter.n());
+        if let (Some(i), Some(m)) = (self.gnss_bias_index, &self.cfg.gnss_error) {
+            // Predicted fix r̂_ant + b̂: z gains +b̂, ∂z/∂δb = I; R keeps the
+            // white part of the stated σ.
+            for k in 0..3 {
+                obs.z[k] += self.gnss_bias[k];
+                obs.h.set(k, i + k, 1.0);
+                let r = obs.r.get(k, k);
+                let gm2 = m.gm_sd_m[k] * m.gm_sd_m[k];
+                obs.r.set(k, k, (r - gm2).max(0.09 * r));
+            }
+        }
         if let Some(i) = self.tau_index {
             // ∂z/∂δτ = −v of the antenna (seed 004 eq 15).
             let c = self.nav.c_nb();
@@ -622,6 +954,67 @@ impl Core {
                 obs.h.set(r, i, -v_ant[r]);
             }
         }
+        obs
+    }
+
+    /// The velocity observation of a fix (when it has one), with the
+    /// time-offset column.
+    fn velocity_obs(&self, fix: &GnssFix) -> Option<Observation> {
+        let lever = self.cfg.antenna_lever_b;
+        let mut obs = gnss::velocity(&self.nav, fix, &lever, &self.last_w_ib, self.filter.n())?;
+        if let Some(i) = self.tau_index {
+            for r in 0..3 {
+                obs.h.set(r, i, -self.kin.acc[r]);
+            }
+        }
+        Some(obs)
+    }
+
+    fn gnss_update(&mut self, fix: &GnssFix) -> Result<(), Error> {
+        if self.is_stale(fix) {
+            return Ok(());
+        }
+        match self.cfg.gnss_weighting {
+            GnssWeighting::Robust(rw) => self.robust_gnss_update(fix, &rw)?,
+            GnssWeighting::Off | GnssWeighting::Gate { .. } => self.gated_gnss_update(fix)?,
+        }
+        self.last_fix = Some((fix.time, fix.pos, self.nav.pos));
+        Ok(())
+    }
+
+    /// A fix whose position repeats the previous fix's to the last bit
+    /// while the solution moved more than 1 m: a receiver repeating a stale
+    /// output. Reported and skipped.
+    fn is_stale(&mut self, fix: &GnssFix) -> bool {
+        let Some((_, prev_pos, prev_nav)) = self.last_fix else {
+            return false;
+        };
+        if prev_pos != fix.pos {
+            return false;
+        }
+        let le = LocalEarth::new(&self.nav.pos, &self.nav.vel);
+        let moved = le
+            .geodetic_delta_to_ned(
+                self.nav.pos.lat_rad - prev_nav.lat_rad,
+                self.nav.pos.lon_rad - prev_nav.lon_rad,
+                self.nav.pos.h_m - prev_nav.h_m,
+            )
+            .norm();
+        if moved <= 1.0 {
+            return false;
+        }
+        self.stats.gnss_fixes_stale += 1;
+        self.notes.push(format!(
+            "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.1} m: a stale receiver output; ignored",
+            fix.time
+        ));
+        true
+    }
+
+    /// The first round's rule: χ² gate, drift acceptance, reopening.
+    fn gated_gnss_update(&mut self, fix: &GnssFix) -> Result<(), Error> {
+        let obs = self.position_obs(fix);
+        let frozen = self.frozen_states();
         let gate = if self.consecutive_rejects >= self.cfg.max_consecutive_rejects {
             None
         } else {
@@ -677,13 +1070,8 @@ impl Core {
         self.consecutive_rejects = 0;
         self.stats.gnss_fixes_used += 1;
         if self.cfg.use_gnss_velocity
-            && let Some(mut obs) = gnss::velocity(&self.nav, fix, &lever, &self.last_w_ib, n)
+            && let Some(obs) = self.velocity_obs(fix)
         {
-            if let Some(i) = self.tau_index {
-                for r in 0..3 {
-                    obs.h.set(r, i, -self.kin.acc[r]);
-                }
-            }
             if self.apply(&obs, self.gate, &frozen)?.accepted {
                 self.stats.gnss_velocity_used += 1;
             } else {
@@ -695,6 +1083,254 @@ impl Core {
             }
         }
         Ok(())
+    }
+
+    /// Robust GNSS update ([`RobustWeighting`]): position, then velocity.
+    fn robust_gnss_update(&mut self, fix: &GnssFix, rw: &RobustWeighting) -> Result<(), Error> {
+        let frozen = self.frozen_states();
+        let obs = self.position_obs(fix);
+        let status = self.robust_apply(obs, 0, fix.time, rw, &frozen)?;
+        match status {
+            FixStatus::Rejected => {
+                self.stats.gnss_fixes_rejected += 1;
+                return Ok(());
+            }
+            FixStatus::DownWeighted => self.stats.gnss_fixes_downweighted += 1,
+            FixStatus::DriftAccepted => self.stats.gnss_fixes_accepted_consistent += 1,
+            FixStatus::Used => {}
+        }
+        self.stats.gnss_fixes_used += 1;
+        if self.cfg.use_gnss_velocity
+            && let Some(obs) = self.velocity_obs(fix)
+        {
+            match self.robust_apply(obs, 1, fix.time, rw, &frozen)? {
+                FixStatus::Rejected => {
+                    self.stats.gnss_velocity_rejected += 1;
+                    return Ok(());
+                }
+                FixStatus::DownWeighted => self.stats.gnss_velocity_downweighted += 1,
+                _ => {}
+            }
+            self.stats.gnss_velocity_used += 1;
+        }
+        Ok(())
+    }
+
+    /// Weights one 3-axis GNSS observation (`slot` 0 position, 1 velocity)
+    /// and applies it unless every axis is rejected.
+    ///
+    /// 1. Noise scale. Over a second the INS is a far better relative
+    ///    reference than a degraded fix, so the change between this
+    ///    innovation and the previous fix's posterior residual,
+    ///    Δz = z_k − z⁺_{k−1} = (δr_k − δr⁺_{k−1}) − (e_k − e_{k−1}),
+    ///    measures the fixes' own errors e while a smooth INS drift cancels
+    ///    (an estimate from the innovations alone would take a drifting INS
+    ///    for bad fixes, discount them and drift further). Per axis,
+    ///    u = Δz² / ((HPHᵀ)_k − (HP⁺Hᵀ)_{k−1} + R_k + R_{k−1}) (stated R),
+    ///    whose mean is 1 for fixes as good as stated, feeds an
+    ///    inverse-gamma posterior IG(α, β) of the scale s (R = s·R_stated):
+    ///    α ← α + ½, β ← β + ½u (Särkkä & Nummenmaa, "Recursive noise
+    ///    adaptive Kalman filtering by variational Bayesian approximations",
+    ///    IEEE TAC 54(3), 2009, eqs 14–18, on differenced innovations), with
+    ///    forgetting toward the prior IG(ν₀/2, ν₀/2) by exp(−Δt/τ), and
+    ///    ŝ = max(1, β/α): no fix is trusted more than it claims.
+    /// 2. Gross errors: the IGG-III weight w_i of v_i = z_i/√(HPHᵀ + ŝR)_ii.
+    /// 3. The update with R' = diag(ŝ_i R_i / w_i).
+    fn robust_apply(
+        &mut self,
+        mut obs: Observation,
+        slot: usize,
+        time: GpsTime,
+        rw: &RobustWeighting,
+        frozen: &[usize],
+    ) -> Result<FixStatus, Error> {
+        self.filter.propagate(&self.nav);
+        let r_stated = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
+        let sd = [0, 1, 2].map(|i| r_stated[i].sqrt());
+        let s_stated = self.filter.innovation_covariance(&obs);
+        let nis = nis_of(&s_stated, &obs.z).unwrap_or(f64::INFINITY);
+        let mut hph =
+            Matrix3::from_fn(|r, c| s_stated.get(r, c)) - Matrix3::from_diagonal(&r_stated);
+        let z = Vector3::new(obs.z[0], obs.z[1], obs.z[2]);
+
+        // 1. Forgetting toward the prior, then the differenced innovation.
+        let prior = 0.5 * rw.prior_fixes;
+        let (mut post, last) = self.noise_scale[slot];
+        let rho = if rw.memory_s > 0.0 {
+            (-time.seconds_since(last).max(0.0) / rw.memory_s).exp()
+        } else {
+            0.0
+        };
+        for (a, b) in post.iter_mut() {
+            *a = prior + (*a - prior) * rho;
+            *b = prior + (*b - prior) * rho;
+        }
+        let mut jump_sq = [0.0; 3];
+        if let Some(prev) = self.last_residual[slot]
+            && time.seconds_since(prev.time) <= PAIR_MAX_GAP_S
+        {
+            for i in 0..3 {
+                let var =
+                    (hph[(i, i)] - prev.hph_post[i]).max(0.0) + r_stated[i] + prev.r_stated[i];
+                let d = z[i] - prev.residual[i];
+                jump_sq[i] = d * d / var;
+                // A jump too large for any noise scale is a gross error,
+                // left to step 2 (it must not inflate the scale for long).
+                let u = jump_sq[i].min(rw.k1 * rw.k1);
+                post[i].0 += 0.5;
+                post[i].1 += 0.5 * u;
+            }
+        }
+        let scale = post.map(|(a, b)| (b / a).max(1.0));
+
+        // 2. Gross errors: beyond k1 on any axis, the whole fix is wrong
+        //    (a receiver's faults are not confined to one axis).
+        let mut w = [1.0; 3];
+        for i in 0..3 {
+            let s_ii = hph[(i, i)] + scale[i] * r_stated[i];
+            w[i] = rw.weight(z[i] / s_ii.max(f64::MIN_POSITIVE).sqrt());
+        }
+        if w.contains(&0.0) {
+            w = [0.0; 3];
+        }
+        let kind = if slot == 0 { "position" } else { "velocity" };
+        let mut record = FixRecord {
+            time,
+            sow: time.sow(),
+            kind,
+            innovation: [z[0], z[1], z[2]],
+            sd,
+            nis,
+            weight: [0.0; 3],
+            status: FixStatus::Used,
+        };
+        self.noise_scale[slot] = (post, time);
+        // A disagreement that persists smoothly (down-weighted or rejected
+        // fixes that agree with each other) is the INS drifting.
+        let mut drift = false;
+        if slot == 0 {
+            if w.iter().any(|w| *w < 1.0) {
+                drift = self.robust_drift_check(&obs, &s_stated, time, rw)?;
+            } else {
+                self.rejected_run.clear();
+            }
+        }
+        if drift {
+            record.status = FixStatus::DriftAccepted;
+            w = [1.0; 3];
+            let s = self.filter.innovation_covariance(&obs);
+            hph = Matrix3::from_fn(|r, c| s.get(r, c)) - Matrix3::from_diagonal(&r_stated);
+        } else if w.iter().all(|w| *w == 0.0) {
+            record.status = FixStatus::Rejected;
+            self.fix_log.push(record);
+            self.notes.push(format!(
+                "GNSS {kind} at {time} rejected by robust weighting (innovation {:.3}, NIS {:.1}; beyond {} σ)",
+                z.norm(),
+                nis,
+                rw.k1
+            ));
+            return Ok(FixStatus::Rejected);
+        }
+
+        // 3. The update.
+        let mut r_eff = r_stated;
+        for i in 0..3 {
+            r_eff[i] = if w[i] > 0.0 {
+                scale[i] * r_stated[i] / w[i]
+            } else {
+                r_stated[i] * 1e12
+            };
+            record.weight[i] = (r_stated[i] / r_eff[i]).min(1.0);
+            obs.r.set(i, i, r_eff[i]);
+        }
+        if record.status == FixStatus::Used
+            && record.weight.iter().any(|w| *w < DOWN_WEIGHTED_BELOW)
+        {
+            record.status = FixStatus::DownWeighted;
+        }
+        self.apply(&obs, None, frozen)?;
+        // Posterior residual z⁺ = R' S⁻¹ z and H P⁺ Hᵀ = HPHᵀ S⁻¹ R'.
+        let r_mat = Matrix3::from_diagonal(&r_eff);
+        self.last_residual[slot] = (hph + r_mat).try_inverse().map(|s_inv| {
+            let hp_post = hph * s_inv * r_mat;
+            ResidualMemo {
+                time,
+                residual: r_mat * s_inv * z,
+                hph_post: Vector3::new(hp_post[(0, 0)], hp_post[(1, 1)], hp_post[(2, 2)]),
+                r_stated,
+            }
+        });
+        self.fix_log.push(record);
+        Ok(record.status)
+    }
+
+    /// After a position fix that was down-weighted or rejected: when the last
+    /// `drift_run` such fixes agree with each other (consecutive
+    /// innovations differ by no more than their covariances allow) and the
+    /// run began just past k1 (at most 2·k1: a fault jumps), or when
+    /// [`LONG_DRIFT_RUN`] of them agree, the INS drifted beyond its
+    /// covariance, as after a long outage, and P is
+    /// inflated by the moment estimate λ = (zᵀz − tr R)/tr(HPHᵀ) (an
+    /// adaptive fading factor, Xia et al. 1994), capped at
+    /// [`MAX_INFLATION`], at most once per [`CONSISTENCY_COOLDOWN_S`].
+    /// Returns whether P was inflated.
+    fn robust_drift_check(
+        &mut self,
+        obs: &Observation,
+        s: &Mat,
+        time: GpsTime,
+        rw: &RobustWeighting,
+    ) -> Result<bool, Error> {
+        let threshold = chi2_quantile(0.9999, obs.dim() as f64);
+        if let Some(prev) = self.rejected_run.last() {
+            let agrees = time.seconds_since(prev.time) <= CONSISTENCY_MAX_GAP_S && {
+                let mut c = s.clone();
+                for (x, y) in c.data.iter_mut().zip(&prev.r.data) {
+                    *x += y;
+                }
+                let d: Vec<f64> = obs.z.iter().zip(&prev.z).map(|(a, b)| a - b).collect();
+                nis_of(&c, &d).is_some_and(|chi2| chi2 <= threshold)
+            };
+            if !agrees {
+                self.rejected_run.clear();
+            }
+        }
+        // How far past k1 the worst axis is (squared, as the gate's ratio).
+        let ratio = (0..obs.dim())
+            .map(|i| obs.z[i] * obs.z[i] / s.get(i, i))
+            .fold(0.0, f64::max)
+            / (rw.k1 * rw.k1);
+        self.rejected_run.push(RejectedFix {
+            time,
+            z: obs.z.clone(),
+            r: obs.r.clone(),
+            first_ratio: ratio,
+        });
+        let cooled = self
+            .last_drift_accept
+            .is_none_or(|t| time.seconds_since(t) >= CONSISTENCY_COOLDOWN_S);
+        // A drifting INS crosses k1 gradually; a fault jumps far past it.
+        let smooth_start = self.rejected_run[0].first_ratio <= SMOOTH_START_RATIO;
+        let run = self.rejected_run.len();
+        if !cooled || !((run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN) {
+            return Ok(false);
+        }
+        let m = obs.dim();
+        let z2: f64 = obs.z.iter().map(|x| x * x).sum();
+        let tr_r: f64 = (0..m).map(|i| obs.r.get(i, i)).sum();
+        let tr_hph: f64 = (0..m).map(|i| s.get(i, i) - obs.r.get(i, i)).sum();
+        let factor = ((z2 - tr_r) / tr_hph).clamp(1.0, MAX_INFLATION);
+        if !factor.is_finite() {
+            return Ok(false);
+        }
+        self.notes.push(format!(
+            "GNSS fix at {time}: {} consecutive fixes rejected that agree with each other, so the INS drifted beyond its covariance; covariance inflated x{factor:.2}",
+            self.rejected_run.len()
+        ));
+        self.filter.inflate(factor);
+        self.last_drift_accept = Some(time);
+        self.rejected_run.clear();
+        Ok(true)
     }
 
     /// Tells INS drift from a GNSS fault when a fix fails the gate. A fault
@@ -856,6 +1492,8 @@ pub struct Fusion {
     replays: usize,
     now: GpsTime,
     diag: Diagnostics,
+    /// Every GNSS observation the filter weighed, in time order.
+    fix_log: Vec<FixRecord>,
 }
 
 impl Fusion {
@@ -877,7 +1515,19 @@ impl Fusion {
             replays: 0,
             now,
             diag: Diagnostics::with_cap(1000),
+            fix_log: Vec::new(),
         }
+    }
+
+    /// The GNSS observations weighed so far (robust weighting): time,
+    /// innovation, NIS, weights and what became of each.
+    pub fn fix_log(&self) -> &[FixRecord] {
+        &self.fix_log
+    }
+
+    /// Takes the GNSS observation records collected so far.
+    pub fn take_fix_log(&mut self) -> Vec<FixRecord> {
+        std::mem::take(&mut self.fix_log)
     }
 
     fn cfg(&self) -> &FusionConfig {
@@ -956,6 +1606,16 @@ impl Fusion {
     fn drain_notes(&mut self) {
         for n in self.core.notes.drain(..) {
             self.diag.note(n);
+        }
+        // A delayed-state replay weighs fixes again: the new record
+        // replaces the old one of the same time and kind.
+        for r in self.core.fix_log.drain(..) {
+            while let Some(last) = self.fix_log.last()
+                && (last.time > r.time || (last.time == r.time && last.kind == r.kind))
+            {
+                self.fix_log.pop();
+            }
+            self.fix_log.push(r);
         }
     }
 
@@ -1328,7 +1988,12 @@ mod tests {
     /// t in s from the start); returns the final north error against the
     /// fixes' track and the statistics.
     fn run_with_shifted_fixes(shift: impl Fn(f64) -> f64) -> (f64, FusionStats) {
-        let (m, cfg) = setup(LatencyMode::Offline);
+        run_shifted(GnssWeighting::Gate { prob: 0.9999 }, shift)
+    }
+
+    fn run_shifted(weighting: GnssWeighting, shift: impl Fn(f64) -> f64) -> (f64, FusionStats) {
+        let (m, mut cfg) = setup(LatencyMode::Offline);
+        cfg.gnss_weighting = weighting;
         let mut f = Fusion::new(cfg);
         let dt = 5_000_000;
         let mut t = m.t0;
@@ -1386,5 +2051,132 @@ mod tests {
         assert_eq!(stats.gnss_fixes_rejected, 3, "{stats:?}");
         assert_eq!(stats.gnss_fixes_accepted_consistent, 0, "{stats:?}");
         assert!(err.abs() < 0.01, "north error {err} m");
+    }
+
+    /// Robust weighting (the default): the same two cases as the gate.
+    #[test]
+    fn robust_weighting_follows_smooth_drift_and_rejects_a_jump() {
+        let robust = GnssWeighting::default();
+        let (err, stats) = run_shifted(robust, |t| 0.025 * (t - 20.0).max(0.0).powi(2));
+        assert!(
+            err.abs() < 0.1,
+            "north error against the fixes {err} m; {stats:?}"
+        );
+        // A 3 m jump for three epochs: three fixes that agree with each
+        // other, but the run began with a jump, so it is a fault.
+        let (err, stats) = run_shifted(
+            robust,
+            |t| {
+                if (30.0..33.0).contains(&t) { 3.0 } else { 0.0 }
+            },
+        );
+        assert_eq!(stats.gnss_fixes_rejected, 3, "{stats:?}");
+        assert_eq!(stats.gnss_fixes_accepted_consistent, 0, "{stats:?}");
+        assert!(err.abs() < 0.01, "north error {err} m");
+        // Moderately bad fixes (0.3 m jumps, 15 stated σ) for ten epochs
+        // are used, down-weighted, and move the solution by less than their
+        // error.
+        let (err, stats) = run_shifted(robust, |t| {
+            if (30.0..40.0).contains(&t) {
+                if (t as i64) % 2 == 0 { 0.3 } else { -0.3 }
+            } else {
+                0.0
+            }
+        });
+        assert!(stats.gnss_fixes_downweighted >= 5, "{stats:?}");
+        assert!(err.abs() < 0.01, "north error {err} m");
+    }
+
+    /// A straight drive at 10 m/s with 1 Hz fixes of 2 cm, among which
+    /// bad ones: every bad fix is reported, none stops the run, and the
+    /// solution stays on the true track.
+    #[test]
+    fn bad_fixes_are_reported_and_leave_the_state_intact() {
+        use crate::sim::trajectory::{Segment, Trajectory, TrajectoryOptions};
+        use crate::sim::truth::TruthGenerator;
+        let traj = Trajectory::from_segments(
+            Geodetic::from_deg(30.4, 114.5, 25.0),
+            &[Segment::Cruise {
+                duration_s: Some(80.0),
+                distance_m: None,
+            }],
+            TrajectoryOptions {
+                initial_speed_mps: 10.0,
+                initial_heading_rad: 0.4,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let t0 = GpsTime::from_week_sow(2300, 1000.0);
+        let mut truth = TruthGenerator::new(&traj, t0);
+        let (_, cfg0) = setup(LatencyMode::Offline);
+        let mut cfg = FusionConfig::new(truth.state_at(t0).nav, cfg0.init_std, cfg0.noise, 200.0);
+        cfg.init_std.pos = Vector3::repeat(0.05);
+        let mut f = Fusion::new(cfg);
+        let good = |truth: &mut TruthGenerator, t: GpsTime| GnssFix {
+            time: t,
+            pos: truth.state_at(t).nav.pos,
+            pos_sd: Vector3::repeat(0.02),
+            vel: None,
+            vel_sd: None,
+        };
+        let mut worst: f64 = 0.0;
+        let mut stale = None;
+        for k in 1..=200 * 80 {
+            let t = t0.add_seconds(k as f64 * 0.005);
+            if k % 200 == 100 {
+                let sec = k / 200 + 1;
+                let tf = t0.add_seconds(sec as f64);
+                let mut fix = good(&mut truth, tf);
+                match sec {
+                    10 => fix.pos_sd = Vector3::new(0.0, 0.02, 0.02),
+                    12 => fix.pos.h_m = f64::NAN,
+                    14 => fix.pos_sd = Vector3::repeat(1e6),
+                    16 => fix.pos.lat_rad += 10_000.0 / 6.4e6,
+                    18 => {
+                        // A burst of 20 identical fixes (same time).
+                        for _ in 0..19 {
+                            f.push_gnss(fix).unwrap();
+                        }
+                    }
+                    // A receiver repeating its 30 s fix for 5 s while moving.
+                    30 => stale = Some(fix.pos),
+                    31..=35 => fix.pos = stale.unwrap(),
+                    _ => {}
+                }
+                f.push_gnss(fix).unwrap();
+            }
+            let (nav, sample) = truth.next(t);
+            if let Some(o) = f.push_imu(&sample).unwrap() {
+                let le = LocalEarth::new(&nav.pos, &nav.vel);
+                let d = le.geodetic_delta_to_ned(
+                    o.nav.pos.lat_rad - nav.pos.lat_rad,
+                    o.nav.pos.lon_rad - nav.pos.lon_rad,
+                    o.nav.pos.h_m - nav.pos.h_m,
+                );
+                if k > 200 {
+                    worst = worst.max(d.norm());
+                }
+            }
+        }
+        let st = f.stats();
+        assert_eq!(st.gnss_fixes_invalid, 3, "{st:?}");
+        assert_eq!(st.gnss_fixes_duplicate, 19, "{st:?}");
+        assert_eq!(st.gnss_fixes_stale, 5, "{st:?}");
+        assert_eq!(st.gnss_fixes_rejected, 1, "{st:?}");
+        let notes: Vec<String> = f
+            .diagnostics()
+            .items
+            .iter()
+            .map(|d| d.to_string())
+            .collect();
+        let has = |s: &str| notes.iter().any(|n| n.contains(s));
+        assert!(has("must be positive numbers"), "{notes:?}");
+        assert!(has("not a number"), "{notes:?}");
+        assert!(has("no usable information"), "{notes:?}");
+        assert!(has("rejected by robust weighting"), "{notes:?}");
+        assert!(has("repeats the time"), "{notes:?}");
+        assert!(has("stale receiver output"), "{notes:?}");
+        assert!(worst < 0.1, "worst position error {worst} m");
     }
 }

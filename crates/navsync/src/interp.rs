@@ -33,6 +33,11 @@ pub fn lagrange_weights(ts: &[f64], t: f64, out: &mut [f64]) {
     }
 }
 
+/// Largest n of the (2n+1)-order interpolation: beyond it Lagrange
+/// polynomials on equally spaced nodes oscillate (Runge's phenomenon) and
+/// the window outgrows any sensible buffer.
+pub const MAX_INTERP_N: usize = 8;
+
 /// Interpolates navigation states to requested epochs with (2n+1)-order
 /// Lagrange polynomials (seed 000 eq 1), streaming: push the solution at
 /// every IMU epoch, push the requested epochs in increasing order, and get

@@ -15,8 +15,8 @@ use crate::error::{Diagnostics, Error};
 use crate::filter::gnss::GnssFix;
 use crate::filter::nhc::VehicleConstraint;
 use crate::fusion::{
-    Fusion, FusionConfig, FusionStats, GapPolicy, LatencyMode, NhcOptions, TimeOffsetOptions,
-    TimeOffsetState,
+    FixRecord, FixStatus, Fusion, FusionConfig, FusionStats, GapPolicy, GnssErrorModel,
+    GnssWeighting, LatencyMode, NhcOptions, TimeOffsetOptions, TimeOffsetState,
 };
 use crate::ins::{ImuErrors, ImuSample, NavState};
 use crate::interp::NavInterpolator;
@@ -93,7 +93,7 @@ pub struct FuseOptions {
     /// Floor for GNSS standard deviations (m, m/s) instead of skipping.
     pub gnss_sd_floor: Option<f64>,
     pub cov_step_s: f64,
-    pub gate_prob: Option<f64>,
+    pub gnss_weighting: GnssWeighting,
     pub gap_policy: GapPolicy,
     pub gap_factor: f64,
     /// Interval of the `imu_err.txt` and `std.txt` lines (s); 0 writes them
@@ -124,6 +124,8 @@ pub struct FuseOptions {
     /// Estimate the gyro and accelerometer axis misalignments with these
     /// initial σ (deg): 12 more states (see `FusionConfig`).
     pub misalignment_sd_deg: Option<[f64; 2]>,
+    /// The receiver's time-correlated position error as filter states.
+    pub gnss_error: Option<GnssErrorModel>,
 }
 
 impl Default for FuseOptions {
@@ -135,7 +137,7 @@ impl Default for FuseOptions {
             gnss_layout_matlab: false,
             gnss_sd_floor: None,
             cov_step_s: 0.1,
-            gate_prob: Some(0.9999),
+            gnss_weighting: GnssWeighting::default(),
             gap_policy: GapPolicy::Auto,
             gap_factor: 2.5,
             aux_interval_s: 0.1,
@@ -151,7 +153,49 @@ impl Default for FuseOptions {
             reduced_imu: None,
             odometer: None,
             misalignment_sd_deg: None,
+            gnss_error: None,
         }
+    }
+}
+
+impl FuseOptions {
+    /// Checks the settings that the engine cannot take as they are.
+    pub fn validate(&self) -> Result<(), Error> {
+        let bad = |m: String| Err(Error::Invalid(m));
+        if self.output_at_n > crate::interp::MAX_INTERP_N {
+            return bad(format!(
+                "interpolation n {} is too large: at most {} (a {}-order polynomial)",
+                self.output_at_n,
+                crate::interp::MAX_INTERP_N,
+                2 * crate::interp::MAX_INTERP_N + 1
+            ));
+        }
+        if !(self.cov_step_s.is_finite() && self.cov_step_s >= 0.0) {
+            return bad(format!(
+                "covariance step {} s must be >= 0",
+                self.cov_step_s
+            ));
+        }
+        if !(self.gap_factor.is_finite() && self.gap_factor > 1.0) {
+            return bad(format!("gap factor {} must exceed 1", self.gap_factor));
+        }
+        if !(self.aux_interval_s.is_finite() && self.aux_interval_s >= 0.0) {
+            return bad(format!(
+                "auxiliary interval {} s must be >= 0",
+                self.aux_interval_s
+            ));
+        }
+        match self.gnss_weighting {
+            GnssWeighting::Gate { prob } if !(prob > 0.0 && prob < 1.0) => {
+                return bad(format!("gate probability {prob} must be within (0, 1)"));
+            }
+            GnssWeighting::Robust(rw) => rw.validate().map_err(Error::Invalid)?,
+            _ => {}
+        }
+        if let Some(m) = &self.gnss_error {
+            m.validate().map_err(Error::Invalid)?;
+        }
+        Ok(())
     }
 }
 
@@ -194,9 +238,53 @@ pub struct FuseSummary {
     /// triads (deg), when estimated.
     pub final_gyro_misalign_deg: Option<[f64; 6]>,
     pub final_accel_misalign_deg: Option<[f64; 6]>,
+    /// GNSS observations that were not used at their stated σ (all of
+    /// them are in `gnss_residuals.txt`).
+    pub gnss_weighting: WeightingReport,
     pub options: FuseOptions,
     pub run_time_s: f64,
     pub diagnostics: Diagnostics,
+}
+
+/// The GNSS observations the filter down-weighted or rejected.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct WeightingReport {
+    pub observations: usize,
+    pub down_weighted: Vec<WeightedFix>,
+    pub rejected: Vec<WeightedFix>,
+}
+
+/// One down-weighted or rejected observation: its NIS at the stated σ and
+/// its smallest axis weight.
+#[derive(Clone, Debug, Serialize)]
+pub struct WeightedFix {
+    pub sow: f64,
+    pub kind: &'static str,
+    pub nis: f64,
+    pub min_weight: f64,
+}
+
+impl WeightingReport {
+    pub fn from_records(records: &[FixRecord]) -> Self {
+        let mut r = WeightingReport {
+            observations: records.len(),
+            ..WeightingReport::default()
+        };
+        for f in records {
+            let w = WeightedFix {
+                sow: f.sow,
+                kind: f.kind,
+                nis: f.nis,
+                min_weight: f.weight.iter().copied().fold(f64::INFINITY, f64::min),
+            };
+            match f.status {
+                FixStatus::Used => {}
+                FixStatus::Rejected => r.rejected.push(w),
+                FixStatus::DownWeighted | FixStatus::DriftAccepted => r.down_weighted.push(w),
+            }
+        }
+        r
+    }
 }
 
 /// Builds the engine configuration from a KF-GINS configuration.
@@ -207,7 +295,7 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
     fc.init_imu = cfg.init_imu;
     fc.antenna_lever_b = cfg.antenna_lever;
     fc.cov_step_s = opts.cov_step_s;
-    fc.gate_prob = opts.gate_prob;
+    fc.gnss_weighting = opts.gnss_weighting;
     fc.gap_policy = opts.gap_policy;
     fc.gap_factor = opts.gap_factor;
     fc.use_gnss_velocity = opts.use_gnss_velocity;
@@ -229,6 +317,7 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
         .as_ref()
         .map(|o| crate::reduced::odometer_options(o, opts.nhc.as_ref()));
     fc.misalignment_sd_rad = opts.misalignment_sd_deg.map(|d| d.map(f64::to_radians));
+    fc.gnss_error = opts.gnss_error;
     fc
 }
 
@@ -247,6 +336,10 @@ pub trait NavSink {
     ) -> Result<(), Error>;
     /// The solution interpolated at a requested epoch (`--output-at`).
     fn nav_at(&mut self, _nav: &NavState) -> Result<(), Error> {
+        Ok(())
+    }
+    /// At the end of the run: every GNSS observation the filter weighed.
+    fn fix_records(&mut self, _records: &[FixRecord]) -> Result<(), Error> {
         Ok(())
     }
     /// Right after [`Self::aux`]: the position-error covariance (m², NED),
@@ -357,6 +450,42 @@ impl KfGinsSink {
 }
 
 impl NavSink for KfGinsSink {
+    /// `gnss_residuals.txt`: one line per GNSS observation (docs/FORMATS.md).
+    fn fix_records(&mut self, records: &[FixRecord]) -> Result<(), Error> {
+        let mut w = TextWriter::create(&self.dir.join("gnss_residuals.txt"))?;
+        let mut text = String::from(
+            "# navsync GNSS residuals: sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status\n# innovation = predicted - measured (m or m/s, NED); w = weight (R divided by it)\n",
+        );
+        for r in records {
+            use std::fmt::Write as _;
+            let st = match r.status {
+                FixStatus::Used => "used",
+                FixStatus::DownWeighted => "down-weighted",
+                FixStatus::Rejected => "rejected",
+                FixStatus::DriftAccepted => "drift-accepted",
+            };
+            let _ = writeln!(
+                text,
+                "{:.3} {} {:.4} {:.4} {:.4} {:.4} {:.4} {:.4} {:.3} {:.4e} {:.4e} {:.4e} {}",
+                r.sow,
+                r.kind,
+                r.innovation[0],
+                r.innovation[1],
+                r.innovation[2],
+                r.sd[0],
+                r.sd[1],
+                r.sd[2],
+                r.nis,
+                r.weight[0],
+                r.weight[1],
+                r.weight[2],
+                st
+            );
+        }
+        w.write(text.as_bytes())?;
+        w.finish()
+    }
+
     fn nav(&mut self, nav: &NavState, _imu: &ImuErrors) -> Result<(), Error> {
         self.batch.push(*nav);
         if self.batch.len() >= NAV_BATCH {
@@ -449,6 +578,7 @@ pub fn run(
     sink: &mut dyn NavSink,
     progress: &mut dyn FnMut(f64),
 ) -> Result<FuseSummary, Error> {
+    opts.validate()?;
     let started = Instant::now();
     let mut diag = Diagnostics::with_cap(1000);
     let fc = fusion_config(cfg, opts);
@@ -676,6 +806,10 @@ pub fn run(
     let mut all = imu_diag;
     all.extend(diag);
     all.extend(fusion.take_diagnostics());
+    let records = fusion.take_fix_log();
+    if !opts.dry_run {
+        sink.fix_records(&records)?;
+    }
     let imu = *fusion.imu_errors();
     let deg_h = 180.0 / std::f64::consts::PI * 3600.0;
     let outages = opts
@@ -731,6 +865,7 @@ pub fn run(
         final_accel_misalign_deg: opts
             .misalignment_sd_deg
             .map(|_| imu.accel_misalign.map(f64::to_degrees)),
+        gnss_weighting: WeightingReport::from_records(&records),
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,

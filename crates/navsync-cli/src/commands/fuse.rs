@@ -4,7 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use navsync::Diagnostics;
-use navsync::fusion::{GapPolicy, LatencyMode, TimeOffsetOptions};
+use navsync::fusion::{
+    GapPolicy, GnssErrorModel, GnssWeighting, LatencyMode, RobustWeighting, TimeOffsetOptions,
+};
 use navsync::io::config::KfGinsConfig;
 use navsync::pipeline::{self, FuseOptions, KfGinsSink, NhcSettings, OutageSchedule};
 
@@ -52,12 +54,37 @@ pub struct Args {
     /// Ignore GNSS velocities in 13-column files (KF-GINS ignores them).
     #[arg(long)]
     pub no_gnss_velocity: bool,
-    /// Chi-square gate probability for GNSS innovations.
-    #[arg(long, default_value_t = 0.9999)]
-    pub gate_prob: f64,
-    /// Disable innovation gating.
+    /// How GNSS fixes that disagree with the INS are weighted: robust
+    /// (IGG-III down-weighting per axis, remembered over correlated error
+    /// episodes; real fixes need it), gate (a chi-square gate, the first
+    /// version's rule) or off (every fix at its stated σ, as KF-GINS).
+    #[arg(long, value_enum, default_value_t = Weighting::Robust)]
+    pub gnss_weighting: Weighting,
+    /// Gate probability of --gnss-weighting gate (implies it).
+    #[arg(long, conflicts_with = "no_gate")]
+    pub gate_prob: Option<f64>,
+    /// Every fix at its stated σ: same as --gnss-weighting off.
     #[arg(long)]
     pub no_gate: bool,
+    /// The receiver's time-correlated position error as 3 Gauss–Markov
+    /// filter states: its σ per NED axis (m), e.g. 0.01,0.01,0.015 for RTK
+    /// (with --gnss-gm-time). The stated σ is then taken as the total.
+    #[arg(long, value_name = "N,E,D", requires = "gnss_gm_time")]
+    pub gnss_gm_sd: Option<String>,
+    /// Correlation time of that error (s), e.g. 60 for RTK, 300 for SPP.
+    #[arg(long, value_name = "S", requires = "gnss_gm_sd")]
+    pub gnss_gm_time: Option<f64>,
+    /// Robust weighting: standardised innovation below which a fix keeps
+    /// its σ…
+    #[arg(long, default_value_t = RobustWeighting::default().k0)]
+    pub robust_k0: f64,
+    /// …and beyond which an axis is rejected.
+    #[arg(long, default_value_t = RobustWeighting::default().k1)]
+    pub robust_k1: f64,
+    /// Robust weighting: correlation time (s) over which a down-weighting
+    /// is remembered (0: every fix on its own).
+    #[arg(long, default_value_t = RobustWeighting::default().memory_s)]
+    pub robust_memory: f64,
     /// Covariance propagation step (s); 0 = every IMU sample.
     #[arg(long, default_value_t = 0.1)]
     pub cov_step: f64,
@@ -183,6 +210,16 @@ pub enum Latency {
 }
 
 #[derive(Copy, Clone, clap::ValueEnum)]
+pub enum Weighting {
+    /// IGG-III down-weighting per axis with a memory of recent episodes.
+    Robust,
+    /// Chi-square gate (probability 0.9999 unless --gate-prob).
+    Gate,
+    /// Every fix at its stated σ (KF-GINS).
+    Off,
+}
+
+#[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Layout {
     /// sow lat lon h vn ve vd sd_n sd_e sd_d sd_vn sd_ve sd_vd (KF-GINS C++)
     Cpp,
@@ -224,10 +261,41 @@ impl Args {
             self.time_offset_sd > 0.0,
             "--time-offset-sd must be positive"
         );
-        anyhow::ensure!(
-            self.no_gate || (self.gate_prob > 0.0 && self.gate_prob < 1.0),
-            "--gate-prob must be between 0 and 1"
-        );
+        let gnss_error = match (&self.gnss_gm_sd, self.gnss_gm_time) {
+            (Some(sd), Some(tau)) => {
+                let m = GnssErrorModel {
+                    gm_sd_m: parse_triplet(sd).map_err(|e| anyhow::anyhow!("--gnss-gm-sd: {e}"))?,
+                    corr_time_s: tau,
+                };
+                m.validate().map_err(anyhow::Error::msg)?;
+                Some(m)
+            }
+            _ => None,
+        };
+        let gnss_weighting = if self.no_gate {
+            GnssWeighting::Off
+        } else if let Some(prob) = self.gate_prob {
+            anyhow::ensure!(
+                prob > 0.0 && prob < 1.0,
+                "--gate-prob must be between 0 and 1"
+            );
+            GnssWeighting::Gate { prob }
+        } else {
+            match self.gnss_weighting {
+                Weighting::Off => GnssWeighting::Off,
+                Weighting::Gate => GnssWeighting::Gate { prob: 0.9999 },
+                Weighting::Robust => {
+                    let rw = RobustWeighting {
+                        k0: self.robust_k0,
+                        k1: self.robust_k1,
+                        memory_s: self.robust_memory,
+                        ..RobustWeighting::default()
+                    };
+                    rw.validate().map_err(anyhow::Error::msg)?;
+                    GnssWeighting::Robust(rw)
+                }
+            }
+        };
         anyhow::ensure!(
             self.odo_sd > 0.0 && self.odo_interval >= 0.0 && self.odo_scale_sd >= 0.0,
             "--odo-sd must be positive, --odo-interval and --odo-scale-sd not negative"
@@ -251,7 +319,7 @@ impl Args {
             gnss_layout_matlab: matches!(self.gnss_layout, Layout::Matlab),
             gnss_sd_floor: self.gnss_sd_floor,
             cov_step_s: self.cov_step,
-            gate_prob: (!self.no_gate).then_some(self.gate_prob),
+            gnss_weighting,
             gap_policy: match self.gap_policy {
                 Gap::Auto => GapPolicy::Auto,
                 Gap::HoldRate => GapPolicy::HoldRate,
@@ -306,6 +374,7 @@ impl Args {
                     ..navsync::reduced::OdometerSettings::new(path)
                 }),
             misalignment_sd_deg: self.misalignment,
+            gnss_error,
         })
     }
 }
@@ -314,6 +383,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut diag = Diagnostics::default();
     let cfg = KfGinsConfig::load(&args.config, &mut diag)?;
     let opts = args.options()?;
+    opts.validate()?;
     let out_dir = opts
         .output_dir
         .clone()
@@ -345,12 +415,21 @@ pub fn run(args: Args) -> Result<()> {
         summary.duration_s, s.imu_samples, summary.run_time_s
     );
     println!(
-        "  GNSS fixes: {} used, {} rejected by the gate, {} withheld (outages), {} velocity updates",
+        "  GNSS fixes: {} used ({} down-weighted), {} rejected, {} withheld (outages), {} velocity updates ({} down-weighted)",
         s.gnss_fixes_used,
+        s.gnss_fixes_downweighted,
         s.gnss_fixes_rejected,
         summary.gnss_fixes_withheld_by_outages,
-        s.gnss_velocity_used
+        s.gnss_velocity_used,
+        s.gnss_velocity_downweighted
     );
+    let refused = s.gnss_fixes_invalid + s.gnss_fixes_duplicate + s.gnss_fixes_stale;
+    if refused > 0 {
+        println!(
+            "  GNSS fixes refused before use: {} invalid, {} with a repeated time, {} stale (see the notes)",
+            s.gnss_fixes_invalid, s.gnss_fixes_duplicate, s.gnss_fixes_stale
+        );
+    }
     if opts.nhc.is_some() {
         println!("  NHC updates: {}", s.nhc_updates);
     }

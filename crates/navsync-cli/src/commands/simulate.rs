@@ -28,6 +28,14 @@ pub enum GnssMode {
 }
 
 #[derive(Copy, Clone, clap::ValueEnum)]
+pub enum RealLayout {
+    /// KF-GINS C++: sow lat lon h vn ve vd sd_n sd_e sd_d sd_vn sd_ve sd_vd.
+    Cpp,
+    /// KF-GINS-Matlab: sow lat lon h sd_n sd_e sd_d vn ve vd sd_vn sd_ve sd_vd.
+    Matlab,
+}
+
+#[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Decimation {
     Average,
     Point,
@@ -116,6 +124,20 @@ pub struct Args {
     /// Probability that an IMU frame is lost.
     #[arg(long)]
     pub lost_frames: Option<f64>,
+    /// Follow a reference drive (a KF-GINS navigation file, e.g. a real
+    /// vehicle's reference trajectory) instead of a built-in scenario: the
+    /// IMU is simulated exactly along a smooth fit of it.
+    #[arg(long, value_name = "NAV_FILE")]
+    pub from_nav: Option<PathBuf>,
+    /// With --from-nav: replay these real GNSS fixes (KF-GINS GNSS file, 7
+    /// or 13 columns): each fix's real error from the reference antenna
+    /// position and its stated σ are kept (set the antenna lever arm with
+    /// --set gnss.lever_arm_m=[x,y,z]).
+    #[arg(long, value_name = "GNSS_FILE", requires = "from_nav")]
+    pub gnss_real: Option<PathBuf>,
+    /// Column order of a 13-column --gnss-real file.
+    #[arg(long, value_enum, default_value = "cpp", requires = "gnss_real")]
+    pub gnss_real_layout: RealLayout,
     /// Any setting as key=value (TOML value), e.g.
     /// `--set imu.gyro.arw_deg_sqrt_h=0.3 --set rig.pps.jitter_s=1e-6`.
     #[arg(long = "set", value_name = "KEY=VALUE")]
@@ -169,8 +191,28 @@ fn vibration_layer(v: Vibration) -> Value {
 
 /// The scenario from the arguments: file or built-in, then overrides.
 pub fn scenario_from_args(a: &Args) -> Result<Scenario> {
-    let mut layer = base_layer(&a.scenario)?;
+    let mut layer = match &a.from_nav {
+        None => base_layer(&a.scenario)?,
+        Some(_) if a.scenario.ends_with(".toml") => base_layer(&a.scenario)?,
+        Some(_) if a.scenario != "urban" => {
+            bail!("--from-nav follows a reference drive: give no built-in --scenario with it")
+        }
+        Some(_) => json!({}),
+    };
     let mut set = |k: &str, v: Value| set_path(&mut layer, k, v);
+    if let Some(nav) = &a.from_nav {
+        set("reference_nav", json!(nav.to_string_lossy()))?;
+    }
+    if let Some(g) = &a.gnss_real {
+        set("gnss.real_fixes", json!(g.to_string_lossy()))?;
+        set(
+            "gnss.real_layout",
+            json!(match a.gnss_real_layout {
+                RealLayout::Cpp => "cpp",
+                RealLayout::Matlab => "matlab",
+            }),
+        )?;
+    }
     if let Some(s) = a.seed {
         set("seed", json!(s))?;
     }
@@ -279,7 +321,10 @@ fn print_summary(sim: &Simulation, r: &SimReport, out: &Path) {
     println!(
         "simulated {:.0} s ({}; seed {}; IMU {} at {} Hz{}; GNSS {:?} {} Hz; sync {}) in {:.2} s",
         sim.duration_s(),
-        s.trajectory.as_deref().unwrap_or("user segments"),
+        s.reference_nav
+            .as_deref()
+            .or(s.trajectory.as_deref())
+            .unwrap_or("user segments"),
         s.seed,
         s.imu.grade,
         s.imu.output_rate_hz,
@@ -369,6 +414,9 @@ fn bench(args: &Args) -> Result<()> {
         imu_clock_ppm: args.imu_clock_ppm,
         sync: args.sync,
         lost_frames: args.lost_frames,
+        from_nav: args.from_nav.clone(),
+        gnss_real: args.gnss_real.clone(),
+        gnss_real_layout: args.gnss_real_layout,
         set: args.set.clone(),
         quiet: true,
         bench: false,

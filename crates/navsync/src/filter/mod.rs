@@ -50,13 +50,18 @@ pub mod idx {
     pub const CORE: usize = 21;
 }
 
-/// An extra state appended after the 21 core states: modelled as a random
-/// walk with the given power spectral density (units²/s).
+/// An extra state appended after the 21 core states: a random walk with
+/// the given power spectral density (units²/s) or, with a correlation
+/// time τ, a first-order Gauss–Markov process ẋ = −x/τ + w with that
+/// driving-noise density (2σ²/τ for a steady-state σ; Brown & Hwang,
+/// *Introduction to Random Signals and Applied Kalman Filtering*, 4th ed.,
+/// §4.2).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ExtraState {
     pub name: &'static str,
     pub index: usize,
     pub random_walk_psd: f64,
+    pub corr_time_s: Option<f64>,
 }
 
 /// The state vector's layout: the 21 core states and any extras.
@@ -97,7 +102,18 @@ impl StateLayout {
             name,
             index,
             random_walk_psd,
+            corr_time_s: None,
         });
+        index
+    }
+
+    /// Appends a first-order Gauss–Markov state with steady-state σ `sd`
+    /// and correlation time `corr_time_s`, and returns its index.
+    pub fn add_gauss_markov(&mut self, name: &'static str, sd: f64, corr_time_s: f64) -> usize {
+        let index = self.add(name, 2.0 * sd * sd / corr_time_s);
+        if let Some(e) = self.extras.last_mut() {
+            e.corr_time_s = Some(corr_time_s);
+        }
         index
     }
 

@@ -129,6 +129,11 @@ pub fn fill_transition(
     for i in BG..CORE {
         a.set(i, i, decay);
     }
+    for e in &layout.extras {
+        if let Some(tau) = e.corr_time_s {
+            a.set(e.index, e.index, -dt / tau);
+        }
+    }
     // Misalignments (random constants): δω_ib = −J(ω) δm_g, δf = −J(f) δm_a,
     // entering like the scale factors above.
     if let Some(m) = layout.misalign {

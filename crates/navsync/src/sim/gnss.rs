@@ -66,6 +66,34 @@ pub struct GnssSpec {
     /// Files carry validity time + this offset (a receiver's unsynchronised
     /// time tags); 0 for true time.
     pub time_offset_s: f64,
+    /// Real fixes (a KF-GINS GNSS file) replayed against a reference drive
+    /// (`reference_nav`): each fix's error from the reference antenna
+    /// position, and its standard deviations, are kept; the rate and noise
+    /// settings are then unused.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub real_fixes: Option<String>,
+    /// Column order of a 13-column `real_fixes` file: `cpp` or `matlab`.
+    pub real_layout: RealLayout,
+}
+
+/// Column order of a 13-column real GNSS file (FORMATS.md §1).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RealLayout {
+    #[default]
+    Cpp,
+    Matlab,
+}
+
+/// A real fix as an error to replay: its validity time, its error from
+/// the reference antenna (NED, m; m/s) and its standard deviations.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct ReplayFix {
+    pub time: GpsTime,
+    pub pos_error_ned: Vector3<f64>,
+    pub pos_sd: Vector3<f64>,
+    pub vel_error: Option<Vector3<f64>>,
+    pub vel_sd: Option<Vector3<f64>>,
 }
 
 impl Default for GnssSpec {
@@ -84,6 +112,8 @@ impl Default for GnssSpec {
             outlier_prob: 0.0,
             outlier_m: [2.0, 10.0],
             time_offset_s: 0.0,
+            real_fixes: None,
+            real_layout: RealLayout::Cpp,
         }
     }
 }
@@ -192,6 +222,8 @@ pub struct GnssSim<'a> {
     gm_rng: SimRng,
     vel_rng: SimRng,
     outlier_rng: SimRng,
+    /// Real fixes replayed in place of the noise model, and the next one.
+    replay: Option<(Vec<ReplayFix>, usize)>,
 }
 
 impl<'a> GnssSim<'a> {
@@ -220,7 +252,16 @@ impl<'a> GnssSim<'a> {
             vel_rng: rng::stream(seed, "gnss.vel"),
             outlier_rng: rng::stream(seed, "gnss.outlier"),
             spec,
+            replay: None,
         }
+    }
+
+    /// Replays these real fixes (in time order) instead of drawing fixes;
+    /// those outside (start, end) are skipped.
+    pub fn with_replay(mut self, fixes: Vec<ReplayFix>) -> Self {
+        let first = fixes.partition_point(|f| f.time <= self.start);
+        self.replay = Some((fixes, first));
+        self
     }
 
     /// The resolved spec.
@@ -230,7 +271,11 @@ impl<'a> GnssSim<'a> {
 
     /// Validity time of the next epoch, if any.
     pub fn peek_time(&self) -> Option<GpsTime> {
-        (self.next < self.end).then_some(self.next)
+        let next = match &self.replay {
+            Some((fixes, i)) => fixes.get(*i)?.time,
+            None => self.next,
+        };
+        (next < self.end).then_some(next)
     }
 
     /// Antenna position and velocity from the IMU-centre truth.
@@ -250,6 +295,11 @@ impl<'a> GnssSim<'a> {
     /// The next epoch.
     pub fn next_epoch(&mut self) -> Option<GnssEpoch> {
         let t = self.peek_time()?;
+        if let Some((fixes, i)) = &mut self.replay {
+            let real = fixes[*i];
+            *i += 1;
+            return Some(self.replayed_epoch(&real));
+        }
         self.next = t + self.period_ns;
         let s = &self.spec;
         let p = self.truth.state_at(t);
@@ -294,6 +344,80 @@ impl<'a> GnssSim<'a> {
             outlier,
             in_outage,
         })
+    }
+}
+
+/// The errors of real fixes from a reference drive: each fix minus the
+/// reference antenna at its time (position r + C_b^n ℓ, velocity
+/// v + C_b^n (ω_nb^b × ℓ); KF-GINS algorithm doc §3.5–3.6), in the fix's
+/// NED frame. Fixes outside the reference's span are left out.
+pub fn replay_from_reference(
+    motion: &super::fitted::FittedMotion,
+    start: GpsTime,
+    lever_b: &Vector3<f64>,
+    fixes: &[GnssFix],
+) -> Vec<ReplayFix> {
+    let mut out = Vec::with_capacity(fixes.len());
+    for f in fixes {
+        let t = f.time.seconds_since(start);
+        if !(t > 0.0 && t < motion.duration_s()) {
+            continue;
+        }
+        let st = motion.state(t);
+        let (c_nb, w_nb_b) = super::fitted::euler_kinematics(&st.euler, &st.euler_rate);
+        let pos = motion.geodetic(&st.pos_ned);
+        let le = LocalEarth::new(&pos, &st.vel_n);
+        let l_n = c_nb * lever_b;
+        let d = le.ned_to_geodetic_delta(&l_n);
+        let ant = Geodetic::new(pos.lat_rad + d.x, pos.lon_rad + d.y, pos.h_m + d.z);
+        let ant_vel = st.vel_n + c_nb * w_nb_b.cross(lever_b);
+        let err = le.geodetic_delta_to_ned(
+            f.pos.lat_rad - ant.lat_rad,
+            f.pos.lon_rad - ant.lon_rad,
+            f.pos.h_m - ant.h_m,
+        );
+        out.push(ReplayFix {
+            time: f.time,
+            pos_error_ned: err,
+            pos_sd: f.pos_sd,
+            vel_error: f.vel.map(|v| v - ant_vel),
+            vel_sd: f.vel_sd,
+        });
+    }
+    out
+}
+
+impl GnssSim<'_> {
+    /// The simulated antenna at the fix's time plus the real fix's error.
+    fn replayed_epoch(&mut self, real: &ReplayFix) -> GnssEpoch {
+        let t = real.time;
+        let p = self.truth.state_at(t);
+        let lever = Vector3::from(self.spec.lever_arm_m);
+        let (pos, vel) = Self::antenna(&p, &lever);
+        let le = LocalEarth::new(&pos, &vel);
+        let d = le.ned_to_geodetic_delta(&real.pos_error_ned);
+        let rel = t.seconds_since(self.start);
+        let in_outage = self
+            .spec
+            .outages
+            .iter()
+            .any(|o| rel >= o[0] && rel < o[0] + o[1]);
+        let fix = GnssFix {
+            time: t.add_seconds(self.spec.time_offset_s),
+            pos: Geodetic::new(pos.lat_rad + d.x, pos.lon_rad + d.y, pos.h_m + d.z),
+            pos_sd: real.pos_sd,
+            vel: real.vel_error.map(|e| vel + e),
+            vel_sd: real.vel_sd,
+        };
+        GnssEpoch {
+            fix,
+            valid: t,
+            truth_pos: pos,
+            truth_vel: vel,
+            error_ned: real.pos_error_ned,
+            outlier: false,
+            in_outage,
+        }
     }
 }
 

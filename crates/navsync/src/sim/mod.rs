@@ -8,6 +8,7 @@
 //! [`clock`] (oscillators, counters), [`rig`] (PPS, serial links).
 
 pub mod clock;
+pub mod fitted;
 pub mod gnss;
 pub mod imu;
 pub mod rig;

@@ -25,7 +25,8 @@ use serde::Serialize;
 use serde_json::json;
 
 use super::clock::{Counter, ImuClock, Temperature};
-use super::gnss::{GnssEpoch, GnssSim};
+use super::fitted::FittedMotion;
+use super::gnss::{GnssEpoch, GnssSim, RealLayout, ReplayFix, replay_from_reference};
 use super::imu::{ImuOutput, ImuSensor, OutputKind};
 use super::rig::{
     HostReceiver, PendingRecords, PpsKind, PpsSource, RigRecord, SerialLink, SyncMode,
@@ -35,10 +36,13 @@ use super::scenario::Scenario;
 use super::trajectory::{Trajectory, TrajectoryOptions, Vibration};
 use super::truth::TruthGenerator;
 use crate::earth::{Geodetic, LocalEarth};
-use crate::error::Error;
+use crate::error::{Diagnostics, Error};
 use crate::filter::gnss::GnssFix;
 use crate::ins::{ImuErrors, ImuSample, NavState};
-use crate::io::kfgins::{format_gnss_line, format_imu_err_line, format_imu_line, format_nav_line};
+use crate::io::kfgins::{
+    GnssLayout, GnssReader, NavReader, format_gnss_line, format_imu_err_line, format_imu_line,
+    format_nav_line,
+};
 use crate::io::text::{push_f64, push_fixed, push_u64};
 use crate::time::GpsTime;
 
@@ -124,12 +128,17 @@ pub struct Simulation {
     segments: Vec<super::trajectory::Segment>,
     start: GpsTime,
     duration_s: f64,
+    /// Real GNSS errors replayed along a reference drive.
+    replay: Option<Vec<ReplayFix>>,
 }
 
 impl Simulation {
     /// Builds the trajectory (and draws the vibration) for a scenario.
     pub fn new(scenario: Scenario) -> Result<Self, Error> {
         scenario.validate()?;
+        if let Some(path) = scenario.reference_nav.clone() {
+            return Self::along_reference(scenario, Path::new(&path));
+        }
         let (segments, duration) = scenario.segments_and_duration()?;
         let mut vib_rng = rng::stream(scenario.seed, "trajectory.vibration");
         let vibration =
@@ -154,6 +163,63 @@ impl Simulation {
             segments,
             start,
             duration_s,
+            replay: None,
+        })
+    }
+
+    /// A simulation along a reference drive (`reference_nav`), optionally
+    /// with its real GNSS fixes replayed (`gnss.real_fixes`). The start
+    /// time is the reference's first epoch in the scenario's GPS week.
+    fn along_reference(mut scenario: Scenario, path: &Path) -> Result<Self, Error> {
+        let mut diag = Diagnostics::default();
+        let records = NavReader::read_all(path, &mut diag)?;
+        let motion = FittedMotion::fit(&records).map_err(|e| match e {
+            Error::Invalid(m) => Error::config(path, m),
+            e => e,
+        })?;
+        let origin = motion.origin();
+        let start = GpsTime::from_week_sow(scenario.gps_week, records[0].time.sow());
+        scenario.start_sow = start.sow();
+        scenario.origin = [
+            origin.lat_rad.to_degrees(),
+            origin.lon_rad.to_degrees(),
+            origin.h_m,
+        ];
+        let mut replay = None;
+        if let Some(real) = scenario.gnss.real_fixes.clone() {
+            let layout = match scenario.gnss.real_layout {
+                RealLayout::Cpp => GnssLayout::Cpp,
+                RealLayout::Matlab => GnssLayout::Matlab,
+            };
+            let mut reader = GnssReader::open(Path::new(&real), scenario.gps_week, layout)?;
+            let mut fixes = Vec::new();
+            while let Some(f) = reader.next_fix(&mut diag)? {
+                fixes.push(f);
+            }
+            let lever = Vector3::from(scenario.gnss.lever_arm_m);
+            let list = replay_from_reference(&motion, start, &lever, &fixes);
+            if list.is_empty() {
+                return Err(Error::config(
+                    Path::new(&real),
+                    format!(
+                        "none of its {} fixes falls within the reference drive ({:.3}–{:.3} s of week)",
+                        fixes.len(),
+                        start.sow(),
+                        start.sow() + motion.duration_s()
+                    ),
+                ));
+            }
+            replay = Some(list);
+        }
+        let trajectory = Trajectory::from_fitted(motion);
+        let duration_s = trajectory.duration_s();
+        Ok(Simulation {
+            scenario,
+            trajectory,
+            segments: Vec::new(),
+            start,
+            duration_s,
+            replay,
         })
     }
 
@@ -200,6 +266,9 @@ impl Simulation {
             start.add_seconds(dur),
             seed,
         );
+        if let Some(list) = &self.replay {
+            gnss = gnss.with_replay(list.clone());
+        }
         let gnss_spec = gnss.spec().clone();
         let mut pps =
             (rig.sync != SyncMode::Sw).then(|| PpsSource::new(&rig.pps, start, dur, seed));

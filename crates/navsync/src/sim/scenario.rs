@@ -56,6 +56,11 @@ pub struct Scenario {
     /// A user trajectory as a list of segments.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub segments: Vec<Segment>,
+    /// A reference drive (KF-GINS navigation file) to fit and follow
+    /// instead of built-in profiles: its first state sets the start time
+    /// and origin, its span the duration.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_nav: Option<String>,
     /// Seed of every error source.
     pub seed: u64,
     /// Seed of the random trajectory (`urban`).
@@ -87,6 +92,7 @@ impl Default for Scenario {
         Scenario {
             trajectory: None,
             segments: Vec::new(),
+            reference_nav: None,
             seed: 1,
             traj_seed: 1,
             duration_s: None,
@@ -304,6 +310,12 @@ impl Scenario {
                 BUILTIN_SCENARIOS.join(", "),
                 PRESETS.join(", ")
             ));
+        }
+        if self.reference_nav.is_some() && (self.trajectory.is_some() || !self.segments.is_empty())
+        {
+            return bad(
+                "give one of `reference_nav`, `trajectory` (a built-in) or `segments`".into(),
+            );
         }
         if self.trajectory.is_some() && !self.segments.is_empty() {
             return bad("give either `trajectory` (a built-in) or `segments`, not both".into());

@@ -23,6 +23,9 @@ use std::f64::consts::{PI, TAU};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
+use std::sync::Arc;
+
+use super::fitted::{FittedMotion, FittedState, euler_kinematics};
 use super::rng;
 use crate::attitude::{Euler, euler_to_quat, rotvec_to_quat, skew};
 use crate::earth::Geodetic;
@@ -506,6 +509,7 @@ impl TrajectoryBuilder {
             roll_gain: roll_gain_rad_per_mps2,
             vibration,
             segments: self.infos,
+            fitted: None,
         }
     }
 }
@@ -873,9 +877,31 @@ pub struct Trajectory {
     roll_gain: f64,
     vibration: Vibration,
     segments: Vec<SegmentInfo>,
+    /// A trajectory fitted to a reference drive replaces the profiles.
+    fitted: Option<Arc<FittedMotion>>,
 }
 
 impl Trajectory {
+    /// The trajectory of a fitted reference drive over its whole span.
+    pub fn from_fitted(motion: FittedMotion) -> Self {
+        Trajectory {
+            origin: motion.origin(),
+            duration_s: motion.duration_s(),
+            speed: Channel::new(0.0),
+            heading: Channel::new(0.0),
+            grade: Channel::new(0.0),
+            roll_gain: 0.0,
+            vibration: Vibration::default(),
+            segments: Vec::new(),
+            fitted: Some(Arc::new(motion)),
+        }
+    }
+
+    /// The fitted reference drive, when the trajectory is one.
+    pub fn fitted(&self) -> Option<&FittedMotion> {
+        self.fitted.as_deref()
+    }
+
     /// Builds a trajectory from segments, starting at `origin`.
     pub fn from_segments(
         origin: Geodetic,
@@ -927,6 +953,9 @@ impl Trajectory {
     /// [`Trajectory::vehicle`] with a search cursor (fast for increasing `t`).
     #[inline]
     pub fn vehicle_at(&self, t: f64, c: &mut Cursor) -> VehicleState {
+        if let Some(f) = &self.fitted {
+            return fitted_vehicle(&f.state(t));
+        }
         let [v, v_dot, _] = self.speed.eval_hint(t, &mut c.hint[0], &mut c.trig[0]);
         let [psi, psi_dot, psi_ddot] = self.heading.eval_hint(t, &mut c.hint[1], &mut c.trig[1]);
         let [theta, theta_dot, _] = self.grade.eval_hint(t, &mut c.hint[2], &mut c.trig[2]);
@@ -953,6 +982,9 @@ impl Trajectory {
     /// [`Trajectory::vehicle_velocity`] with a search cursor.
     #[inline]
     pub fn vehicle_velocity_at(&self, t: f64, c: &mut Cursor) -> Vector3<f64> {
+        if let Some(f) = &self.fitted {
+            return f.state(t).vel_n;
+        }
         let v = self.speed.eval_hint(t, &mut c.hint[0], &mut c.trig[0])[0];
         let psi = self.heading.eval_hint(t, &mut c.hint[1], &mut c.trig[1])[0];
         let theta = self.grade.eval_hint(t, &mut c.hint[2], &mut c.trig[2])[0];
@@ -971,6 +1003,19 @@ impl Trajectory {
     /// increasing `t`).
     #[inline]
     pub fn kinematics_at(&self, t: f64, cursor: &mut Cursor) -> Kinematics {
+        if let Some(f) = &self.fitted {
+            let st = f.state(t);
+            let (c_nb, w_nb_b) = euler_kinematics(&st.euler, &st.euler_rate);
+            return Kinematics {
+                vehicle: fitted_vehicle(&st),
+                vel_n: st.vel_n,
+                acc_n: st.acc_n,
+                c_nb,
+                w_nb_b,
+                alpha: Vector3::zeros(),
+                dr_n: Vector3::zeros(),
+            };
+        }
         let s = self.vehicle_at(t, cursor);
         let (sps, cps) = cursor.trig[3].sin_cos(s.heading_rad);
         let (sth, cth) = sin_cos0(s.pitch_rad, &mut cursor.trig[4]);
@@ -1023,6 +1068,26 @@ impl Trajectory {
             alpha,
             dr_n,
         }
+    }
+}
+
+/// The vehicle profiles of a fitted state (speed along the velocity).
+fn fitted_vehicle(st: &FittedState) -> VehicleState {
+    let speed = st.vel_n.norm();
+    VehicleState {
+        speed_mps: speed,
+        accel_mps2: if speed > 1e-9 {
+            st.vel_n.dot(&st.acc_n) / speed
+        } else {
+            0.0
+        },
+        heading_rad: st.euler[2],
+        yaw_rate_rad_s: st.euler_rate[2],
+        yaw_accel_rad_s2: st.euler_accel[2],
+        pitch_rad: st.euler[1],
+        pitch_rate_rad_s: st.euler_rate[1],
+        roll_rad: st.euler[0],
+        roll_rate_rad_s: st.euler_rate[0],
     }
 }
 
