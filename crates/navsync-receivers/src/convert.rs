@@ -13,7 +13,9 @@
 //!   its header): a receiver stream has no logger counter.
 //! - `gnss_receipt.txt` (comma2k19): each fix's GPS time and boot time of
 //!   receipt, to study latency.
-//! - `summary.json`: counts, stream statistics and every reported problem.
+//! - `summary.json`: counts, stream statistics, every UBX navigation epoch
+//!   that gave no fix counted by reason (`ubx_epochs`), and every reported
+//!   problem.
 
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -28,7 +30,10 @@ use navsync::io::text::{
 };
 use navsync::time::GpsTime;
 
-use crate::fixes::{FixOptions, NmeaFixes, NmeaOutcome, ReceiverFix, TimeContext, nav_pvt_fix};
+use crate::fixes::{
+    DropReason, FixOptions, NmeaFixes, NmeaOutcome, ReceiverFix, TimeContext, UbxEpochs,
+    UbxFixSource, UbxOutcome, nav_pvt_fix,
+};
 use crate::gnsstime::{LeapSource, UtcTime, utc_to_gps};
 use crate::imu::{EsfImu, RateIssue, RateSample, RateToIncrement};
 use crate::marks::{Edge, QErrCorrector, TimeMarks, pps_edge_gps};
@@ -51,7 +56,8 @@ pub enum InputFormat {
 /// Which fixes go into `gnss.txt` when a stream holds both kinds.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub enum GnssSource {
-    /// NAV-PVT when the stream has NAV-PVT fixes, else NMEA.
+    /// UBX (NAV-PVT, or NAV-SOL/POSLLH/VELNED epochs) when the stream has
+    /// UBX fixes, else NMEA.
     #[default]
     Auto,
     Ubx,
@@ -101,6 +107,28 @@ pub struct SensorClock {
     pub gps_span_s: f64,
 }
 
+/// UBX navigation epochs of one kind and what became of them.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct EpochTally {
+    /// The messages the epochs came from (e.g. `UBX NAV-PVT`).
+    pub source: String,
+    pub epochs: u64,
+    /// Epochs that gave a fix (before the time-order check and the choice
+    /// of source for gnss.txt).
+    pub fixes: u64,
+    /// Epochs that gave none, by reason.
+    pub dropped: Vec<DropTally>,
+}
+
+/// Epochs dropped for one reason.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct DropTally {
+    pub reason: String,
+    pub epochs: u64,
+    /// The `navsync convert` option that keeps them, when one does.
+    pub kept_by: Option<String>,
+}
+
 /// What a conversion did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ConvertSummary {
@@ -115,6 +143,10 @@ pub struct ConvertSummary {
     pub gnss_columns: usize,
     pub gnss_source: String,
     pub gnss_default_sd: usize,
+    /// UBX navigation epochs by source, with every drop counted by reason.
+    pub ubx_epochs: Vec<EpochTally>,
+    /// UBX fixes whose position came from NAV-HPPOSLLH.
+    pub ubx_high_precision_positions: usize,
     pub leap_source: Option<LeapSource>,
     pub imu_samples: usize,
     pub imu_time_axis: String,
@@ -126,6 +158,58 @@ pub struct ConvertSummary {
     pub strobes: usize,
     pub files: Vec<String>,
     pub diagnostics: Diagnostics,
+}
+
+impl ConvertSummary {
+    /// For a receiver stream or fix file that gave no fix, a plain
+    /// sentence saying so and why (the drop reasons, or that no position
+    /// message was found); `None` when there are fixes or the input is not
+    /// a fix source (rate CSV).
+    pub fn no_fix_message(&self) -> Option<String> {
+        if self.gnss_fixes > 0 || self.format == Some(InputFormat::RateCsv) {
+            return None;
+        }
+        let epochs: u64 = self.ubx_epochs.iter().map(|t| t.epochs).sum();
+        let nmea = self
+            .frames
+            .iter()
+            .filter(|(k, _)| k.as_str() == "NMEA GGA")
+            .map(|(_, n)| *n)
+            .sum::<u64>();
+        let mut m = format!("no GNSS fix in {}", self.input);
+        if epochs == 0 && nmea == 0 {
+            m.push_str(
+                ": the stream holds no position message navsync reads \
+                 (UBX NAV-PVT, NAV-SOL, NAV-POSLLH, NAV-HPPOSLLH or NMEA GGA)",
+            );
+            return Some(m);
+        }
+        let mut parts = Vec::new();
+        for t in &self.ubx_epochs {
+            for d in &t.dropped {
+                parts.push(format!(
+                    "{} {} epochs: {}{}",
+                    d.epochs,
+                    t.source,
+                    d.reason,
+                    d.kept_by
+                        .as_ref()
+                        .map(|o| format!(" (kept with {o})"))
+                        .unwrap_or_default()
+                ));
+            }
+        }
+        if nmea > 0 {
+            parts.push(format!(
+                "{nmea} NMEA GGA sentences gave no fix (see the problems listed)"
+            ));
+        }
+        if !parts.is_empty() {
+            m.push_str(": ");
+            m.push_str(&parts.join("; "));
+        }
+        Some(m)
+    }
 }
 
 /// Converts `input` of `format` into files in `out_dir` (created if
@@ -245,7 +329,12 @@ fn convert_stream(
 struct StreamConverter {
     opts: ConvertOptions,
     ctx: TimeContext,
+    ubx_epochs: UbxEpochs,
+    ubx_out: Vec<UbxOutcome>,
     ubx_fixes: Vec<ReceiverFix>,
+    /// Per source: epochs, fixes, drops by reason.
+    ubx_tally: BTreeMap<UbxFixSource, (u64, u64, BTreeMap<DropReason, u64>)>,
+    ubx_hp: usize,
     nmea: NmeaFixes,
     nmea_out: Vec<NmeaOutcome>,
     esf: EsfImu,
@@ -273,7 +362,11 @@ impl StreamConverter {
         StreamConverter {
             opts: *opts,
             ctx: TimeContext::default(),
+            ubx_epochs: UbxEpochs::new(opts.fix),
+            ubx_out: Vec::new(),
             ubx_fixes: Vec::new(),
+            ubx_tally: BTreeMap::new(),
+            ubx_hp: 0,
             nmea: NmeaFixes::new(opts.fix),
             nmea_out: Vec::new(),
             esf,
@@ -321,6 +414,12 @@ impl StreamConverter {
             EventKind::Corrupt(_) => "corrupt runs".to_string(),
         };
         *s.frames.entry(key).or_default() += 1;
+        if let EventKind::Ubx(m) = kind {
+            // Before the time context takes a NAV-TIMEGPS: it may close
+            // the previous epoch, whose week must not come from it.
+            self.ubx_epochs.push(m, &self.ctx, &mut self.ubx_out);
+            self.take_ubx_outcomes(file, offset, diag);
+        }
         match kind {
             EventKind::Ubx(m) => match m {
                 UbxMessage::NavTimeGps(t) => {
@@ -329,14 +428,18 @@ impl StreamConverter {
                         self.note_fix_time(GpsTime::from_ns(ns));
                     }
                 }
-                UbxMessage::NavPvt(p) => match nav_pvt_fix(p, &self.ctx) {
-                    Ok(Some(f)) => {
+                UbxMessage::NavPvt(p) => {
+                    // The fix itself comes when its epoch closes; its time
+                    // is noted on arrival for the sensor-clock check.
+                    if let Ok(Some(f)) = nav_pvt_fix(p, &self.ctx) {
                         self.note_fix_time(f.fix.time);
-                        self.ubx_fixes.push(f);
                     }
-                    Ok(None) => {}
-                    Err(e) => diag.push(file, 0, format!("byte {offset}: {e}; fix skipped")),
-                },
+                }
+                UbxMessage::NavSol(_)
+                | UbxMessage::NavPosLlh(_)
+                | UbxMessage::NavHpPosLlh(_)
+                | UbxMessage::NavVelNed(_)
+                | UbxMessage::NavStatus(_) => {}
                 UbxMessage::EsfMeas(m) => {
                     self.note_esf_tag(Some(m.time_tag));
                     self.esf.push_meas(m, &mut self.rates);
@@ -396,7 +499,70 @@ impl StreamConverter {
         }
     }
 
+    /// Fixes and drops of closed UBX epochs.
+    fn take_ubx_outcomes(&mut self, file: &Path, offset: u64, diag: &mut Diagnostics) {
+        for o in std::mem::take(&mut self.ubx_out) {
+            match o {
+                UbxOutcome::Fix {
+                    fix,
+                    source,
+                    high_precision,
+                } => {
+                    let t = self.ubx_tally.entry(source).or_default();
+                    t.0 += 1;
+                    t.1 += 1;
+                    self.ubx_hp += high_precision as usize;
+                    if source == UbxFixSource::Combined {
+                        self.note_fix_time(fix.fix.time);
+                    }
+                    self.ubx_fixes.push(fix);
+                }
+                UbxOutcome::Dropped {
+                    itow_ms,
+                    source,
+                    reason,
+                    detail,
+                } => {
+                    let t = self.ubx_tally.entry(source).or_default();
+                    t.0 += 1;
+                    *t.2.entry(reason).or_default() += 1;
+                    if let Some(d) = detail {
+                        diag.push(
+                            file,
+                            0,
+                            format!(
+                                "byte {offset}: {} epoch iTOW {itow_ms} ms: {d}; fix skipped",
+                                source.name()
+                            ),
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     fn finish(mut self, input: &Path, out_dir: &Path, s: &mut ConvertSummary) -> Result<(), Error> {
+        self.ubx_epochs.finish(&self.ctx, &mut self.ubx_out);
+        let end = s.header_bytes + s.stream.as_ref().map_or(0, |st| st.bytes);
+        self.take_ubx_outcomes(input, end, &mut s.diagnostics);
+        s.ubx_high_precision_positions = self.ubx_hp;
+        s.ubx_epochs = self
+            .ubx_tally
+            .iter()
+            .map(|(src, (epochs, fixes, drops))| EpochTally {
+                source: src.name().to_string(),
+                epochs: *epochs,
+                fixes: *fixes,
+                dropped: drops
+                    .iter()
+                    .map(|(r, n)| DropTally {
+                        reason: r.describe(),
+                        epochs: *n,
+                        kept_by: r.kept_by().map(str::to_string),
+                    })
+                    .collect(),
+            })
+            .collect();
         self.nmea.finish(&self.ctx, &mut self.nmea_out);
         self.esf.finish();
         self.esf_raw.finish();
@@ -414,11 +580,22 @@ impl StreamConverter {
             GnssSource::Auto => !self.ubx_fixes.is_empty(),
         };
         let (chosen, name) = if use_ubx {
-            (std::mem::take(&mut self.ubx_fixes), "UBX NAV-PVT")
+            let names: Vec<&str> = self
+                .ubx_tally
+                .iter()
+                .filter(|(_, t)| t.1 > 0)
+                .map(|(src, _)| src.name())
+                .collect();
+            let name = if names.is_empty() {
+                "UBX".to_string()
+            } else {
+                names.join(" + ")
+            };
+            (std::mem::take(&mut self.ubx_fixes), name)
         } else {
-            (nmea_fixes, "NMEA GGA (+GST, RMC/ZDA)")
+            (nmea_fixes, "NMEA GGA (+GST, RMC/ZDA)".to_string())
         };
-        s.gnss_source = name.to_string();
+        s.gnss_source = name;
         let chosen = monotonic(chosen, input, &mut s.diagnostics);
         s.gnss_default_sd = chosen.iter().filter(|f| f.default_sd).count();
         s.leap_source = chosen.iter().rev().find_map(|f| f.leap);

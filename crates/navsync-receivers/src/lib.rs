@@ -4,7 +4,8 @@
 //! - [`stream`]: incremental reader of mixed NMEA 0183 + u-blox UBX byte
 //!   streams (push bytes, get messages; every corrupt or unknown frame
 //!   reported with its offset).
-//! - [`ubx`], [`nmea`]: the messages (decoders and encoders).
+//! - [`ubx`], [`nmea`]: the messages (decoders and encoders); [`rtcm3`]:
+//!   RTCM 3 framing (frames recognised and skipped).
 //! - [`gnsstime`]: UTC ↔ GPS time with leap seconds.
 //! - [`fixes`]: GNSS fixes at their time of validity (NAV-PVT, NMEA epochs).
 //! - [`imu`]: ESF-MEAS/ESF-RAW and rate-form IMU data → increments.
@@ -20,6 +21,7 @@ pub mod gnsstime;
 pub mod imu;
 pub mod marks;
 pub mod nmea;
+pub mod rtcm3;
 pub mod stream;
 pub mod ubx;
 
