@@ -147,6 +147,11 @@ pub struct ConvertSummary {
     pub ubx_epochs: Vec<EpochTally>,
     /// UBX fixes whose position came from NAV-HPPOSLLH.
     pub ubx_high_precision_positions: usize,
+    /// Fixes (in gnss.txt) whose ellipsoidal height needed the geoid model
+    /// (NMEA GGA without a geoid separation).
+    pub geoid_model_heights: usize,
+    /// The geoid model, when it was used.
+    pub geoid_model: Option<String>,
     pub leap_source: Option<LeapSource>,
     pub imu_samples: usize,
     pub imu_time_axis: String,
@@ -598,6 +603,10 @@ impl StreamConverter {
         s.gnss_source = name;
         let chosen = monotonic(chosen, input, &mut s.diagnostics);
         s.gnss_default_sd = chosen.iter().filter(|f| f.default_sd).count();
+        s.geoid_model_heights = chosen.iter().filter(|f| f.geoid_from_model).count();
+        if s.geoid_model_heights > 0 {
+            s.geoid_model = Some(crate::geoid::EGM96_SOURCE.to_string());
+        }
         s.leap_source = chosen.iter().rev().find_map(|f| f.leap);
         if !chosen.is_empty() {
             let fixes: Vec<GnssFix> = chosen.iter().map(|f| f.fix).collect();
@@ -856,6 +865,7 @@ fn convert_comma_gnss(
             },
             leap: Some(LeapSource::Table),
             default_sd: true,
+            geoid_from_model: false,
         });
         receipts.push((t, f[0].to_vec()));
     }

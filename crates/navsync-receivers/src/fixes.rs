@@ -19,6 +19,7 @@ use navsync::earth::{Geodetic, c_ne, ecef_to_geodetic};
 use navsync::filter::gnss::GnssFix;
 use navsync::time::{GpsTime, NS_PER_S, NS_PER_WEEK};
 
+use crate::geoid::Egm96Grid;
 use crate::gnsstime::{LeapSeconds, LeapSource, UtcTime};
 use crate::nmea::{Date, Gga, Gst, NmeaMessage, TimeOfDayNs};
 use crate::ubx::{
@@ -121,6 +122,10 @@ pub struct ReceiverFix {
     pub leap: Option<LeapSource>,
     /// Standard deviations were the configured defaults.
     pub default_sd: bool,
+    /// The ellipsoidal height used the EGM96 geoid model
+    /// ([`crate::geoid`]): the message gave height above mean sea level
+    /// without the geoid separation.
+    pub geoid_from_model: bool,
 }
 
 /// The GPS week and leap seconds a stream has told so far.
@@ -256,6 +261,7 @@ pub fn nav_pvt_epoch(
         },
         leap,
         default_sd: false,
+        geoid_from_model: false,
     })
 }
 
@@ -496,6 +502,7 @@ impl UbxEpochs {
                 },
                 leap: None,
                 default_sd: false,
+                geoid_from_model: false,
             },
             hp.is_some(),
         ))
@@ -521,6 +528,8 @@ pub struct NmeaFixes {
     /// Epochs seen before any date.
     undated: Vec<NmeaEpoch>,
     opts: FixOptions,
+    /// For GGA without a geoid separation.
+    geoid: Egm96Grid,
 }
 
 /// What happened to an NMEA epoch.
@@ -611,7 +620,7 @@ impl NmeaFixes {
         out.push(self.epoch_fix(&e, ctx));
     }
 
-    fn epoch_fix(&self, e: &NmeaEpoch, ctx: &TimeContext) -> NmeaOutcome {
+    fn epoch_fix(&mut self, e: &NmeaEpoch, ctx: &TimeContext) -> NmeaOutcome {
         let Some(g) = &e.gga else {
             return NmeaOutcome::NoFix { tod: e.tod };
         };
@@ -621,11 +630,26 @@ impl NmeaFixes {
         if !g.has_fix() {
             return NmeaOutcome::NoFix { tod: e.tod };
         }
-        let Some(h) = g.ellipsoidal_height_m() else {
-            return NmeaOutcome::Problem(format!(
-                "GGA at {} s of day lacks altitude or geoid separation: no ellipsoidal height; skipped",
-                e.tod as f64 * 1e-9
-            ));
+        // NMEA 0183 GGA field 9 is the antenna altitude above mean sea
+        // level (geoid), field 11 the geoid separation; when a receiver
+        // leaves field 11 empty, EGM96 gives it (as gpsd does).
+        let (h, geoid_from_model) = match (g.alt_msl_m, g.geoid_sep_m) {
+            (Some(a), Some(n)) => (a + n, false),
+            (Some(a), None) => match self.geoid.separation_m(lat, lon) {
+                Some(n) => (a + n, true),
+                None => {
+                    return NmeaOutcome::Problem(format!(
+                        "GGA at {} s of day: position {lat}, {lon} outside the geoid model; skipped",
+                        e.tod as f64 * 1e-9
+                    ));
+                }
+            },
+            (None, _) => {
+                return NmeaOutcome::Problem(format!(
+                    "GGA at {} s of day lacks the altitude: no height; skipped",
+                    e.tod as f64 * 1e-9
+                ));
+            }
         };
         let Some(date) = e.date else {
             return NmeaOutcome::NoFix { tod: e.tod };
@@ -653,6 +677,7 @@ impl NmeaFixes {
             },
             leap: Some(src),
             default_sd,
+            geoid_from_model,
         })
     }
 }

@@ -7,6 +7,7 @@
 //! - [`ubx`], [`nmea`]: the messages (decoders and encoders); [`rtcm3`]:
 //!   RTCM 3 framing (frames recognised and skipped).
 //! - [`gnsstime`]: UTC ↔ GPS time with leap seconds.
+//! - [`geoid`]: EGM96 geoid separation for GGA without one.
 //! - [`fixes`]: GNSS fixes at their time of validity (NAV-PVT, NMEA epochs).
 //! - [`imu`]: ESF-MEAS/ESF-RAW and rate-form IMU data → increments.
 //! - [`marks`]: TIM-TM2 event stamps and TIM-TP qErr PPS correction.
@@ -17,6 +18,7 @@
 
 pub mod convert;
 pub mod fixes;
+pub mod geoid;
 pub mod gnsstime;
 pub mod imu;
 pub mod marks;

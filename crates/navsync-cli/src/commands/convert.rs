@@ -153,6 +153,12 @@ pub fn run(a: Args) -> Result<()> {
             }
         );
     }
+    if let Some(g) = &s.geoid_model {
+        println!(
+            "  {} heights from MSL + geoid model (GGA without geoid separation): {g}",
+            s.geoid_model_heights
+        );
+    }
     if s.imu_samples > 0 {
         println!(
             "imu.txt: {} increments on {}; {} gaps ≥ {} s",
