@@ -143,7 +143,7 @@ impl TimeContext {
         if t.leap_valid() {
             self.leap.set_from_receiver(t.leap_s as i32);
         }
-        if t.week_valid() {
+        if t.week_valid() && (0..=MAX_GPS_WEEK).contains(&t.week) {
             self.week = Some((t.week as i64, t.itow_ms));
         }
         if t.tow_valid() {
@@ -266,6 +266,9 @@ pub fn nav_pvt_epoch(
 }
 
 // ------------------------------------------------------------ UBX epochs
+
+/// Largest GPS week taken from a message (year 2171).
+const MAX_GPS_WEEK: i16 = 10_000;
 
 /// Which messages an epoch's fix came from.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
@@ -476,6 +479,17 @@ impl UbxEpochs {
         let itow_ns = e.itow_ms as i64 * 1_000_000;
         let time = match &e.sol {
             Some(s) if s.week_and_tow_valid() => {
+                // GPS weeks stay far below 10000 (year 2171); larger or
+                // negative weeks are corrupt and would overflow the ns.
+                if !(0..=MAX_GPS_WEEK).contains(&s.week) {
+                    return Err((
+                        DropReason::NoTime,
+                        Some(format!(
+                            "NAV-SOL iTOW {} ms: week {} out of range",
+                            e.itow_ms, s.week
+                        )),
+                    ));
+                }
                 GpsTime::from_week_ns(s.week as i64, itow_ns + s.ftow_ns as i64)
             }
             _ => match ctx.week_for(e.itow_ms) {
