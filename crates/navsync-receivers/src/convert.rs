@@ -423,7 +423,7 @@ impl StreamConverter {
             // Before the time context takes a NAV-TIMEGPS: it may close
             // the previous epoch, whose week must not come from it.
             self.ubx_epochs.push(m, &self.ctx, &mut self.ubx_out);
-            self.take_ubx_outcomes(file, offset, diag);
+            self.take_ubx_outcomes(file, diag);
         }
         match kind {
             EventKind::Ubx(m) => match m {
@@ -505,7 +505,7 @@ impl StreamConverter {
     }
 
     /// Fixes and drops of closed UBX epochs.
-    fn take_ubx_outcomes(&mut self, file: &Path, offset: u64, diag: &mut Diagnostics) {
+    fn take_ubx_outcomes(&mut self, file: &Path, diag: &mut Diagnostics) {
         for o in std::mem::take(&mut self.ubx_out) {
             match o {
                 UbxOutcome::Fix {
@@ -523,23 +523,17 @@ impl StreamConverter {
                     self.ubx_fixes.push(fix);
                 }
                 UbxOutcome::Dropped {
-                    itow_ms,
                     source,
                     reason,
                     detail,
+                    ..
                 } => {
                     let t = self.ubx_tally.entry(source).or_default();
                     t.0 += 1;
                     *t.2.entry(reason).or_default() += 1;
                     if let Some(d) = detail {
-                        diag.push(
-                            file,
-                            0,
-                            format!(
-                                "byte {offset}: {} epoch iTOW {itow_ms} ms: {d}; fix skipped",
-                                source.name()
-                            ),
-                        );
+                        // The detail names the epoch's iTOW.
+                        diag.push(file, 0, format!("{}: {d}; fix skipped", source.name()));
                     }
                 }
             }
@@ -548,8 +542,7 @@ impl StreamConverter {
 
     fn finish(mut self, input: &Path, out_dir: &Path, s: &mut ConvertSummary) -> Result<(), Error> {
         self.ubx_epochs.finish(&self.ctx, &mut self.ubx_out);
-        let end = s.header_bytes + s.stream.as_ref().map_or(0, |st| st.bytes);
-        self.take_ubx_outcomes(input, end, &mut s.diagnostics);
+        self.take_ubx_outcomes(input, &mut s.diagnostics);
         s.ubx_high_precision_positions = self.ubx_hp;
         s.ubx_epochs = self
             .ubx_tally
