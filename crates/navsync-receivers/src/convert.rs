@@ -13,9 +13,9 @@
 //!   its header): a receiver stream has no logger counter.
 //! - `gnss_receipt.txt` (comma2k19): each fix's GPS time and boot time of
 //!   receipt, to study latency.
-//! - `summary.json`: counts, stream statistics, every UBX navigation epoch
-//!   that gave no fix counted by reason (`ubx_epochs`), and every reported
-//!   problem.
+//! - `summary.json`: counts, stream statistics, every navigation epoch
+//!   (UBX or NMEA GGA) that gave no fix counted by reason (`fix_epochs`),
+//!   and every reported problem.
 
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -31,7 +31,7 @@ use navsync::io::text::{
 use navsync::time::GpsTime;
 
 use crate::fixes::{
-    DropReason, FixOptions, NmeaFixes, NmeaOutcome, ReceiverFix, TimeContext, UbxEpochs,
+    DropReason, FixOptions, NmeaDrop, NmeaFixes, NmeaOutcome, ReceiverFix, TimeContext, UbxEpochs,
     UbxFixSource, UbxOutcome, nav_pvt_fix,
 };
 use crate::gnsstime::{LeapSource, UtcTime, utc_to_gps};
@@ -107,10 +107,11 @@ pub struct SensorClock {
     pub gps_span_s: f64,
 }
 
-/// UBX navigation epochs of one kind and what became of them.
+/// Navigation epochs of one source and what became of them.
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct EpochTally {
-    /// The messages the epochs came from (e.g. `UBX NAV-PVT`).
+    /// The messages the epochs came from (`UBX NAV-PVT`,
+    /// `UBX NAV-SOL/POSLLH/VELNED/STATUS`, `NMEA GGA`).
     pub source: String,
     pub epochs: u64,
     /// Epochs that gave a fix (before the time-order check and the choice
@@ -143,8 +144,9 @@ pub struct ConvertSummary {
     pub gnss_columns: usize,
     pub gnss_source: String,
     pub gnss_default_sd: usize,
-    /// UBX navigation epochs by source, with every drop counted by reason.
-    pub ubx_epochs: Vec<EpochTally>,
+    /// Navigation epochs by source (UBX NAV-PVT, the older UBX set, NMEA
+    /// GGA), with every epoch that gave no fix counted by reason.
+    pub fix_epochs: Vec<EpochTally>,
     /// UBX fixes whose position came from NAV-HPPOSLLH.
     pub ubx_high_precision_positions: usize,
     /// Fixes (in gnss.txt) whose ellipsoidal height needed the geoid model
@@ -174,15 +176,9 @@ impl ConvertSummary {
         if self.gnss_fixes > 0 || self.format == Some(InputFormat::RateCsv) {
             return None;
         }
-        let epochs: u64 = self.ubx_epochs.iter().map(|t| t.epochs).sum();
-        let nmea = self
-            .frames
-            .iter()
-            .filter(|(k, _)| k.as_str() == "NMEA GGA")
-            .map(|(_, n)| *n)
-            .sum::<u64>();
+        let epochs: u64 = self.fix_epochs.iter().map(|t| t.epochs).sum();
         let mut m = format!("no GNSS fix in {}", self.input);
-        if epochs == 0 && nmea == 0 {
+        if epochs == 0 {
             m.push_str(
                 ": the stream holds no position message navsync reads \
                  (UBX NAV-PVT, NAV-SOL, NAV-POSLLH, NAV-HPPOSLLH or NMEA GGA)",
@@ -190,7 +186,7 @@ impl ConvertSummary {
             return Some(m);
         }
         let mut parts = Vec::new();
-        for t in &self.ubx_epochs {
+        for t in &self.fix_epochs {
             for d in &t.dropped {
                 parts.push(format!(
                     "{} {} epochs: {}{}",
@@ -203,11 +199,6 @@ impl ConvertSummary {
                         .unwrap_or_default()
                 ));
             }
-        }
-        if nmea > 0 {
-            parts.push(format!(
-                "{nmea} NMEA GGA sentences gave no fix (see the problems listed)"
-            ));
         }
         if !parts.is_empty() {
             m.push_str(": ");
@@ -544,7 +535,7 @@ impl StreamConverter {
         self.ubx_epochs.finish(&self.ctx, &mut self.ubx_out);
         self.take_ubx_outcomes(input, &mut s.diagnostics);
         s.ubx_high_precision_positions = self.ubx_hp;
-        s.ubx_epochs = self
+        s.fix_epochs = self
             .ubx_tally
             .iter()
             .map(|(src, (epochs, fixes, drops))| EpochTally {
@@ -565,12 +556,53 @@ impl StreamConverter {
         self.esf.finish();
         self.esf_raw.finish();
         let mut nmea_fixes = Vec::new();
+        let (mut gga_epochs, mut nmea_drops) = (0u64, BTreeMap::<NmeaDrop, u64>::new());
+        let mut nmea_problems = 0u64;
         for o in std::mem::take(&mut self.nmea_out) {
             match o {
-                NmeaOutcome::Fix(f) => nmea_fixes.push(f),
-                NmeaOutcome::NoFix { .. } => {}
-                NmeaOutcome::Problem(p) => s.diagnostics.push(input, 0, p),
+                NmeaOutcome::Fix(f) => {
+                    gga_epochs += 1;
+                    nmea_fixes.push(f);
+                }
+                NmeaOutcome::NoFix {
+                    reason: NmeaDrop::NoGga,
+                    ..
+                } => {}
+                NmeaOutcome::NoFix { reason, .. } => {
+                    gga_epochs += 1;
+                    *nmea_drops.entry(reason).or_default() += 1;
+                }
+                NmeaOutcome::Problem(p) => {
+                    gga_epochs += 1;
+                    nmea_problems += 1;
+                    s.diagnostics.push(input, 0, p);
+                }
             }
+        }
+        if gga_epochs > 0 {
+            let mut dropped: Vec<DropTally> = nmea_drops
+                .iter()
+                .map(|(r, n)| DropTally {
+                    reason: r.describe(),
+                    epochs: *n,
+                    kept_by: None,
+                })
+                .collect();
+            if nmea_problems > 0 {
+                dropped.push(DropTally {
+                    reason:
+                        "GGA unusable (no time, date or altitude: each one in the problems listed)"
+                            .into(),
+                    epochs: nmea_problems,
+                    kept_by: None,
+                });
+            }
+            s.fix_epochs.push(EpochTally {
+                source: "NMEA GGA".into(),
+                epochs: gga_epochs,
+                fixes: nmea_fixes.len() as u64,
+                dropped,
+            });
         }
         let use_ubx = match self.opts.gnss_source {
             GnssSource::Ubx => true,

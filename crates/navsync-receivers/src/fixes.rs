@@ -550,11 +550,46 @@ pub struct NmeaFixes {
 #[derive(Clone, Debug, PartialEq)]
 pub enum NmeaOutcome {
     Fix(ReceiverFix),
-    /// No usable position (quality 0, empty fields, no GGA).
+    /// No usable position, and why.
     NoFix {
         tod: TimeOfDayNs,
+        reason: NmeaDrop,
     },
+    /// A GGA that could not be used (no time, date or altitude…), said in
+    /// a sentence for the diagnostics.
     Problem(String),
+}
+
+/// Why an NMEA epoch gave no fix although nothing was wrong with it.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum NmeaDrop {
+    /// Sentences of one time (RMC, GST, ZDA) without a GGA: not a position
+    /// epoch.
+    NoGga,
+    /// GGA fix quality other than 1..=5 (NMEA 0183 GGA field 6: 0 invalid,
+    /// 6 estimated/dead reckoning, 7 manual input, 8 simulation).
+    Quality(u8),
+    /// GGA with a valid quality but empty latitude or longitude.
+    NoPosition,
+}
+
+impl NmeaDrop {
+    pub fn describe(&self) -> String {
+        match self {
+            NmeaDrop::NoGga => "no GGA sentence in the epoch".into(),
+            NmeaDrop::Quality(q) => format!(
+                "GGA fix quality {q} ({})",
+                match q {
+                    0 => "invalid: no fix",
+                    6 => "estimated (dead reckoning)",
+                    7 => "manual input",
+                    8 => "simulation",
+                    _ => "not a fix",
+                }
+            ),
+            NmeaDrop::NoPosition => "GGA without latitude or longitude".into(),
+        }
+    }
 }
 
 impl NmeaFixes {
@@ -635,15 +670,16 @@ impl NmeaFixes {
     }
 
     fn epoch_fix(&mut self, e: &NmeaEpoch, ctx: &TimeContext) -> NmeaOutcome {
+        let no_fix = |reason| NmeaOutcome::NoFix { tod: e.tod, reason };
         let Some(g) = &e.gga else {
-            return NmeaOutcome::NoFix { tod: e.tod };
+            return no_fix(NmeaDrop::NoGga);
         };
-        let (Some(lat), Some(lon)) = (g.lat_deg, g.lon_deg) else {
-            return NmeaOutcome::NoFix { tod: e.tod };
-        };
-        if !g.has_fix() {
-            return NmeaOutcome::NoFix { tod: e.tod };
+        if !(1..=5).contains(&g.quality) {
+            return no_fix(NmeaDrop::Quality(g.quality));
         }
+        let (Some(lat), Some(lon)) = (g.lat_deg, g.lon_deg) else {
+            return no_fix(NmeaDrop::NoPosition);
+        };
         // NMEA 0183 GGA field 9 is the antenna altitude above mean sea
         // level (geoid), field 11 the geoid separation; when a receiver
         // leaves field 11 empty, EGM96 gives it (as gpsd does).
@@ -666,7 +702,10 @@ impl NmeaFixes {
             }
         };
         let Some(date) = e.date else {
-            return NmeaOutcome::NoFix { tod: e.tod };
+            return NmeaOutcome::Problem(format!(
+                "GGA at {} s of day: no date; skipped",
+                e.tod as f64 * 1e-9
+            ));
         };
         let utc = UtcTime::from_date_tod(date.year, date.month, date.day, e.tod);
         if !utc.is_valid() {

@@ -338,7 +338,7 @@ fn every_dropped_epoch_is_counted_by_reason_with_the_option_that_keeps_it() {
     let (s, out) = run("drops", &mixed_drop_stream(), &ConvertOptions::default());
     assert_eq!(s.gnss_fixes, 3);
     assert_eq!(s.gnss_source, "UBX NAV-PVT");
-    let pvt = &s.ubx_epochs[0];
+    let pvt = &s.fix_epochs[0];
     assert_eq!(
         (pvt.source.as_str(), pvt.epochs, pvt.fixes),
         ("UBX NAV-PVT", 10, 3)
@@ -360,7 +360,7 @@ fn every_dropped_epoch_is_counted_by_reason_with_the_option_that_keeps_it() {
             ),
         ]
     );
-    let old = &s.ubx_epochs[1];
+    let old = &s.fix_epochs[1];
     assert_eq!((old.epochs, old.fixes), (2, 0));
     assert_eq!(old.dropped[0].reason, "fix type 0 (no fix)");
     assert!(
@@ -489,8 +489,8 @@ fn shared_m8t_timing_log_is_time_only_and_says_so() {
     )
     .unwrap();
     assert_eq!(s.gnss_fixes, 0);
-    assert_eq!(s.ubx_epochs[0].epochs, 151);
-    assert_eq!(s.ubx_epochs[0].dropped[0].reason, "fix type 5 (time only)");
+    assert_eq!(s.fix_epochs[0].epochs, 151);
+    assert_eq!(s.fix_epochs[0].dropped[0].reason, "fix type 5 (time only)");
     assert_eq!(s.pps, 152); // its PPS events are still written
     assert!(
         s.no_fix_message()
@@ -580,4 +580,85 @@ fn gga_without_geoid_separation_gets_egm96() {
         assert!((-20.0..-19.7).contains(&n), "{n}");
         assert!((1.0..2.0).contains(&(y[2] - x[2])));
     }
+}
+
+#[test]
+fn nmea_epochs_without_a_fix_are_counted_by_reason() {
+    use navsync_receivers::nmea::{Date, Gga, Rmc};
+    // (quality, position given, altitude given) per 1 s epoch.
+    let epochs = [
+        (1, true, true),
+        (0, false, true),
+        (1, true, true),
+        (6, true, true),
+        (0, false, true),
+        (4, true, false),
+        (2, true, true),
+    ];
+    let mut s = String::new();
+    for (k, (quality, pos, alt)) in epochs.into_iter().enumerate() {
+        let tod = Some((3600 + k as i64) * 1_000_000_000);
+        let rmc = Rmc {
+            talker: "GN".into(),
+            time_of_day_ns: tod,
+            date: Some(Date {
+                year: 2025,
+                month: 3,
+                day: 14,
+            }),
+            valid: quality > 0,
+            lat_deg: None,
+            lon_deg: None,
+            speed_knots: None,
+            course_deg: None,
+        };
+        let gga = Gga {
+            talker: "GN".into(),
+            time_of_day_ns: tod,
+            lat_deg: pos.then_some(LAT),
+            lon_deg: pos.then_some(LON),
+            quality,
+            num_sv: Some(8),
+            hdop: Some(1.0),
+            alt_msl_m: alt.then_some(1130.0),
+            geoid_sep_m: Some(-21.35),
+        };
+        s.push_str(&rmc.to_sentence());
+        s.push_str(&gga.to_sentence());
+    }
+    let dir = tmp("nmea-drops");
+    let input = dir.join("in.nmea");
+    std::fs::write(&input, s).unwrap();
+    let sum = convert(
+        InputFormat::Nmea,
+        &input,
+        &dir.join("out"),
+        &ConvertOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(sum.gnss_fixes, 3);
+    let t = &sum.fix_epochs[0];
+    assert_eq!((t.source.as_str(), t.epochs, t.fixes), ("NMEA GGA", 7, 3));
+    let d: Vec<(&str, u64)> = t
+        .dropped
+        .iter()
+        .map(|d| (d.reason.as_str(), d.epochs))
+        .collect();
+    assert_eq!(
+        d,
+        [
+            ("GGA fix quality 0 (invalid: no fix)", 2),
+            ("GGA fix quality 6 (estimated (dead reckoning))", 1),
+            (
+                "GGA unusable (no time, date or altitude: each one in the problems listed)",
+                1
+            ),
+        ]
+    );
+    assert!(
+        sum.diagnostics
+            .items
+            .iter()
+            .any(|i| i.message.contains("lacks the altitude"))
+    );
 }

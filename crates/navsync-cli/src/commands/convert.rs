@@ -111,7 +111,7 @@ pub fn run(a: Args) -> Result<()> {
             println!("  {k:<28} {n}");
         }
     }
-    for t in &s.ubx_epochs {
+    for t in &s.fix_epochs {
         println!(
             "{}: {} epochs, {} gave a fix, {} dropped",
             t.source,
