@@ -1,16 +1,23 @@
 //! Fuzzes the mixed-stream reader with UBX-heavy input: raw bytes, and
-//! checksum-correct frames of the six decoded messages (so the payload
-//! decoders are reached) spliced with raw bytes.
+//! checksum-correct frames of the eleven decoded messages (so the payload
+//! decoders and the NAV epoch combiner are reached) and CRC-correct RTCM3
+//! frames, spliced with raw bytes.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use navsync_receivers::rtcm3;
 use navsync_receivers::ubx::encode_frame;
 
 #[path = "common.rs"]
 mod common;
 
-const IDS: [(u8, u8); 8] = [
+const IDS: [(u8, u8); 13] = [
     (0x01, 0x07),
+    (0x01, 0x06),
+    (0x01, 0x02),
+    (0x01, 0x14),
+    (0x01, 0x12),
+    (0x01, 0x03),
     (0x01, 0x20),
     (0x0D, 0x01),
     (0x0D, 0x03),
@@ -32,10 +39,13 @@ fuzz_target!(|data: &[u8]| {
         // [selector, len, payload…, garbage_len, garbage…]*
         let mut i = 0;
         while i + 2 <= rest.len() {
-            let (class, id) = IDS[rest[i] as usize % IDS.len()];
+            let sel = rest[i] as usize % (IDS.len() + 1);
             let len = (rest[i + 1] as usize).min(rest.len() - i - 2);
             let payload = &rest[i + 2..i + 2 + len];
-            stream.extend(encode_frame(class, id, payload).unwrap());
+            match IDS.get(sel) {
+                Some(&(class, id)) => stream.extend(encode_frame(class, id, payload).unwrap()),
+                None => stream.extend(rtcm3::encode_frame(payload).unwrap()),
+            }
             i += 2 + len;
             if let Some(&g) = rest.get(i) {
                 let g = (g as usize % 8).min(rest.len() - i - 1);

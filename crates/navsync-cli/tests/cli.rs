@@ -461,3 +461,92 @@ fn receiver_time_marks_check_hardware_sync_and_replace_the_gnss_envelope() {
     let env = sync("sw_env", &["--sync", "sw"]);
     assert!(f(&env["truth"]["mean_us"]) < -50_000.0, "{}", env["truth"]);
 }
+
+/// Issue 17: `convert` prints the dropped UBX epochs by reason with the
+/// option that keeps them, and a stream with no fix exits non-zero with a
+/// plain message (`--allow-no-fix` accepts it).
+#[test]
+fn convert_counts_dropped_epochs_and_fails_without_a_fix() {
+    let dir = temp_dir("convert-nofix");
+    // The shared NEO-M8T timing log: NAV-POSLLH + NAV-STATUS epochs, all
+    // "time only" (fix type 5), and TIM-TP pulses.
+    let log = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/gpsd-ublox/u-blox-m8t-time.log");
+    assert!(log.exists(), "{} missing", log.display());
+    let out = dir.join("out");
+    let (ok, stdout, stderr) = run(bin()
+        .args(["convert", "--from", "ubx"])
+        .arg(&log)
+        .arg("--output")
+        .arg(&out));
+    assert!(!ok, "{stdout}");
+    assert!(
+        stdout.contains("UBX NAV-SOL/POSLLH/VELNED/STATUS: 151 epochs, 0 gave a fix, 151 dropped"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("151  fix type 5 (time only)"), "{stdout}");
+    assert!(
+        stderr.contains("navsync: error: no GNSS fix in")
+            && stderr.contains("--allow-no-fix")
+            && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    // What could be written still is (the PPS events), and the option
+    // accepts the stream.
+    assert!(out.join("events.rig").exists() && out.join("summary.json").exists());
+    let (ok, _, stderr) = run(bin()
+        .args(["convert", "--from", "ubx", "--allow-no-fix"])
+        .arg(&log)
+        .arg("--output")
+        .arg(&out));
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("note: no GNSS fix"), "{stderr}");
+
+    // 3D epochs with gnssFixOK = 0 name the option that keeps them.
+    let mut s = Vec::new();
+    for k in 1..=4u32 {
+        let mut p = navsync_receivers::ubx::NavPvt::decode(&[0; 92]).unwrap();
+        p.itow_ms = k * 1000;
+        p.fix_type = 3;
+        p.flags = u8::from(k == 4); // only the last one is gnssFixOK
+        p.lat_e7 = 300_000_000;
+        p.height_mm = 20_000;
+        let tg = navsync_receivers::ubx::NavTimeGps {
+            itow_ms: k * 1000,
+            ftow_ns: 0,
+            week: 2300,
+            leap_s: 18,
+            valid: 7,
+            t_acc_ns: 10,
+        };
+        for m in [
+            navsync_receivers::ubx::UbxMessage::NavTimeGps(tg),
+            navsync_receivers::ubx::UbxMessage::NavPvt(p),
+        ] {
+            s.extend(m.to_frame().unwrap());
+        }
+    }
+    let input = dir.join("pvt.ubx");
+    std::fs::write(&input, s).unwrap();
+    let (ok, stdout, stderr) = run(bin()
+        .args(["convert", "--from", "ubx"])
+        .arg(&input)
+        .arg("--output")
+        .arg(dir.join("pvt")));
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.contains("UBX NAV-PVT: 4 epochs, 1 gave a fix, 3 dropped"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("3  gnssFixOK = 0") && stdout.contains("[kept with --keep-fix-not-ok]"),
+        "{stdout}"
+    );
+    let (ok, stdout, _) = run(bin()
+        .args(["convert", "--from", "ubx", "--keep-fix-not-ok"])
+        .arg(&input)
+        .arg("--output")
+        .arg(dir.join("pvt-kept")));
+    assert!(ok);
+    assert!(stdout.contains("gnss.txt: 4 fixes"), "{stdout}");
+}

@@ -13,7 +13,9 @@
 //!   its header): a receiver stream has no logger counter.
 //! - `gnss_receipt.txt` (comma2k19): each fix's GPS time and boot time of
 //!   receipt, to study latency.
-//! - `summary.json`: counts, stream statistics and every reported problem.
+//! - `summary.json`: counts, stream statistics, every navigation epoch
+//!   (UBX or NMEA GGA) that gave no fix counted by reason (`fix_epochs`),
+//!   and every reported problem.
 
 use std::collections::BTreeMap;
 use std::io::Read;
@@ -28,7 +30,10 @@ use navsync::io::text::{
 };
 use navsync::time::GpsTime;
 
-use crate::fixes::{FixOptions, NmeaFixes, NmeaOutcome, ReceiverFix, TimeContext, nav_pvt_fix};
+use crate::fixes::{
+    DropReason, FixOptions, NmeaDrop, NmeaFixes, NmeaOutcome, ReceiverFix, TimeContext, UbxEpochs,
+    UbxFixSource, UbxOutcome, nav_pvt_fix,
+};
 use crate::gnsstime::{LeapSource, UtcTime, utc_to_gps};
 use crate::imu::{EsfImu, RateIssue, RateSample, RateToIncrement};
 use crate::marks::{Edge, QErrCorrector, TimeMarks, pps_edge_gps};
@@ -51,7 +56,8 @@ pub enum InputFormat {
 /// Which fixes go into `gnss.txt` when a stream holds both kinds.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub enum GnssSource {
-    /// NAV-PVT when the stream has NAV-PVT fixes, else NMEA.
+    /// UBX (NAV-PVT, or NAV-SOL/POSLLH/VELNED epochs) when the stream has
+    /// UBX fixes, else NMEA.
     #[default]
     Auto,
     Ubx,
@@ -101,6 +107,29 @@ pub struct SensorClock {
     pub gps_span_s: f64,
 }
 
+/// Navigation epochs of one source and what became of them.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct EpochTally {
+    /// The messages the epochs came from (`UBX NAV-PVT`,
+    /// `UBX NAV-SOL/POSLLH/VELNED/STATUS`, `NMEA GGA`).
+    pub source: String,
+    pub epochs: u64,
+    /// Epochs that gave a fix (before the time-order check and the choice
+    /// of source for gnss.txt).
+    pub fixes: u64,
+    /// Epochs that gave none, by reason.
+    pub dropped: Vec<DropTally>,
+}
+
+/// Epochs dropped for one reason.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct DropTally {
+    pub reason: String,
+    pub epochs: u64,
+    /// The `navsync convert` option that keeps them, when one does.
+    pub kept_by: Option<String>,
+}
+
 /// What a conversion did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ConvertSummary {
@@ -115,6 +144,16 @@ pub struct ConvertSummary {
     pub gnss_columns: usize,
     pub gnss_source: String,
     pub gnss_default_sd: usize,
+    /// Navigation epochs by source (UBX NAV-PVT, the older UBX set, NMEA
+    /// GGA), with every epoch that gave no fix counted by reason.
+    pub fix_epochs: Vec<EpochTally>,
+    /// UBX fixes whose position came from NAV-HPPOSLLH.
+    pub ubx_high_precision_positions: usize,
+    /// Fixes (in gnss.txt) whose ellipsoidal height needed the geoid model
+    /// (NMEA GGA without a geoid separation).
+    pub geoid_model_heights: usize,
+    /// The geoid model, when it was used.
+    pub geoid_model: Option<String>,
     pub leap_source: Option<LeapSource>,
     pub imu_samples: usize,
     pub imu_time_axis: String,
@@ -126,6 +165,47 @@ pub struct ConvertSummary {
     pub strobes: usize,
     pub files: Vec<String>,
     pub diagnostics: Diagnostics,
+}
+
+impl ConvertSummary {
+    /// For a receiver stream or fix file that gave no fix, a plain
+    /// sentence saying so and why (the drop reasons, or that no position
+    /// message was found); `None` when there are fixes or the input is not
+    /// a fix source (rate CSV).
+    pub fn no_fix_message(&self) -> Option<String> {
+        if self.gnss_fixes > 0 || self.format == Some(InputFormat::RateCsv) {
+            return None;
+        }
+        let epochs: u64 = self.fix_epochs.iter().map(|t| t.epochs).sum();
+        let mut m = format!("no GNSS fix in {}", self.input);
+        if epochs == 0 {
+            m.push_str(
+                ": the stream holds no position message navsync reads \
+                 (UBX NAV-PVT, NAV-SOL, NAV-POSLLH, NAV-HPPOSLLH or NMEA GGA)",
+            );
+            return Some(m);
+        }
+        let mut parts = Vec::new();
+        for t in &self.fix_epochs {
+            for d in &t.dropped {
+                parts.push(format!(
+                    "{} {} epochs: {}{}",
+                    d.epochs,
+                    t.source,
+                    d.reason,
+                    d.kept_by
+                        .as_ref()
+                        .map(|o| format!(" (kept with {o})"))
+                        .unwrap_or_default()
+                ));
+            }
+        }
+        if !parts.is_empty() {
+            m.push_str(": ");
+            m.push_str(&parts.join("; "));
+        }
+        Some(m)
+    }
 }
 
 /// Converts `input` of `format` into files in `out_dir` (created if
@@ -245,7 +325,12 @@ fn convert_stream(
 struct StreamConverter {
     opts: ConvertOptions,
     ctx: TimeContext,
+    ubx_epochs: UbxEpochs,
+    ubx_out: Vec<UbxOutcome>,
     ubx_fixes: Vec<ReceiverFix>,
+    /// Per source: epochs, fixes, drops by reason.
+    ubx_tally: BTreeMap<UbxFixSource, (u64, u64, BTreeMap<DropReason, u64>)>,
+    ubx_hp: usize,
     nmea: NmeaFixes,
     nmea_out: Vec<NmeaOutcome>,
     esf: EsfImu,
@@ -273,7 +358,11 @@ impl StreamConverter {
         StreamConverter {
             opts: *opts,
             ctx: TimeContext::default(),
+            ubx_epochs: UbxEpochs::new(opts.fix),
+            ubx_out: Vec::new(),
             ubx_fixes: Vec::new(),
+            ubx_tally: BTreeMap::new(),
+            ubx_hp: 0,
             nmea: NmeaFixes::new(opts.fix),
             nmea_out: Vec::new(),
             esf,
@@ -321,6 +410,12 @@ impl StreamConverter {
             EventKind::Corrupt(_) => "corrupt runs".to_string(),
         };
         *s.frames.entry(key).or_default() += 1;
+        if let EventKind::Ubx(m) = kind {
+            // Before the time context takes a NAV-TIMEGPS: it may close
+            // the previous epoch, whose week must not come from it.
+            self.ubx_epochs.push(m, &self.ctx, &mut self.ubx_out);
+            self.take_ubx_outcomes(file, diag);
+        }
         match kind {
             EventKind::Ubx(m) => match m {
                 UbxMessage::NavTimeGps(t) => {
@@ -329,14 +424,18 @@ impl StreamConverter {
                         self.note_fix_time(GpsTime::from_ns(ns));
                     }
                 }
-                UbxMessage::NavPvt(p) => match nav_pvt_fix(p, &self.ctx) {
-                    Ok(Some(f)) => {
+                UbxMessage::NavPvt(p) => {
+                    // The fix itself comes when its epoch closes; its time
+                    // is noted on arrival for the sensor-clock check.
+                    if let Ok(Some(f)) = nav_pvt_fix(p, &self.ctx) {
                         self.note_fix_time(f.fix.time);
-                        self.ubx_fixes.push(f);
                     }
-                    Ok(None) => {}
-                    Err(e) => diag.push(file, 0, format!("byte {offset}: {e}; fix skipped")),
-                },
+                }
+                UbxMessage::NavSol(_)
+                | UbxMessage::NavPosLlh(_)
+                | UbxMessage::NavHpPosLlh(_)
+                | UbxMessage::NavVelNed(_)
+                | UbxMessage::NavStatus(_) => {}
                 UbxMessage::EsfMeas(m) => {
                     self.note_esf_tag(Some(m.time_tag));
                     self.esf.push_meas(m, &mut self.rates);
@@ -396,17 +495,114 @@ impl StreamConverter {
         }
     }
 
+    /// Fixes and drops of closed UBX epochs.
+    fn take_ubx_outcomes(&mut self, file: &Path, diag: &mut Diagnostics) {
+        for o in std::mem::take(&mut self.ubx_out) {
+            match o {
+                UbxOutcome::Fix {
+                    fix,
+                    source,
+                    high_precision,
+                } => {
+                    let t = self.ubx_tally.entry(source).or_default();
+                    t.0 += 1;
+                    t.1 += 1;
+                    self.ubx_hp += high_precision as usize;
+                    if source == UbxFixSource::Combined {
+                        self.note_fix_time(fix.fix.time);
+                    }
+                    self.ubx_fixes.push(fix);
+                }
+                UbxOutcome::Dropped {
+                    source,
+                    reason,
+                    detail,
+                    ..
+                } => {
+                    let t = self.ubx_tally.entry(source).or_default();
+                    t.0 += 1;
+                    *t.2.entry(reason).or_default() += 1;
+                    if let Some(d) = detail {
+                        // The detail names the epoch's iTOW.
+                        diag.push(file, 0, format!("{}: {d}; fix skipped", source.name()));
+                    }
+                }
+            }
+        }
+    }
+
     fn finish(mut self, input: &Path, out_dir: &Path, s: &mut ConvertSummary) -> Result<(), Error> {
+        self.ubx_epochs.finish(&self.ctx, &mut self.ubx_out);
+        self.take_ubx_outcomes(input, &mut s.diagnostics);
+        s.ubx_high_precision_positions = self.ubx_hp;
+        s.fix_epochs = self
+            .ubx_tally
+            .iter()
+            .map(|(src, (epochs, fixes, drops))| EpochTally {
+                source: src.name().to_string(),
+                epochs: *epochs,
+                fixes: *fixes,
+                dropped: drops
+                    .iter()
+                    .map(|(r, n)| DropTally {
+                        reason: r.describe(),
+                        epochs: *n,
+                        kept_by: r.kept_by().map(str::to_string),
+                    })
+                    .collect(),
+            })
+            .collect();
         self.nmea.finish(&self.ctx, &mut self.nmea_out);
         self.esf.finish();
         self.esf_raw.finish();
         let mut nmea_fixes = Vec::new();
+        let (mut gga_epochs, mut nmea_drops) = (0u64, BTreeMap::<NmeaDrop, u64>::new());
+        let mut nmea_problems = 0u64;
         for o in std::mem::take(&mut self.nmea_out) {
             match o {
-                NmeaOutcome::Fix(f) => nmea_fixes.push(f),
-                NmeaOutcome::NoFix { .. } => {}
-                NmeaOutcome::Problem(p) => s.diagnostics.push(input, 0, p),
+                NmeaOutcome::Fix(f) => {
+                    gga_epochs += 1;
+                    nmea_fixes.push(f);
+                }
+                NmeaOutcome::NoFix {
+                    reason: NmeaDrop::NoGga,
+                    ..
+                } => {}
+                NmeaOutcome::NoFix { reason, .. } => {
+                    gga_epochs += 1;
+                    *nmea_drops.entry(reason).or_default() += 1;
+                }
+                NmeaOutcome::Problem(p) => {
+                    gga_epochs += 1;
+                    nmea_problems += 1;
+                    s.diagnostics.push(input, 0, p);
+                }
             }
+        }
+        if gga_epochs > 0 {
+            let mut dropped: Vec<DropTally> = nmea_drops
+                .iter()
+                .map(|(r, n)| DropTally {
+                    reason: r.describe(),
+                    epochs: *n,
+                    kept_by: None,
+                })
+                .collect();
+            if nmea_problems > 0 {
+                dropped.push(DropTally {
+                    reason:
+                        "GGA unusable (no time, date or altitude: each one in the problems listed)"
+                            .into(),
+                    epochs: nmea_problems,
+                    kept_by: None,
+                });
+            }
+            s.fix_epochs.push(EpochTally {
+                source: "NMEA GGA".into(),
+                epochs: gga_epochs,
+                fixes: nmea_fixes.len() as u64,
+                dropped,
+            });
         }
         let use_ubx = match self.opts.gnss_source {
             GnssSource::Ubx => true,
@@ -414,13 +610,28 @@ impl StreamConverter {
             GnssSource::Auto => !self.ubx_fixes.is_empty(),
         };
         let (chosen, name) = if use_ubx {
-            (std::mem::take(&mut self.ubx_fixes), "UBX NAV-PVT")
+            let names: Vec<&str> = self
+                .ubx_tally
+                .iter()
+                .filter(|(_, t)| t.1 > 0)
+                .map(|(src, _)| src.name())
+                .collect();
+            let name = if names.is_empty() {
+                "UBX".to_string()
+            } else {
+                names.join(" + ")
+            };
+            (std::mem::take(&mut self.ubx_fixes), name)
         } else {
-            (nmea_fixes, "NMEA GGA (+GST, RMC/ZDA)")
+            (nmea_fixes, "NMEA GGA (+GST, RMC/ZDA)".to_string())
         };
-        s.gnss_source = name.to_string();
+        s.gnss_source = name;
         let chosen = monotonic(chosen, input, &mut s.diagnostics);
         s.gnss_default_sd = chosen.iter().filter(|f| f.default_sd).count();
+        s.geoid_model_heights = chosen.iter().filter(|f| f.geoid_from_model).count();
+        if s.geoid_model_heights > 0 {
+            s.geoid_model = Some(crate::geoid::EGM96_SOURCE.to_string());
+        }
         s.leap_source = chosen.iter().rev().find_map(|f| f.leap);
         if !chosen.is_empty() {
             let fixes: Vec<GnssFix> = chosen.iter().map(|f| f.fix).collect();
@@ -679,6 +890,7 @@ fn convert_comma_gnss(
             },
             leap: Some(LeapSource::Table),
             default_sd: true,
+            geoid_from_model: false,
         });
         receipts.push((t, f[0].to_vec()));
     }

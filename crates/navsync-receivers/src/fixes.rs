@@ -1,5 +1,7 @@
-//! GNSS fixes in GPS time from receiver messages: UBX NAV-PVT, or NMEA
-//! epochs (GGA position + GST standard deviations + RMC/ZDA date).
+//! GNSS fixes in GPS time from receiver messages: UBX NAV-PVT, older UBX
+//! epochs (NAV-SOL + NAV-POSLLH + NAV-VELNED + NAV-STATUS, gathered by
+//! iTOW), or NMEA epochs (GGA position + GST standard deviations + RMC/ZDA
+//! date). Every UBX epoch that gives no fix says why ([`DropReason`]).
 //!
 //! Time of validity is the message's own epoch, never its arrival:
 //! - NAV-PVT: iTOW is GPS time of week rounded to the ms; the exact epoch
@@ -13,13 +15,17 @@
 //!   when the stream gave them (NAV-TIMEGPS), else the table.
 
 use nalgebra::Vector3;
-use navsync::earth::Geodetic;
+use navsync::earth::{Geodetic, c_ne, ecef_to_geodetic};
 use navsync::filter::gnss::GnssFix;
 use navsync::time::{GpsTime, NS_PER_S, NS_PER_WEEK};
 
+use crate::geoid::Egm96Grid;
 use crate::gnsstime::{LeapSeconds, LeapSource, UtcTime};
 use crate::nmea::{Date, Gga, Gst, NmeaMessage, TimeOfDayNs};
-use crate::ubx::{NavPvt, NavTimeGps};
+use crate::ubx::{
+    NavHpPosLlh, NavPosLlh, NavPvt, NavSol, NavStatus, NavTimeGps, NavVelNed, UbxMessage,
+    fix_type_name,
+};
 
 /// Options for turning messages into fixes.
 #[derive(Copy, Clone, Debug)]
@@ -27,14 +33,86 @@ pub struct FixOptions {
     /// Standard deviations N, E, D (m) used when the stream gives none
     /// (NMEA without GST).
     pub default_sd_m: [f64; 3],
+    /// Keep UBX 3D epochs whose gnssFixOK (GPSfixOK) flag is 0: the
+    /// receiver computed them but they fail its DOP/accuracy masks. Their
+    /// own accuracy estimates are used as standard deviations.
+    pub keep_fix_not_ok: bool,
+    /// Keep UBX 2D fixes (fix type 2: height held by the receiver, not
+    /// measured), with the receiver's vertical accuracy estimate.
+    pub keep_2d: bool,
 }
 
 impl Default for FixOptions {
     fn default() -> Self {
         FixOptions {
             default_sd_m: [5.0, 5.0, 10.0],
+            keep_fix_not_ok: false,
+            keep_2d: false,
         }
     }
+}
+
+/// Why a UBX navigation epoch gave no fix.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub enum DropReason {
+    /// Fix type other than 3 (3D) or 4 (GNSS + dead reckoning); 2 (2D)
+    /// only without [`FixOptions::keep_2d`].
+    FixType(u8),
+    /// gnssFixOK (NAV-PVT) / GPSfixOK (NAV-SOL, NAV-STATUS) is 0.
+    FixNotOk,
+    /// NAV-PVT flags3 or NAV-HPPOSLLH flags: invalidLlh.
+    InvalidLlh,
+    /// NAV-POSLLH / NAV-VELNED without NAV-SOL or NAV-STATUS for the iTOW:
+    /// nothing says whether the receiver had a fix.
+    NoStatus,
+    /// A fix status but no position (NAV-STATUS alone).
+    NoPosition,
+    /// The GPS week is unknown (no valid UTC date, NAV-SOL week or
+    /// NAV-TIMEGPS yet).
+    NoTime,
+}
+
+impl DropReason {
+    /// What the reason means, for the summary and the screen.
+    pub fn describe(&self) -> String {
+        match self {
+            DropReason::FixType(t) => format!("fix type {t} ({})", fix_type_name(*t)),
+            DropReason::FixNotOk => {
+                "gnssFixOK = 0 (3D solution outside the receiver's DOP/accuracy masks)".into()
+            }
+            DropReason::InvalidLlh => "invalidLlh set (position flagged invalid)".into(),
+            DropReason::NoStatus => {
+                "position without NAV-SOL or NAV-STATUS for its iTOW (fix status unknown)".into()
+            }
+            DropReason::NoPosition => "fix status without a position message".into(),
+            DropReason::NoTime => {
+                "GPS week unknown (no valid date, NAV-SOL week or NAV-TIMEGPS)".into()
+            }
+        }
+    }
+
+    /// The `navsync convert` option that keeps such epochs, if one does.
+    pub fn kept_by(&self) -> Option<&'static str> {
+        match self {
+            DropReason::FixType(2) => Some("--keep-2d"),
+            DropReason::FixNotOk => Some("--keep-fix-not-ok"),
+            _ => None,
+        }
+    }
+}
+
+/// Whether a UBX fix status gives a fix under `opts` (fix type first: it
+/// is the more telling reason when both fail).
+fn check_status(fix_type: u8, fix_ok: bool, opts: &FixOptions) -> Result<(), DropReason> {
+    match fix_type {
+        3 | 4 => {}
+        2 if opts.keep_2d => {}
+        t => return Err(DropReason::FixType(t)),
+    }
+    if !fix_ok && !opts.keep_fix_not_ok {
+        return Err(DropReason::FixNotOk);
+    }
+    Ok(())
 }
 
 /// A fix and where its parts came from.
@@ -44,6 +122,10 @@ pub struct ReceiverFix {
     pub leap: Option<LeapSource>,
     /// Standard deviations were the configured defaults.
     pub default_sd: bool,
+    /// The ellipsoidal height used the EGM96 geoid model
+    /// ([`crate::geoid`]): the message gave height above mean sea level
+    /// without the geoid separation.
+    pub geoid_from_model: bool,
 }
 
 /// The GPS week and leap seconds a stream has told so far.
@@ -52,6 +134,8 @@ pub struct TimeContext {
     pub leap: LeapSeconds,
     /// Last NAV-TIMEGPS with a valid week: (week, iTOW ms).
     week: Option<(i64, u32)>,
+    /// Last NAV-TIMEGPS with a valid TOW: (iTOW ms, fTOW ns).
+    ftow: Option<(u32, i32)>,
 }
 
 impl TimeContext {
@@ -59,8 +143,19 @@ impl TimeContext {
         if t.leap_valid() {
             self.leap.set_from_receiver(t.leap_s as i32);
         }
-        if t.week_valid() {
+        if t.week_valid() && (0..=MAX_GPS_WEEK).contains(&t.week) {
             self.week = Some((t.week as i64, t.itow_ms));
+        }
+        if t.tow_valid() {
+            self.ftow = Some((t.itow_ms, t.ftow_ns));
+        }
+    }
+
+    /// fTOW (ns) of the NAV-TIMEGPS of this iTOW, 0 when there was none.
+    fn ftow_for(&self, itow_ms: u32) -> i64 {
+        match self.ftow {
+            Some((i, f)) if i == itow_ms => f as i64,
+            _ => 0,
         }
     }
 
@@ -133,15 +228,30 @@ pub fn nav_pvt_time(
 /// axis (u-blox gives accuracy estimates, not covariances; using hAcc per
 /// axis is the conservative reading, as the ROS u-blox drivers do).
 pub fn nav_pvt_fix(p: &NavPvt, ctx: &TimeContext) -> Result<Option<ReceiverFix>, String> {
-    if !p.gnss_fix_ok() || !matches!(p.fix_type, 3 | 4) || p.invalid_llh() {
-        return Ok(None);
+    match nav_pvt_epoch(p, ctx, &FixOptions::default()) {
+        Ok(f) => Ok(Some(f)),
+        Err((DropReason::NoTime, Some(e))) => Err(e),
+        Err(_) => Ok(None),
     }
-    let (time, leap) = nav_pvt_time(p, ctx)?;
+}
+
+/// [`nav_pvt_fix`] under `opts`, with the reason when the epoch gives no
+/// fix (and, for [`DropReason::NoTime`], what was wrong with its time).
+pub fn nav_pvt_epoch(
+    p: &NavPvt,
+    ctx: &TimeContext,
+    opts: &FixOptions,
+) -> Result<ReceiverFix, (DropReason, Option<String>)> {
+    check_status(p.fix_type, p.gnss_fix_ok(), opts).map_err(|r| (r, None))?;
+    if p.invalid_llh() {
+        return Err((DropReason::InvalidLlh, None));
+    }
+    let (time, leap) = nav_pvt_time(p, ctx).map_err(|e| (DropReason::NoTime, Some(e)))?;
     let h = p.h_acc_m();
     let v = p.v_acc_m();
     let s = p.s_acc_mps();
     let vel = p.vel_ned_mps();
-    Ok(Some(ReceiverFix {
+    Ok(ReceiverFix {
         fix: GnssFix {
             time,
             pos: Geodetic::from_deg(p.lat_deg(), p.lon_deg(), p.height_m()),
@@ -151,7 +261,266 @@ pub fn nav_pvt_fix(p: &NavPvt, ctx: &TimeContext) -> Result<Option<ReceiverFix>,
         },
         leap,
         default_sd: false,
-    }))
+        geoid_from_model: false,
+    })
+}
+
+// ------------------------------------------------------------ UBX epochs
+
+/// Largest GPS week taken from a message (year 2171).
+const MAX_GPS_WEEK: i16 = 10_000;
+
+/// Which messages an epoch's fix came from.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub enum UbxFixSource {
+    /// NAV-PVT (position refined by NAV-HPPOSLLH of the same iTOW).
+    NavPvt,
+    /// NAV-SOL / NAV-POSLLH / NAV-HPPOSLLH / NAV-VELNED / NAV-STATUS of
+    /// one iTOW, where the stream has no NAV-PVT for it.
+    Combined,
+}
+
+impl UbxFixSource {
+    pub fn name(&self) -> &'static str {
+        match self {
+            UbxFixSource::NavPvt => "UBX NAV-PVT",
+            UbxFixSource::Combined => "UBX NAV-SOL/POSLLH/VELNED/STATUS",
+        }
+    }
+}
+
+/// What became of one UBX navigation epoch.
+#[derive(Clone, Debug, PartialEq)]
+pub enum UbxOutcome {
+    Fix {
+        fix: ReceiverFix,
+        source: UbxFixSource,
+        /// The position came from NAV-HPPOSLLH.
+        high_precision: bool,
+    },
+    Dropped {
+        itow_ms: u32,
+        source: UbxFixSource,
+        reason: DropReason,
+        /// More about it (a time inconsistency), for diagnostics.
+        detail: Option<String>,
+    },
+}
+
+/// The navigation messages of one iTOW.
+#[derive(Clone, Debug, Default)]
+struct UbxEpoch {
+    itow_ms: u32,
+    pvt: Option<NavPvt>,
+    sol: Option<NavSol>,
+    posllh: Option<NavPosLlh>,
+    hp: Option<NavHpPosLlh>,
+    velned: Option<NavVelNed>,
+    status: Option<NavStatus>,
+}
+
+/// Gathers UBX navigation messages by iTOW into epochs and turns each into
+/// a fix or a counted drop. A u-blox receiver sends all navigation
+/// messages of an epoch together, each carrying the epoch's iTOW ([M8]
+/// "Navigation epochs" and "iTOW timestamps"), so an epoch
+/// closes when a message of another iTOW arrives (NAV-TIMEGPS included:
+/// push it here before [`TimeContext::push_timegps`]), or at
+/// [`UbxEpochs::finish`].
+#[derive(Clone, Debug, Default)]
+pub struct UbxEpochs {
+    cur: Option<UbxEpoch>,
+    opts: FixOptions,
+}
+
+impl UbxEpochs {
+    pub fn new(opts: FixOptions) -> Self {
+        UbxEpochs { cur: None, opts }
+    }
+
+    /// Takes a message; epochs closed by it go to `out`. Messages without
+    /// navigation content are ignored.
+    pub fn push(&mut self, m: &UbxMessage, ctx: &TimeContext, out: &mut Vec<UbxOutcome>) {
+        let itow = match m {
+            UbxMessage::NavPvt(p) => p.itow_ms,
+            UbxMessage::NavSol(p) => p.itow_ms,
+            UbxMessage::NavPosLlh(p) => p.itow_ms,
+            UbxMessage::NavHpPosLlh(p) => p.itow_ms,
+            UbxMessage::NavVelNed(p) => p.itow_ms,
+            UbxMessage::NavStatus(p) => p.itow_ms,
+            UbxMessage::NavTimeGps(t) => {
+                if self.cur.as_ref().is_some_and(|e| e.itow_ms != t.itow_ms) {
+                    self.close(ctx, out);
+                }
+                return;
+            }
+            _ => return,
+        };
+        if self.cur.as_ref().is_some_and(|e| e.itow_ms != itow) {
+            self.close(ctx, out);
+        }
+        let e = self.cur.get_or_insert_with(|| UbxEpoch {
+            itow_ms: itow,
+            ..Default::default()
+        });
+        match m {
+            UbxMessage::NavPvt(p) => e.pvt = Some(p.clone()),
+            UbxMessage::NavSol(p) => e.sol = Some(p.clone()),
+            UbxMessage::NavPosLlh(p) => e.posllh = Some(p.clone()),
+            UbxMessage::NavHpPosLlh(p) => e.hp = Some(p.clone()),
+            UbxMessage::NavVelNed(p) => e.velned = Some(p.clone()),
+            UbxMessage::NavStatus(p) => e.status = Some(p.clone()),
+            _ => {}
+        }
+    }
+
+    /// Closes the open epoch.
+    pub fn finish(&mut self, ctx: &TimeContext, out: &mut Vec<UbxOutcome>) {
+        self.close(ctx, out);
+    }
+
+    fn close(&mut self, ctx: &TimeContext, out: &mut Vec<UbxOutcome>) {
+        let Some(e) = self.cur.take() else { return };
+        let hp = e.hp.as_ref().filter(|h| !h.invalid_llh());
+        if let Some(p) = &e.pvt {
+            let source = UbxFixSource::NavPvt;
+            out.push(match nav_pvt_epoch(p, ctx, &self.opts) {
+                Ok(mut fix) => {
+                    if let Some(h) = hp {
+                        fix.fix.pos = Geodetic::from_deg(h.lat_deg(), h.lon_deg(), h.height_m());
+                        fix.fix.pos_sd = Vector3::new(h.h_acc_m(), h.h_acc_m(), h.v_acc_m());
+                    }
+                    UbxOutcome::Fix {
+                        fix,
+                        source,
+                        high_precision: hp.is_some(),
+                    }
+                }
+                Err((reason, detail)) => UbxOutcome::Dropped {
+                    itow_ms: e.itow_ms,
+                    source,
+                    reason,
+                    detail,
+                },
+            });
+            return;
+        }
+        out.push(match self.combined(&e, hp, ctx) {
+            Ok((fix, high_precision)) => UbxOutcome::Fix {
+                fix,
+                source: UbxFixSource::Combined,
+                high_precision,
+            },
+            Err((reason, detail)) => UbxOutcome::Dropped {
+                itow_ms: e.itow_ms,
+                source: UbxFixSource::Combined,
+                reason,
+                detail,
+            },
+        });
+    }
+
+    /// A fix from the pre-NAV-PVT messages of one epoch: status from
+    /// NAV-SOL (else NAV-STATUS); position from NAV-HPPOSLLH, else
+    /// NAV-POSLLH (hAcc on N and E, vAcc down), else NAV-SOL's ECEF
+    /// position (pAcc, a 3D accuracy, on each axis); velocity from
+    /// NAV-VELNED, else NAV-SOL's ECEF velocity rotated to NED (sAcc on
+    /// each axis); time iTOW + fTOW of NAV-SOL's week when WKNSET and
+    /// TOWSET, else of the last NAV-TIMEGPS week.
+    fn combined(
+        &self,
+        e: &UbxEpoch,
+        hp: Option<&NavHpPosLlh>,
+        ctx: &TimeContext,
+    ) -> Result<(ReceiverFix, bool), (DropReason, Option<String>)> {
+        let status = match (&e.sol, &e.status) {
+            (Some(s), _) => Some((s.gps_fix, s.gps_fix_ok())),
+            (None, Some(s)) => Some((s.gps_fix, s.gps_fix_ok())),
+            (None, None) => None,
+        };
+        let Some((fix_type, fix_ok)) = status else {
+            return Err((DropReason::NoStatus, None));
+        };
+        check_status(fix_type, fix_ok, &self.opts).map_err(|r| (r, None))?;
+        if e.hp.is_some() && hp.is_none() && e.posllh.is_none() && e.sol.is_none() {
+            return Err((DropReason::InvalidLlh, None));
+        }
+        let (pos, pos_sd) = if let Some(h) = hp {
+            (
+                Geodetic::from_deg(h.lat_deg(), h.lon_deg(), h.height_m()),
+                Vector3::new(h.h_acc_m(), h.h_acc_m(), h.v_acc_m()),
+            )
+        } else if let Some(p) = &e.posllh {
+            (
+                Geodetic::from_deg(p.lat_deg(), p.lon_deg(), p.height_m()),
+                Vector3::new(p.h_acc_m(), p.h_acc_m(), p.v_acc_m()),
+            )
+        } else if let Some(s) = &e.sol {
+            let [x, y, z] = s.ecef_m();
+            let a = s.p_acc_m();
+            (
+                ecef_to_geodetic(&Vector3::new(x, y, z)),
+                Vector3::new(a, a, a),
+            )
+        } else {
+            return Err((DropReason::NoPosition, None));
+        };
+        let (vel, vel_sd) = if let Some(v) = &e.velned {
+            let [n, east, d] = v.vel_ned_mps();
+            let a = v.s_acc_mps();
+            (Some(Vector3::new(n, east, d)), Some(Vector3::new(a, a, a)))
+        } else if let Some(s) = &e.sol {
+            let [x, y, z] = s.ecef_vel_mps();
+            let a = s.s_acc_mps();
+            let ned = c_ne(&pos).transpose() * Vector3::new(x, y, z);
+            (Some(ned), Some(Vector3::new(a, a, a)))
+        } else {
+            (None, None)
+        };
+        let itow_ns = e.itow_ms as i64 * 1_000_000;
+        let time = match &e.sol {
+            Some(s) if s.week_and_tow_valid() => {
+                // GPS weeks stay far below 10000 (year 2171); larger or
+                // negative weeks are corrupt and would overflow the ns.
+                if !(0..=MAX_GPS_WEEK).contains(&s.week) {
+                    return Err((
+                        DropReason::NoTime,
+                        Some(format!(
+                            "NAV-SOL iTOW {} ms: week {} out of range",
+                            e.itow_ms, s.week
+                        )),
+                    ));
+                }
+                GpsTime::from_week_ns(s.week as i64, itow_ns + s.ftow_ns as i64)
+            }
+            _ => match ctx.week_for(e.itow_ms) {
+                Some(w) => GpsTime::from_week_ns(w, itow_ns + ctx.ftow_for(e.itow_ms)),
+                None => {
+                    return Err((
+                        DropReason::NoTime,
+                        Some(format!(
+                            "UBX epoch iTOW {} ms: no NAV-SOL week and no NAV-TIMEGPS week yet",
+                            e.itow_ms
+                        )),
+                    ));
+                }
+            },
+        };
+        Ok((
+            ReceiverFix {
+                fix: GnssFix {
+                    time,
+                    pos,
+                    pos_sd,
+                    vel,
+                    vel_sd,
+                },
+                leap: None,
+                default_sd: false,
+                geoid_from_model: false,
+            },
+            hp.is_some(),
+        ))
+    }
 }
 
 /// One NMEA epoch being gathered (sentences sharing a time of day).
@@ -173,17 +542,54 @@ pub struct NmeaFixes {
     /// Epochs seen before any date.
     undated: Vec<NmeaEpoch>,
     opts: FixOptions,
+    /// For GGA without a geoid separation.
+    geoid: Egm96Grid,
 }
 
 /// What happened to an NMEA epoch.
 #[derive(Clone, Debug, PartialEq)]
 pub enum NmeaOutcome {
     Fix(ReceiverFix),
-    /// No usable position (quality 0, empty fields, no GGA).
+    /// No usable position, and why.
     NoFix {
         tod: TimeOfDayNs,
+        reason: NmeaDrop,
     },
+    /// A GGA that could not be used (no time, date or altitude…), said in
+    /// a sentence for the diagnostics.
     Problem(String),
+}
+
+/// Why an NMEA epoch gave no fix although nothing was wrong with it.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum NmeaDrop {
+    /// Sentences of one time (RMC, GST, ZDA) without a GGA: not a position
+    /// epoch.
+    NoGga,
+    /// GGA fix quality other than 1..=5 (NMEA 0183 GGA field 6: 0 invalid,
+    /// 6 estimated/dead reckoning, 7 manual input, 8 simulation).
+    Quality(u8),
+    /// GGA with a valid quality but empty latitude or longitude.
+    NoPosition,
+}
+
+impl NmeaDrop {
+    pub fn describe(&self) -> String {
+        match self {
+            NmeaDrop::NoGga => "no GGA sentence in the epoch".into(),
+            NmeaDrop::Quality(q) => format!(
+                "GGA fix quality {q} ({})",
+                match q {
+                    0 => "invalid: no fix",
+                    6 => "estimated (dead reckoning)",
+                    7 => "manual input",
+                    8 => "simulation",
+                    _ => "not a fix",
+                }
+            ),
+            NmeaDrop::NoPosition => "GGA without latitude or longitude".into(),
+        }
+    }
 }
 
 impl NmeaFixes {
@@ -263,24 +669,43 @@ impl NmeaFixes {
         out.push(self.epoch_fix(&e, ctx));
     }
 
-    fn epoch_fix(&self, e: &NmeaEpoch, ctx: &TimeContext) -> NmeaOutcome {
+    fn epoch_fix(&mut self, e: &NmeaEpoch, ctx: &TimeContext) -> NmeaOutcome {
+        let no_fix = |reason| NmeaOutcome::NoFix { tod: e.tod, reason };
         let Some(g) = &e.gga else {
-            return NmeaOutcome::NoFix { tod: e.tod };
+            return no_fix(NmeaDrop::NoGga);
         };
-        let (Some(lat), Some(lon)) = (g.lat_deg, g.lon_deg) else {
-            return NmeaOutcome::NoFix { tod: e.tod };
-        };
-        if !g.has_fix() {
-            return NmeaOutcome::NoFix { tod: e.tod };
+        if !(1..=5).contains(&g.quality) {
+            return no_fix(NmeaDrop::Quality(g.quality));
         }
-        let Some(h) = g.ellipsoidal_height_m() else {
-            return NmeaOutcome::Problem(format!(
-                "GGA at {} s of day lacks altitude or geoid separation: no ellipsoidal height; skipped",
-                e.tod as f64 * 1e-9
-            ));
+        let (Some(lat), Some(lon)) = (g.lat_deg, g.lon_deg) else {
+            return no_fix(NmeaDrop::NoPosition);
+        };
+        // NMEA 0183 GGA field 9 is the antenna altitude above mean sea
+        // level (geoid), field 11 the geoid separation; when a receiver
+        // leaves field 11 empty, EGM96 gives it (as gpsd does).
+        let (h, geoid_from_model) = match (g.alt_msl_m, g.geoid_sep_m) {
+            (Some(a), Some(n)) => (a + n, false),
+            (Some(a), None) => match self.geoid.separation_m(lat, lon) {
+                Some(n) => (a + n, true),
+                None => {
+                    return NmeaOutcome::Problem(format!(
+                        "GGA at {} s of day: position {lat}, {lon} outside the geoid model; skipped",
+                        e.tod as f64 * 1e-9
+                    ));
+                }
+            },
+            (None, _) => {
+                return NmeaOutcome::Problem(format!(
+                    "GGA at {} s of day lacks the altitude: no height; skipped",
+                    e.tod as f64 * 1e-9
+                ));
+            }
         };
         let Some(date) = e.date else {
-            return NmeaOutcome::NoFix { tod: e.tod };
+            return NmeaOutcome::Problem(format!(
+                "GGA at {} s of day: no date; skipped",
+                e.tod as f64 * 1e-9
+            ));
         };
         let utc = UtcTime::from_date_tod(date.year, date.month, date.day, e.tod);
         if !utc.is_valid() {
@@ -305,6 +730,7 @@ impl NmeaFixes {
             },
             leap: Some(src),
             default_sd,
+            geoid_from_model,
         })
     }
 }

@@ -4,8 +4,10 @@
 //! - [`stream`]: incremental reader of mixed NMEA 0183 + u-blox UBX byte
 //!   streams (push bytes, get messages; every corrupt or unknown frame
 //!   reported with its offset).
-//! - [`ubx`], [`nmea`]: the messages (decoders and encoders).
+//! - [`ubx`], [`nmea`]: the messages (decoders and encoders); [`rtcm3`]:
+//!   RTCM 3 framing (frames recognised and skipped).
 //! - [`gnsstime`]: UTC ↔ GPS time with leap seconds.
+//! - [`geoid`]: EGM96 geoid separation for GGA without one.
 //! - [`fixes`]: GNSS fixes at their time of validity (NAV-PVT, NMEA epochs).
 //! - [`imu`]: ESF-MEAS/ESF-RAW and rate-form IMU data → increments.
 //! - [`marks`]: TIM-TM2 event stamps and TIM-TP qErr PPS correction.
@@ -16,10 +18,12 @@
 
 pub mod convert;
 pub mod fixes;
+pub mod geoid;
 pub mod gnsstime;
 pub mod imu;
 pub mod marks;
 pub mod nmea;
+pub mod rtcm3;
 pub mod stream;
 pub mod ubx;
 

@@ -7,16 +7,18 @@
 //! whole file, or blocks) and a live serial port (one push per `read`).
 //!
 //! Every byte of the stream ends up in exactly one event: a decoded message,
-//! an intact frame of a type navsync does not read ([`EventKind::Unknown`]),
+//! an intact frame of a type navsync does not read ([`EventKind::Unknown`],
+//! RTCM 3 correction frames among them: [`FrameId::Rtcm3`]),
 //! an intact frame whose content is wrong for its type
 //! ([`EventKind::Invalid`]), or a run of bytes that belong to no intact
 //! frame ([`EventKind::Corrupt`], with its offset, length and what was
 //! wrong with the first frame candidate in it). So nothing is lost
 //! silently and every corruption is reported.
 //!
-//! Resynchronization: a frame candidate starts at a UBX sync pair `B5 62` or
-//! at `$`. A candidate whose checksum (UBX Fletcher-8, [M8] §32.4; NMEA XOR,
-//! NMEA 0183 §5.2.1) or structure fails is abandoned and scanning resumes at
+//! Resynchronization: a frame candidate starts at a UBX sync pair `B5 62`,
+//! at `$`, or at an RTCM 3 preamble `D3` whose 6 reserved bits are zero. A
+//! candidate whose checksum (UBX Fletcher-8, [M8] §32.4; NMEA XOR, NMEA 0183
+//! §5.2.1; RTCM 3 CRC-24Q, RTCM 10403.x §4) or structure fails is abandoned and scanning resumes at
 //! its *second* byte, so an intact frame that a corrupted one seemed to
 //! cover (a corrupted length field) is still found.
 
@@ -24,6 +26,7 @@ use std::collections::VecDeque;
 use std::fmt;
 
 use crate::nmea::{self, NmeaMessage};
+use crate::rtcm3;
 use crate::ubx::{self, MsgId, UbxMessage};
 
 /// Limits that bound how long a candidate can make the reader wait.
@@ -53,6 +56,8 @@ pub enum FrameId {
     Ubx(MsgId),
     /// NMEA address field, e.g. `GNGSV` or `PUBX`.
     Nmea(String),
+    /// RTCM 3 frame and its message number (`None`: shorter than 2 bytes).
+    Rtcm3(Option<u16>),
 }
 
 impl fmt::Display for FrameId {
@@ -60,6 +65,8 @@ impl fmt::Display for FrameId {
         match self {
             FrameId::Ubx(id) => write!(f, "{id}"),
             FrameId::Nmea(a) => write!(f, "NMEA {a}"),
+            FrameId::Rtcm3(Some(n)) => write!(f, "RTCM3 {n}"),
+            FrameId::Rtcm3(None) => write!(f, "RTCM3 (empty)"),
         }
     }
 }
@@ -92,6 +99,11 @@ pub enum SkipReason {
     NmeaBadChecksumDigits,
     NmeaNoTerminator,
     NmeaTooLong,
+    Rtcm3Crc {
+        message_len: usize,
+        computed: u32,
+        found: u32,
+    },
     /// The stream ended inside a frame candidate.
     Truncated,
 }
@@ -131,6 +143,14 @@ impl fmt::Display for SkipReason {
             }
             SkipReason::NmeaNoTerminator => write!(f, "NMEA sentence not ended by CR LF"),
             SkipReason::NmeaTooLong => write!(f, "NMEA sentence longer than the limit"),
+            SkipReason::Rtcm3Crc {
+                message_len,
+                computed,
+                found,
+            } => write!(
+                f,
+                "RTCM3 frame ({message_len}-byte message): CRC-24Q {found:06X}, computed {computed:06X}"
+            ),
             SkipReason::Truncated => write!(f, "stream ends inside a frame"),
         }
     }
@@ -201,7 +221,10 @@ pub struct StreamStats {
     pub bytes: u64,
     pub ubx_messages: u64,
     pub nmea_messages: u64,
+    /// Intact frames of types navsync does not read (RTCM 3 included).
     pub unknown_frames: u64,
+    /// RTCM 3 frames (CRC-24Q right), skipped.
+    pub rtcm3_frames: u64,
     pub invalid_frames: u64,
     pub corrupt_runs: u64,
     pub corrupt_bytes: u64,
@@ -311,7 +334,12 @@ impl StreamReader {
                     match &kind {
                         EventKind::Ubx(_) => self.stats.ubx_messages += 1,
                         EventKind::Nmea(_) => self.stats.nmea_messages += 1,
-                        EventKind::Unknown(_) => self.stats.unknown_frames += 1,
+                        EventKind::Unknown(id) => {
+                            self.stats.unknown_frames += 1;
+                            if let FrameId::Rtcm3(_) = id {
+                                self.stats.rtcm3_frames += 1;
+                            }
+                        }
                         EventKind::Invalid { .. } => self.stats.invalid_frames += 1,
                         EventKind::Corrupt(_) => {}
                     }
@@ -370,8 +398,37 @@ impl StreamReader {
         match b[0] {
             ubx::SYNC1 => self.step_ubx(b),
             b'$' => self.step_nmea(b),
+            rtcm3::PREAMBLE => self.step_rtcm3(b),
             _ => Step::Skip(SkipReason::Stray),
         }
+    }
+
+    /// RTCM 10403.x §4 transport frame: `D3`, 6 zero bits, 10-bit length,
+    /// message, CRC-24Q. Recognised and skipped (navsync reads no RTCM).
+    fn step_rtcm3(&self, b: &[u8]) -> Step {
+        if b.len() < 3 {
+            return Step::Wait;
+        }
+        if b[1] & 0xFC != 0 {
+            return Step::Skip(SkipReason::Stray);
+        }
+        let message_len = (((b[1] & 0x03) as usize) << 8) | b[2] as usize;
+        let total = message_len + rtcm3::FRAME_OVERHEAD;
+        if b.len() < total {
+            return Step::Wait;
+        }
+        let computed = rtcm3::crc24q(&b[..3 + message_len]);
+        let c = &b[3 + message_len..total];
+        let found = u32::from_be_bytes([0, c[0], c[1], c[2]]);
+        if computed != found {
+            return Step::Skip(SkipReason::Rtcm3Crc {
+                message_len,
+                computed,
+                found,
+            });
+        }
+        let number = rtcm3::message_number(&b[3..3 + message_len]);
+        Step::Frame(total, EventKind::Unknown(FrameId::Rtcm3(number)))
     }
 
     fn step_ubx(&self, b: &[u8]) -> Step {
@@ -579,6 +636,34 @@ mod tests {
         assert_eq!(ev[0].len, 10);
         assert!(matches!(&ev[0].kind, EventKind::Corrupt(c) if c.first == SkipReason::Truncated));
         assert_eq!(st.corrupt_bytes, 10);
+    }
+
+    #[test]
+    fn rtcm3_frames_are_recognised_and_skipped() {
+        let rtcm = rtcm3::encode_frame(&[0x43, 0x50, 1, 2, 3, 4, 5]).unwrap(); // 1077
+        let mut bad = rtcm.clone();
+        bad[5] ^= 0x10;
+        let mut s = tp_frame(1);
+        s.extend(&rtcm);
+        s.extend(&bad);
+        s.extend(tp_frame(2));
+        let (ev, st) = read_all(&s, 0);
+        assert_eq!(ev.len(), 4, "{ev:?}");
+        assert_eq!(ev[1].kind, EventKind::Unknown(FrameId::Rtcm3(Some(1077))));
+        assert_eq!(ev[1].len, rtcm.len());
+        // The damaged copy is one corrupt run naming the CRC.
+        assert!(
+            matches!(&ev[2].kind, EventKind::Corrupt(c) if matches!(c.first, SkipReason::Rtcm3Crc { message_len: 7, .. }))
+        );
+        assert_eq!(ev[2].len, bad.len());
+        assert!(matches!(ev[3].kind, EventKind::Ubx(_)));
+        assert_eq!(
+            (st.rtcm3_frames, st.unknown_frames, st.corrupt_runs),
+            (1, 1, 1)
+        );
+        // A D3 byte whose reserved bits are set starts no candidate.
+        let (ev, _) = read_all(&[0xD3, 0xFF, 0x00], 0);
+        assert!(matches!(&ev[0].kind, EventKind::Corrupt(c) if c.first == SkipReason::Stray));
     }
 
     #[test]

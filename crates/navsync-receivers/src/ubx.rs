@@ -1,5 +1,7 @@
 //! u-blox UBX binary protocol: frame checksum and encoder, and the messages
-//! navsync reads (NAV-PVT, NAV-TIMEGPS, TIM-TP, TIM-TM2, ESF-MEAS, ESF-RAW).
+//! navsync reads (NAV-PVT, NAV-TIMEGPS, TIM-TP, TIM-TM2, ESF-MEAS, ESF-RAW,
+//! and the older navigation set NAV-SOL, NAV-POSLLH, NAV-VELNED,
+//! NAV-STATUS, plus the F9 high-precision NAV-HPPOSLLH).
 //!
 //! Written from the u-blox interface descriptions rather than with the
 //! `ublox` crate: 0.10.0 panics in `TimTm2Flags::time_base()` for the GNSS
@@ -13,6 +15,10 @@
 //!   UBX-ESF-MEAS, UBX-ESF-RAW.
 //! - [F9] ZED-F9P Interface Description, UBX-18010854 (R08): §3.4 UBX frame
 //!   structure, §5.17.1 UBX-TIM-TM2, §5.17.2 UBX-TIM-TP (same layouts).
+//! - [M8] also gives NAV-SOL, NAV-POSLLH, NAV-VELNED and NAV-STATUS (the
+//!   same layouts as the u-blox 6 Receiver Description, GPS.G6-SW-10018,
+//!   for LEA-6/NEO-6 and earlier).
+//! - [F9] §5.14 UBX-NAV-HPPOSLLH (protocol ≥ 27): invalidLlh in `flags`.
 //! - [F9K] ZED-F9K Integration Manual, §3.2.6 Table 11: ESF data types and
 //!   their scaling.
 //!
@@ -120,6 +126,26 @@ impl MsgId {
         class: 0x01,
         id: 0x07,
     };
+    pub const NAV_POSLLH: MsgId = MsgId {
+        class: 0x01,
+        id: 0x02,
+    };
+    pub const NAV_STATUS: MsgId = MsgId {
+        class: 0x01,
+        id: 0x03,
+    };
+    pub const NAV_SOL: MsgId = MsgId {
+        class: 0x01,
+        id: 0x06,
+    };
+    pub const NAV_HPPOSLLH: MsgId = MsgId {
+        class: 0x01,
+        id: 0x14,
+    };
+    pub const NAV_VELNED: MsgId = MsgId {
+        class: 0x01,
+        id: 0x12,
+    };
     pub const NAV_TIMEGPS: MsgId = MsgId {
         class: 0x01,
         id: 0x20,
@@ -151,6 +177,7 @@ impl MsgId {
             (0x01, 0x06) => "NAV-SOL",
             (0x01, 0x07) => "NAV-PVT",
             (0x01, 0x11) => "NAV-VELECEF",
+            (0x01, 0x14) => "NAV-HPPOSLLH",
             (0x01, 0x12) => "NAV-VELNED",
             (0x01, 0x20) => "NAV-TIMEGPS",
             (0x01, 0x21) => "NAV-TIMEUTC",
@@ -362,6 +389,385 @@ impl NavPvt {
     }
     pub fn s_acc_mps(&self) -> f64 {
         self.s_acc_mm_s as f64 * 1e-3
+    }
+}
+
+// ------------------------------------------- NAV-SOL, NAV-POSLLH, NAV-VELNED
+
+/// Fix type as NAV-PVT, NAV-SOL and NAV-STATUS report it ([M8]
+/// UBX-NAV-PVT fixType, UBX-NAV-SOL gpsFix, UBX-NAV-STATUS gpsFix).
+pub fn fix_type_name(fix_type: u8) -> &'static str {
+    match fix_type {
+        0 => "no fix",
+        1 => "dead reckoning only",
+        2 => "2D fix",
+        3 => "3D fix",
+        4 => "GNSS + dead reckoning",
+        5 => "time only",
+        _ => "reserved fix type",
+    }
+}
+
+/// UBX-NAV-SOL (0x01 0x06), navigation solution in ECEF, 52 bytes ([M8]
+/// UBX-NAV-SOL; u-blox 6 NAV-SOL). Superseded by NAV-PVT but still the
+/// only full solution message of LEA-4/5/6 receivers.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NavSol {
+    pub itow_ms: u32,
+    /// Fraction of iTOW (ns, −500000..500000): epoch = iTOW + fTOW.
+    pub ftow_ns: i32,
+    /// GPS week of the epoch.
+    pub week: i16,
+    /// 0 no fix, 1 DR only, 2 2D, 3 3D, 4 GPS + DR, 5 time only.
+    pub gps_fix: u8,
+    /// GPSfixOK (bit 0), DiffSoln (1), WKNSET (2), TOWSET (3).
+    pub flags: u8,
+    /// ECEF position (cm).
+    pub ecef_cm: [i32; 3],
+    /// 3D position accuracy estimate (cm).
+    pub p_acc_cm: u32,
+    /// ECEF velocity (cm/s).
+    pub ecef_vel_cm_s: [i32; 3],
+    /// Speed accuracy estimate (cm/s).
+    pub s_acc_cm_s: u32,
+    /// Position DOP (0.01).
+    pub p_dop_e2: u16,
+    pub reserved1: u8,
+    pub num_sv: u8,
+    pub reserved2: [u8; 4],
+}
+
+impl NavSol {
+    pub const LEN: usize = 52;
+
+    pub fn decode(p: &[u8]) -> Result<Self, PayloadError> {
+        if p.len() != Self::LEN {
+            return Err(bad_len("NAV-SOL", p.len(), "52"));
+        }
+        let r = Rd(p);
+        Ok(NavSol {
+            itow_ms: r.u4(0),
+            ftow_ns: r.i4(4),
+            week: r.i2(8),
+            gps_fix: r.u1(10),
+            flags: r.u1(11),
+            ecef_cm: [r.i4(12), r.i4(16), r.i4(20)],
+            p_acc_cm: r.u4(24),
+            ecef_vel_cm_s: [r.i4(28), r.i4(32), r.i4(36)],
+            s_acc_cm_s: r.u4(40),
+            p_dop_e2: r.u2(44),
+            reserved1: r.u1(46),
+            num_sv: r.u1(47),
+            reserved2: r.arr(48),
+        })
+    }
+
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Vec::with_capacity(Self::LEN);
+        w.extend_from_slice(&self.itow_ms.to_le_bytes());
+        w.extend_from_slice(&self.ftow_ns.to_le_bytes());
+        w.extend_from_slice(&self.week.to_le_bytes());
+        w.extend_from_slice(&[self.gps_fix, self.flags]);
+        for v in self.ecef_cm {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        w.extend_from_slice(&self.p_acc_cm.to_le_bytes());
+        for v in self.ecef_vel_cm_s {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        w.extend_from_slice(&self.s_acc_cm_s.to_le_bytes());
+        w.extend_from_slice(&self.p_dop_e2.to_le_bytes());
+        w.extend_from_slice(&[self.reserved1, self.num_sv]);
+        w.extend_from_slice(&self.reserved2);
+        w
+    }
+
+    /// GPSfixOK: a valid fix within the DOP and accuracy masks.
+    pub fn gps_fix_ok(&self) -> bool {
+        self.flags & 0x01 != 0
+    }
+    /// WKNSET and TOWSET: week and time of week are valid.
+    pub fn week_and_tow_valid(&self) -> bool {
+        self.flags & 0x0C == 0x0C
+    }
+    pub fn ecef_m(&self) -> [f64; 3] {
+        self.ecef_cm.map(|v| v as f64 * 1e-2)
+    }
+    pub fn ecef_vel_mps(&self) -> [f64; 3] {
+        self.ecef_vel_cm_s.map(|v| v as f64 * 1e-2)
+    }
+    pub fn p_acc_m(&self) -> f64 {
+        self.p_acc_cm as f64 * 1e-2
+    }
+    pub fn s_acc_mps(&self) -> f64 {
+        self.s_acc_cm_s as f64 * 1e-2
+    }
+}
+
+/// UBX-NAV-POSLLH (0x01 0x02), geodetic position, 28 bytes ([M8]
+/// UBX-NAV-POSLLH).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NavPosLlh {
+    pub itow_ms: u32,
+    /// Longitude and latitude (1e-7 deg).
+    pub lon_e7: i32,
+    pub lat_e7: i32,
+    /// Height above the ellipsoid and above mean sea level (mm).
+    pub height_mm: i32,
+    pub h_msl_mm: i32,
+    /// Horizontal and vertical accuracy estimates (mm).
+    pub h_acc_mm: u32,
+    pub v_acc_mm: u32,
+}
+
+impl NavPosLlh {
+    pub const LEN: usize = 28;
+
+    pub fn decode(p: &[u8]) -> Result<Self, PayloadError> {
+        if p.len() != Self::LEN {
+            return Err(bad_len("NAV-POSLLH", p.len(), "28"));
+        }
+        let r = Rd(p);
+        Ok(NavPosLlh {
+            itow_ms: r.u4(0),
+            lon_e7: r.i4(4),
+            lat_e7: r.i4(8),
+            height_mm: r.i4(12),
+            h_msl_mm: r.i4(16),
+            h_acc_mm: r.u4(20),
+            v_acc_mm: r.u4(24),
+        })
+    }
+
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Vec::with_capacity(Self::LEN);
+        w.extend_from_slice(&self.itow_ms.to_le_bytes());
+        for v in [self.lon_e7, self.lat_e7, self.height_mm, self.h_msl_mm] {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        w.extend_from_slice(&self.h_acc_mm.to_le_bytes());
+        w.extend_from_slice(&self.v_acc_mm.to_le_bytes());
+        w
+    }
+
+    pub fn lat_deg(&self) -> f64 {
+        self.lat_e7 as f64 * 1e-7
+    }
+    pub fn lon_deg(&self) -> f64 {
+        self.lon_e7 as f64 * 1e-7
+    }
+    pub fn height_m(&self) -> f64 {
+        self.height_mm as f64 * 1e-3
+    }
+    pub fn h_acc_m(&self) -> f64 {
+        self.h_acc_mm as f64 * 1e-3
+    }
+    pub fn v_acc_m(&self) -> f64 {
+        self.v_acc_mm as f64 * 1e-3
+    }
+}
+
+/// UBX-NAV-HPPOSLLH (0x01 0x14), high-precision geodetic position, 36
+/// bytes ([F9] §5.14; [M8] for the HPG firmware): each coordinate is the
+/// 1e-7 deg (or mm) field plus a high-precision part of 1e-9 deg (or
+/// 0.1 mm); accuracies in 0.1 mm.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NavHpPosLlh {
+    pub version: u8,
+    pub reserved1: [u8; 2],
+    /// invalidLlh (bit 0).
+    pub flags: u8,
+    pub itow_ms: u32,
+    pub lon_e7: i32,
+    pub lat_e7: i32,
+    pub height_mm: i32,
+    pub h_msl_mm: i32,
+    /// High-precision parts: lon, lat (1e-9 deg), height, hMSL (0.1 mm).
+    pub lon_hp_e9: i8,
+    pub lat_hp_e9: i8,
+    pub height_hp_e4: i8,
+    pub h_msl_hp_e4: i8,
+    /// Horizontal and vertical accuracy estimates (0.1 mm).
+    pub h_acc_e4: u32,
+    pub v_acc_e4: u32,
+}
+
+impl NavHpPosLlh {
+    pub const LEN: usize = 36;
+
+    pub fn decode(p: &[u8]) -> Result<Self, PayloadError> {
+        if p.len() != Self::LEN {
+            return Err(bad_len("NAV-HPPOSLLH", p.len(), "36"));
+        }
+        let r = Rd(p);
+        Ok(NavHpPosLlh {
+            version: r.u1(0),
+            reserved1: r.arr(1),
+            flags: r.u1(3),
+            itow_ms: r.u4(4),
+            lon_e7: r.i4(8),
+            lat_e7: r.i4(12),
+            height_mm: r.i4(16),
+            h_msl_mm: r.i4(20),
+            lon_hp_e9: r.i1(24),
+            lat_hp_e9: r.i1(25),
+            height_hp_e4: r.i1(26),
+            h_msl_hp_e4: r.i1(27),
+            h_acc_e4: r.u4(28),
+            v_acc_e4: r.u4(32),
+        })
+    }
+
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Vec::with_capacity(Self::LEN);
+        w.push(self.version);
+        w.extend_from_slice(&self.reserved1);
+        w.push(self.flags);
+        w.extend_from_slice(&self.itow_ms.to_le_bytes());
+        for v in [self.lon_e7, self.lat_e7, self.height_mm, self.h_msl_mm] {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        w.extend_from_slice(&[
+            self.lon_hp_e9 as u8,
+            self.lat_hp_e9 as u8,
+            self.height_hp_e4 as u8,
+            self.h_msl_hp_e4 as u8,
+        ]);
+        w.extend_from_slice(&self.h_acc_e4.to_le_bytes());
+        w.extend_from_slice(&self.v_acc_e4.to_le_bytes());
+        w
+    }
+
+    /// invalidLlh: lon, lat, height and hMSL are invalid.
+    pub fn invalid_llh(&self) -> bool {
+        self.flags & 0x01 != 0
+    }
+    /// lat + latHp (deg): 1e-7 deg + 1e-9 deg parts.
+    pub fn lat_deg(&self) -> f64 {
+        self.lat_e7 as f64 * 1e-7 + self.lat_hp_e9 as f64 * 1e-9
+    }
+    pub fn lon_deg(&self) -> f64 {
+        self.lon_e7 as f64 * 1e-7 + self.lon_hp_e9 as f64 * 1e-9
+    }
+    /// height + heightHp (m): mm + 0.1 mm parts.
+    pub fn height_m(&self) -> f64 {
+        self.height_mm as f64 * 1e-3 + self.height_hp_e4 as f64 * 1e-4
+    }
+    pub fn h_acc_m(&self) -> f64 {
+        self.h_acc_e4 as f64 * 1e-4
+    }
+    pub fn v_acc_m(&self) -> f64 {
+        self.v_acc_e4 as f64 * 1e-4
+    }
+}
+
+/// UBX-NAV-VELNED (0x01 0x12), velocity in NED, 36 bytes ([M8]
+/// UBX-NAV-VELNED).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NavVelNed {
+    pub itow_ms: u32,
+    /// NED velocity (cm/s).
+    pub vel_ned_cm_s: [i32; 3],
+    /// 3D speed and ground speed (cm/s).
+    pub speed_cm_s: u32,
+    pub g_speed_cm_s: u32,
+    /// Heading of motion (1e-5 deg).
+    pub heading_e5: i32,
+    /// Speed accuracy estimate (cm/s).
+    pub s_acc_cm_s: u32,
+    /// Course accuracy estimate (1e-5 deg).
+    pub c_acc_e5: u32,
+}
+
+impl NavVelNed {
+    pub const LEN: usize = 36;
+
+    pub fn decode(p: &[u8]) -> Result<Self, PayloadError> {
+        if p.len() != Self::LEN {
+            return Err(bad_len("NAV-VELNED", p.len(), "36"));
+        }
+        let r = Rd(p);
+        Ok(NavVelNed {
+            itow_ms: r.u4(0),
+            vel_ned_cm_s: [r.i4(4), r.i4(8), r.i4(12)],
+            speed_cm_s: r.u4(16),
+            g_speed_cm_s: r.u4(20),
+            heading_e5: r.i4(24),
+            s_acc_cm_s: r.u4(28),
+            c_acc_e5: r.u4(32),
+        })
+    }
+
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Vec::with_capacity(Self::LEN);
+        w.extend_from_slice(&self.itow_ms.to_le_bytes());
+        for v in self.vel_ned_cm_s {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        w.extend_from_slice(&self.speed_cm_s.to_le_bytes());
+        w.extend_from_slice(&self.g_speed_cm_s.to_le_bytes());
+        w.extend_from_slice(&self.heading_e5.to_le_bytes());
+        w.extend_from_slice(&self.s_acc_cm_s.to_le_bytes());
+        w.extend_from_slice(&self.c_acc_e5.to_le_bytes());
+        w
+    }
+
+    pub fn vel_ned_mps(&self) -> [f64; 3] {
+        self.vel_ned_cm_s.map(|v| v as f64 * 1e-2)
+    }
+    pub fn s_acc_mps(&self) -> f64 {
+        self.s_acc_cm_s as f64 * 1e-2
+    }
+}
+
+/// UBX-NAV-STATUS (0x01 0x03), receiver navigation status, 16 bytes ([M8]
+/// UBX-NAV-STATUS).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NavStatus {
+    pub itow_ms: u32,
+    /// Fix type, as NAV-SOL gpsFix.
+    pub gps_fix: u8,
+    /// gpsFixOk (bit 0), diffSoln (1), wknSet (2), towSet (3).
+    pub flags: u8,
+    /// dgpsIStat (bit 0), mapMatching (6..7).
+    pub fix_stat: u8,
+    /// psmState (0..1), spoofDetState (3..4), carrSoln (6..7).
+    pub flags2: u8,
+    /// Time to first fix and time since startup (ms).
+    pub ttff_ms: u32,
+    pub msss_ms: u32,
+}
+
+impl NavStatus {
+    pub const LEN: usize = 16;
+
+    pub fn decode(p: &[u8]) -> Result<Self, PayloadError> {
+        if p.len() != Self::LEN {
+            return Err(bad_len("NAV-STATUS", p.len(), "16"));
+        }
+        let r = Rd(p);
+        Ok(NavStatus {
+            itow_ms: r.u4(0),
+            gps_fix: r.u1(4),
+            flags: r.u1(5),
+            fix_stat: r.u1(6),
+            flags2: r.u1(7),
+            ttff_ms: r.u4(8),
+            msss_ms: r.u4(12),
+        })
+    }
+
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Vec::with_capacity(Self::LEN);
+        w.extend_from_slice(&self.itow_ms.to_le_bytes());
+        w.extend_from_slice(&[self.gps_fix, self.flags, self.fix_stat, self.flags2]);
+        w.extend_from_slice(&self.ttff_ms.to_le_bytes());
+        w.extend_from_slice(&self.msss_ms.to_le_bytes());
+        w
+    }
+
+    pub fn gps_fix_ok(&self) -> bool {
+        self.flags & 0x01 != 0
     }
 }
 
@@ -861,6 +1267,11 @@ impl EsfRaw {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum UbxMessage {
     NavPvt(NavPvt),
+    NavSol(NavSol),
+    NavPosLlh(NavPosLlh),
+    NavHpPosLlh(NavHpPosLlh),
+    NavVelNed(NavVelNed),
+    NavStatus(NavStatus),
     NavTimeGps(NavTimeGps),
     TimTp(TimTp),
     TimTm2(TimTm2),
@@ -874,6 +1285,11 @@ impl UbxMessage {
     pub fn decode(id: MsgId, payload: &[u8]) -> Result<Option<UbxMessage>, PayloadError> {
         Ok(Some(match id {
             MsgId::NAV_PVT => UbxMessage::NavPvt(NavPvt::decode(payload)?),
+            MsgId::NAV_SOL => UbxMessage::NavSol(NavSol::decode(payload)?),
+            MsgId::NAV_POSLLH => UbxMessage::NavPosLlh(NavPosLlh::decode(payload)?),
+            MsgId::NAV_HPPOSLLH => UbxMessage::NavHpPosLlh(NavHpPosLlh::decode(payload)?),
+            MsgId::NAV_VELNED => UbxMessage::NavVelNed(NavVelNed::decode(payload)?),
+            MsgId::NAV_STATUS => UbxMessage::NavStatus(NavStatus::decode(payload)?),
             MsgId::NAV_TIMEGPS => UbxMessage::NavTimeGps(NavTimeGps::decode(payload)?),
             MsgId::TIM_TP => UbxMessage::TimTp(TimTp::decode(payload)?),
             MsgId::TIM_TM2 => UbxMessage::TimTm2(TimTm2::decode(payload)?),
@@ -886,6 +1302,11 @@ impl UbxMessage {
     pub fn id(&self) -> MsgId {
         match self {
             UbxMessage::NavPvt(_) => MsgId::NAV_PVT,
+            UbxMessage::NavSol(_) => MsgId::NAV_SOL,
+            UbxMessage::NavPosLlh(_) => MsgId::NAV_POSLLH,
+            UbxMessage::NavHpPosLlh(_) => MsgId::NAV_HPPOSLLH,
+            UbxMessage::NavVelNed(_) => MsgId::NAV_VELNED,
+            UbxMessage::NavStatus(_) => MsgId::NAV_STATUS,
             UbxMessage::NavTimeGps(_) => MsgId::NAV_TIMEGPS,
             UbxMessage::TimTp(_) => MsgId::TIM_TP,
             UbxMessage::TimTm2(_) => MsgId::TIM_TM2,
@@ -897,6 +1318,11 @@ impl UbxMessage {
     pub fn payload(&self) -> Vec<u8> {
         match self {
             UbxMessage::NavPvt(m) => m.encode(),
+            UbxMessage::NavSol(m) => m.encode(),
+            UbxMessage::NavPosLlh(m) => m.encode(),
+            UbxMessage::NavHpPosLlh(m) => m.encode(),
+            UbxMessage::NavVelNed(m) => m.encode(),
+            UbxMessage::NavStatus(m) => m.encode(),
             UbxMessage::NavTimeGps(m) => m.encode(),
             UbxMessage::TimTp(m) => m.encode(),
             UbxMessage::TimTm2(m) => m.encode(),
@@ -953,6 +1379,11 @@ mod tests {
             let p = vec![0xFFu8; n];
             for id in [
                 MsgId::NAV_PVT,
+                MsgId::NAV_SOL,
+                MsgId::NAV_POSLLH,
+                MsgId::NAV_HPPOSLLH,
+                MsgId::NAV_VELNED,
+                MsgId::NAV_STATUS,
                 MsgId::NAV_TIMEGPS,
                 MsgId::TIM_TP,
                 MsgId::TIM_TM2,

@@ -10,8 +10,9 @@ use super::{parse_triplet, print_diagnostics};
 
 #[derive(Copy, Clone, Debug, clap::ValueEnum)]
 pub enum From {
-    /// u-blox stream: UBX (NAV-PVT, NAV-TIMEGPS, TIM-TP, TIM-TM2, ESF-MEAS,
-    /// ESF-RAW), possibly mixed with NMEA; gpsd `#` header lines skipped.
+    /// u-blox stream: UBX (NAV-PVT, or NAV-SOL/POSLLH/HPPOSLLH/VELNED/STATUS
+    /// epochs; NAV-TIMEGPS, TIM-TP, TIM-TM2, ESF-MEAS, ESF-RAW), possibly
+    /// mixed with NMEA and RTCM3 (skipped); gpsd `#` header lines skipped.
     Ubx,
     /// NMEA 0183 stream (GGA, RMC, GST, ZDA), possibly mixed with UBX.
     Nmea,
@@ -56,6 +57,15 @@ pub struct Args {
     /// Report IMU intervals at least this long (seed 001: no 0.1 s gap).
     #[arg(long, default_value_t = 0.1)]
     pub gap_s: f64,
+    /// Keep UBX 3D epochs whose gnssFixOK flag is 0 (outside the receiver's DOP/accuracy masks).
+    #[arg(long)]
+    pub keep_fix_not_ok: bool,
+    /// Keep UBX 2D fixes (fix type 2: height held by the receiver), with its vertical accuracy.
+    #[arg(long)]
+    pub keep_2d: bool,
+    /// Succeed even when a receiver stream gives no fix (e.g. a timing log converted for its PPS events).
+    #[arg(long)]
+    pub allow_no_fix: bool,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -78,18 +88,21 @@ pub fn run(a: Args) -> Result<()> {
         ..Default::default()
     };
     opts.fix.default_sd_m = a.default_sd;
+    opts.fix.keep_fix_not_ok = a.keep_fix_not_ok;
+    opts.fix.keep_2d = a.keep_2d;
     if a.default_sd.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
         anyhow::bail!("--default-sd: standard deviations must be positive");
     }
     let s = convert::convert(format, &a.file, &a.output, &opts)?;
     if let Some(st) = &s.stream {
         println!(
-            "stream: {} bytes after a {}-byte header; {} UBX + {} NMEA messages read, {} other intact frames, {} invalid, {} corrupt runs ({} bytes)",
+            "stream: {} bytes after a {}-byte header; {} UBX + {} NMEA messages read, {} other intact frames ({} RTCM3), {} invalid, {} corrupt runs ({} bytes)",
             st.bytes,
             s.header_bytes,
             st.ubx_messages,
             st.nmea_messages,
             st.unknown_frames,
+            st.rtcm3_frames,
             st.invalid_frames,
             st.corrupt_runs,
             st.corrupt_bytes
@@ -97,6 +110,32 @@ pub fn run(a: Args) -> Result<()> {
         for (k, n) in &s.frames {
             println!("  {k:<28} {n}");
         }
+    }
+    for t in &s.fix_epochs {
+        println!(
+            "{}: {} epochs, {} gave a fix, {} dropped",
+            t.source,
+            t.epochs,
+            t.fixes,
+            t.epochs - t.fixes
+        );
+        for d in &t.dropped {
+            println!(
+                "  {:>7}  {}{}",
+                d.epochs,
+                d.reason,
+                d.kept_by
+                    .as_ref()
+                    .map(|o| format!("  [kept with {o}]"))
+                    .unwrap_or_default()
+            );
+        }
+    }
+    if s.ubx_high_precision_positions > 0 {
+        println!(
+            "  {} positions from NAV-HPPOSLLH",
+            s.ubx_high_precision_positions
+        );
     }
     if s.gnss_fixes > 0 {
         println!(
@@ -112,6 +151,12 @@ pub fn run(a: Args) -> Result<()> {
             } else {
                 String::new()
             }
+        );
+    }
+    if let Some(g) = &s.geoid_model {
+        println!(
+            "  {} heights from MSL + geoid model (GGA without geoid separation): {g}",
+            s.geoid_model_heights
         );
     }
     if s.imu_samples > 0 {
@@ -141,5 +186,12 @@ pub fn run(a: Args) -> Result<()> {
         print_diagnostics(&s.diagnostics, 10);
     }
     println!("wrote {}", s.files.join(", "));
+    if let Some(m) = s.no_fix_message() {
+        if a.allow_no_fix {
+            eprintln!("navsync: note: {m}");
+        } else {
+            anyhow::bail!("{m} (--allow-no-fix accepts a stream without fixes)");
+        }
+    }
     Ok(())
 }
