@@ -67,6 +67,7 @@ fn the_demo_report_shows_what_eval_computes() {
         "fused/imu_err.txt",
         "fused/time_offset.txt",
         "fused/summary.json",
+        "fused/gnss_residuals.txt",
     ] {
         assert!(demo.join(f).is_file(), "{f} missing");
     }
@@ -118,10 +119,17 @@ fn the_demo_report_shows_what_eval_computes() {
     let drift = want["outage_rms_max_horizontal_m"].as_f64().unwrap();
     assert!(html.contains(&format!("<b>{drift:.3} m</b>")));
     // Every figure (trajectory, position, velocity, attitude, IMU errors
-    // found beside the nav file, time offset, timeline, latency) inline,
-    // nothing fetched.
-    assert_eq!(html.matches("<svg").count(), 8, "figures");
-    for section in ["trajectory", "imu", "time-offset", "sync", "latency"] {
+    // and GNSS weighting found beside the nav file, time offset, timeline,
+    // latency) inline, nothing fetched.
+    assert_eq!(html.matches("<svg").count(), 9, "figures");
+    for section in [
+        "trajectory",
+        "imu",
+        "gnss-weighting",
+        "time-offset",
+        "sync",
+        "latency",
+    ] {
         assert!(
             html.contains(&format!("<section id=\"{section}\">")),
             "{section}"

@@ -202,6 +202,7 @@ pub fn run_demo(
         imu_err_truth: Some(dirs.sim.join("imu_err_truth.txt")),
         gnss: Some(dirs.synced.join("gnss.txt")),
         time_offset: Some(dirs.fused.join("time_offset.txt")),
+        gnss_residuals: Some(dirs.fused.join("gnss_residuals.txt")).filter(|p| p.is_file()),
         time_offset_truth_s: tau_true,
         outages: outages.clone(),
     };

@@ -8,11 +8,12 @@ use navsync::timing::SyncReport;
 use navsync::{Diagnostics, Error};
 
 use crate::inputs::{
-    Epochs, IMU_ERR_LAYOUT, ReportInputs, STD_LAYOUT, TIME_OFFSET_LAYOUT, read_gnss, read_summary,
-    read_sync_report, read_table, rel_s, score,
+    Epochs, FixWeight, IMU_ERR_LAYOUT, ReportInputs, STD_LAYOUT, TIME_OFFSET_LAYOUT,
+    read_fix_weights, read_gnss, read_summary, read_sync_report, read_table, rel_s, score,
 };
 use crate::plot::{
-    self, AXES, BLUE, Band, Figure, GREY, Line, OUTAGE, PURPLE, Panel, Shade, Timeline, Trajectory,
+    self, AXES, BLUE, Band, Figure, GREY, Line, ORANGE, OUTAGE, PURPLE, Panel, RED, Shade,
+    Timeline, Trajectory,
 };
 
 /// Points per plotted series at most.
@@ -600,6 +601,13 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         section(&mut html, "imu", "IMU error estimates", text, &svg);
     }
 
+    if let Some(path) = &inp.gnss_residuals {
+        let fixes = read_fix_weights(path)?;
+        if !fixes.is_empty() {
+            gnss_weighting_section(&mut html, &fixes, t0, x1, &outage_shade)?;
+        }
+    }
+
     if let Some(rows) = &offset {
         let t: Vec<f64> = rows.iter().map(|r| rel_s(r[0], t0)).collect();
         let sd_final = rows.last().map_or(0.0, |r| r[2]);
@@ -753,6 +761,104 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         eval,
         diagnostics: diag,
     })
+}
+
+/// The GNSS weighting section: NIS of every position fix against its χ²
+/// bounds, the smallest axis weight, and a table of the fixes that were
+/// not used at their stated σ.
+fn gnss_weighting_section(
+    html: &mut String,
+    fixes: &[FixWeight],
+    t0: f64,
+    x1: f64,
+    outage_shade: &Shade,
+) -> Result<(), Error> {
+    // χ²(3) quantiles: 95 % 7.815, 99.99 % 21.108.
+    let (q95, q9999) = (7.815_f64, 21.108_f64);
+    let pts = |f: &dyn Fn(&FixWeight) -> f64| -> Vec<(f64, f64)> {
+        fixes.iter().map(|x| (rel_s(x.sow, t0), f(x))).collect()
+    };
+    let min_w = |x: &FixWeight| x.weight.iter().copied().fold(f64::INFINITY, f64::min);
+    let svg = plot::time_series(&Figure {
+        x_label: "time since the first epoch (s)".into(),
+        x_range: (0.0, x1),
+        shades: vec![outage_shade.clone()],
+        panels: vec![
+            Panel {
+                title: "GNSS position NIS at the stated σ (log10, 3 degrees of freedom)".into(),
+                y_label: "log10 NIS".into(),
+                lines: vec![
+                    Line {
+                        name: "NIS".into(),
+                        color: BLUE,
+                        width: 1,
+                        pts: pts(&|x| x.nis.max(1e-3).log10()),
+                    },
+                    Line {
+                        name: "95 % bound".into(),
+                        color: GREY,
+                        width: 1,
+                        pts: vec![(0.0, q95.log10()), (x1, q95.log10())],
+                    },
+                    Line {
+                        name: "99.99 % bound".into(),
+                        color: RED,
+                        width: 1,
+                        pts: vec![(0.0, q9999.log10()), (x1, q9999.log10())],
+                    },
+                ],
+                bands: Vec::new(),
+                y_range: None,
+            },
+            Panel {
+                title: "smallest axis weight (1: used at its stated σ; 0: rejected)".into(),
+                y_label: "weight".into(),
+                lines: vec![Line {
+                    name: "weight".into(),
+                    color: ORANGE,
+                    width: 1,
+                    pts: pts(&min_w),
+                }],
+                bands: Vec::new(),
+                y_range: Some((0.0, 1.05)),
+            },
+        ],
+        width: WIDTH,
+        panel_height: 200,
+    })?;
+    let n_down = fixes.iter().filter(|x| x.status != "used").count();
+    let inside = fixes.iter().filter(|x| x.nis <= q95).count();
+    let note = format!(
+        "{} position fixes; {} ({:.1} %) within the 95 % NIS bound (95 % expected when the stated σ and the filter's covariance are right); {} not used at their stated σ (gnss_residuals.txt has every fix). Robust weighting (navsync fuse --gnss-weighting robust): IGG-III weights on the standardised innovation (Yang, Song & Xu, Journal of Geodesy 76, 2002) and a noise scale from the jump between consecutive fixes.",
+        fixes.len(),
+        inside,
+        100.0 * inside as f64 / fixes.len().max(1) as f64,
+        n_down
+    );
+    section(html, "gnss-weighting", "GNSS weighting", &note, &svg);
+    if n_down > 0 {
+        html.push_str("<details><summary>Fixes not used at their stated σ</summary>\n<table class=\"metrics\"><tr><th>SOW</th><th>status</th><th>NIS</th><th>innovation N, E, D (m)</th><th>stated σ N, E, D (m)</th><th>weight N, E, D</th></tr>\n");
+        for x in fixes.iter().filter(|x| x.status != "used").take(200) {
+            let _ = writeln!(
+                html,
+                "<tr><td>{:.3}</td><td>{}</td><td>{:.1}</td><td>{:.3}, {:.3}, {:.3}</td><td>{:.3}, {:.3}, {:.3}</td><td>{:.3}, {:.3}, {:.3}</td></tr>",
+                x.sow,
+                escape(&x.status),
+                x.nis,
+                x.innovation[0],
+                x.innovation[1],
+                x.innovation[2],
+                x.sd[0],
+                x.sd[1],
+                x.sd[2],
+                x.weight[0],
+                x.weight[1],
+                x.weight[2]
+            );
+        }
+        html.push_str("</table></details>\n");
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -38,6 +38,8 @@ pub struct ReportInputs {
     pub gnss: Option<PathBuf>,
     /// `time_offset.txt` of `navsync fuse --estimate-time-offset`.
     pub time_offset: Option<PathBuf>,
+    /// `gnss_residuals.txt` of `navsync fuse` (robust weighting).
+    pub gnss_residuals: Option<PathBuf>,
     /// The true time offset (s), when known.
     pub time_offset_truth_s: Option<f64>,
     /// GNSS outage windows (sow, length s); empty: the summary's, if any.
@@ -59,8 +61,59 @@ impl ReportInputs {
         fill(&mut self.imu_err, "imu_err.txt");
         fill(&mut self.time_offset, "time_offset.txt");
         fill(&mut self.summary, "summary.json");
+        fill(&mut self.gnss_residuals, "gnss_residuals.txt");
         self
     }
+}
+
+/// One GNSS position observation as the fusion weighed it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FixWeight {
+    pub sow: f64,
+    /// Innovation N, E, D (m) and stated σ (m).
+    pub innovation: [f64; 3],
+    pub sd: [f64; 3],
+    pub nis: f64,
+    pub weight: [f64; 3],
+    /// used, down-weighted, rejected or drift-accepted.
+    pub status: String,
+}
+
+/// Reads the position lines of `gnss_residuals.txt`
+/// (`sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d
+/// status`); any other line is an error naming file and line.
+pub fn read_fix_weights(path: &Path) -> Result<Vec<FixWeight>, Error> {
+    let mut lines = LineReader::open(path)?;
+    let mut out = Vec::new();
+    while let Some((line, no)) = lines.next_line()? {
+        if is_blank_or_comment(line) {
+            continue;
+        }
+        let mut f: [&[u8]; 16] = [b""; 16];
+        let n = split_fields(line, &mut f);
+        if n != 13 {
+            return Err(Error::parse(
+                path,
+                no,
+                format!("expected 13 columns (sow kind innov×3 sd×3 nis w×3 status), found {n}"),
+            ));
+        }
+        if f[1] != b"position" {
+            continue;
+        }
+        let num = |k: usize| {
+            parse_f64(f[k]).map_err(|e| Error::parse(path, no, format!("column {}: {e}", k + 1)))
+        };
+        out.push(FixWeight {
+            sow: num(0)?,
+            innovation: [num(2)?, num(3)?, num(4)?],
+            sd: [num(5)?, num(6)?, num(7)?],
+            nis: num(8)?,
+            weight: [num(9)?, num(10)?, num(11)?],
+            status: String::from_utf8_lossy(f[12]).into_owned(),
+        });
+    }
+    Ok(out)
 }
 
 /// Seconds from `t0_sow` to `sow`, across one week rollover.

@@ -1021,10 +1021,29 @@ impl Core {
             self.gate
         };
         let outcome = self.apply(&obs, gate, &frozen)?;
+        let mut record = FixRecord {
+            time: fix.time,
+            sow: fix.time.sow(),
+            kind: "position",
+            innovation: [obs.z[0], obs.z[1], obs.z[2]],
+            sd: [0, 1, 2].map(|i| obs.r.get(i, i).sqrt()),
+            nis: outcome.nis,
+            weight: [1.0; 3],
+            status: FixStatus::Used,
+        };
         if !outcome.accepted
             && let Some(threshold) = gate
         {
-            match self.consistent_with_last_rejected(&obs, fix.time, threshold) {
+            let verdict = self.consistent_with_last_rejected(&obs, fix.time, threshold);
+            record.status = match verdict {
+                Some(_) => FixStatus::DriftAccepted,
+                None => {
+                    record.weight = [0.0; 3];
+                    FixStatus::Rejected
+                }
+            };
+            self.fix_log.push(record);
+            match verdict {
                 Some(factor) => {
                     self.notes.push(format!(
                         "GNSS fix at {} over the gate (NIS {:.1} > {:.1}) accepted: it agrees with the previous rejected fix, so the INS drifted beyond its covariance; covariance inflated x{:.2}",
@@ -1058,6 +1077,9 @@ impl Core {
                     return Ok(());
                 }
             }
+        }
+        if outcome.accepted {
+            self.fix_log.push(record);
         }
         self.last_rejected = None;
         if gate.is_none() && self.gate.is_some() {

@@ -56,6 +56,7 @@ pub fn run(a: Args) -> Result<()> {
         imu_err_truth: a.imu_err_truth,
         gnss: a.gnss,
         time_offset: a.time_offset,
+        gnss_residuals: None,
         time_offset_truth_s: a.time_offset_truth,
         outages: parse_outages(&a.scored.outages, 0)?,
     }
