@@ -24,6 +24,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use crate::attitude::{Euler, euler_to_dcm};
 use crate::earth::{Geodetic, radii};
 use crate::error::Error;
 use crate::io::kfgins::NavRecord;
@@ -351,20 +352,9 @@ fn radii_derivative(lat: f64) -> (f64, f64) {
 /// C_b^n and ω_nb^b from ZYX Euler angles and their rates (Groves 2013
 /// eqs 2.24 and 2.56).
 pub fn euler_kinematics(euler: &[f64; 3], rate: &[f64; 3]) -> (Matrix3<f64>, Vector3<f64>) {
+    let c_nb = euler_to_dcm(&Euler::new(euler[0], euler[1], euler[2]));
     let (sph, cph) = euler[0].sin_cos();
     let (sth, cth) = euler[1].sin_cos();
-    let (sps, cps) = euler[2].sin_cos();
-    let c_nb = Matrix3::new(
-        cth * cps,
-        -cph * sps + sph * sth * cps,
-        sph * sps + cph * sth * cps,
-        cth * sps,
-        cph * cps + sph * sth * sps,
-        -sph * cps + cph * sth * sps,
-        -sth,
-        sph * cth,
-        cph * cth,
-    );
     let [pd, td, yd] = *rate;
     let w_nb_b = Vector3::new(
         pd - yd * sth,
