@@ -4,4 +4,5 @@ pub mod config;
 pub mod export;
 pub mod kfgins;
 pub mod riglog;
+pub mod rtklib;
 pub mod text;
