@@ -579,7 +579,7 @@ const BATCH: usize = 4096;
 /// The GNSS file of a run, in the format the options name.
 enum GnssInput {
     Kfgins(GnssReader),
-    Rtklib(crate::io::rtklib::PosReader),
+    Rtklib(Box<crate::io::rtklib::PosReader>),
 }
 
 impl GnssInput {
@@ -600,7 +600,7 @@ impl GnssInput {
                 let mut r = PosReader::open(path, opts.week)?;
                 r.sd_floor = opts.gnss_sd_floor;
                 r.max_q = opts.rtklib_max_q;
-                GnssInput::Rtklib(r)
+                GnssInput::Rtklib(Box::new(r))
             }
         })
     }

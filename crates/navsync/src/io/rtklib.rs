@@ -16,6 +16,7 @@
 //! with Q above `max_q` are skipped and counted (`q_skipped`).
 
 use std::fs::File;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Vector3};
@@ -179,8 +180,8 @@ fn parse_date_time(date: &[u8], time: &[u8]) -> Result<i64, String> {
 }
 
 /// Reads an RTKLIB `.pos` file fix by fix.
-pub struct PosReader {
-    lines: LineReader<File>,
+pub struct PosReader<R = File> {
+    lines: LineReader<R>,
     path: PathBuf,
     columns: Option<Columns>,
     weeks: WeekTracker,
@@ -194,13 +195,24 @@ pub struct PosReader {
     pub q_skipped: [usize; 7],
 }
 
-impl PosReader {
+impl PosReader<File> {
     /// Opens `path`. Times are placed in GPS week `week` by their time of
     /// week, like KF-GINS files (0 when the run has no week), so fixes meet
     /// IMU times on the same axis.
     pub fn open(path: &Path, week: i64) -> Result<Self, Error> {
-        Ok(PosReader {
-            lines: LineReader::open(path)?,
+        Ok(Self::from_reader(
+            File::open(path).map_err(|e| Error::io(path, e))?,
+            path,
+            week,
+        ))
+    }
+}
+
+impl<R: Read> PosReader<R> {
+    /// Reads from any reader (`path` names it in messages).
+    pub fn from_reader(inner: R, path: &Path, week: i64) -> Self {
+        PosReader {
+            lines: LineReader::new(inner, path),
             path: path.to_path_buf(),
             columns: None,
             weeks: WeekTracker::new(week),
@@ -209,7 +221,7 @@ impl PosReader {
             max_q: RTKLIB_MAX_Q,
             sd_floor: None,
             q_skipped: [0; 7],
-        })
+        }
     }
 
     pub fn path(&self) -> &Path {
