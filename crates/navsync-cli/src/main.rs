@@ -29,6 +29,9 @@ enum Command {
     Fuse(commands::fuse::Args),
     /// Score a navigation result against a reference trajectory.
     Eval(commands::eval::Args),
+    /// Export a navigation solution to GPX, KML, GeoJSON, CSV or TUM (with
+    /// the σ of std.txt beside it).
+    Export(commands::export::Args),
     /// Convert receiver logs (UBX, NMEA) and rate-form IMU CSVs to KF-GINS files and rig-logs.
     Convert(commands::convert::Args),
     /// Put a raw rig log (rig-log v1) on GPS time: KF-GINS files and a report.
@@ -61,6 +64,7 @@ fn main() {
         Command::Report(a) => commands::report::run(a),
         Command::Fuse(a) => commands::fuse::run(a),
         Command::Eval(a) => commands::eval::run(a),
+        Command::Export(a) => commands::export::run(a),
         Command::Convert(a) => commands::convert::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Array(a) => commands::array::run(a),

@@ -550,3 +550,59 @@ fn convert_counts_dropped_epochs_and_fails_without_a_fix() {
     assert!(ok);
     assert!(stdout.contains("gnss.txt: 4 fixes"), "{stdout}");
 }
+
+#[test]
+fn convert_reads_standard_input() {
+    // `gpspipe -R | navsync convert --from ubx - --output DIR`: a shared
+    // gpsd log piped in small chunks (short reads, the `#` header split
+    // across them) converts exactly as the file does.
+    let dir = temp_dir("convert-stdin");
+    let log = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/gpsd-ublox/ublox-neo-m8l.log");
+    let bytes = std::fs::read(&log).unwrap();
+    let (ok, _, stderr) = run(bin()
+        .args(["convert", "--from", "ubx"])
+        .arg(&log)
+        .arg("--output")
+        .arg(dir.join("file")));
+    assert!(ok, "{stderr}");
+    let mut child = bin()
+        .args(["convert", "--from", "ubx", "-", "--output"])
+        .arg(dir.join("stdin"))
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut pipe = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || {
+        use std::io::Write;
+        for chunk in bytes.chunks(97) {
+            pipe.write_all(chunk).unwrap();
+            pipe.flush().unwrap();
+        }
+    });
+    let out = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stdout}{stderr}");
+    let from_file = std::fs::read_to_string(dir.join("file/gnss.txt")).unwrap();
+    let from_stdin = std::fs::read_to_string(dir.join("stdin/gnss.txt")).unwrap();
+    assert!(from_file.lines().count() >= 10);
+    assert_eq!(from_file, from_stdin);
+    let summary = std::fs::read_to_string(dir.join("stdin/summary.json")).unwrap();
+    assert!(summary.contains("\"input\": \"<stdin>\""), "{summary}");
+
+    // Empty standard input: a plain error, no panic.
+    let (ok, _, stderr) = run(bin()
+        .args(["convert", "--from", "nmea", "-", "--output"])
+        .arg(dir.join("empty"))
+        .stdin(std::process::Stdio::null()));
+    assert!(
+        !ok && stderr.contains("<stdin>") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+}

@@ -216,6 +216,7 @@ pub fn convert(
     out_dir: &Path,
     opts: &ConvertOptions,
 ) -> Result<ConvertSummary, Error> {
+    let (reader, input) = open_input(input)?;
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let mut s = ConvertSummary {
         input: input.display().to_string(),
@@ -224,15 +225,50 @@ pub fn convert(
         ..Default::default()
     };
     match format {
-        InputFormat::Ubx | InputFormat::Nmea => convert_stream(input, out_dir, opts, &mut s)?,
-        InputFormat::RateCsv => convert_rate_csv(input, out_dir, opts, &mut s)?,
-        InputFormat::CommaGnss => convert_comma_gnss(input, out_dir, opts, &mut s)?,
+        InputFormat::Ubx | InputFormat::Nmea => {
+            convert_stream(reader, input, out_dir, opts, &mut s)?
+        }
+        InputFormat::RateCsv => {
+            convert_rate_csv(LineReader::new(reader, input), out_dir, opts, &mut s)?
+        }
+        InputFormat::CommaGnss => {
+            convert_comma_gnss(LineReader::new(reader, input), out_dir, opts, &mut s)?
+        }
     }
     let path = out_dir.join("summary.json");
     let json = serde_json::to_string_pretty(&s).map_err(|e| Error::Invalid(e.to_string()))?;
     std::fs::write(&path, json).map_err(|e| Error::io(&path, e))?;
     s.files.push(path.display().to_string());
     Ok(s)
+}
+
+/// The name standard input goes by in messages and summary.json.
+pub const STDIN_NAME: &str = "<stdin>";
+
+/// Opens `input`, or standard input for `-` (so that `gpspipe -R |
+/// navsync convert --from ubx -` works); returns the reader and the name
+/// to use in messages.
+fn open_input(input: &Path) -> Result<(Box<dyn Read>, &Path), Error> {
+    if input.as_os_str() == "-" {
+        return Ok((Box::new(std::io::stdin().lock()), Path::new(STDIN_NAME)));
+    }
+    let file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
+    Ok((Box::new(file), input))
+}
+
+/// Reads until `buf` is full or the input ends (a pipe gives short reads:
+/// the gpsd header must be seen whole).
+fn read_full(r: &mut dyn Read, buf: &mut [u8], input: &Path) -> Result<usize, Error> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(Error::io(input, e)),
+        }
+    }
+    Ok(n)
 }
 
 fn write_gnss(path: &Path, fixes: &[GnssFix], s: &mut ConvertSummary) -> Result<(), Error> {
@@ -278,18 +314,18 @@ fn monotonic(fixes: Vec<ReceiverFix>, file: &Path, diag: &mut Diagnostics) -> Ve
 }
 
 fn convert_stream(
+    mut file: Box<dyn Read>,
     input: &Path,
     out_dir: &Path,
     opts: &ConvertOptions,
     s: &mut ConvertSummary,
 ) -> Result<(), Error> {
-    let mut file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
     let diag_path = input.to_path_buf();
     let mut block = vec![0u8; 1 << 20];
     let mut conv = StreamConverter::new(opts);
     // gpsd logs start with `#` comment lines; headers are short, so the
     // first block holds them.
-    let n = file.read(&mut block).map_err(|e| Error::io(input, e))?;
+    let n = read_full(&mut file, &mut block, input)?;
     let h = gpsd_log_header_len(&block[..n]);
     s.header_bytes = h as u64;
     let mut r = StreamReader::new().starting_at(h as u64);
@@ -298,7 +334,7 @@ fn convert_stream(
         while let Some(ev) = r.next_event() {
             conv.push(&ev, &diag_path, s);
         }
-        let n = file.read(&mut block).map_err(|e| Error::io(input, e))?;
+        let n = read_full(&mut file, &mut block, input)?;
         if n == 0 {
             break;
         }
@@ -759,12 +795,12 @@ fn write_increments(
 }
 
 fn convert_rate_csv(
-    input: &Path,
+    mut lines: LineReader<Box<dyn Read>>,
     out_dir: &Path,
     opts: &ConvertOptions,
     s: &mut ConvertSummary,
 ) -> Result<(), Error> {
-    let mut lines = LineReader::open(input)?;
+    let input = &lines.path().to_path_buf();
     let offset_ns = (opts.imu_time_offset_s * 1e9).round() as i64;
     let mut rates = Vec::new();
     while let Some((line, no)) = lines.next_line()? {
@@ -831,12 +867,12 @@ fn convert_rate_csv(
 }
 
 fn convert_comma_gnss(
-    input: &Path,
+    mut lines: LineReader<Box<dyn Read>>,
     out_dir: &Path,
     opts: &ConvertOptions,
     s: &mut ConvertSummary,
 ) -> Result<(), Error> {
-    let mut lines = LineReader::open(input)?;
+    let input = &lines.path().to_path_buf();
     let mut fixes: Vec<ReceiverFix> = Vec::new();
     let mut receipts: Vec<(GpsTime, Vec<u8>)> = Vec::new();
     let sd = opts.fix.default_sd_m;

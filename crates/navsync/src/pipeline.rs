@@ -90,6 +90,10 @@ pub struct FuseOptions {
     pub outages: Option<OutageSchedule>,
     pub nhc: Option<NhcSettings>,
     pub gnss_layout_matlab: bool,
+    /// GNSS file format (KF-GINS text or RTKLIB `.pos`).
+    pub gnss_format: crate::io::rtklib::GnssFormat,
+    /// RTKLIB: keep solutions with quality flag Q ≤ this (1 fix … 6 PPP).
+    pub rtklib_max_q: u8,
     /// Floor for GNSS standard deviations (m, m/s) instead of skipping.
     pub gnss_sd_floor: Option<f64>,
     pub cov_step_s: f64,
@@ -135,6 +139,8 @@ impl Default for FuseOptions {
             outages: None,
             nhc: None,
             gnss_layout_matlab: false,
+            gnss_format: crate::io::rtklib::GnssFormat::Kfgins,
+            rtklib_max_q: crate::io::rtklib::RTKLIB_MAX_Q,
             gnss_sd_floor: None,
             cov_step_s: 0.1,
             gnss_weighting: GnssWeighting::default(),
@@ -570,6 +576,43 @@ impl NavSink for NullSink {
 
 const BATCH: usize = 4096;
 
+/// The GNSS file of a run, in the format the options name.
+enum GnssInput {
+    Kfgins(GnssReader),
+    Rtklib(Box<crate::io::rtklib::PosReader>),
+}
+
+impl GnssInput {
+    fn open(path: &Path, opts: &FuseOptions) -> Result<Self, Error> {
+        use crate::io::rtklib::{GnssFormat, PosReader};
+        Ok(match opts.gnss_format {
+            GnssFormat::Kfgins => {
+                let layout = if opts.gnss_layout_matlab {
+                    GnssLayout::Matlab
+                } else {
+                    GnssLayout::Cpp
+                };
+                let mut r = GnssReader::open(path, opts.week, layout)?;
+                r.sd_floor = opts.gnss_sd_floor;
+                GnssInput::Kfgins(r)
+            }
+            GnssFormat::Rtklib => {
+                let mut r = PosReader::open(path, opts.week)?;
+                r.sd_floor = opts.gnss_sd_floor;
+                r.max_q = opts.rtklib_max_q;
+                GnssInput::Rtklib(Box::new(r))
+            }
+        })
+    }
+
+    fn next_fix(&mut self, diag: &mut Diagnostics) -> Result<Option<GnssFix>, Error> {
+        match self {
+            GnssInput::Kfgins(r) => r.next_fix(diag),
+            GnssInput::Rtklib(r) => r.next_fix(diag),
+        }
+    }
+}
+
 /// Runs the fusion of a KF-GINS configuration into `sink`. `progress` is
 /// called with the fraction done (0..1) now and then.
 pub fn run(
@@ -613,16 +656,7 @@ pub fn run(
             .round() as i64
     };
 
-    let mut gnss = GnssReader::open(
-        &cfg.gnss_path,
-        opts.week,
-        if opts.gnss_layout_matlab {
-            GnssLayout::Matlab
-        } else {
-            GnssLayout::Cpp
-        },
-    )?;
-    gnss.sd_floor = opts.gnss_sd_floor;
+    let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
     let mut next_fix: Option<GnssFix> = gnss.next_fix(&mut diag)?;
     let mut speeds = match &opts.odometer {
         Some(o) => Some(crate::reduced::SpeedStream::open(
@@ -788,6 +822,11 @@ pub fn run(
     while next_fix.is_some() {
         next_fix = gnss.next_fix(&mut diag)?;
         fixes_read += usize::from(next_fix.is_some());
+    }
+    if let GnssInput::Rtklib(r) = &gnss
+        && let Some(note) = r.q_summary()
+    {
+        diag.note(note);
     }
     let Some(t0) = t0 else {
         return Err(Error::NoData {

@@ -34,7 +34,7 @@ pub struct Args {
     /// Input format.
     #[arg(long, value_enum)]
     pub from: From,
-    /// Input file.
+    /// Input file; `-` reads standard input (`gpspipe -R -n 1000 | navsync convert --from ubx - --output DIR`).
     pub file: PathBuf,
     /// Output directory (created if needed).
     #[arg(long)]

@@ -8,6 +8,7 @@ use navsync::fusion::{
     GapPolicy, GnssErrorModel, GnssWeighting, LatencyMode, RobustWeighting, TimeOffsetOptions,
 };
 use navsync::io::config::KfGinsConfig;
+use navsync::io::rtklib::GnssFormat;
 use navsync::pipeline::{self, FuseOptions, KfGinsSink, NhcSettings, OutageSchedule};
 
 use super::{parse_triplet, print_diagnostics};
@@ -48,6 +49,15 @@ pub struct Args {
     /// Column order of 13-column GNSS files.
     #[arg(long, value_enum, default_value_t = Layout::Cpp)]
     pub gnss_layout: Layout,
+    /// GNSS file format: kfgins (7/13 columns), rtklib (.pos, llh or xyz,
+    /// GPST), or auto = rtklib for a `.pos` file, else kfgins (the choice is printed).
+    #[arg(long, value_enum, default_value_t = GnssFileFormat::Auto)]
+    pub gnss_format: GnssFileFormat,
+    /// RTKLIB: keep solutions with quality flag Q ≤ this (1 fix, 2 float,
+    /// 3 SBAS, 4 DGPS, 5 single, 6 PPP); the default keeps all, weighted by
+    /// their σ; 2 keeps RTK fix and float only.
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u8).range(1..=6))]
+    pub rtklib_max_q: u8,
     /// Replace GNSS standard deviations below this (m) instead of skipping the fix.
     #[arg(long)]
     pub gnss_sd_floor: Option<f64>,
@@ -228,6 +238,13 @@ pub enum Layout {
 }
 
 #[derive(Copy, Clone, clap::ValueEnum)]
+pub enum GnssFileFormat {
+    Auto,
+    Kfgins,
+    Rtklib,
+}
+
+#[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Gap {
     Auto,
     HoldRate,
@@ -317,6 +334,12 @@ impl Args {
                 interval_s: self.nhc_interval,
             }),
             gnss_layout_matlab: matches!(self.gnss_layout, Layout::Matlab),
+            gnss_format: match self.gnss_format {
+                GnssFileFormat::Rtklib => GnssFormat::Rtklib,
+                // Auto is resolved in `run`, where the GNSS path is known.
+                GnssFileFormat::Kfgins | GnssFileFormat::Auto => GnssFormat::Kfgins,
+            },
+            rtklib_max_q: self.rtklib_max_q,
             gnss_sd_floor: self.gnss_sd_floor,
             cov_step_s: self.cov_step,
             gnss_weighting,
@@ -382,8 +405,26 @@ impl Args {
 pub fn run(args: Args) -> Result<()> {
     let mut diag = Diagnostics::default();
     let cfg = KfGinsConfig::load(&args.config, &mut diag)?;
-    let opts = args.options()?;
+    let mut opts = args.options()?;
     opts.validate()?;
+    let by_extension = cfg
+        .gnss_path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("pos"));
+    if matches!(args.gnss_format, GnssFileFormat::Auto) && by_extension {
+        opts.gnss_format = GnssFormat::Rtklib;
+    }
+    if opts.gnss_format == GnssFormat::Rtklib {
+        println!(
+            "GNSS file {} read as RTKLIB .pos{}",
+            cfg.gnss_path.display(),
+            if matches!(args.gnss_format, GnssFileFormat::Auto) {
+                " (by its extension; --gnss-format kfgins reads it as KF-GINS text)"
+            } else {
+                ""
+            }
+        );
+    }
     let out_dir = opts
         .output_dir
         .clone()

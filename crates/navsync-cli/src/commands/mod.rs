@@ -3,6 +3,7 @@ pub mod bench;
 pub mod convert;
 pub mod demo;
 pub mod eval;
+pub mod export;
 pub mod fuse;
 pub mod imu;
 pub mod live;

@@ -1,6 +1,8 @@
 //! File formats: text plumbing, KF-GINS formats, the KF-GINS configuration.
 
 pub mod config;
+pub mod export;
 pub mod kfgins;
 pub mod riglog;
+pub mod rtklib;
 pub mod text;
