@@ -528,6 +528,35 @@ fn nis_of(s: &Mat, z: &[f64]) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
+impl RejectedFix {
+    /// Whether `obs` (innovation covariance `s`) agrees with this earlier
+    /// fix: the difference of the innovations passes the χ² `threshold`
+    /// with covariance S_k + R_{k−1}.
+    fn agrees_with(&self, obs: &Observation, s: &Mat, threshold: f64) -> bool {
+        if self.z.len() != obs.z.len() {
+            return false;
+        }
+        let mut c = s.clone();
+        for (x, y) in c.data.iter_mut().zip(&self.r.data) {
+            *x += y;
+        }
+        let d: Vec<f64> = obs.z.iter().zip(&self.z).map(|(a, b)| a - b).collect();
+        nis_of(&c, &d).is_some_and(|chi2| chi2 <= threshold)
+    }
+}
+
+/// The covariance inflation that makes an innovation's size match its
+/// covariance, λ = (zᵀz − tr R) / tr(H P Hᵀ) (the moment estimate of an
+/// adaptive fading factor, Xia et al. 1994), within [1, MAX_INFLATION].
+fn moment_inflation(obs: &Observation, s: &Mat) -> Option<f64> {
+    let m = obs.dim();
+    let z2: f64 = obs.z.iter().map(|x| x * x).sum();
+    let tr_r: f64 = (0..m).map(|i| obs.r.get(i, i)).sum();
+    let tr_hph: f64 = (0..m).map(|i| s.get(i, i) - obs.r.get(i, i)).sum();
+    let factor = ((z2 - tr_r) / tr_hph).clamp(1.0, MAX_INFLATION);
+    factor.is_finite().then_some(factor)
+}
+
 /// Fixes further apart than this (s) are not compared with each other.
 const CONSISTENCY_MAX_GAP_S: f64 = 5.0;
 /// A run of rejections that began with a NIS above this multiple of the
@@ -1305,14 +1334,8 @@ impl Core {
     ) -> Result<bool, Error> {
         let threshold = chi2_quantile(0.9999, obs.dim() as f64);
         if let Some(prev) = self.rejected_run.last() {
-            let agrees = time.seconds_since(prev.time) <= CONSISTENCY_MAX_GAP_S && {
-                let mut c = s.clone();
-                for (x, y) in c.data.iter_mut().zip(&prev.r.data) {
-                    *x += y;
-                }
-                let d: Vec<f64> = obs.z.iter().zip(&prev.z).map(|(a, b)| a - b).collect();
-                nis_of(&c, &d).is_some_and(|chi2| chi2 <= threshold)
-            };
+            let agrees = time.seconds_since(prev.time) <= CONSISTENCY_MAX_GAP_S
+                && prev.agrees_with(obs, s, threshold);
             if !agrees {
                 self.rejected_run.clear();
             }
@@ -1337,16 +1360,11 @@ impl Core {
         if !cooled || !((run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN) {
             return Ok(false);
         }
-        let m = obs.dim();
-        let z2: f64 = obs.z.iter().map(|x| x * x).sum();
-        let tr_r: f64 = (0..m).map(|i| obs.r.get(i, i)).sum();
-        let tr_hph: f64 = (0..m).map(|i| s.get(i, i) - obs.r.get(i, i)).sum();
-        let factor = ((z2 - tr_r) / tr_hph).clamp(1.0, MAX_INFLATION);
-        if !factor.is_finite() {
+        let Some(factor) = moment_inflation(obs, s) else {
             return Ok(false);
-        }
+        };
         self.notes.push(format!(
-            "GNSS fix at {time}: {} consecutive fixes rejected that agree with each other, so the INS drifted beyond its covariance; covariance inflated x{factor:.2}",
+            "GNSS fix at {time}: {} consecutive disagreeing fixes agree with each other, so the INS drifted beyond its covariance; covariance inflated x{factor:.2}",
             self.rejected_run.len()
         ));
         self.filter.inflate(factor);
@@ -1382,29 +1400,14 @@ impl Core {
         }
         if prev.first_ratio > SMOOTH_START_RATIO
             || time.seconds_since(prev.time) > CONSISTENCY_MAX_GAP_S
-            || prev.z.len() != obs.z.len()
         {
             return None;
         }
         let s = self.filter.innovation_covariance(obs);
-        let mut c = s.clone();
-        for (x, y) in c.data.iter_mut().zip(&prev.r.data) {
-            *x += y;
-        }
-        let l = dense::cholesky(&c)?;
-        let d: Vec<f64> = obs.z.iter().zip(&prev.z).map(|(a, b)| a - b).collect();
-        let mut c_inv_d = d.clone();
-        dense::cholesky_solve(&l, &mut c_inv_d);
-        let chi2: f64 = d.iter().zip(&c_inv_d).map(|(a, b)| a * b).sum();
-        if chi2.is_nan() || chi2 > threshold {
+        if !prev.agrees_with(obs, &s, threshold) {
             return None;
         }
-        let m = obs.dim();
-        let z2: f64 = obs.z.iter().map(|x| x * x).sum();
-        let tr_r: f64 = (0..m).map(|i| obs.r.get(i, i)).sum();
-        let tr_hph: f64 = (0..m).map(|i| s.get(i, i) - obs.r.get(i, i)).sum();
-        let factor = ((z2 - tr_r) / tr_hph).clamp(1.0, MAX_INFLATION);
-        factor.is_finite().then_some(factor)
+        moment_inflation(obs, &s)
     }
 
     fn vehicle_updates(&mut self) -> Result<(), Error> {
