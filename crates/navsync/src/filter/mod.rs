@@ -275,7 +275,71 @@ pub struct ErrorStateFilter {
     a: Mat,
     q: Mat,
     phi: Vec<f64>,
+    /// Diagonal of Φ on the states after the navigation errors.
+    phi_diag: Vec<f64>,
     t: Vec<f64>,
+    /// The forward run's nodes for the smoother, when recorded.
+    track: Option<Box<NodeTrack>>,
+}
+
+/// One node of the forward run, as the fixed-interval smoother needs it
+/// ([`crate::smoother`]): the transition from the previous node, the
+/// covariance before and after this node's corrections, and the sum of
+/// the corrections fed back here.
+#[derive(Clone, Debug)]
+pub struct SmootherNode {
+    pub time: GpsTime,
+    /// Φ from the previous node to this one (identity for the first).
+    pub phi_in: Mat,
+    /// P just before this node's corrections (equal to `p_plus` without).
+    pub p_minus: Mat,
+    /// P after them.
+    pub p_plus: Mat,
+    /// Σ of the error states fed back at this node (closed loop: the
+    /// nominal state after the node is the one before it minus this).
+    pub dx: Vec<f64>,
+}
+
+/// Records [`SmootherNode`]s: one at every epoch with corrections, and one
+/// at least every `interval_s` between them (the smoother's output is
+/// interpolated between nodes).
+#[derive(Clone, Debug)]
+struct NodeTrack {
+    interval_s: f64,
+    phi_acc: Mat,
+    last_node: Option<GpsTime>,
+    /// The node being built: time, P before its first correction, Σ dx.
+    open: Option<(GpsTime, Mat, Vec<f64>)>,
+    closed: Vec<SmootherNode>,
+}
+
+impl NodeTrack {
+    fn emit(&mut self, time: GpsTime, p_minus: Mat, p_plus: &Mat, dx: Vec<f64>) {
+        let n = p_plus.rows;
+        let phi_in = std::mem::replace(&mut self.phi_acc, Mat::identity(n));
+        self.closed.push(SmootherNode {
+            time,
+            phi_in,
+            p_minus,
+            p_plus: p_plus.clone(),
+            dx,
+        });
+        self.last_node = Some(time);
+    }
+
+    fn close_open(&mut self, p: &Mat) {
+        if let Some((t, p_minus, dx)) = self.open.take() {
+            self.emit(t, p_minus, p, dx);
+        }
+    }
+
+    fn open_at(&mut self, time: GpsTime, p: &Mat) -> &mut Vec<f64> {
+        if self.open.as_ref().is_some_and(|(t, _, _)| *t != time) {
+            self.close_open(p);
+        }
+        let n = p.rows;
+        &mut self.open.get_or_insert_with(|| (time, p.clone(), vec![0.0; n])).2
+    }
 }
 
 impl ErrorStateFilter {
@@ -317,7 +381,54 @@ impl ErrorStateFilter {
             a: Mat::zeros(n, n),
             q: Mat::zeros(n, n),
             phi: vec![0.0; n * n],
+            phi_diag: vec![1.0; n],
             t: vec![0.0; 9 * n],
+            track: None,
+        }
+    }
+
+    /// Starts recording [`SmootherNode`]s, at least one every `interval_s`,
+    /// with a first node now.
+    pub fn record_nodes(&mut self, time: GpsTime, interval_s: f64) {
+        let mut track = NodeTrack {
+            interval_s,
+            phi_acc: Mat::identity(self.n),
+            last_node: None,
+            open: None,
+            closed: Vec::new(),
+        };
+        track.emit(time, self.p.clone(), &self.p, vec![0.0; self.n]);
+        self.track = Some(Box::new(track));
+    }
+
+    /// The nodes completed since the last call (empty unless recording).
+    pub fn take_nodes(&mut self) -> Vec<SmootherNode> {
+        self.track
+            .as_mut()
+            .map(|t| std::mem::take(&mut t.closed))
+            .unwrap_or_default()
+    }
+
+    /// Ends the recording: the node being built is completed, and a last
+    /// node is placed at `time` (after propagating the pending window).
+    pub fn finish_nodes(&mut self, nav: &NavState) {
+        self.propagate(nav);
+        if let Some(t) = self.track.as_mut() {
+            t.close_open(&self.p);
+            if t.last_node.is_none_or(|l| l < nav.time) {
+                t.emit(nav.time, self.p.clone(), &self.p, vec![0.0; self.n]);
+            }
+        }
+    }
+
+    /// Records a change of the nominal state made outside a Kalman update
+    /// (a re-initialisation), as the error state `dx` it removed, before
+    /// the caller changes P (a no-op unless recording).
+    pub fn record_correction(&mut self, time: GpsTime, dx: &[f64]) {
+        if let Some(t) = self.track.as_mut() {
+            for (a, b) in t.open_at(time, &self.p).iter_mut().zip(dx) {
+                *a += b;
+            }
         }
     }
 
@@ -372,6 +483,9 @@ impl ErrorStateFilter {
             return;
         }
         self.window = Window::default();
+        if let Some(t) = self.track.as_mut() {
+            t.close_open(&self.p);
+        }
         let le = LocalEarth::new(&nav.pos, &nav.vel);
         model::fill_transition(
             &mut self.a,
@@ -459,6 +573,16 @@ impl ErrorStateFilter {
         }
         add_half_q(&mut self.p, &self.q);
         // Every block above was written symmetrically: P stays exactly symmetric.
+        self.phi_diag[NN..n].copy_from_slice(&d[NN..n]);
+        if let Some(track) = self.track.as_mut() {
+            accumulate_transition(&mut track.phi_acc, phi, &self.phi_diag, NN);
+            if track
+                .last_node
+                .is_some_and(|l| nav.time.seconds_since(l) >= track.interval_s)
+            {
+                track.emit(nav.time, self.p.clone(), &self.p, vec![0.0; n]);
+            }
+        }
     }
 
     /// H's sparsity, HP (m × n, through that sparsity) and the innovation
@@ -565,6 +689,11 @@ impl ErrorStateFilter {
         for (i, d) in dx.iter_mut().enumerate() {
             *d = k.row(i).iter().zip(&obs.z).map(|(a, b)| a * b).sum();
         }
+        if let Some(t) = self.track.as_mut() {
+            for (a, b) in t.open_at(time, &self.p).iter_mut().zip(&dx) {
+                *a += b;
+            }
+        }
 
         // Joseph form: P = (I − KH) P (I − KH)ᵀ + K R Kᵀ.
         // M = P − K (HP)
@@ -638,6 +767,30 @@ impl ErrorStateFilter {
         }
         Ok(())
     }
+}
+
+/// acc ← Φ acc for Φ whose first `nn` rows are dense (`phi_rows`, row-major,
+/// n columns) and whose remaining rows are diagonal (`diag`).
+fn accumulate_transition(acc: &mut Mat, phi_rows: &[f64], diag: &[f64], nn: usize) {
+    let n = acc.rows;
+    let mut top = vec![0.0; nn * n];
+    for i in 0..nn {
+        let out = &mut top[i * n..(i + 1) * n];
+        for k in 0..n {
+            let f = phi_rows[i * n + k];
+            if f == 0.0 {
+                continue;
+            }
+            for (o, a) in out.iter_mut().zip(acc.row(k)) {
+                *o += f * a;
+            }
+        }
+    }
+    for j in nn..n {
+        let d = diag[j];
+        acc.row_mut(j).iter_mut().for_each(|x| *x *= d);
+    }
+    acc.data[..nn * n].copy_from_slice(&top);
 }
 
 /// P += Q/2 over Q's block-diagonal support (velocity and attitude 3×3
