@@ -35,10 +35,12 @@ use crate::filter::dense::{self, Mat};
 use crate::filter::gnss::{self, GnssFix};
 use crate::filter::nhc::VehicleConstraint;
 use crate::filter::{
-    ErrorStateFilter, ImuNoise, InitialStd, Observation, StateLayout, UpdateOutcome, feedback,
+    ErrorStateFilter, ImuNoise, InitialStd, Observation, SmootherNode, StateLayout, UpdateOutcome,
+    feedback,
 };
 use crate::ins::{ImuErrors, ImuSample, Increment, Mechanization, NavState, StepInfo};
 use crate::offset_search::{CoarseOffsetSearch, OffsetEstimate};
+use crate::smoother::{NodeNominal, Recorder, Smoothed};
 use crate::stats::chi2_quantile;
 use crate::time::GpsTime;
 
@@ -628,6 +630,10 @@ struct Core {
     /// end time, velocity change, duration, antenna lever arm in NED.
     steps: Vec<(GpsTime, Vector3<f64>, f64, Vector3<f64>)>,
     record_steps: bool,
+    /// Smoother: the node interval (s) when nodes are recorded, and the
+    /// nodes completed since the wrapper last drained them.
+    node_interval_s: Option<f64>,
+    nodes: Vec<(SmootherNode, NodeNominal)>,
 }
 
 impl Core {
@@ -713,7 +719,30 @@ impl Core {
             notes: Vec::new(),
             steps: Vec::new(),
             record_steps,
+            node_interval_s: None,
+            nodes: Vec::new(),
             cfg,
+        }
+    }
+
+    /// Propagates the covariance to now and collects any smoother nodes
+    /// this completed, with the nominal state they were corrected to.
+    fn propagate(&mut self) {
+        self.filter.propagate(&self.nav);
+        self.collect_nodes();
+    }
+
+    fn collect_nodes(&mut self) {
+        if self.node_interval_s.is_none() {
+            return;
+        }
+        let nominal = NodeNominal {
+            imu: self.imu,
+            time_offset_s: self.tau,
+            odometer_scale: self.odo_scale,
+        };
+        for node in self.filter.take_nodes() {
+            self.nodes.push((node, nominal));
         }
     }
 
@@ -768,6 +797,10 @@ impl Core {
                 return Ok(None);
             }
             self.started = true;
+            if let Some(dt) = self.node_interval_s {
+                self.filter.record_nodes(sample.time, dt);
+                self.collect_nodes();
+            }
             self.nav.time = sample.time;
             self.last_time = sample.time;
             self.next_nhc = sample.time;
@@ -843,7 +876,7 @@ impl Core {
         }
         self.vehicle_updates()?;
         if self.filter.pending_dt() >= self.cfg.cov_step_s {
-            self.filter.propagate(&self.nav);
+            self.propagate();
             self.stats.covariance_propagations += 1;
         }
         Ok(Some(NavOutput {
@@ -909,7 +942,7 @@ impl Core {
         gate: Option<f64>,
         frozen: &[usize],
     ) -> Result<UpdateOutcome, Error> {
-        self.filter.propagate(&self.nav);
+        self.propagate();
         let outcome = self
             .filter
             .update_with_frozen(obs, gate, frozen, self.nav.time)?;
@@ -1195,7 +1228,7 @@ impl Core {
         rw: &RobustWeighting,
         frozen: &[usize],
     ) -> Result<FixStatus, Error> {
-        self.filter.propagate(&self.nav);
+        self.propagate();
         let r_stated = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
         let sd = [0, 1, 2].map(|i| r_stated[i].sqrt());
         let s_stated = self.filter.innovation_covariance(&obs);
@@ -1449,6 +1482,9 @@ impl Core {
                 est.offset_s, est.sd_s, self.tau, sd_f
             ));
         }
+        let mut dx = vec![0.0; self.filter.n()];
+        dx[i] = self.tau - est.offset_s;
+        self.filter.record_correction(self.nav.time, &dx);
         self.tau = est.offset_s;
         let p = self.filter.covariance_mut();
         for j in 0..p.rows {
@@ -1519,6 +1555,8 @@ pub struct Fusion {
     diag: Diagnostics,
     /// Every GNSS observation the filter weighed, in time order.
     fix_log: Vec<FixRecord>,
+    /// The forward run's record for the smoother, when enabled.
+    recorder: Option<Recorder>,
 }
 
 impl Fusion {
@@ -1541,7 +1579,74 @@ impl Fusion {
             now,
             diag: Diagnostics::with_cap(1000),
             fix_log: Vec::new(),
+            recorder: None,
         }
+    }
+
+    /// Records the forward run for fixed-interval smoothing
+    /// ([`crate::smoother`]), in temporary files in `dir`, with a node at
+    /// every correction epoch and at least every `node_interval_s`. Call
+    /// before the first sample; then [`Self::smooth`] at the end.
+    /// Smoothing is post-processing: it needs [`LatencyMode::Offline`].
+    pub fn enable_smoother(
+        &mut self,
+        dir: &std::path::Path,
+        node_interval_s: f64,
+    ) -> Result<(), Error> {
+        if self.cfg().latency != LatencyMode::Offline {
+            return Err(Error::Invalid(
+                "smoothing is post-processing: it needs the offline latency mode (fixes at their time of validity)".into(),
+            ));
+        }
+        if !(node_interval_s.is_finite() && node_interval_s > 0.0) {
+            return Err(Error::Invalid(format!(
+                "smoother node interval must be positive, got {node_interval_s}"
+            )));
+        }
+        if self.core.started {
+            return Err(Error::Invalid(
+                "the smoother must be enabled before the first IMU sample".into(),
+            ));
+        }
+        self.recorder = Some(Recorder::create(dir, self.core.filter.n())?);
+        self.core.node_interval_s = Some(node_interval_s);
+        Ok(())
+    }
+
+    fn store_nodes(&mut self) -> Result<(), Error> {
+        if let Some(rec) = self.recorder.as_mut() {
+            for (node, nominal) in self.core.nodes.drain(..) {
+                rec.push_node(&node, &nominal)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Ends the forward run and runs the smoother's backward pass: the
+    /// smoothed solution at every epoch the forward run returned.
+    pub fn smooth(&mut self) -> Result<Smoothed, Error> {
+        if self.recorder.is_none() {
+            return Err(Error::Invalid("the smoother was not enabled".into()));
+        }
+        let nav = self.core.nav;
+        self.core.filter.finish_nodes(&nav);
+        self.core.collect_nodes();
+        self.store_nodes()?;
+        let layout = self.core.filter.layout().clone();
+        match self.recorder.take() {
+            Some(rec) => rec.smooth(layout),
+            None => Err(Error::Invalid("the smoother was not enabled".into())),
+        }
+    }
+
+    /// The error-state layout (state names and indices).
+    pub fn state_layout(&self) -> &StateLayout {
+        self.core.filter.layout()
+    }
+
+    /// Nodes and bytes the smoother has recorded so far.
+    pub fn smoother_record(&self) -> Option<(usize, u64)> {
+        self.recorder.as_ref().map(|r| (r.node_count(), r.bytes()))
     }
 
     /// The GNSS observations weighed so far (robust weighting): time,
@@ -1608,8 +1713,7 @@ impl Fusion {
     /// Standard deviations of all states at the current time (propagates
     /// the covariance first).
     pub fn std_devs(&mut self) -> Vec<f64> {
-        let nav = self.core.nav;
-        self.core.filter.propagate(&nav);
+        self.core.propagate();
         (0..self.core.filter.n())
             .map(|i| self.core.filter.sd(i))
             .collect()
@@ -1685,7 +1789,7 @@ impl Fusion {
             LatencyMode::DelayedState { .. } => self.delayed_update(fix)?,
         }
         self.drain_notes();
-        Ok(())
+        self.store_nodes()
     }
 
     /// Processes one IMU sample and returns the solution at its time, or
@@ -1733,6 +1837,10 @@ impl Fusion {
         }
         self.feed_search();
         self.drain_notes();
+        self.store_nodes()?;
+        if let (Some(rec), Some(o)) = (self.recorder.as_mut(), &out) {
+            rec.push_nav(&o.nav)?;
+        }
         Ok(out)
     }
 

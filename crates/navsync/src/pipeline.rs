@@ -130,6 +130,41 @@ pub struct FuseOptions {
     pub misalignment_sd_deg: Option<[f64; 2]>,
     /// The receiver's time-correlated position error as filter states.
     pub gnss_error: Option<GnssErrorModel>,
+    /// Fixed-interval (RTS) smoothing of the whole run.
+    pub smooth: Option<SmoothOptions>,
+}
+
+/// Settings of the forward–backward smoother ([`crate::smoother`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SmoothOptions {
+    /// Longest interval between smoother nodes without corrections (s):
+    /// the solution between nodes is corrected by interpolation.
+    pub node_interval_s: f64,
+}
+
+impl Default for SmoothOptions {
+    fn default() -> Self {
+        SmoothOptions {
+            node_interval_s: 1.0,
+        }
+    }
+}
+
+/// What the smoother did (in `summary.json`).
+#[derive(Clone, Debug, Serialize)]
+pub struct SmootherSummary {
+    pub nodes: usize,
+    /// Nodes whose predicted covariance had to be regularised.
+    pub regularised_nodes: usize,
+    pub epochs: usize,
+    /// Size of the temporary files (bytes).
+    pub temp_bytes: u64,
+    pub forward_s: f64,
+    pub backward_s: f64,
+    pub output_s: f64,
+    /// The smoothed time offset at the start and its σ (s), when estimated.
+    pub time_offset_start_s: Option<f64>,
+    pub time_offset_start_sd_s: Option<f64>,
 }
 
 impl Default for FuseOptions {
@@ -160,6 +195,7 @@ impl Default for FuseOptions {
             odometer: None,
             misalignment_sd_deg: None,
             gnss_error: None,
+            smooth: None,
         }
     }
 }
@@ -200,6 +236,19 @@ impl FuseOptions {
         }
         if let Some(m) = &self.gnss_error {
             m.validate().map_err(Error::Invalid)?;
+        }
+        if let Some(sm) = &self.smooth {
+            if self.latency != LatencyMode::Offline {
+                return bad(
+                    "smoothing is post-processing: it needs the offline latency mode".into(),
+                );
+            }
+            if !(sm.node_interval_s.is_finite() && sm.node_interval_s > 0.0) {
+                return bad(format!(
+                    "smoother node interval must be positive, got {}",
+                    sm.node_interval_s
+                ));
+            }
         }
         Ok(())
     }
@@ -247,6 +296,8 @@ pub struct FuseSummary {
     /// GNSS observations that were not used at their stated σ (all of
     /// them are in `gnss_residuals.txt`).
     pub gnss_weighting: WeightingReport,
+    /// The smoother's figures, when it ran.
+    pub smoother: Option<SmootherSummary>,
     pub options: FuseOptions,
     pub run_time_s: f64,
     pub diagnostics: Diagnostics,
@@ -614,11 +665,41 @@ impl GnssInput {
 }
 
 /// Runs the fusion of a KF-GINS configuration into `sink`. `progress` is
-/// called with the fraction done (0..1) now and then.
+/// called with the fraction done (0..1) now and then. With
+/// [`FuseOptions::smooth`], `sink` receives the smoothed solution (use
+/// [`run_smoothed`] to keep the forward one too).
 pub fn run(
     cfg: &KfGinsConfig,
     opts: &FuseOptions,
     sink: &mut dyn NavSink,
+    progress: &mut dyn FnMut(f64),
+) -> Result<FuseSummary, Error> {
+    if opts.smooth.is_some() {
+        run_inner(cfg, opts, &mut NullSink, Some(sink), progress)
+    } else {
+        run_inner(cfg, opts, sink, None, progress)
+    }
+}
+
+/// As [`run`] with smoothing: the forward solution goes to `forward`, the
+/// smoothed one to `smoothed` (same files, same epochs).
+pub fn run_smoothed(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    forward: &mut dyn NavSink,
+    smoothed: &mut dyn NavSink,
+    progress: &mut dyn FnMut(f64),
+) -> Result<FuseSummary, Error> {
+    let mut o = opts.clone();
+    o.smooth.get_or_insert_with(SmoothOptions::default);
+    run_inner(cfg, &o, forward, Some(smoothed), progress)
+}
+
+fn run_inner(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    sink: &mut dyn NavSink,
+    smoothed_sink: Option<&mut dyn NavSink>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<FuseSummary, Error> {
     opts.validate()?;
@@ -630,6 +711,17 @@ pub fn run(
         .end_sow
         .map(|e| GpsTime::from_week_ns(opts.week, (e * 1e9).round() as i64));
     let mut fusion = Fusion::new(fc);
+    let smoothing = match (opts.smooth, smoothed_sink) {
+        (Some(sm), Some(s)) => {
+            let dir = opts
+                .output_dir
+                .clone()
+                .unwrap_or_else(|| cfg.output_path.clone());
+            fusion.enable_smoother(&dir, sm.node_interval_s)?;
+            Some(s)
+        }
+        _ => None,
+    };
     let mut interp = match &opts.output_at {
         Some(p) => {
             let mut ip = NavInterpolator::new(opts.output_at_n);
@@ -849,6 +941,15 @@ pub fn run(
     if !opts.dry_run {
         sink.fix_records(&records)?;
     }
+    let smoother = match smoothing {
+        Some(out) => {
+            if !opts.dry_run {
+                out.fix_records(&records)?;
+            }
+            Some(write_smoothed(&mut fusion, opts, out, Some(t0), started)?)
+        }
+        None => None,
+    };
     let imu = *fusion.imu_errors();
     let deg_h = 180.0 / std::f64::consts::PI * 3600.0;
     let outages = opts
@@ -905,8 +1006,87 @@ pub fn run(
             .misalignment_sd_deg
             .map(|_| imu.accel_misalign.map(f64::to_degrees)),
         gnss_weighting: WeightingReport::from_records(&records),
+        smoother,
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,
+    })
+}
+
+/// The smoother's backward pass, then the smoothed solution through `sink`
+/// at every forward epoch (the same epochs, `--output-at` and auxiliary
+/// lines as the forward run).
+fn write_smoothed(
+    fusion: &mut Fusion,
+    opts: &FuseOptions,
+    sink: &mut dyn NavSink,
+    t0: Option<GpsTime>,
+    started: Instant,
+) -> Result<SmootherSummary, Error> {
+    let forward_s = started.elapsed().as_secs_f64();
+    let temp_bytes = fusion.smoother_record().map(|r| r.1).unwrap_or(0);
+    let tau_index = fusion.state_layout().index_of("time_offset");
+    let mut smoothed = fusion.smooth()?;
+    let backward_s = started.elapsed().as_secs_f64() - forward_s;
+    let mut interp = match &opts.output_at {
+        Some(p) => {
+            let mut ip = NavInterpolator::new(opts.output_at_n);
+            for t in crate::io::kfgins::read_times(p, opts.week)? {
+                ip.request(t);
+            }
+            Some(ip)
+        }
+        None => None,
+    };
+    let aux_ns = (opts.aux_interval_s * 1e9).round() as i64;
+    // The forward run's auxiliary epochs: from the start sample on.
+    let mut next_aux: Option<GpsTime> = t0;
+    let mut start_offset: Option<(f64, f64)> = None;
+    smoothed.for_each(|ep| {
+        let offset = tau_index.map(|i| TimeOffsetState {
+            offset_s: ep.time_offset_s,
+            sd_s: ep.sd[i],
+            observable: true,
+        });
+        if start_offset.is_none() {
+            start_offset = offset.map(|o| (o.offset_s, o.sd_s));
+        }
+        let mut nav_out = ep.nav;
+        if opts.output_gnss_time
+            && let Some(o) = offset
+        {
+            nav_out.time = nav_out.time.add_seconds(o.offset_s);
+        }
+        sink.nav(&nav_out, &ep.imu)?;
+        if let Some(ip) = interp.as_mut() {
+            for at in ip.push(&nav_out) {
+                sink.nav_at(&at)?;
+            }
+        }
+        let t = ep.nav.time;
+        if next_aux.is_none_or(|na| t >= na) {
+            sink.aux(t, &ep.imu, &ep.sd, offset)?;
+            sink.position_covariance(t, &ep.p_pos)?;
+            next_aux = Some(if aux_ns > 0 {
+                next_aux.unwrap_or(t) + aux_ns
+            } else {
+                t
+            });
+        }
+        Ok(())
+    })?;
+    if let Some(ip) = interp.as_mut() {
+        ip.finish();
+    }
+    Ok(SmootherSummary {
+        nodes: smoothed.node_count(),
+        regularised_nodes: smoothed.failures,
+        epochs: smoothed.epochs(),
+        temp_bytes,
+        forward_s,
+        backward_s,
+        output_s: started.elapsed().as_secs_f64() - forward_s - backward_s,
+        time_offset_start_s: start_offset.map(|o| o.0),
+        time_offset_start_sd_s: start_offset.map(|o| o.1),
     })
 }

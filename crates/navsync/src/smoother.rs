@@ -646,8 +646,9 @@ mod tests {
         // Fixes at every other step, a gap in the middle.
         let z: Vec<Option<f64>> = (0..=steps)
             .map(|k| {
-                (k % 2 == 0 && !(14..26).contains(&k))
-                    .then(|| 0.2 * k as f64 + 0.3 * (k as f64 * 0.7).sin() + rng::normal(&mut rng) * 0.5)
+                (k % 2 == 0 && !(14..26).contains(&k)).then(|| {
+                    0.2 * k as f64 + 0.3 * (k as f64 * 0.7).sin() + rng::normal(&mut rng) * 0.5
+                })
             })
             .collect();
 

@@ -46,6 +46,15 @@ pub struct Args {
     /// …the first FIRST seconds after the first IMU epoch.
     #[arg(long)]
     pub outage_first: Option<f64>,
+    /// Post-process forward and backward: Rauch–Tung–Striebel smoothing of
+    /// every filter state over the whole run. The smoothed solution goes to
+    /// the output folder, the forward one to its `forward/` subfolder.
+    #[arg(long)]
+    pub smooth: bool,
+    /// Longest interval between smoother nodes without corrections (s);
+    /// between nodes the smoothed correction is interpolated.
+    #[arg(long, default_value_t = 1.0, requires = "smooth")]
+    pub smooth_node_interval: f64,
     /// Column order of 13-column GNSS files.
     #[arg(long, value_enum, default_value_t = Layout::Cpp)]
     pub gnss_layout: Layout,
@@ -398,6 +407,9 @@ impl Args {
                 }),
             misalignment_sd_deg: self.misalignment,
             gnss_error,
+            smooth: self.smooth.then_some(pipeline::SmoothOptions {
+                node_interval_s: self.smooth_node_interval,
+            }),
         })
     }
 }
@@ -435,9 +447,21 @@ pub fn run(args: Args) -> Result<()> {
     }
     let pb = crate::progress::bar("fuse");
     let mut sink = KfGinsSink::create(&out_dir, opts.week)?;
-    let summary = pipeline::run(&cfg, &opts, &mut sink, &mut |f| {
-        crate::progress::set(&pb, f)
-    })?;
+    let summary = if opts.smooth.is_some() {
+        let fwd_dir = out_dir.join("forward");
+        let mut forward = KfGinsSink::create(&fwd_dir, opts.week)?;
+        let mut fwd_opts = opts.clone();
+        fwd_opts.output_dir = Some(out_dir.clone());
+        let summary = pipeline::run_smoothed(&cfg, &fwd_opts, &mut forward, &mut sink, &mut |f| {
+            crate::progress::set(&pb, f)
+        })?;
+        forward.finish()?;
+        summary
+    } else {
+        pipeline::run(&cfg, &opts, &mut sink, &mut |f| {
+            crate::progress::set(&pb, f)
+        })?
+    };
     sink.finish()?;
     pb.finish_and_clear();
     let mut json = serde_json::to_value(&summary)?;
@@ -516,10 +540,37 @@ pub fn run(args: Args) -> Result<()> {
             summary.outages
         );
     }
-    println!(
-        "  wrote {}/navresult.nav, imu_err.txt, std.txt, summary.json",
-        out_dir.display()
-    );
+    if let Some(sm) = &summary.smoother {
+        println!(
+            "  smoother: {} nodes, forward {:.2} s, backward {:.2} s, output {:.2} s, {:.1} MB of temporary files{}",
+            sm.nodes,
+            sm.forward_s,
+            sm.backward_s,
+            sm.output_s,
+            sm.temp_bytes as f64 / 1e6,
+            if sm.regularised_nodes > 0 {
+                format!(" ({} nodes regularised)", sm.regularised_nodes)
+            } else {
+                String::new()
+            }
+        );
+        if let (Some(o), Some(sd)) = (sm.time_offset_start_s, sm.time_offset_start_sd_s) {
+            println!(
+                "  smoothed time offset at the start: {:.3} ms ± {:.3} ms",
+                o * 1e3,
+                sd * 1e3
+            );
+        }
+        println!(
+            "  wrote {0}/navresult.nav, imu_err.txt, std.txt (smoothed), {0}/forward/ (forward), summary.json",
+            out_dir.display()
+        );
+    } else {
+        println!(
+            "  wrote {}/navresult.nav, imu_err.txt, std.txt, summary.json",
+            out_dir.display()
+        );
+    }
     if summary.diagnostics.total > 0 {
         eprintln!("{} reported conditions:", summary.diagnostics.total);
         print_diagnostics(&summary.diagnostics, 10);

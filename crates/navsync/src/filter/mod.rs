@@ -338,7 +338,10 @@ impl NodeTrack {
             self.close_open(p);
         }
         let n = p.rows;
-        &mut self.open.get_or_insert_with(|| (time, p.clone(), vec![0.0; n])).2
+        &mut self
+            .open
+            .get_or_insert_with(|| (time, p.clone(), vec![0.0; n]))
+            .2
     }
 }
 
