@@ -606,3 +606,99 @@ fn convert_reads_standard_input() {
         "{stderr}"
     );
 }
+
+#[test]
+fn smoothing_bridges_outages_and_keeps_the_forward_solution() {
+    // A 400 s test-track drive, ADIS16465-class IMU, 1 Hz RTK-class GNSS,
+    // 40 s outages every 150 s. A forward filter's drift through an outage
+    // grows about as T³ (attitude error × g); an RTS smoother bridges it
+    // from both ends, each side covering half the gap, (T/2)³ = T³/8, so
+    // its worst drift is well under a quarter of the forward one.
+    let dir = temp_dir("smooth");
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args([
+            "simulate",
+            "--quiet",
+            "--internal-rate",
+            "0",
+            "--scenario",
+            "test-track",
+            "--duration",
+            "400",
+            "--imu-grade",
+            "adis16465",
+            "--seed",
+            "3",
+            "--output",
+        ])
+        .arg(&sim));
+    assert!(ok, "{err}");
+    let out = dir.join("out");
+    let (ok, text, err) = run(bin()
+        .args([
+            "fuse",
+            "--smooth",
+            "--outage-period",
+            "150",
+            "--outage-len",
+            "40",
+        ])
+        .args(["--outage-first", "100", "--config"])
+        .arg(sim.join("kf-gins.yaml"))
+        .arg("--output")
+        .arg(&out));
+    assert!(ok, "{text}\n{err}");
+    assert!(text.contains("smoother:"), "{text}");
+    // Same files and epochs forward and smoothed.
+    for f in ["navresult.nav", "std.txt", "imu_err.txt", "summary.json"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let lines = |p: PathBuf| std::fs::read_to_string(p).unwrap().lines().count();
+    assert_eq!(
+        lines(out.join("navresult.nav")),
+        lines(out.join("forward/navresult.nav"))
+    );
+    assert_eq!(
+        lines(out.join("std.txt")),
+        lines(out.join("forward/std.txt"))
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let outages = summary["outages"].as_str().unwrap().to_string();
+    assert!(summary["smoother"]["nodes"].as_u64().unwrap() > 300);
+    let (ok, text, err) = run(bin()
+        .args(["eval", "--truth"])
+        .arg(sim.join("truth.nav"))
+        .arg("--nav")
+        .arg(out.join("navresult.nav"))
+        .args(["--outages", &outages, "--json"])
+        .arg(dir.join("eval.json")));
+    assert!(ok, "{err}");
+    assert!(text.contains("forward filter"), "{text}");
+    let e: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("eval.json")).unwrap()).unwrap();
+    let smoothed = e["outage_rms_max_horizontal_m"].as_f64().unwrap();
+    let forward = e["forward"]["outage_rms_max_horizontal_m"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        smoothed < forward / 4.0,
+        "outage drift: smoothed {smoothed} m, forward {forward} m"
+    );
+    let rms = |v: &serde_json::Value| v["pos_horizontal_m"]["rms"].as_f64().unwrap();
+    assert!(
+        rms(&e) < rms(&e["forward"]),
+        "{} vs {}",
+        rms(&e),
+        rms(&e["forward"])
+    );
+
+    // Smoothing is post-processing: a real-time latency mode is refused.
+    let (ok, _, err) = run(bin()
+        .args(["fuse", "--smooth", "--latency-mode", "naive", "--config"])
+        .arg(sim.join("kf-gins.yaml"))
+        .arg("--output")
+        .arg(dir.join("naive")));
+    assert!(!ok && err.contains("offline"), "{err}");
+}

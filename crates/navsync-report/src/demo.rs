@@ -205,6 +205,7 @@ pub fn run_demo(
         gnss_residuals: Some(dirs.fused.join("gnss_residuals.txt")).filter(|p| p.is_file()),
         time_offset_truth_s: tau_true,
         outages: outages.clone(),
+        ..ReportInputs::default()
     };
     let report = crate::build(&inputs)?;
     let report_path = opts.output.join("report.html");

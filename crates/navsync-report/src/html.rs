@@ -143,34 +143,75 @@ const ATTITUDE: Quantity = Quantity {
     std_col0: 7,
 };
 
+/// The forward filter's errors and σ, drawn behind a smoothed solution.
+struct ForwardSeries<'a> {
+    ep: &'a Epochs,
+    std: Option<&'a Rows>,
+}
+
+/// Light orange: the forward filter's ±3σ behind a smoothed solution's.
+const FORWARD_BAND: plotters::style::RGBColor = plotters::style::RGBColor(190, 160, 230);
+
 fn error_figure(
     ep: &Epochs,
     std: Option<&Rows>,
     shades: &[Shade],
     q: &Quantity,
-    value: impl Fn(usize, usize) -> f64,
+    forward: Option<&ForwardSeries>,
+    value: impl Fn(&Epochs, usize, usize) -> f64,
 ) -> Result<String, Error> {
     let (quantity, unit, comps, std_col0) = (q.name, q.unit, q.comps, q.std_col0);
     let x1 = ep.t.last().copied().unwrap_or(1.0).max(1e-3);
+    let smoothed = forward.is_some();
     let panels = (0..3)
-        .map(|c| Panel {
-            title: format!("{quantity} error, {}", comps[c]),
-            y_label: format!("{} ({unit})", comps[c]),
-            lines: vec![Line {
-                name: "solution − truth".into(),
-                color: AXES[c],
-                width: 1,
-                pts: series(&ep.t, |i| value(i, c)),
-            }],
-            bands: std
-                .map(|s| Band {
-                    name: "filter ±3σ".into(),
+        .map(|c| {
+            let mut lines = Vec::new();
+            let mut bands = Vec::new();
+            if let Some(f) = forward {
+                if let Some(s) = f.std {
+                    bands.push(Band {
+                        name: "forward filter ±3σ".into(),
+                        color: FORWARD_BAND,
+                        pts: s.band(std_col0 + c, 3.0),
+                    });
+                }
+                lines.push(Line {
+                    name: "forward filter − truth".into(),
+                    color: lighter(AXES[c]),
+                    width: 1,
+                    pts: series(&f.ep.t, |i| value(f.ep, i, c)),
+                });
+            }
+            if let Some(s) = std {
+                bands.push(Band {
+                    name: if smoothed {
+                        "smoother ±3σ"
+                    } else {
+                        "filter ±3σ"
+                    }
+                    .into(),
                     color: GREY,
                     pts: s.band(std_col0 + c, 3.0),
-                })
-                .into_iter()
-                .collect(),
-            y_range: None,
+                });
+            }
+            lines.push(Line {
+                name: if smoothed {
+                    "smoothed − truth"
+                } else {
+                    "solution − truth"
+                }
+                .into(),
+                color: AXES[c],
+                width: 1,
+                pts: series(&ep.t, |i| value(ep, i, c)),
+            });
+            Panel {
+                title: format!("{quantity} error, {}", comps[c]),
+                y_label: format!("{} ({unit})", comps[c]),
+                lines,
+                bands,
+                y_range: None,
+            }
         })
         .collect();
     plot::time_series(&Figure {
@@ -237,6 +278,40 @@ fn metrics_tables(html: &mut String, e: &EvalReport) {
             );
         }
     }
+}
+
+/// The forward filter against the smoothed solution: RMS of each error and
+/// the outage drift, side by side.
+fn forward_comparison(html: &mut String, forward: &EvalReport, smoothed: &EvalReport) {
+    html.push_str("<h3>Smoothed against the forward filter</h3>\n<table class=\"metrics\"><tr><th>RMS error</th><th>unit</th><th>forward filter</th><th>smoothed</th><th>ratio</th></tr>\n");
+    for ((name, unit, f), (_, _, s)) in forward.rows().into_iter().zip(smoothed.rows()) {
+        row(
+            html,
+            &[
+                name.to_string(),
+                unit.to_string(),
+                f4(f.rms),
+                f4(s.rms),
+                format!("{:.3}", s.rms / f.rms),
+            ],
+        );
+    }
+    if let (Some(f), Some(s)) = (
+        forward.outage_rms_max_horizontal_m,
+        smoothed.outage_rms_max_horizontal_m,
+    ) {
+        row(
+            html,
+            &[
+                "outage drift (RMS of max horizontal)".into(),
+                "m".into(),
+                format!("{f:.3}"),
+                format!("{s:.3}"),
+                format!("{:.3}", s / f),
+            ],
+        );
+    }
+    html.push_str("</table>\n<p class=\"note\">Forward–backward smoothing: Rauch, Tung &amp; Striebel, “Maximum likelihood estimates of linear dynamic systems”, AIAA Journal 3(8), 1965.</p>\n");
 }
 
 fn sync_tables(html: &mut String, s: &SyncReport, t0_sow: f64) {
@@ -380,6 +455,14 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
             .transpose()
     };
     let std = rows(&inp.std, 22, STD_LAYOUT)?;
+    // A smoothed solution's forward run, scored the same way.
+    let forward = match &inp.forward_nav {
+        Some(p) => {
+            let (fe, fep) = score(&inp.truth, p, &outages, &mut diag)?;
+            Some((fe, fep, rows(&inp.forward_std, 22, STD_LAYOUT)?))
+        }
+        None => None,
+    };
     let imu_err = rows(&inp.imu_err, 13, IMU_ERR_LAYOUT)?;
     let imu_err_truth = rows(&inp.imu_err_truth, 13, IMU_ERR_LAYOUT)?;
     let offset = inp
@@ -429,6 +512,9 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     // Metrics first.
     html.push_str("<section id=\"metrics\"><h2>Metrics</h2>\n<div class=\"cols\"><div>\n");
     metrics_tables(&mut html, &eval);
+    if let Some((fe, _, _)) = &forward {
+        forward_comparison(&mut html, fe, &eval);
+    }
     let final_offset = offset.as_ref().and_then(|r| r.last()).map(|r| (r[1], r[2]));
     if let Some((o, sd)) = final_offset {
         let truth = inp
@@ -519,16 +605,26 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     } else {
         "Shaded: GNSS outages (no std.txt given: no ±3σ bands)."
     };
-    let svg = error_figure(&ep, std.as_ref(), &shades, &POSITION, |i, c| {
-        ep.pos_err[i][c]
+    let fwd_series = forward.as_ref().map(|(_, fep, fstd)| ForwardSeries {
+        ep: fep,
+        std: fstd.as_ref(),
+    });
+    let nav_note = if fwd_series.is_some() {
+        "Smoothed solution (dark) with the smoother's ±3σ (grey), the forward filter's errors (light) with its ±3σ (lilac), from forward/; shaded: GNSS outages."
+    } else {
+        nav_note
+    };
+    let fw = fwd_series.as_ref();
+    let svg = error_figure(&ep, std.as_ref(), &shades, &POSITION, fw, |e, i, c| {
+        e.pos_err[i][c]
     })?;
     section(&mut html, "position", "Position error", nav_note, &svg);
-    let svg = error_figure(&ep, std.as_ref(), &shades, &VELOCITY, |i, c| {
-        ep.vel_err[i][c]
+    let svg = error_figure(&ep, std.as_ref(), &shades, &VELOCITY, fw, |e, i, c| {
+        e.vel_err[i][c]
     })?;
     section(&mut html, "velocity", "Velocity error", nav_note, &svg);
-    let svg = error_figure(&ep, std.as_ref(), &shades, &ATTITUDE, |i, c| {
-        ep.att_err[i][c]
+    let svg = error_figure(&ep, std.as_ref(), &shades, &ATTITUDE, fw, |e, i, c| {
+        e.att_err[i][c]
     })?;
     section(
         &mut html,

@@ -44,6 +44,10 @@ pub struct ReportInputs {
     pub time_offset_truth_s: Option<f64>,
     /// GNSS outage windows (sow, length s); empty: the summary's, if any.
     pub outages: Vec<(GpsTime, f64)>,
+    /// With a smoothed solution (`fuse --smooth`): the forward filter's
+    /// solution and `std.txt`, shown beside it.
+    pub forward_nav: Option<PathBuf>,
+    pub forward_std: Option<PathBuf>,
 }
 
 impl ReportInputs {
@@ -62,6 +66,10 @@ impl ReportInputs {
         fill(&mut self.time_offset, "time_offset.txt");
         fill(&mut self.summary, "summary.json");
         fill(&mut self.gnss_residuals, "gnss_residuals.txt");
+        fill(&mut self.forward_nav, "forward/navresult.nav");
+        if self.forward_nav.is_some() {
+            fill(&mut self.forward_std, "forward/std.txt");
+        }
         self
     }
 }

@@ -45,6 +45,8 @@ pub struct McOptions {
     /// NEES summaries leave out the first seconds (the filter's start-up,
     /// where the simulated initial state is exact but P₀ is not zero).
     pub nees_skip_s: f64,
+    /// Score the RTS-smoothed solution instead of the forward one.
+    pub smooth: bool,
 }
 
 impl Default for McOptions {
@@ -57,6 +59,7 @@ impl Default for McOptions {
             keep_files: false,
             nees_step_s: 1.0,
             nees_skip_s: 30.0,
+            smooth: false,
         }
     }
 }
@@ -303,7 +306,10 @@ fn run_one(base: &Scenario, seed: u64, opts: &McOptions) -> Result<RunFigures, E
     let sim = Simulation::new(scn.clone())?;
     let root = opts.work_dir.join(format!("run-{seed:05}"));
     let dirs = ChainDirs::under(&root);
-    let chain = ChainOptions::for_scenario(&scn);
+    let mut chain = ChainOptions::for_scenario(&scn);
+    if opts.smooth {
+        chain.fuse.smooth = Some(crate::pipeline::SmoothOptions::default());
+    }
     let tau_true = true_time_offset_s(&scn);
     let mut sink = McSink {
         truth_path: dirs.sim.join("truth.nav"),

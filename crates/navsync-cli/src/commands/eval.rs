@@ -23,8 +23,28 @@ pub fn run(args: Args) -> Result<()> {
     let mut diag = Diagnostics::default();
     let report = eval::eval_files(&s.truth, &s.nav, &outages, &mut diag)?;
     print!("{}", format_report(&report));
+    // A smoothed run (`fuse --smooth`) keeps its forward solution in
+    // forward/ beside it: score that too, side by side.
+    let forward_nav = s
+        .nav
+        .parent()
+        .map(|d| d.join("forward").join("navresult.nav"))
+        .filter(|p| p.is_file());
+    let forward = match &forward_nav {
+        Some(p) => {
+            let f = eval::eval_files(&s.truth, p, &outages, &mut diag)?;
+            println!("\nforward filter ({}) against this solution:", p.display());
+            print!("{}", format_comparison(&f, &report));
+            Some(f)
+        }
+        None => None,
+    };
     if let Some(p) = &args.json {
-        std::fs::write(p, serde_json::to_string_pretty(&report)?)
+        let mut json = serde_json::to_value(&report)?;
+        if let (Some(f), Some(obj)) = (&forward, json.as_object_mut()) {
+            obj.insert("forward".into(), serde_json::to_value(f)?);
+        }
+        std::fs::write(p, serde_json::to_string_pretty(&json)?)
             .with_context(|| format!("writing {}", p.display()))?;
     }
     if !diag.is_empty() {
@@ -32,6 +52,42 @@ pub fn run(args: Args) -> Result<()> {
         print_diagnostics(&diag, 10);
     }
     Ok(())
+}
+
+/// RMS of each error of `forward` and `smoothed` side by side, with the
+/// ratio, and the outage drift of both.
+pub fn format_comparison(forward: &EvalReport, smoothed: &EvalReport) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{:<26} {:>12} {:>12} {:>8}",
+        "RMS error", "forward", "this", "ratio"
+    );
+    for ((name, unit, f), (_, _, m)) in forward.rows().into_iter().zip(smoothed.rows()) {
+        let _ = writeln!(
+            s,
+            "{:<26} {:>12.4} {:>12.4} {:>8.3}",
+            format!("{name} ({unit})"),
+            f.rms,
+            m.rms,
+            m.rms / f.rms
+        );
+    }
+    if let (Some(f), Some(m)) = (
+        forward.outage_rms_max_horizontal_m,
+        smoothed.outage_rms_max_horizontal_m,
+    ) {
+        let _ = writeln!(
+            s,
+            "{:<26} {:>12.4} {:>12.4} {:>8.3}",
+            "outage drift, horiz. (m)",
+            f,
+            m,
+            m / f
+        );
+    }
+    s
 }
 
 /// The report as a readable table.

@@ -32,6 +32,10 @@ pub struct Args {
     /// Keep every run's files (sim/, synced/ under DIR/runs/run-SEED).
     #[arg(long)]
     pub keep_files: bool,
+    /// Score the RTS-smoothed solution (`fuse --smooth`) instead of the
+    /// forward filter's.
+    #[arg(long)]
+    pub smooth: bool,
     /// Any scenario setting as key=value (as `navsync simulate --set`).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
@@ -56,6 +60,7 @@ pub fn run(args: Args) -> Result<()> {
         first_seed: args.first_seed,
         work_dir: args.output.join("runs"),
         keep_files: args.keep_files,
+        smooth: args.smooth,
         ..McOptions::default()
     };
     let pb = crate::progress::bar("runs");

@@ -59,6 +59,7 @@ pub fn run(a: Args) -> Result<()> {
         gnss_residuals: None,
         time_offset_truth_s: a.time_offset_truth,
         outages: parse_outages(&a.scored.outages, 0)?,
+        ..ReportInputs::default()
     }
     .with_siblings_of_nav();
     let report = navsync_report::build(&inputs)?;
