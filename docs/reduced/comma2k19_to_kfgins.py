@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Convert comma2k19 Example_1 (CSV export in /work/shared/data/comma2k19-example1)
+"""Convert comma2k19 Example_1 (CSV export in ../shared/data/comma2k19-example1)
 into KF-GINS files for `navsync fuse`, plus a truth file and a speed file.
 
 A small, single-purpose conversion path (general converters are another

@@ -3,7 +3,7 @@
 # (issue 8). Usage: docs/reduced/run_comma2k19.sh [OUT_DIR]  (repository root)
 set -euo pipefail
 N=$(realpath "${NAVSYNC:-target/release/navsync}")
-S=/work/shared/data/comma2k19-example1
+S=${DATA:-$(realpath ../shared/data/comma2k19-example1)}
 O=$(realpath -m "${1:-/tmp/navsync-comma2k19}")
 python3 "$(dirname "$0")/comma2k19_to_kfgins.py" $S "$O" --gnss-sd 2 3 | tee "$O.convert.txt"
 MOUNT=$(sed -n 's/.*--mount \(.*\)$/\1/p' "$O.convert.txt")

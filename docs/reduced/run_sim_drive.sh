@@ -3,7 +3,7 @@
 # Usage: docs/reduced/run_sim_drive.sh [OUT_DIR]   (from the repository root)
 set -euo pipefail
 N=$(realpath "${NAVSYNC:-target/release/navsync}")
-D=/work/shared/data/sim-drive-adis16465
+D=${DATA:-$(realpath ../shared/data/sim-drive-adis16465)}
 O=$(realpath -m "${1:-/tmp/navsync-reduced}")
 mkdir -p "$O"
 # Simulated odometer: forward speed of the truth at 20 Hz, +1 % scale error,
