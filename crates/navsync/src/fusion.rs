@@ -797,6 +797,16 @@ impl Core {
                 return Ok(None);
             }
             self.started = true;
+            // A start between samples (an alignment epoch): carry the
+            // position to the first sample at the initial velocity.
+            let lag = sample.time.seconds_since(self.nav.time);
+            if lag > 0.0 && lag < 1.0 {
+                let le = LocalEarth::new(&self.nav.pos, &self.nav.vel);
+                let d = le.ned_to_geodetic_delta(&(self.nav.vel * lag));
+                self.nav.pos.lat_rad += d.x;
+                self.nav.pos.lon_rad += d.y;
+                self.nav.pos.h_m += d.z;
+            }
             if let Some(dt) = self.node_interval_s {
                 self.filter.record_nodes(sample.time, dt);
                 self.collect_nodes();

@@ -12,6 +12,7 @@
 // Index loops are the clearest form for the small matrix kernels here.
 #![allow(clippy::needless_range_loop)]
 
+pub mod align;
 pub mod allan;
 pub mod array;
 pub mod attitude;

@@ -132,6 +132,10 @@ pub struct FuseOptions {
     pub gnss_error: Option<GnssErrorModel>,
     /// Fixed-interval (RTS) smoothing of the whole run.
     pub smooth: Option<SmoothOptions>,
+    /// Find the initial attitude (and position, velocity) from the data
+    /// instead of the configuration's `initatt` ([`crate::align`]); always
+    /// done when the configuration has no `initatt`.
+    pub align: Option<crate::align::AlignOptions>,
 }
 
 /// Settings of the forward–backward smoother ([`crate::smoother`]).
@@ -196,6 +200,7 @@ impl Default for FuseOptions {
             misalignment_sd_deg: None,
             gnss_error: None,
             smooth: None,
+            align: None,
         }
     }
 }
@@ -298,6 +303,8 @@ pub struct FuseSummary {
     pub gnss_weighting: WeightingReport,
     /// The smoother's figures, when it ran.
     pub smoother: Option<SmootherSummary>,
+    /// The initial alignment, when the run aligned itself.
+    pub alignment: Option<crate::align::Alignment>,
     pub options: FuseOptions,
     pub run_time_s: f64,
     pub diagnostics: Diagnostics,
@@ -705,7 +712,25 @@ fn run_inner(
     opts.validate()?;
     let started = Instant::now();
     let mut diag = Diagnostics::with_cap(1000);
-    let fc = fusion_config(cfg, opts);
+    let mut fc = fusion_config(cfg, opts);
+    let alignment = if opts.align.is_some() || !cfg.init_state_given {
+        let mut ao = opts.align.unwrap_or_default();
+        ao.lever_b = cfg.antenna_lever.into();
+        ao.accel_bias_sd_mps2 = cfg.init_std.accel_bias.max();
+        if let Some(n) = &opts.nhc {
+            ao.mount_yaw_rad = n.mount_deg[2].to_radians();
+        }
+        let a = align_from_files(cfg, opts, &ao, fc.init_nav.time)?;
+        diag.note(a.note.clone());
+        fc.init_nav = a.nav;
+        fc.init_std.att = Vector3::from(a.att_sd_rad);
+        fc.init_std.pos = Vector3::from(a.pos_sd_m);
+        fc.init_std.vel = Vector3::from(a.vel_sd_mps);
+        Some(a)
+    } else {
+        None
+    };
+    let fc = fc;
     let start = fc.init_nav.time;
     let end = cfg
         .end_sow
@@ -1007,6 +1032,7 @@ fn run_inner(
             .map(|_| imu.accel_misalign.map(f64::to_degrees)),
         gnss_weighting: WeightingReport::from_records(&records),
         smoother,
+        alignment,
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,
@@ -1088,5 +1114,40 @@ fn write_smoothed(
         output_s: started.elapsed().as_secs_f64() - forward_s - backward_s,
         time_offset_start_s: start_offset.map(|o| o.0),
         time_offset_start_sd_s: start_offset.map(|o| o.1),
+    })
+}
+
+/// The alignment pre-pass: reads the IMU and GNSS files from `start` until
+/// the aligner has the initial state.
+fn align_from_files(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    ao: &crate::align::AlignOptions,
+    start: GpsTime,
+) -> Result<crate::align::Alignment, Error> {
+    let mut diag = Diagnostics::with_cap(10);
+    let mut aligner = crate::align::Aligner::new(*ao);
+    let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
+    let mut imu = ImuReader::open(&cfg.imu_path, opts.week)?;
+    let mut next_fix = gnss.next_fix(&mut diag)?;
+    while let Some(s) = imu.next_sample(&mut diag)? {
+        if s.time < start {
+            continue;
+        }
+        while let Some(f) = next_fix
+            && f.time <= s.time
+        {
+            if f.time >= start
+                && let Some(a) = aligner.push_gnss(&f)
+            {
+                return Ok(a);
+            }
+            next_fix = gnss.next_fix(&mut diag)?;
+        }
+        aligner.push_imu(&s);
+    }
+    aligner.finish().ok_or_else(|| Error::NoData {
+        path: cfg.gnss_path.clone(),
+        msg: "no GNSS fix after the start time: the initial position is unknown, and no initpos/initatt were given".into(),
     })
 }

@@ -857,6 +857,7 @@ mod tests {
             init_pos: start.pos,
             init_vel: start.vel,
             init_att: start.euler(),
+            init_state_given: true,
             init_imu: ImuErrors::default(),
             init_std: InitialStd {
                 pos: v3(0.05),

@@ -55,6 +55,15 @@ pub struct Args {
     /// between nodes the smoothed correction is interpolated.
     #[arg(long, default_value_t = 1.0, requires = "smooth")]
     pub smooth_node_interval: f64,
+    /// Find the initial attitude, position and velocity from the data
+    /// (static levelling, heading from GNSS course once moving) instead of
+    /// the configuration's initpos/initvel/initatt. Done anyway when the
+    /// configuration has no initatt.
+    #[arg(long)]
+    pub align: bool,
+    /// Alignment: take the heading from GNSS velocity from this speed on (m/s).
+    #[arg(long, default_value_t = 3.0)]
+    pub align_min_speed: f64,
     /// Column order of 13-column GNSS files.
     #[arg(long, value_enum, default_value_t = Layout::Cpp)]
     pub gnss_layout: Layout,
@@ -407,6 +416,10 @@ impl Args {
                 }),
             misalignment_sd_deg: self.misalignment,
             gnss_error,
+            align: self.align.then_some(navsync::align::AlignOptions {
+                min_speed_mps: self.align_min_speed,
+                ..Default::default()
+            }),
             smooth: self.smooth.then_some(pipeline::SmoothOptions {
                 node_interval_s: self.smooth_node_interval,
             }),
@@ -539,6 +552,9 @@ pub fn run(args: Args) -> Result<()> {
             "  outages (for `navsync eval --outages`): {}",
             summary.outages
         );
+    }
+    if let Some(a) = &summary.alignment {
+        println!("  alignment: {}", a.note);
     }
     if let Some(sm) = &summary.smoother {
         println!(

@@ -115,6 +115,9 @@ pub struct KfGinsConfig {
     pub init_pos: Geodetic,
     pub init_vel: Vector3<f64>,
     pub init_att: Euler,
+    /// Whether `initpos`, `initvel` and `initatt` were given; without them
+    /// the run starts from an alignment ([`crate::align`]).
+    pub init_state_given: bool,
     pub init_imu: ImuErrors,
     pub init_std: InitialStd,
     pub noise: ImuNoise,
@@ -222,14 +225,25 @@ impl KfGinsConfig {
             corr_time_s: corr_h * 3600.0,
         };
 
-        let pos = cx.vec3("initpos")?;
+        // The initial state is optional as a whole: without `initatt` the
+        // run aligns itself (levelling and GNSS course), and then
+        // `initpos`/`initvel` may be left out too.
+        let init_state_given = map.contains_key("initatt");
+        let opt3 = |key: &str| -> Result<Vector3<f64>, Error> {
+            if init_state_given || map.contains_key(key) {
+                cx.vec3(key)
+            } else {
+                Ok(Vector3::zeros())
+            }
+        };
+        let pos = opt3("initpos")?;
         if pos.x.abs() > 90.0 {
             return Err(Error::config(
                 path,
                 format!("key 'initpos': latitude {} deg is out of range", pos.x),
             ));
         }
-        let att = cx.vec3("initatt")?;
+        let att = opt3("initatt")?;
         let opt_std = |key: &str, default: Vector3<f64>| -> Result<Vector3<f64>, Error> {
             match map.get(key) {
                 Some(_) => cx.vec3(key),
@@ -272,8 +286,9 @@ impl KfGinsConfig {
             start_sow,
             end_sow,
             init_pos: Geodetic::from_deg(pos.x, pos.y, pos.z),
-            init_vel: cx.vec3("initvel")?,
+            init_vel: opt3("initvel")?,
             init_att: Euler::from_deg(att.x, att.y, att.z),
+            init_state_given,
             init_imu: ImuErrors {
                 gyro_bias: cx.vec3("initgyrbias")? * (DEG / 3600.0),
                 accel_bias: cx.vec3("initaccbias")? * 1e-5,
@@ -282,9 +297,9 @@ impl KfGinsConfig {
                 ..ImuErrors::default()
             },
             init_std: InitialStd {
-                pos: cx.vec3("initposstd")?,
-                vel: cx.vec3("initvelstd")?,
-                att: cx.vec3("initattstd")? * DEG,
+                pos: opt_std("initposstd", Vector3::repeat(1.0))?,
+                vel: opt_std("initvelstd", Vector3::repeat(0.1))?,
+                att: opt_std("initattstd", Vector3::repeat(1.0))? * DEG,
                 gyro_bias: opt_std("initbgstd", gbstd / (DEG / 3600.0))? * (DEG / 3600.0),
                 accel_bias: opt_std("initbastd", abstd / 1e-5)? * 1e-5,
                 gyro_scale: opt_std("initsgstd", gsstd / 1e-6)? * 1e-6,

@@ -362,8 +362,18 @@ impl Scenario {
         }
         let name = self.trajectory.as_deref().unwrap_or("urban");
         let d = self.duration_s.unwrap_or(DEFAULT_DURATION_S);
-        let segs = builtin_segments(name, d, self.traj_seed)
+        let mut segs = builtin_segments(name, d, self.traj_seed)
             .ok_or_else(|| Error::Invalid(format!("unknown scenario '{name}'")))?;
+        // A built-in drive that starts in motion (initial_speed_mps > 0)
+        // cruises through its opening standstill instead.
+        if self.initial_speed_mps > 0.0
+            && let Some(Segment::Static { duration_s }) = segs.first().cloned()
+        {
+            segs[0] = Segment::Cruise {
+                duration_s: Some(duration_s),
+                distance_m: None,
+            };
+        }
         Ok((segs, Some(d)))
     }
 }
