@@ -338,6 +338,18 @@ pub fn read_bag(
         path: path.to_path_buf(),
         msg,
     };
+    // mcap 0.26 panics on a record length near u64::MAX (its offset sum
+    // overflows): cut the file at the first record that overruns it.
+    let (bytes, overrun) = frame_records(bytes);
+    if let Some(off) = overrun {
+        diag.push(
+            path,
+            0,
+            format!(
+                "the record at byte {off} claims more bytes than the file holds: read up to it"
+            ),
+        );
+    }
     let stream = mcap::MessageStream::new(bytes).map_err(|e| nodata(mcap_error(&e)))?;
     let mut topics: BTreeMap<String, Topic> = BTreeMap::new();
     let mut stopped = None;
@@ -705,6 +717,24 @@ pub fn read_bag(
     Ok(out)
 }
 
+/// `bytes` up to the first top-level record whose length runs past the
+/// end (MCAP spec, "Records": opcode u8, length u64 LE, body; after the
+/// 8-byte magic), and that record's offset, if one does.
+pub fn frame_records(bytes: &[u8]) -> (&[u8], Option<usize>) {
+    let mut pos = 8;
+    while let Some(h) = bytes.get(pos..pos + 9) {
+        let mut len = [0u8; 8];
+        len.copy_from_slice(&h[1..]);
+        let len = u64::from_le_bytes(len);
+        let left = (bytes.len() - pos - 9) as u64;
+        if len > left {
+            return (&bytes[..pos], Some(pos));
+        }
+        pos += 9 + len as usize;
+    }
+    (bytes, None)
+}
+
 fn lag_s(it: &Item, h: &Header) -> f64 {
     let stamp = h.unix_ns().unwrap_or(0) as i128;
     (it.log_time as i128 - stamp) as f64 * 1e-9
@@ -799,6 +829,32 @@ mod tests {
         let mut s = vec![0, 1, 0, 0];
         s.extend_from_slice(&u32::MAX.to_le_bytes());
         assert!(Cdr::new(&s).unwrap().string().is_err());
+    }
+
+    #[test]
+    fn records_overrunning_the_file_are_cut_off() {
+        // Magic, then a header record whose length is u64::MAX (the fuzzer's
+        // input that panics mcap 0.26).
+        let mut f = b"\x89MCAP0\r\n".to_vec();
+        f.push(1);
+        f.extend_from_slice(&[0xff; 8]);
+        f.extend_from_slice(&[0; 20]);
+        assert_eq!(frame_records(&f), (&f[..8], Some(8)));
+        let mut d = Diagnostics::default();
+        let e = read_bag(
+            &f,
+            Path::new("x.mcap"),
+            &TopicChoice::default(),
+            [1.0; 3],
+            &mut d,
+        );
+        assert!(e.is_err() && d.items[0].message.contains("byte 8"), "{d:?}");
+        // Whole records pass untouched.
+        let mut g = f[..8].to_vec();
+        g.push(1);
+        g.extend_from_slice(&3u64.to_le_bytes());
+        g.extend_from_slice(b"abc");
+        assert_eq!(frame_records(&g), (&g[..], None));
     }
 
     #[test]
