@@ -2,22 +2,13 @@
 //! through `fuse` and `eval`, and the bad-input cases of issue 2 as a user
 //! meets them (message naming the file/line/key, non-zero exit, no panic).
 
+mod common;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use common::{bin, run, temp_dir};
 use navsync::earth::{Geodetic, gravity, omega_ie_n};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_navsync"))
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("navsync-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 const LAT: f64 = 30.5;
 const LON: f64 = 114.3;
@@ -71,15 +62,6 @@ fn write_static_set(dir: &Path, secs: usize) -> PathBuf {
     let path = dir.join("kf-gins.yaml");
     std::fs::write(&path, cfg).unwrap();
     path
-}
-
-fn run(cmd: &mut Command) -> (bool, String, String) {
-    let out = cmd.output().unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
 }
 
 #[test]

@@ -4,33 +4,16 @@
 //! CSV and GeoJSON read back and compared with the nav file to the printed
 //! precision, σ from a std.txt beside the nav file, bad input reported.
 
+mod common;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use common::{bin, run, temp_dir};
 use navsync::Diagnostics;
 use navsync::io::export::decimate;
 use navsync::io::kfgins::{NavReader, NavRecord};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_navsync"))
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("navsync-export-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn run(cmd: &mut Command) -> (bool, String, String) {
-    let out = cmd.output().unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
 
 /// The first 20 s (4000 epochs at 200 Hz) of the shared simulated drive's
 /// truth as `navresult.nav`, and a 1 Hz `std.txt` beside it whose σ grow

@@ -3,26 +3,17 @@
 //! solutions fuse to the same trajectory as the KF-GINS file; the Q filter
 //! drops and counts what it should.
 
+mod common;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use common::{bin, temp_dir};
 use nalgebra::{Matrix3, Vector3};
 use navsync::earth::{Geodetic, c_ne, geodetic_to_ecef};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_navsync"))
-}
-
 fn sim() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/sim-drive-adis16465")
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("navsync-rtklib-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// Fuses with the shared configuration, `gnss` in place of its GNSS file;

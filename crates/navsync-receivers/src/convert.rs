@@ -13,6 +13,11 @@
 //!   its header): a receiver stream has no logger counter.
 //! - `gnss_receipt.txt` (comma2k19): each fix's GPS time and boot time of
 //!   receipt, to study latency.
+//! - From a ROS 2 bag (`.mcap`, [`crate::ros2`]): `imu.txt` from
+//!   `sensor_msgs/Imu` rates (FLU → FRD) and `gnss.txt` from `NavSatFix`
+//!   (σ from its covariance; 13 columns when every fix has a
+//!   `TwistWithCovarianceStamped` velocity of the same stamp), both at
+//!   `header.stamp` turned from UTC into GPS time.
 //! - `summary.json`: counts, stream statistics, every navigation epoch
 //!   (UBX or NMEA GGA) that gave no fix counted by reason (`fix_epochs`),
 //!   and every reported problem.
@@ -37,6 +42,7 @@ use crate::fixes::{
 use crate::gnsstime::{LeapSource, UtcTime, utc_to_gps};
 use crate::imu::{EsfImu, RateIssue, RateSample, RateToIncrement};
 use crate::marks::{Edge, QErrCorrector, TimeMarks, pps_edge_gps};
+use crate::ros2::TopicChoice;
 use crate::stream::{Event, EventKind, StreamReader, StreamStats, gpsd_log_header_len};
 use crate::ubx::UbxMessage;
 
@@ -51,6 +57,8 @@ pub enum InputFormat {
     RateCsv,
     /// comma2k19 `gnss_ublox.csv`.
     CommaGnss,
+    /// ROS 2 bag in MCAP form (`sensor_msgs/Imu`, `NavSatFix`).
+    Mcap,
 }
 
 /// Which fixes go into `gnss.txt` when a stream holds both kinds.
@@ -155,6 +163,8 @@ pub struct ConvertSummary {
     /// The geoid model, when it was used.
     pub geoid_model: Option<String>,
     pub leap_source: Option<LeapSource>,
+    /// ROS 2 bag: its topics, what each was used for, stamp vs log time.
+    pub ros2: Option<crate::ros2::BagSummary>,
     pub imu_samples: usize,
     pub imu_time_axis: String,
     pub imu_gaps: usize,
@@ -178,6 +188,16 @@ impl ConvertSummary {
         }
         let epochs: u64 = self.fix_epochs.iter().map(|t| t.epochs).sum();
         let mut m = format!("no GNSS fix in {}", self.input);
+        if self.format == Some(InputFormat::Mcap) {
+            // A bag without a NavSatFix topic is an IMU log, not a failure.
+            if self.fix_epochs.is_empty() {
+                return None;
+            }
+            if epochs == 0 {
+                m.push_str(": its NavSatFix topic holds no message");
+                return Some(m);
+            }
+        }
         if epochs == 0 {
             m.push_str(
                 ": the stream holds no position message navsync reads \
@@ -216,6 +236,17 @@ pub fn convert(
     out_dir: &Path,
     opts: &ConvertOptions,
 ) -> Result<ConvertSummary, Error> {
+    convert_with_topics(format, input, out_dir, opts, &TopicChoice::default())
+}
+
+/// [`convert`], with the topics to read from a ROS 2 bag.
+pub fn convert_with_topics(
+    format: InputFormat,
+    input: &Path,
+    out_dir: &Path,
+    opts: &ConvertOptions,
+    topics: &TopicChoice,
+) -> Result<ConvertSummary, Error> {
     let (reader, input) = open_input(input)?;
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let mut s = ConvertSummary {
@@ -234,6 +265,7 @@ pub fn convert(
         InputFormat::CommaGnss => {
             convert_comma_gnss(LineReader::new(reader, input), out_dir, opts, &mut s)?
         }
+        InputFormat::Mcap => convert_mcap(reader, input, out_dir, opts, topics, &mut s)?,
     }
     let path = out_dir.join("summary.json");
     let json = serde_json::to_string_pretty(&s).map_err(|e| Error::Invalid(e.to_string()))?;
@@ -962,5 +994,81 @@ fn convert_comma_gnss(
     }
     w.finish()?;
     s.files.push(path.display().to_string());
+    Ok(())
+}
+
+fn convert_mcap(
+    mut reader: Box<dyn Read>,
+    input: &Path,
+    out_dir: &Path,
+    opts: &ConvertOptions,
+    topics: &TopicChoice,
+    s: &mut ConvertSummary,
+) -> Result<(), Error> {
+    let mut bytes = Vec::new();
+    reader
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(input, e))?;
+    let bag = crate::ros2::read_bag(
+        &bytes,
+        input,
+        topics,
+        opts.fix.default_sd_m,
+        &mut s.diagnostics,
+    )?;
+    drop(bytes);
+    if let Some(topic) = &bag.gnss_topic {
+        s.fix_epochs.push(EpochTally {
+            source: format!("ROS 2 NavSatFix {topic}"),
+            epochs: bag.fix_messages,
+            fixes: bag.fixes.len() as u64,
+            dropped: bag
+                .fix_drops
+                .iter()
+                .map(|(reason, &epochs)| DropTally {
+                    reason: reason.clone(),
+                    epochs,
+                    kept_by: None,
+                })
+                .collect(),
+        });
+        if !bag.fixes.is_empty() {
+            s.gnss_source =
+                format!("ROS 2 NavSatFix on {topic} (header.stamp, UTC + leap seconds)");
+            s.gnss_default_sd = bag.fixes.iter().filter(|f| f.default_sd).count();
+            s.leap_source = Some(LeapSource::Table);
+            let gf: Vec<GnssFix> = bag.fixes.iter().map(|f| f.fix).collect();
+            write_gnss(&out_dir.join("gnss.txt"), &gf, s)?;
+        }
+    }
+    if let Some(topic) = &bag.imu_topic
+        && !bag.imu.is_empty()
+    {
+        let offset = opts.imu_time_offset_s;
+        s.imu_time_axis = format!(
+            "GPS time from header.stamp on {topic} (UTC + leap seconds){}; axes FLU → FRD",
+            if offset != 0.0 {
+                format!(", + {offset} s")
+            } else {
+                String::new()
+            }
+        );
+        let rates = bag
+            .imu
+            .into_iter()
+            .map(|mut r| {
+                r.time = r.time.add_seconds(offset);
+                r
+            })
+            .collect();
+        write_increments(
+            &out_dir.join("imu.txt"),
+            rates,
+            input,
+            opts.gap_threshold_s,
+            s,
+        )?;
+    }
+    s.ros2 = Some(bag.summary);
     Ok(())
 }

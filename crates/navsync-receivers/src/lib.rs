@@ -11,6 +11,7 @@
 //! - [`fixes`]: GNSS fixes at their time of validity (NAV-PVT, NMEA epochs).
 //! - [`imu`]: ESF-MEAS/ESF-RAW and rate-form IMU data → increments.
 //! - [`marks`]: TIM-TM2 event stamps and TIM-TP qErr PPS correction.
+//! - [`ros2`]: ROS 2 bags (MCAP, CDR): `Imu`, `NavSatFix`, velocities.
 //! - [`convert`]: file conversion to KF-GINS files and rig-logs.
 //!
 //! Kept out of the core `navsync` crate so that its receiver dependencies
@@ -23,6 +24,7 @@ pub mod gnsstime;
 pub mod imu;
 pub mod marks;
 pub mod nmea;
+pub mod ros2;
 pub mod rtcm3;
 pub mod stream;
 pub mod ubx;

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use navsync_receivers::convert::{self, ConvertOptions, GnssSource, InputFormat};
+use navsync_receivers::ros2::TopicChoice;
 
 use super::{parse_triplet, print_diagnostics};
 
@@ -20,6 +21,9 @@ pub enum From {
     RateCsv,
     /// comma2k19 gnss_ublox.csv (boot time, lat, lon, speed, UTC ms, alt, bearing).
     CommaGnss,
+    /// ROS 2 bag as .mcap (uncompressed or zstd chunks): sensor_msgs/Imu,
+    /// sensor_msgs/NavSatFix, geometry_msgs/TwistWithCovarianceStamped (CDR).
+    Mcap,
 }
 
 #[derive(Copy, Clone, Debug, clap::ValueEnum)]
@@ -63,6 +67,16 @@ pub struct Args {
     /// Keep UBX 2D fixes (fix type 2: height held by the receiver), with its vertical accuracy.
     #[arg(long)]
     pub keep_2d: bool,
+    /// ROS 2 bag: the sensor_msgs/msg/Imu topic (default: the only one).
+    #[arg(long)]
+    pub imu_topic: Option<String>,
+    /// ROS 2 bag: the sensor_msgs/msg/NavSatFix topic (default: the only one).
+    #[arg(long)]
+    pub gnss_topic: Option<String>,
+    /// ROS 2 bag: the geometry_msgs/msg/TwistWithCovarianceStamped velocity
+    /// topic (ENU; default: the only one), matched to fixes by header.stamp.
+    #[arg(long)]
+    pub velocity_topic: Option<String>,
     /// Succeed even when a receiver stream gives no fix (e.g. a timing log converted for its PPS events).
     #[arg(long)]
     pub allow_no_fix: bool,
@@ -74,6 +88,12 @@ pub fn run(a: Args) -> Result<()> {
         From::Nmea => InputFormat::Nmea,
         From::RateCsv => InputFormat::RateCsv,
         From::CommaGnss => InputFormat::CommaGnss,
+        From::Mcap => InputFormat::Mcap,
+    };
+    let topics = TopicChoice {
+        imu: a.imu_topic.clone(),
+        gnss: a.gnss_topic.clone(),
+        velocity: a.velocity_topic.clone(),
     };
     let mut opts = ConvertOptions {
         gnss_source: match a.gnss_source {
@@ -93,7 +113,7 @@ pub fn run(a: Args) -> Result<()> {
     if a.default_sd.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
         anyhow::bail!("--default-sd: standard deviations must be positive");
     }
-    let s = convert::convert(format, &a.file, &a.output, &opts)?;
+    let s = convert::convert_with_topics(format, &a.file, &a.output, &opts, &topics)?;
     if let Some(st) = &s.stream {
         println!(
             "stream: {} bytes after a {}-byte header; {} UBX + {} NMEA messages read, {} other intact frames ({} RTCM3), {} invalid, {} corrupt runs ({} bytes)",
@@ -109,6 +129,28 @@ pub fn run(a: Args) -> Result<()> {
         );
         for (k, n) in &s.frames {
             println!("  {k:<28} {n}");
+        }
+    }
+    if let Some(b) = &s.ros2 {
+        println!("ROS 2 bag: {} topics", b.topics.len());
+        for t in &b.topics {
+            println!(
+                "  {:<24} {:<46} {:>8} messages{}{}",
+                t.topic,
+                t.schema,
+                t.messages,
+                t.role
+                    .as_ref()
+                    .map(|r| format!(", {} used as {r}", t.used))
+                    .unwrap_or_default(),
+                t.log_time_minus_stamp
+                    .as_ref()
+                    .map(|l| format!(", log_time − stamp median {:+.4} s", l.median_s))
+                    .unwrap_or_default()
+            );
+        }
+        if let Some(w) = &b.stopped_early {
+            println!("  {w}");
         }
     }
     for t in &s.fix_epochs {

@@ -16,6 +16,7 @@ use nalgebra::Vector3;
 
 use super::text::{
     LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, push_fixed, split_fields,
+    time_order_problem,
 };
 use crate::earth::Geodetic;
 use crate::error::{Diagnostics, Error};
@@ -106,26 +107,9 @@ impl ImuReader {
                 continue;
             }
             let time = self.weeks.peek(ns);
-            if let Some(last) = self.last {
-                if time == last {
-                    diag.push(
-                        &self.path,
-                        line_no,
-                        format!("duplicate epoch {time}; line skipped"),
-                    );
-                    continue;
-                }
-                if time < last {
-                    diag.push(
-                        &self.path,
-                        line_no,
-                        format!(
-                            "time goes backwards ({} s after {last}); line skipped",
-                            time.seconds_since(last)
-                        ),
-                    );
-                    continue;
-                }
+            if let Some(why) = time_order_problem(self.last, time) {
+                diag.push(&self.path, line_no, format!("{why}; line skipped"));
+                continue;
             }
             let time = self.weeks.resolve(ns);
             self.last = Some(time);
@@ -287,23 +271,9 @@ impl GnssReader {
                 None => None,
             };
             let time = self.weeks.peek(ns);
-            if let Some(last) = self.last {
-                if time == last {
-                    diag.push(
-                        &path,
-                        line_no,
-                        format!("duplicate epoch {time}; line skipped"),
-                    );
-                    continue;
-                }
-                if time < last {
-                    diag.push(
-                        &path,
-                        line_no,
-                        format!("time goes backwards (before {last}); line skipped"),
-                    );
-                    continue;
-                }
+            if let Some(why) = time_order_problem(self.last, time) {
+                diag.push(&path, line_no, format!("{why}; line skipped"));
+                continue;
             }
             let time = self.weeks.resolve(ns);
             self.last = Some(time);
@@ -422,14 +392,8 @@ impl NavReader {
                 continue;
             }
             let time = GpsTime::from_week_ns(week, ns);
-            if let Some(last) = self.last
-                && time <= last
-            {
-                diag.push(
-                    &self.path,
-                    line_no,
-                    format!("time {time} not after {last}; line skipped"),
-                );
+            if let Some(why) = time_order_problem(self.last, time) {
+                diag.push(&self.path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             self.last = Some(time);

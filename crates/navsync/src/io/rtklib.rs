@@ -21,7 +21,9 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::text::{LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, split_fields};
+use super::text::{
+    LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, split_fields, time_order_problem,
+};
 use crate::earth::{Geodetic, c_ne, ecef_to_geodetic};
 use crate::error::{Diagnostics, Error};
 use crate::filter::gnss::GnssFix;
@@ -433,14 +435,8 @@ impl<R: Read> PosReader<R> {
             };
             let ns_of_week = gps_ns.rem_euclid(NS_PER_WEEK);
             let time = self.weeks.peek(ns_of_week);
-            if let Some(last) = self.last
-                && time <= last
-            {
-                diag.push(
-                    &self.path,
-                    line_no,
-                    format!("time {time} not after {last}; line skipped"),
-                );
+            if let Some(why) = time_order_problem(self.last, time) {
+                diag.push(&self.path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             let time = self.weeks.resolve(ns_of_week);

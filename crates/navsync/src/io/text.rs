@@ -8,6 +8,7 @@ use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 
 use crate::error::Error;
+use crate::time::GpsTime;
 
 /// Reads a file line by line into a reused buffer, counting lines (1-based)
 /// and never holding more than one block of the file in memory.
@@ -160,6 +161,23 @@ pub fn for_each_field(line: &[u8], mut f: impl FnMut(usize, usize)) {
 #[inline]
 fn is_sep(b: u8) -> bool {
     b == b' ' || b == b'\t' || b == b',' || b == b'\r'
+}
+
+/// The time-order rule every record reader applies: a record must come
+/// strictly after the one kept before it. Returns why `time` breaks it
+/// (a repeat, or how far it goes back), for the caller's diagnostic.
+pub fn time_order_problem(last: Option<GpsTime>, time: GpsTime) -> Option<String> {
+    let last = last?;
+    if time == last {
+        Some(format!("duplicate epoch {time}"))
+    } else if time < last {
+        Some(format!(
+            "time goes backwards ({} s after {last})",
+            time.seconds_since(last)
+        ))
+    } else {
+        None
+    }
 }
 
 /// Parses a field as a finite `f64`; NaN, infinities and junk are errors
@@ -345,6 +363,20 @@ pub fn push_fixed(out: &mut Vec<u8>, v: f64, decimals: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn time_order_rule() {
+        let t = GpsTime::from_week_ns(2300, 5_000_000_000);
+        assert_eq!(time_order_problem(None, t), None);
+        assert_eq!(time_order_problem(Some(t), t.add_seconds(0.1)), None);
+        let dup = time_order_problem(Some(t), t).unwrap();
+        assert!(dup.starts_with("duplicate epoch 2300 5."), "{dup}");
+        let back = time_order_problem(Some(t), t.add_seconds(-0.5)).unwrap();
+        assert!(
+            back.contains("goes backwards (-0.5 s after 2300 5."),
+            "{back}"
+        );
+    }
 
     #[test]
     fn seconds_parse_exactly() {
