@@ -142,6 +142,8 @@ pub struct SampleClock<T> {
 }
 
 const BLOCK_S: f64 = 1.0;
+/// Fewest points of a stamping envelope (at 200 Hz, a quarter second).
+const MIN_FIT_POINTS: usize = 50;
 
 impl<T: Clone> SampleClock<T> {
     pub fn new(cfg: SampleClockConfig) -> Self {
@@ -475,6 +477,10 @@ impl<T: Clone> SampleClock<T> {
             .filter(|&&(_, tp)| tp >= lo && tp <= hi)
             .copied()
             .collect();
+        // A line needs points enough to average the latencies down.
+        if pts.len() < MIN_FIT_POINTS {
+            return None;
+        }
         // Degree 2 over a long window: the IMU clock drifts with
         // temperature (ppm over minutes).
         let span = pts.last()?.1 - pts.first()?.1;
@@ -484,8 +490,11 @@ impl<T: Clone> SampleClock<T> {
         self.fit_points = pts.len();
         let mid_k = pts[pts.len() / 2].0;
         self.period_s = Some(f.slope(mid_k));
-        self.fits.retain(|(bb, _)| (bb - b).abs() <= 2 && *bb != b);
-        self.fits.push((b, f.clone()));
+        // Causal fits at the start grow with the data: not kept until full.
+        if !self.cfg.causal || span >= 0.5 * w {
+            self.fits.retain(|(bb, _)| (bb - b).abs() <= 2 && *bb != b);
+            self.fits.push((b, f.clone()));
+        }
         Some(f)
     }
 
@@ -533,8 +542,10 @@ impl<T: Clone> SampleClock<T> {
                     (None, None) => None,
                 }
             };
-            // Too few points for an envelope: the receive time itself.
-            it.time = time.filter(|v| v.is_finite()).unwrap_or(t);
+            // Too few points for an envelope: the decision line, else the
+            // receive time itself.
+            let line = self.line.map(|(a, p)| (a + p * x).min(t));
+            it.time = time.filter(|v| v.is_finite()).or(line).unwrap_or(t);
             self.last_time = Some((it.time, it.k));
             out.push(it);
         }
