@@ -200,7 +200,9 @@ impl<T: Clone> SampleClock<T> {
     fn advance(&mut self, flush: bool, out: &mut Vec<Timed<T>>) {
         while let Some(front) = self.pending.front() {
             let Some(t0) = front.t else {
-                let item = self.pending.pop_front().expect("front exists");
+                let Some(item) = self.pending.pop_front() else {
+                    break;
+                };
                 let (time, k) = self.last_time.unwrap_or((f64::NAN, -1));
                 self.indexed.push_back(Timed {
                     tag: item.tag,
@@ -391,7 +393,9 @@ impl<T: Clone> SampleClock<T> {
         if lost > 0 {
             self.last_step = lost as f64;
         }
-        let item = self.pending.pop_front().expect("front exists");
+        let Some(item) = self.pending.pop_front() else {
+            return;
+        };
         let t = item.t.unwrap_or(f64::NAN);
         let k = next + lost as i64;
         if lost > 0 {
@@ -508,7 +512,9 @@ impl<T: Clone> SampleClock<T> {
         let indexed_latest = self.points.back().map_or(f64::NEG_INFINITY, |p| p.1);
         while let Some(front) = self.indexed.front() {
             if !front.sample {
-                let mut it = self.indexed.pop_front().expect("front exists");
+                let Some(mut it) = self.indexed.pop_front() else {
+                    break;
+                };
                 if let Some((time, k)) = self.last_time {
                     it.time = time;
                     it.k = k;
@@ -519,7 +525,9 @@ impl<T: Clone> SampleClock<T> {
             if !flush && indexed_latest - front.time < half {
                 break;
             }
-            let mut it = self.indexed.pop_front().expect("front exists");
+            let Some(mut it) = self.indexed.pop_front() else {
+                break;
+            };
             let t = it.time;
             let x = it.k as f64 + it.k_offset;
             let time = if self.cfg.causal {
