@@ -684,3 +684,107 @@ fn smoothing_bridges_outages_and_keeps_the_forward_solution() {
         .arg(dir.join("naive")));
     assert!(!ok && err.contains("offline"), "{err}");
 }
+
+/// Hybrid synchronization (1PPS captured on the host counter, the IMU
+/// stamped at receipt) and the implausible-log check of `sync`.
+#[test]
+fn hybrid_sync_recovers_sample_instants_and_implausible_logs_fail_loudly() {
+    let dir = temp_dir("hybrid");
+    let simulate = |name: &str, extra: &[&str]| -> PathBuf {
+        let sim = dir.join(name);
+        let (ok, _, err) = run(bin()
+            .args(["simulate", "--quiet", "--scenario", "hybrid"])
+            .args(["--seed", "3", "--internal-rate", "0", "--output"])
+            .arg(&sim)
+            .args(extra));
+        assert!(ok, "{err}");
+        sim
+    };
+    let sync = |sim: &Path, out: &str, extra: &[&str]| -> (bool, String, String) {
+        run(bin()
+            .arg("sync")
+            .arg(sim.join("rig.csv"))
+            .arg("--output")
+            .arg(sim.join(out))
+            .arg("--truth")
+            .arg(sim.join("imu_times_truth.txt"))
+            .args(extra))
+    };
+    let report = |sim: &Path, out: &str| -> serde_json::Value {
+        let text = std::fs::read_to_string(sim.join(out).join("sync_report.json")).unwrap();
+        serde_json::from_str(&text).unwrap()
+    };
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+
+    // 600 s at 200 Hz, receive latency uniform 1–10 ms (FIFO), counter
+    // 40 ppm warming by 25 °C, one frame in 10⁴ lost.
+    let sim = simulate("uniform", &[]);
+    let (ok, out, err) = sync(&sim, "auto", &[]);
+    assert!(ok, "{out}\n{err}");
+    assert!(
+        !err.contains("IMPLAUSIBLE"),
+        "a clean log passes silently: {err}"
+    );
+    let r = report(&sim, "auto");
+    assert_eq!(r["mode"], "hybrid");
+    assert!(r["implausible"].as_array().unwrap().is_empty());
+    // Every injected loss is found and none is invented.
+    let scn: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sim.join("scenario.json")).unwrap()).unwrap();
+    let injected = scn["report"]["imu_lost"]["count"].as_u64().unwrap();
+    assert!(injected >= 5, "the run should inject losses: {injected}");
+    assert_eq!(r["imu"]["lost"].as_u64().unwrap(), injected);
+    // The stamp error's varying part: the envelope of ~4000 receive times
+    // with a 9 ms spread is good to µs; what remains are the few samples
+    // next to a loss whose place is uncertain (one period, 5 ms, off).
+    // The requirement for this rig is 50 µs (1σ).
+    let t = &r["truth"];
+    assert!(f(&t["sd_us"]) <= 50.0, "{t}");
+    // The constant is the fastest transport (frame 0.87 ms + output delay
+    // 1 ms + fastest latency 1 ms): unobservable, reported as such.
+    assert!((f(&t["mean_us"]) - 2_870.0).abs() < 100.0, "{t}");
+    assert!(
+        r["hybrid"]["unobservable"]
+            .as_str()
+            .unwrap()
+            .contains("fastest transport latency")
+    );
+
+    // The same log forced into hardware mode: receive times taken for
+    // captures give losses, duplicates and irregular intervals by the
+    // thousand: loud, non-zero, no imu.txt left behind.
+    let (ok, _, err) = sync(&sim, "hw", &["--mode", "hw"]);
+    assert!(!ok, "{err}");
+    assert!(err.contains("IMPLAUSIBLE"), "{err}");
+    assert!(err.contains("--mode hybrid"), "{err}");
+    assert!(!sim.join("hw/imu.txt").exists());
+    assert!(
+        !report(&sim, "hw")["implausible"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+    );
+    // --force writes them anyway.
+    let (ok, _, err) = sync(&sim, "hw_forced", &["--mode", "hw", "--force"]);
+    assert!(ok, "{err}");
+    assert!(err.contains("IMPLAUSIBLE"), "{err}");
+    assert!(sim.join("hw_forced/imu.txt").exists());
+
+    // A hardware-captured log with 5 % of its frames lost fails loudly;
+    // its clean twin passes silently.
+    let hw_args = ["--sync", "hw", "--duration", "120"];
+    let lossy = simulate(
+        "lossy",
+        &[&hw_args[..], &["--lost-frames", "0.05"]].concat(),
+    );
+    let (ok, _, err) = sync(&lossy, "sync", &[]);
+    assert!(!ok, "{err}");
+    assert!(err.contains("lost") && err.contains("IMPLAUSIBLE"), "{err}");
+    let clean = simulate("clean", &hw_args);
+    let (ok, _, err) = sync(&clean, "sync", &[]);
+    assert!(ok && !err.contains("IMPLAUSIBLE"), "{err}");
+    let r = report(&clean, "sync");
+    assert_eq!(r["mode"], "hw");
+    assert!(f(&r["truth"]["rms_us"]) < 0.4, "{}", r["truth"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

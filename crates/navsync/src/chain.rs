@@ -61,6 +61,7 @@ impl ChainOptions {
         let sync = SyncConfig {
             mode: match rig.sync {
                 RigSync::Sw => SyncMode::Sw,
+                RigSync::Hybrid => SyncMode::Hybrid,
                 RigSync::Hw | RigSync::Serial => SyncMode::Hw,
             },
             // The simulated rig's T_c (the log's header carries it too).
@@ -115,7 +116,7 @@ pub fn true_time_offset_s(scn: &Scenario) -> Option<f64> {
     match scn.rig.sync {
         RigSync::Hw => Some(scn.gnss.time_offset_s - scn.rig.imu_link.data_ready_delay_s),
         RigSync::Serial => Some(scn.gnss.time_offset_s),
-        RigSync::Sw => None,
+        RigSync::Sw | RigSync::Hybrid => None,
     }
 }
 

@@ -19,6 +19,8 @@ pub enum Sync {
     Serial,
     /// No PPS: receive times only.
     Sw,
+    /// 1PPS latched; IMU stamped at receipt (serial port, no sync pin).
+    Hybrid,
 }
 
 #[derive(Copy, Clone, clap::ValueEnum)]
@@ -62,7 +64,8 @@ pub enum Vibration {
 #[derive(clap::Args)]
 pub struct Args {
     /// A built-in scenario (test-track, urban, figure8, static), a preset
-    /// (demo: the `navsync demo` drive) or a TOML file with [[segments]]
+    /// (demo: the `navsync demo` drive; hybrid: 1PPS captured, the IMU
+    /// stamped at receipt) or a TOML file with [[segments]]
     /// and any other setting.
     #[arg(long, default_value = "urban")]
     pub scenario: String,
@@ -286,6 +289,7 @@ pub fn scenario_from_args(a: &Args) -> Result<Scenario> {
                 Sync::Hw => "hw",
                 Sync::Serial => "serial",
                 Sync::Sw => "sw",
+                Sync::Hybrid => "hybrid",
             }),
         )?;
     }

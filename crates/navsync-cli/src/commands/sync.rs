@@ -18,15 +18,27 @@ pub struct Args {
     /// Output folder for imu.txt, gnss.txt, imu_times.txt, sync_report.json.
     #[arg(long, required_unless_present = "bench")]
     pub output: Option<PathBuf>,
-    /// Hardware (1PPS + counter), software (receive times) or auto.
+    /// Hardware (1PPS + counter captures), hybrid (1PPS + counter for GPS
+    /// time, IMU counters are receive times: an IMU on a serial port
+    /// without sync pin), software (receive times only) or auto (hybrid
+    /// when the header says `imu_timing: receive` or the imu intervals
+    /// jitter far beyond the counter tick).
     #[arg(long, value_enum, default_value_t = Mode::Auto)]
     pub mode: Mode,
+    /// Write the outputs and exit 0 even when the log's figures are
+    /// implausible (loss, duplicates or irregular intervals over 1 %, a
+    /// rate far from nominal).
+    #[arg(long)]
+    pub force: bool,
     /// Stamp every sample from past data only (as in real time).
     #[arg(long)]
     pub causal: bool,
     /// Known output delay T_c of an IMU timed by its serial frame (s),
-    /// subtracted from every IMU stamp (seed 000) [default: the log
-    /// header's `imu_output_delay_s`, else 0].
+    /// subtracted from every IMU stamp (Liu et al., "Data synchronization
+    /// in IMU/GPS integrated measurement system of vehicle motion
+    /// parameters"); in hybrid mode the fastest transport latency, which
+    /// receive times cannot observe [default: the log header's
+    /// `imu_output_delay_s`, else 0].
     #[arg(long)]
     pub imu_output_delay: Option<f64>,
     /// The counter's oscillator: how fast holdover error bounds grow.
@@ -88,6 +100,7 @@ pub enum Rule {
 pub enum Mode {
     Auto,
     Hw,
+    Hybrid,
     Sw,
 }
 
@@ -103,6 +116,7 @@ pub fn run(args: Args) -> Result<()> {
             Mode::Auto => SyncMode::Auto,
             Mode::Hw => SyncMode::Hw,
             Mode::Sw => SyncMode::Sw,
+            Mode::Hybrid => SyncMode::Hybrid,
         },
         causal: args.causal,
         imu_output_delay_s: args.imu_output_delay,
@@ -133,8 +147,49 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!("{} reported conditions:", summary.report.diagnostics.total);
         print_diagnostics(&summary.report.diagnostics, 10);
     }
+    let bad = &summary.report.implausible;
+    if !bad.is_empty() {
+        eprintln!();
+        eprintln!(
+            "navsync sync: IMPLAUSIBLE LOG {}: the stamps are not to be trusted",
+            rig.display()
+        );
+        for b in bad {
+            eprintln!("  - {}", b.what);
+        }
+        let mut causes: Vec<&Implausible> = Vec::new();
+        for b in bad {
+            if !causes.iter().any(|c| c.cause == b.cause) {
+                causes.push(b);
+            }
+        }
+        for c in causes {
+            eprintln!("  likely cause: {}", c.cause);
+            eprintln!("  fix: {}", c.fix);
+        }
+        if args.force {
+            eprintln!("  --force: outputs written anyway");
+        } else {
+            // No silent garbage: the time-stamped files are withdrawn; the
+            // report stays for diagnosis.
+            for f in ["imu.txt", "gnss.txt", "imu_times.txt", "kf-gins.yaml"] {
+                let p = out_dir.join(f);
+                if p.exists() {
+                    let _ = std::fs::remove_file(&p);
+                }
+            }
+            bail!(
+                "implausible log {} ({} findings; see {}/sync_report.json): imu.txt, gnss.txt and imu_times.txt removed; --force keeps them",
+                rig.display(),
+                bad.len(),
+                out_dir.display()
+            );
+        }
+    }
     Ok(())
 }
+
+use navsync::timing::report::Implausible;
 
 fn print_summary(r: &SyncReport, wall: f64, out_dir: &Path) {
     let mode = if r.causal {
@@ -206,6 +261,17 @@ fn print_summary(r: &SyncReport, wall: f64, out_dir: &Path) {
             sw.host_clock_error_ppm.unwrap_or(f64::NAN),
             sw.unobservable
         );
+    }
+    if let Some(h) = &r.hybrid {
+        println!(
+            "  hybrid sync: IMU sample clock {:.6} Hz ({:+.2} ppm), receive latency above the fastest {:.3} ms mean, stamp jitter ≈ {:.2} µs (1σ), {} samples next to a loss of uncertain place",
+            h.rate_hz.unwrap_or(f64::NAN),
+            h.imu_clock_ppm.unwrap_or(f64::NAN),
+            h.mean_latency_above_fastest_ms,
+            h.jitter_sd_us,
+            h.ambiguous_samples
+        );
+        println!("  constant offset unobservable: {}", h.unobservable);
     }
     if let Some(m) = &r.marks {
         println!(

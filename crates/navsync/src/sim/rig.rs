@@ -8,6 +8,10 @@
 //!   known output delay T_c after its sample.
 //! - `sw` (seed 001 §2.2): no PPS at all; every record carries the host's
 //!   receive time (serial transfer plus a positive software latency).
+//! - `hybrid`: the commonest logger: 1PPS latched on the host counter,
+//!   GNSS messages stamped at their last byte as in `hw`, but the IMU on a
+//!   serial port without sync pin, its records stamped at receipt (FIFO,
+//!   latency law of `software`).
 //!
 //! Serial links are FIFO: a frame starts when it is ready and the previous
 //! frame has left (10 bits per byte, 8N1).
@@ -34,6 +38,8 @@ pub enum SyncMode {
     Serial,
     /// No PPS; receive times only.
     Sw,
+    /// 1PPS latched; the IMU stamped at receipt by the host.
+    Hybrid,
 }
 
 impl SyncMode {
@@ -42,6 +48,7 @@ impl SyncMode {
             SyncMode::Hw => "hw",
             SyncMode::Serial => "serial",
             SyncMode::Sw => "sw",
+            SyncMode::Hybrid => "hybrid",
         }
     }
 }
@@ -132,12 +139,29 @@ impl Default for ImuLinkSpec {
     }
 }
 
-/// Host receive latencies for software sync (positive only), uniform (s).
+/// How a host receive latency is drawn.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LatencyLaw {
+    /// Uniform in `[min, max]`.
+    #[default]
+    Uniform,
+    /// `min` plus an exponential excess of mean `imu_latency_mean_s`
+    /// (a scheduler's tail).
+    Exponential,
+}
+
+/// Host receive latencies (positive only) for software sync, and for the
+/// IMU of the `hybrid` rig (s).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SoftwareSpec {
     pub imu_latency_s: [f64; 2],
     pub gnss_latency_s: [f64; 2],
+    /// Law of the IMU latency.
+    pub imu_latency_law: LatencyLaw,
+    /// Mean excess over `imu_latency_s[0]` of the exponential law (s).
+    pub imu_latency_mean_s: f64,
 }
 
 impl Default for SoftwareSpec {
@@ -145,6 +169,8 @@ impl Default for SoftwareSpec {
         SoftwareSpec {
             imu_latency_s: [0.001, 0.010],
             gnss_latency_s: [0.001, 0.010],
+            imu_latency_law: LatencyLaw::Uniform,
+            imu_latency_mean_s: 0.002,
         }
     }
 }
@@ -264,6 +290,9 @@ impl RigSpec {
             );
         }
         check_range(self.software.imu_latency_s, "software imu_latency_s")?;
+        if !is_non_negative(self.software.imu_latency_mean_s) {
+            return Err("software imu_latency_mean_s must be >= 0".into());
+        }
         check_range(self.software.gnss_latency_s, "software gnss_latency_s")?;
         Ok(())
     }
@@ -494,22 +523,37 @@ impl SerialLink {
 #[derive(Clone, Debug)]
 pub struct HostReceiver {
     range: [f64; 2],
+    law: LatencyLaw,
+    mean_s: f64,
     rng: SimRng,
     last: f64,
 }
 
 impl HostReceiver {
+    /// Uniform latencies in `range`.
     pub fn new(range: [f64; 2], rng: SimRng) -> Self {
+        Self::with_law(range, LatencyLaw::Uniform, 0.0, rng)
+    }
+
+    /// Latencies by `law` (`mean_s`: the exponential's mean excess).
+    pub fn with_law(range: [f64; 2], law: LatencyLaw, mean_s: f64, rng: SimRng) -> Self {
         HostReceiver {
             range,
+            law,
+            mean_s,
             rng,
             last: f64::NEG_INFINITY,
         }
     }
 
     pub fn receive(&mut self, arrived_s: f64) -> f64 {
-        let rx = (arrived_s + rng::uniform_in(&mut self.rng, self.range[0], self.range[1]))
-            .max(self.last);
+        let lat = match self.law {
+            LatencyLaw::Uniform => rng::uniform_in(&mut self.rng, self.range[0], self.range[1]),
+            LatencyLaw::Exponential => {
+                self.range[0] - self.mean_s * (1.0 - rng::uniform(&mut self.rng)).ln()
+            }
+        };
+        let rx = (arrived_s + lat).max(self.last);
         self.last = rx;
         rx
     }

@@ -289,8 +289,12 @@ impl Simulation {
 
         let mut gnss_link = SerialLink::new(rig.gnss_link.baud, rig.gnss_link.msg_bytes);
         let mut imu_link = SerialLink::new(rig.imu_link.baud, rig.imu_link.frame_bytes);
-        let mut host_imu =
-            HostReceiver::new(rig.software.imu_latency_s, rng::stream(seed, "rig.sw.imu"));
+        let mut host_imu = HostReceiver::with_law(
+            rig.software.imu_latency_s,
+            rig.software.imu_latency_law,
+            rig.software.imu_latency_mean_s,
+            rng::stream(seed, "rig.sw.imu"),
+        );
         let mut host_gnss = HostReceiver::new(
             rig.software.gnss_latency_s,
             rng::stream(seed, "rig.sw.gnss"),
@@ -332,7 +336,7 @@ impl Simulation {
             let timing = match rig.sync {
                 SyncMode::Hw => "data-ready",
                 SyncMode::Serial => "frame-start",
-                SyncMode::Sw => "receive",
+                SyncMode::Sw | SyncMode::Hybrid => "receive",
             };
             h.push_str(&format!("# imu_timing: {timing}\n"));
             if record_kind == OutputKind::Rate {
@@ -541,7 +545,7 @@ impl Simulation {
                 let latch = match rig.sync {
                     SyncMode::Hw => rel + rig.imu_link.data_ready_delay_s,
                     SyncMode::Serial => frame_start,
-                    SyncMode::Sw => host_imu.receive(frame_end),
+                    SyncMode::Sw | SyncMode::Hybrid => host_imu.receive(frame_end),
                 };
                 let sample = ImuSample {
                     time,

@@ -205,7 +205,7 @@ fn toml_to_json(v: &toml::Value) -> Value {
 }
 
 /// Named presets: a built-in trajectory with sensor and rig settings.
-pub const PRESETS: &[&str] = &["demo"];
+pub const PRESETS: &[&str] = &["demo", "hybrid"];
 
 /// The layer of a named preset:
 /// - `demo`: the `navsync demo` drive. The test track with an ADIS16465
@@ -216,6 +216,12 @@ pub const PRESETS: &[&str] = &["demo"];
 ///   late (receiver processing plus 38400 baud); GNSS time tags 10 ms late
 ///   (a receiver offset no clock synchronization can see, left for the
 ///   filter's time-offset state); two 30 s GNSS outages.
+/// - `hybrid`: the commonest logger: 1PPS captured on the host counter
+///   (40 ppm fast, +12.5 ppm as the board warms by 25 °C), the IMU on a
+///   serial port without sync pin, its records stamped at receipt with a
+///   latency uniform in 1–10 ms (FIFO), one frame in 10⁴ lost. Other
+///   laws: `--set rig.software.imu_latency_law=exponential --set
+///   rig.software.imu_latency_mean_s=0.002`.
 pub fn preset_layer(name: &str) -> Option<Value> {
     match name {
         "demo" => Some(serde_json::json!({
@@ -235,6 +241,18 @@ pub fn preset_layer(name: &str) -> Option<Value> {
                     "spurious_per_hour": 30.0,
                     "displaced_fraction": 0.005
                 }
+            }
+        })),
+        "hybrid" => Some(serde_json::json!({
+            "trajectory": "test-track",
+            "duration_s": 600.0,
+            "imu": { "grade": "adis16465" },
+            "rig": {
+                "sync": "hybrid",
+                "counter": { "freq_error_ppm": 40.0, "temp_coeff_ppm_per_c": 0.5 },
+                "temperature": { "model": "exponential", "t0_c": 20.0, "delta_c": 25.0, "tau_s": 300.0 },
+                "imu_link": { "loss_prob": 1e-4 },
+                "software": { "imu_latency_s": [0.001, 0.010], "imu_latency_law": "uniform" }
             }
         })),
         _ => None,

@@ -7,6 +7,7 @@ use std::collections::VecDeque;
 use super::clock::{ClockConfig, LockState, Oscillator, PpsClock, Rejection, Smoother};
 use super::imu::{ImuFlags, ImuTracker, RateEstimator};
 use super::report::*;
+use super::sampleclock::{SampleClock, SampleClockConfig, Timed};
 use super::swsync::{SwClock, SwConfig};
 use super::unwrap::{Unwrapped, Unwrapper};
 use crate::error::{Diagnostics, Error};
@@ -23,6 +24,10 @@ pub enum SyncMode {
     Hw,
     /// Receive times only (seed 001 §2.2).
     Sw,
+    /// 1PPS + local counter for GPS time; IMU counters are receive times,
+    /// turned into sample instants by the IMU's own sample clock
+    /// ([`super::sampleclock`]).
+    Hybrid,
 }
 
 /// Settings of the engine.
@@ -152,7 +157,20 @@ enum Engine {
     Undecided(Vec<(RigRecord, usize)>),
     Hw,
     Sw,
+    Hybrid,
 }
+
+/// An IMU record on its way through the sample clock (hybrid mode).
+#[derive(Copy, Clone, Debug)]
+struct HybridTag {
+    p: PendingImu,
+    bound: f64,
+    hold: bool,
+    unstamped: bool,
+}
+
+/// Intervals of the first `imu` counters, for the interval jitter.
+const JITTER_INTERVALS: usize = 2000;
 
 /// The streaming synchronization engine. See the module documentation.
 pub struct SyncEngine {
@@ -193,6 +211,14 @@ pub struct SyncEngine {
     diag: Diagnostics,
     out_of_order_imu: u64,
     rejected_pulses: Vec<RejectedPulse>,
+    /// Hybrid mode: the IMU's sample clock and the GPS second its times
+    /// count from.
+    sample_clock: SampleClock<HybridTag>,
+    hybrid_origin: Option<i64>,
+    /// Raw counters of the first `imu` records (interval jitter).
+    first_imu_counters: Vec<u64>,
+    /// Why auto mode chose hybrid, when it did.
+    hybrid_reason: Option<String>,
 }
 
 impl SyncEngine {
@@ -215,8 +241,14 @@ impl SyncEngine {
             SyncMode::Auto => Engine::Undecided(Vec::new()),
             SyncMode::Hw => Engine::Hw,
             SyncMode::Sw => Engine::Sw,
+            SyncMode::Hybrid => Engine::Hybrid,
         };
         let nominal_period = header.imu_rate_hz.map(|r| hz / r);
+        let sample_clock = SampleClock::new(SampleClockConfig {
+            nominal_period_s: header.imu_rate_hz.filter(|r| *r > 0.0).map(|r| 1.0 / r),
+            causal: cfg.causal,
+            ..Default::default()
+        });
         SyncEngine {
             sw: SwClock::new(cfg.sw.clone(), hz),
             cfg,
@@ -253,6 +285,10 @@ impl SyncEngine {
             diag: Diagnostics::default(),
             out_of_order_imu: 0,
             rejected_pulses: Vec::new(),
+            sample_clock,
+            hybrid_origin: None,
+            first_imu_counters: Vec::new(),
+            hybrid_reason: None,
         }
     }
 
@@ -270,6 +306,11 @@ impl SyncEngine {
 
     /// Pushes one record read at `line`; outputs are appended to `out`.
     pub fn push_into(&mut self, rec: RigRecord, line: usize, out: &mut Vec<SyncOutput>) {
+        if let RigRecord::Imu { counter, .. } = rec
+            && self.first_imu_counters.len() <= JITTER_INTERVALS
+        {
+            self.first_imu_counters.push(counter);
+        }
         match rec {
             RigRecord::Imu { .. } => self.counts.imu += 1,
             RigRecord::Pps { .. } => self.counts.pps += 1,
@@ -279,10 +320,13 @@ impl SyncEngine {
         if let Engine::Undecided(buf) = &mut self.state {
             let c = rec.counter();
             buf.push((rec, line));
-            let is_pps = matches!(rec, RigRecord::Pps { .. });
             let first = buf[0].0.counter();
             let span = self.unwrap_span(first, c);
-            if is_pps {
+            // Hardware when a pulse came; but wait for 200 imu records
+            // (their interval jitter tells captures from receive times).
+            let pps = self.counts.pps > 0;
+            let enough_imu = self.first_imu_counters.len() > 200;
+            if pps && (enough_imu || span > self.cfg.auto_wait_s) {
                 self.decide(true, out);
             } else if span > self.cfg.auto_wait_s {
                 self.decide(false, out);
@@ -303,10 +347,52 @@ impl SyncEngine {
         d as f64 * self.tick_s
     }
 
+    /// Robust spread (1.4826·MAD) of the intervals of the first `imu`
+    /// counters (s); `None` below 20 intervals.
+    fn interval_jitter_s(&self) -> Option<f64> {
+        let c = &self.first_imu_counters;
+        if c.len() < 21 {
+            return None;
+        }
+        let mut d: Vec<f64> = c
+            .windows(2)
+            .map(|w| self.unwrap_span(w[0], w[1]))
+            .filter(|d| *d < 1.0) // wraps and gaps are not jitter
+            .collect();
+        if d.len() < 20 {
+            return None;
+        }
+        let m = super::fit::median(&mut d);
+        let mut dev: Vec<f64> = d.iter().map(|x| (x - m).abs()).collect();
+        Some(1.4826 * super::fit::median(&mut dev))
+    }
+
     fn decide(&mut self, hw: bool, out: &mut Vec<SyncOutput>) {
-        let Engine::Undecided(buf) =
-            std::mem::replace(&mut self.state, if hw { Engine::Hw } else { Engine::Sw })
-        else {
+        let next = if !hw {
+            Engine::Sw
+        } else if self.header.imu_timing == Some(crate::io::riglog::ImuTiming::Receive) {
+            self.hybrid_reason = Some("header imu_timing: receive".into());
+            Engine::Hybrid
+        } else if let Some(j) = self
+            .interval_jitter_s()
+            .filter(|j| *j * 1e6 > RECEIVE_JITTER_US && *j > 20.0 * self.tick_s)
+        {
+            self.hybrid_reason = Some(format!(
+                "imu intervals jitter by {:.3} ms (1.4826·MAD), far beyond the counter tick: receive times, not hardware captures",
+                j * 1e3
+            ));
+            Engine::Hybrid
+        } else {
+            Engine::Hw
+        };
+        if let Some(r) = &self.hybrid_reason {
+            self.diag.push(
+                std::path::Path::new(&self.cfg.source),
+                0,
+                format!("hybrid sync (1PPS + IMU receive times) chosen: {r}"),
+            );
+        }
+        let Engine::Undecided(buf) = std::mem::replace(&mut self.state, next) else {
             return;
         };
         for (rec, line) in buf {
@@ -364,7 +450,8 @@ impl SyncEngine {
     }
 
     fn process(&mut self, rec: RigRecord, line: usize, out: &mut Vec<SyncOutput>) {
-        let hw = matches!(self.state, Engine::Hw);
+        let hybrid = matches!(self.state, Engine::Hybrid);
+        let hw = matches!(self.state, Engine::Hw) || hybrid;
         let counter = self.unwrap_counter(rec.counter(), line);
         if let RigRecord::Imu { values, .. } = rec {
             let seq = self.imu_seq;
@@ -395,7 +482,11 @@ impl SyncEngine {
                 return;
             };
             self.note_time(c);
-            let (flags, k, h) = if hw {
+            let (flags, k, h) = if hybrid {
+                // Receive times: duplicates by their values; losses are
+                // found by the sample clock.
+                (self.tracker.classify_sw(&values), 0, 0.0)
+            } else if hw {
                 (self.tracker.classify_hw(seq, c, &values), 0, 0.0)
             } else {
                 let h = self.sw.host(c);
@@ -412,6 +503,7 @@ impl SyncEngine {
                 }
             };
             if hw
+                && !hybrid
                 && self
                     .pending_imu
                     .back()
@@ -504,7 +596,7 @@ impl SyncEngine {
     /// Stamps every pending record that is ready (all of them when `flush`).
     fn drain(&mut self, out: &mut Vec<SyncOutput>, flush: bool) {
         match self.state {
-            Engine::Hw => self.drain_hw(out, flush),
+            Engine::Hw | Engine::Hybrid => self.drain_hw(out, flush),
             Engine::Sw => self.drain_sw(out, flush),
             Engine::Undecided(_) => {}
         }
@@ -539,10 +631,22 @@ impl SyncEngine {
     fn drain_hw(&mut self, out: &mut Vec<SyncOutput>, flush: bool) {
         let tc = self.cfg.imu_output_delay_s.unwrap_or(0.0);
         let locked_once = self.clock.has_model();
+        let hybrid = matches!(self.state, Engine::Hybrid);
+        let mut timed = Vec::new();
         while let Some(p) = self.pending_imu.front().copied() {
             if p.flags.unstamped {
                 self.pending_imu.pop_front();
-                self.emit_unstamped(p, out);
+                if hybrid {
+                    let tag = HybridTag {
+                        p,
+                        bound: f64::INFINITY,
+                        hold: false,
+                        unstamped: true,
+                    };
+                    self.sample_clock.pass(tag, &mut timed);
+                } else {
+                    self.emit_unstamped(p, out);
+                }
                 continue;
             }
             if !self.hw_ready(p.counter, flush) {
@@ -550,9 +654,38 @@ impl SyncEngine {
             }
             self.pending_imu.pop_front();
             let Some((t, sd, hold)) = self.hw_time(p.counter) else {
-                self.emit_unstamped(p, out);
+                if hybrid {
+                    let tag = HybridTag {
+                        p,
+                        bound: f64::INFINITY,
+                        hold: false,
+                        unstamped: true,
+                    };
+                    self.sample_clock.pass(tag, &mut timed);
+                } else {
+                    self.emit_unstamped(p, out);
+                }
                 continue;
             };
+            if hybrid {
+                // The receive time on GPS time, in seconds from a GPS second.
+                let origin = *self
+                    .hybrid_origin
+                    .get_or_insert(t.ns().div_euclid(crate::time::NS_PER_S));
+                let rel = (t.ns() - origin * crate::time::NS_PER_S) as f64 * 1e-9;
+                let tag = HybridTag {
+                    p,
+                    bound: sd,
+                    hold,
+                    unstamped: false,
+                };
+                if p.flags.duplicate {
+                    self.sample_clock.pass(tag, &mut timed);
+                } else {
+                    self.sample_clock.push(tag, rel, &mut timed);
+                }
+                continue;
+            }
             let mut flags = p.flags;
             flags.holdover = hold;
             flags.before_lock = self
@@ -563,6 +696,14 @@ impl SyncEngine {
                 && self.cfg.causal;
             let bound = sd;
             self.emit_imu(p, t.add_seconds(-tc), bound, flags, out);
+        }
+        if hybrid {
+            if flush {
+                self.sample_clock.flush(&mut timed);
+            }
+            for x in timed {
+                self.emit_hybrid(x, tc, out);
+            }
         }
         while let Some(g) = self.pending_gnss.front().copied() {
             if !self.hw_ready(g.counter, flush) {
@@ -682,6 +823,53 @@ impl SyncEngine {
         (gi * gi + gg * gg).sqrt()
     }
 
+    /// 1σ of the envelope's varying error: an envelope through N points
+    /// whose delays above it average `e` is uncertain by about e/N per
+    /// coefficient (as `sw_sd`).
+    fn hybrid_sd(&self) -> f64 {
+        let n = self.sample_clock.fit_points;
+        if n == 0 || !self.sample_clock.mean_excess_s.is_finite() {
+            return 0.0;
+        }
+        2.0 * self.sample_clock.mean_excess_s * 3f64.sqrt() / n as f64
+    }
+
+    /// A record handed back by the sample clock (hybrid mode).
+    fn emit_hybrid(&mut self, x: Timed<HybridTag>, tc: f64, out: &mut Vec<SyncOutput>) {
+        let HybridTag {
+            p,
+            bound,
+            hold,
+            unstamped,
+        } = x.tag;
+        let origin = self.hybrid_origin.unwrap_or(0);
+        if unstamped || !x.time.is_finite() {
+            self.emit_unstamped(p, out);
+            return;
+        }
+        let whole = x.time.floor();
+        let t = GpsTime::from_ns(
+            (origin + whole as i64) * crate::time::NS_PER_S
+                + ((x.time - whole) * 1e9).round() as i64,
+        )
+        .add_seconds(-tc);
+        let mut flags = p.flags;
+        flags.holdover = hold;
+        if x.sample {
+            flags.lost_before = x.lost_before;
+            flags.ambiguous = x.ambiguous;
+            if x.lost_before > 0 {
+                self.tracker.note_lost(p.seq, x.lost_before);
+            }
+        }
+        let period = self.sample_clock.current_period_s().unwrap_or(0.0);
+        let mut b = (bound * bound + (3.0 * self.hybrid_sd()).powi(2)).sqrt();
+        if flags.ambiguous {
+            b = b.max(period);
+        }
+        self.emit_imu(p, t, b, flags, out);
+    }
+
     fn emit_unstamped(&mut self, p: PendingImu, out: &mut Vec<SyncOutput>) {
         self.unstamped += 1;
         let mut flags = p.flags;
@@ -775,7 +963,8 @@ impl SyncEngine {
                 msg: "empty log: no pps, gnss or imu records".into(),
             });
         }
-        let hw = matches!(self.state, Engine::Hw);
+        let hybrid = matches!(self.state, Engine::Hybrid);
+        let hw = matches!(self.state, Engine::Hw) || hybrid;
         if hw && !self.clock.has_model() {
             let msg = if self.counts.pps == 0 {
                 "no pps records: hardware sync impossible (use --mode sw for receive-time sync)"
@@ -807,7 +996,8 @@ impl SyncEngine {
             h.duration_s = h.end.seconds_since(&h.start);
             self.holdover.push(h);
         }
-        let report = self.report(hw);
+        let mut report = self.report(hw);
+        report.implausible = report.check_plausible();
         Ok((out, report))
     }
 
@@ -883,7 +1073,29 @@ impl SyncEngine {
                 .collect(),
             output_delay_s: self.cfg.imu_output_delay_s.unwrap_or(0.0),
             timestamps_not_increasing: self.nonincreasing,
+            interval_jitter_us: self.interval_jitter_s().map(|j| j * 1e6),
         };
+        let hybrid = matches!(self.state, Engine::Hybrid).then(|| {
+            let sc = &self.sample_clock;
+            let period = sc.current_period_s();
+            let tc = self.cfg.imu_output_delay_s.unwrap_or(0.0);
+            HybridReport {
+                period_s: period,
+                rate_hz: period.filter(|p| *p > 0.0).map(|p| 1.0 / p),
+                imu_clock_ppm: match (period, self.header.imu_rate_hz) {
+                    (Some(p), Some(r)) if p > 0.0 && r > 0.0 => Some((1.0 / (p * r) - 1.0) * 1e6),
+                    _ => None,
+                },
+                mean_latency_above_fastest_ms: sc.mean_excess_s * 1e3,
+                envelope_points: sc.fit_points,
+                ambiguous_samples: sc.ambiguous,
+                jitter_sd_us: self.hybrid_sd() * 1e6,
+                assumed_fastest_latency_s: tc,
+                unobservable: format!(
+                    "every IMU stamp is the sample instant plus the fastest transport latency (IMU output delay + fastest serial/driver latency) minus the {tc} s subtracted (--imu-output-delay or the header's imu_output_delay_s): receive times cannot observe it. Estimate it in the filter's time-offset state (--estimate-time-offset) or measure it once with a sync pin."
+                ),
+            }
+        });
         let pps = hw.then(|| PpsReport {
             counts: clock.counts.clone(),
             innovation_rms_us: (clock.innovation.n > 0).then(|| clock.innovation.rms() * 1e6),
@@ -907,7 +1119,14 @@ impl SyncEngine {
             }
         });
         SyncReport {
-            mode: if hw { "hw" } else { "sw" }.into(),
+            mode: if matches!(self.state, Engine::Hybrid) {
+                "hybrid"
+            } else if hw {
+                "hw"
+            } else {
+                "sw"
+            }
+            .into(),
             causal: self.cfg.causal,
             records: self.counts.clone(),
             counter,
@@ -918,6 +1137,8 @@ impl SyncEngine {
             imu,
             gnss,
             software,
+            hybrid,
+            implausible: Vec::new(),
             marks: (self.counts.marks > 0).then(|| {
                 let r = &self.mark_residuals;
                 MarkReport {

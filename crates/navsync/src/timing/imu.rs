@@ -27,6 +27,9 @@ pub struct ImuFlags {
     pub before_lock: bool,
     /// No usable counter (corrupt): no time, not integrated.
     pub unstamped: bool,
+    /// Receive-time (hybrid) timing: the place of a loss next to this
+    /// sample was not certain; its stamp may be one period off.
+    pub ambiguous: bool,
 }
 
 /// A gap in the IMU stream.

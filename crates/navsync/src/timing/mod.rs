@@ -21,6 +21,7 @@ pub mod file;
 pub mod fit;
 pub mod imu;
 pub mod report;
+pub mod sampleclock;
 pub mod swsync;
 pub mod unwrap;
 

@@ -143,6 +143,44 @@ pub struct ImuReport {
     /// T_c subtracted from every stamp (s).
     pub output_delay_s: f64,
     pub timestamps_not_increasing: u64,
+    /// Robust spread (1.4826·MAD) of the intervals between the first
+    /// ≤ 2000 `imu` counters (µs): about a tick for hardware captures,
+    /// milliseconds for receive times.
+    #[serde(default)]
+    pub interval_jitter_us: Option<f64>,
+}
+
+/// Hybrid synchronization: 1PPS maps the counter to GPS time, the IMU's
+/// sample instants come from its receive times by a model of its own
+/// sample clock (see `timing::sampleclock`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct HybridReport {
+    /// The IMU's sample period from the envelope (s) and its rate (Hz).
+    pub period_s: Option<f64>,
+    pub rate_hz: Option<f64>,
+    /// The IMU clock's frequency error against the nominal rate (ppm).
+    pub imu_clock_ppm: Option<f64>,
+    /// Mean receive latency above the fastest one (ms).
+    pub mean_latency_above_fastest_ms: f64,
+    /// Points in the last envelope fit.
+    pub envelope_points: usize,
+    /// Samples whose place next to a loss was not certain (may be one
+    /// period off).
+    pub ambiguous_samples: u64,
+    /// Estimated 1σ of the stamps' varying error (µs), constant excluded.
+    pub jitter_sd_us: f64,
+    /// The constant subtracted as the fastest transport latency (s).
+    pub assumed_fastest_latency_s: f64,
+    pub unobservable: String,
+}
+
+/// A figure of the log that is not plausible, with its likely cause and
+/// the option that fixes it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Implausible {
+    pub what: String,
+    pub cause: String,
+    pub fix: String,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -269,6 +307,12 @@ pub struct SyncReport {
     pub imu: ImuReport,
     pub gnss: GnssReport,
     pub software: Option<SoftwareReport>,
+    /// Hybrid synchronization (1PPS + IMU receive times).
+    #[serde(default)]
+    pub hybrid: Option<HybridReport>,
+    /// Implausible figures (empty for a clean log).
+    #[serde(default)]
+    pub implausible: Vec<Implausible>,
     /// Receiver time marks, when the log has `mark` records.
     #[serde(default)]
     pub marks: Option<MarkReport>,
@@ -384,6 +428,90 @@ pub fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
 /// Whole GPS seconds of `t`.
 pub fn gps_second(t: GpsTime) -> i64 {
     t.ns().div_euclid(NS_PER_S)
+}
+
+/// Share of records above which losses, duplicates or irregular
+/// intervals make a log implausible (i2Nav's acquisition guide asks for
+/// loss rates below 1e-5: Tang, Zhang & Niu, "MEMS IMU raw data
+/// acquisition and time synchronization pitfalls", 2022).
+pub const IMPLAUSIBLE_SHARE: f64 = 0.01;
+/// Relative difference of the measured IMU rate from the nominal one
+/// above which the rate is implausible (crystals are within 1e-4).
+pub const IMPLAUSIBLE_RATE: f64 = 0.01;
+/// Interval jitter of `imu` counters (µs) beyond which they cannot be
+/// hardware captures (a capture input is exact to a tick; an interrupt
+/// to tens of µs).
+pub const RECEIVE_JITTER_US: f64 = 100.0;
+
+impl SyncReport {
+    /// The implausible figures of this report (see [`IMPLAUSIBLE_SHARE`]).
+    pub fn check_plausible(&self) -> Vec<Implausible> {
+        let mut v = Vec::new();
+        let i = &self.imu;
+        let n = i.records.max(1) as f64;
+        let receive_like = i.interval_jitter_us.is_some_and(|j| j > RECEIVE_JITTER_US);
+        let jitter = i
+            .interval_jitter_us
+            .map(|j| format!("{:.3} ms", j * 1e-3))
+            .unwrap_or_else(|| "-".into());
+        let (cause_timing, fix_timing) = if self.mode == "hw" && receive_like {
+            (
+                format!(
+                    "the imu counters jitter by {jitter} between samples: they are receive times (an IMU on a serial port without sync pin), not hardware captures"
+                ),
+                "run with --mode hybrid (or --mode auto), or add '# imu_timing: receive' to the log header".to_string(),
+            )
+        } else if self.mode == "sw" && self.records.pps > 0 {
+            (
+                "software sync ignores the log's pps records".to_string(),
+                "run with --mode hybrid (1PPS + receive times) or --mode auto".to_string(),
+            )
+        } else {
+            (
+                "the logger or its link drops, repeats or delays IMU frames (buffer overruns, baud rate too low for the IMU rate, a loaded host)".to_string(),
+                "fix the acquisition; --force writes the output anyway, gaps flagged".to_string(),
+            )
+        };
+        let mut add = |what: String| {
+            v.push(Implausible {
+                what,
+                cause: cause_timing.clone(),
+                fix: fix_timing.clone(),
+            })
+        };
+        for (count, name) in [
+            (i.lost, "lost"),
+            (i.duplicated, "duplicated"),
+            (i.irregular_intervals, "irregular intervals"),
+        ] {
+            let share = count as f64 / n;
+            if share > IMPLAUSIBLE_SHARE {
+                add(format!(
+                    "imu: {count} {name} of {} records ({:.2} %, more than {:.0} %)",
+                    i.records,
+                    100.0 * share,
+                    100.0 * IMPLAUSIBLE_SHARE
+                ));
+            }
+        }
+        if let (Some(r), Some(nom)) = (i.rate_hz, i.nominal_rate_hz)
+            && nom > 0.0
+            && ((r / nom) - 1.0).abs() > IMPLAUSIBLE_RATE
+        {
+            add(format!(
+                "imu: measured rate {r:.3} Hz against the nominal {nom} Hz ({:+.2} %)",
+                100.0 * (r / nom - 1.0)
+            ));
+        }
+        if v.is_empty() && self.mode == "hw" && receive_like {
+            v.push(Implausible {
+                what: format!("imu: intervals jitter by {jitter}, far beyond the counter tick"),
+                cause: cause_timing,
+                fix: fix_timing,
+            });
+        }
+        v
+    }
 }
 
 #[cfg(test)]

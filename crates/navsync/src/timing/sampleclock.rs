@@ -1,0 +1,700 @@
+//! The sample clock of an IMU timed by receive times (no sync pin): the
+//! instant of every sample from the times its frames were received.
+//!
+//! The IMU samples on its own oscillator, regular to ppm: sample `k` is
+//! taken at `s_k = s_0 + k·P` (P drifting slowly) and received at
+//! `t_k = s_k + μ_k` with a transport latency `μ_k ≥ μ_min` (serial
+//! transfer, driver, scheduler; FIFO order). Two steps, streaming:
+//!
+//! 1. Sample counting (the sample counter per 1PPS second of the Chinese
+//!    patent "A time synchronization method for a GPS/SINS integrated
+//!    navigation system", seeds/002 §step 3, recovered from timing
+//!    instead of latched by an FPGA): each received sample gets its index
+//!    `k` in the IMU's own clock. A lost sample shifts every later
+//!    receive time by one period above the line `a + P·k`: the index is
+//!    decided after a lookahead of later samples, as the smallest shift
+//!    that keeps every one of them at or above the line; when latencies
+//!    spread over more than a period, the place of the loss among a few
+//!    samples is the most likely one under the observed latency
+//!    distribution, and those samples are flagged `ambiguous`.
+//! 2. Stamping: the lower envelope of receive time vs index (TICSync:
+//!    one-way delays are only ever positive, Harrison & Newman, "TICSync:
+//!    Knowing when things happened", ICRA 2011; [`EnvelopeFit`]) over a
+//!    long window gives `s_k + μ_min`. `μ_min`, the fastest transport,
+//!    is the one constant receive times cannot observe.
+//!
+//! Times are f64 seconds from an origin chosen by the caller (a GPS second).
+
+use std::collections::VecDeque;
+
+use super::fit::EnvelopeFit;
+
+/// Settings of the sample clock.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SampleClockConfig {
+    /// Nominal sample period (s), e.g. from the header's `imu_rate_hz`;
+    /// `None`: the median receive interval of the first samples.
+    pub nominal_period_s: Option<f64>,
+    /// Window of the stamping envelope (s): centred on the sample, or
+    /// ending at it in causal mode.
+    pub window_s: f64,
+    /// Samples looked ahead before an index is decided …
+    pub lookahead: usize,
+    /// … and at least this much receive time (s): a host stall releases
+    /// its backlog in one burst, which must not be taken for a loss.
+    pub lookahead_s: f64,
+    /// Stamp from past data only (plus the lookahead of step 1).
+    pub causal: bool,
+}
+
+impl Default for SampleClockConfig {
+    fn default() -> Self {
+        SampleClockConfig {
+            nominal_period_s: None,
+            window_s: 20.0,
+            lookahead: 100,
+            lookahead_s: 1.0,
+            causal: false,
+        }
+    }
+}
+
+/// A record handed back with its sample instant.
+#[derive(Clone, Debug)]
+pub struct Timed<T> {
+    pub tag: T,
+    /// Sample instant + `μ_min` (s from the origin); for a passed-through
+    /// record, the previous sample's.
+    pub time: f64,
+    /// Index in the IMU's own clock (passed-through: the previous one).
+    pub k: i64,
+    /// Samples lost just before this one.
+    pub lost_before: u32,
+    /// The place of a loss next to this sample was not certain: this
+    /// sample may be one period off.
+    pub ambiguous: bool,
+    /// Posterior mean of the index minus `k` (ambiguous samples): the
+    /// stamp is taken there, which halves the mean square error of a
+    /// coin-flip placement (p²/4 instead of p²/2).
+    pub k_offset: f64,
+    /// False for records passed through (duplicates, unstamped).
+    pub sample: bool,
+}
+
+#[derive(Clone, Debug)]
+struct Item<T> {
+    tag: T,
+    t: Option<f64>,
+}
+
+/// Latency density above the envelope: a histogram of committed
+/// residuals in bins of `BIN_S`, for the place of a loss.
+const BIN_S: f64 = 2.5e-4;
+const BINS: usize = 400;
+/// How far below the decision line a receive time may lie (s): the line's
+/// fit error and the drift since its last fit (µs), with a margin.
+const BELOW_LINE_S: f64 = 1e-4;
+/// Log-likelihood margin of a plausible alternative place of a loss
+/// (ln 100: one percent of the best place's likelihood).
+const AMBIGUOUS_LN: f64 = 4.605;
+
+/// See the module documentation.
+#[derive(Clone, Debug)]
+pub struct SampleClock<T> {
+    cfg: SampleClockConfig,
+    /// Records whose index is not decided yet.
+    pending: VecDeque<Item<T>>,
+    /// Records indexed, waiting for their stamping window.
+    indexed: VecDeque<Timed<T>>,
+    /// (k, t) of indexed samples over the stamping window (both sides).
+    points: VecDeque<(f64, f64)>,
+    /// Line for index decisions: t ≈ a + p·k (lower envelope of the last
+    /// seconds).
+    line: Option<(f64, f64)>,
+    since_fit: usize,
+    /// Samples after a loss placed at the front that could have come
+    /// before it: flagged ambiguous too.
+    ambiguous_left: usize,
+    /// For those samples: probability that the loss came before each.
+    ambiguous_post: VecDeque<f64>,
+    /// Samples lost at the last loss.
+    last_step: f64,
+    last_k: Option<i64>,
+    last_time: Option<(f64, i64)>,
+    hist: Vec<f64>,
+    hist_n: f64,
+    /// Largest residual above the line seen lately (s): the latency spread.
+    spread: f64,
+    /// Stamping fits per 1 s block of receive time (non-causal: centred).
+    fits: Vec<(i64, EnvelopeFit)>,
+    latest_t: f64,
+    // statistics
+    pub samples: u64,
+    pub lost: u64,
+    pub gaps: u64,
+    pub ambiguous: u64,
+    /// Mean receive latency above the envelope of the last fit (s).
+    pub mean_excess_s: f64,
+    /// Points of the last stamping fit.
+    pub fit_points: usize,
+    /// Period of the last stamping fit (s).
+    pub period_s: Option<f64>,
+}
+
+const BLOCK_S: f64 = 1.0;
+/// Fewest points of a stamping envelope (at 200 Hz, a quarter second).
+const MIN_FIT_POINTS: usize = 50;
+
+impl<T: Clone> SampleClock<T> {
+    pub fn new(cfg: SampleClockConfig) -> Self {
+        SampleClock {
+            cfg,
+            pending: VecDeque::new(),
+            indexed: VecDeque::new(),
+            points: VecDeque::new(),
+            line: None,
+            since_fit: 0,
+            ambiguous_left: 0,
+            ambiguous_post: VecDeque::new(),
+            last_step: 0.0,
+            last_k: None,
+            last_time: None,
+            hist: vec![1.0; BINS],
+            hist_n: BINS as f64,
+            spread: 0.0,
+            fits: Vec::new(),
+            latest_t: f64::NEG_INFINITY,
+            samples: 0,
+            lost: 0,
+            gaps: 0,
+            ambiguous: 0,
+            mean_excess_s: f64::NAN,
+            fit_points: 0,
+            period_s: None,
+        }
+    }
+
+    /// A sample received at `t` (s from the origin).
+    pub fn push(&mut self, tag: T, t: f64, out: &mut Vec<Timed<T>>) {
+        self.latest_t = self.latest_t.max(t);
+        self.pending.push_back(Item { tag, t: Some(t) });
+        self.advance(false, out);
+    }
+
+    /// A record that is not a sample (a duplicate, an unstamped line):
+    /// kept in order, handed back with the previous sample's time.
+    pub fn pass(&mut self, tag: T, out: &mut Vec<Timed<T>>) {
+        self.pending.push_back(Item { tag, t: None });
+        self.advance(false, out);
+    }
+
+    /// Hands back everything still held.
+    pub fn flush(&mut self, out: &mut Vec<Timed<T>>) {
+        self.advance(true, out);
+    }
+
+    fn period(&self) -> Option<f64> {
+        self.line.map(|l| l.1).or(self.cfg.nominal_period_s)
+    }
+
+    fn advance(&mut self, flush: bool, out: &mut Vec<Timed<T>>) {
+        while let Some(front) = self.pending.front() {
+            let Some(t0) = front.t else {
+                let Some(item) = self.pending.pop_front() else {
+                    break;
+                };
+                let (time, k) = self.last_time.unwrap_or((f64::NAN, -1));
+                self.indexed.push_back(Timed {
+                    tag: item.tag,
+                    time,
+                    k,
+                    lost_before: 0,
+                    ambiguous: false,
+                    k_offset: 0.0,
+                    sample: false,
+                });
+                continue;
+            };
+            let ahead = self.pending.iter().filter(|i| i.t.is_some()).count();
+            let span = self.latest_t - t0;
+            if !flush && (ahead <= self.cfg.lookahead || span < self.cfg.lookahead_s) {
+                break;
+            }
+            if self.line.is_none() && !self.bootstrap() {
+                if flush {
+                    // Too few samples for a period: count them in order.
+                    self.bootstrap_plain();
+                } else {
+                    break;
+                }
+            }
+            self.decide_front();
+        }
+        self.stamp(flush, out);
+    }
+
+    /// The first line, from the pending samples alone: the period (nominal
+    /// or the median receive interval) and the lowest `t − k·P`.
+    fn bootstrap(&mut self) -> bool {
+        let ts: Vec<f64> = self.pending.iter().filter_map(|i| i.t).collect();
+        if ts.len() < 20 {
+            return false;
+        }
+        let p = match self.cfg.nominal_period_s {
+            Some(p) => p,
+            None => {
+                let mut d: Vec<f64> = ts.windows(2).map(|w| w[1] - w[0]).collect();
+                super::fit::median(&mut d)
+            }
+        };
+        if !(p.is_finite() && p > 0.0) {
+            return false;
+        }
+        let a = ts
+            .iter()
+            .enumerate()
+            .map(|(j, t)| t - j as f64 * p)
+            .fold(f64::INFINITY, f64::min);
+        self.line = Some((a, p));
+        true
+    }
+
+    fn bootstrap_plain(&mut self) {
+        let ts: Vec<f64> = self.pending.iter().filter_map(|i| i.t).collect();
+        let p = self
+            .cfg
+            .nominal_period_s
+            .or_else(|| (ts.len() >= 2).then(|| (ts[ts.len() - 1] - ts[0]) / (ts.len() - 1) as f64))
+            .filter(|p| *p > 0.0)
+            .unwrap_or(1.0);
+        let a = ts.first().copied().unwrap_or(0.0);
+        self.line = Some((a, p));
+    }
+
+    /// Latency density at residual `r`: below the line a latency is
+    /// impossible (beyond the µs of fit error), so it weighs almost nothing.
+    fn density(&self, r: f64) -> f64 {
+        if r < -BELOW_LINE_S {
+            return 1e-6 / self.hist_n;
+        }
+        let i = (r.max(0.0) / BIN_S) as usize;
+        if i >= BINS {
+            return 1.0 / self.hist_n;
+        }
+        self.hist[i] / self.hist_n
+    }
+
+    /// Decides the index of the front sample (see the module notes).
+    fn decide_front(&mut self) {
+        let Some((a, p)) = self.line else { return };
+        let next = self.last_k.map_or(0, |k| k + 1);
+        // Residuals above the line if no sample were lost from here on.
+        let r0: Vec<f64> = self
+            .pending
+            .iter()
+            .filter_map(|i| i.t)
+            .enumerate()
+            .map(|(j, t)| t - (a + p * (next + j as i64) as f64))
+            .collect();
+        // Tolerance below the line: fit error and drift since the last
+        // fit are µs; a quarter period keeps a slightly early sample from
+        // being taken for a missing one, and a 3/4-period latency step
+        // from being taken for a loss.
+        let tol = 0.25 * p;
+        // Upper bound on the samples lost before the front: every later
+        // sample must stay above the line, min_j ⌊(r0_j + tol)/P⌋.
+        let n_max = r0
+            .iter()
+            .map(|r| ((r + tol) / p).floor())
+            .fold(f64::INFINITY, f64::min)
+            .max(0.0);
+        let hi = self.spread.max(p) + tol;
+        // At the end of the data the lookahead is short: only the losses
+        // that are certain, ⌈(r0 − spread)/P⌉ (no false loss at the end).
+        let n_max = if r0.len() <= self.cfg.lookahead {
+            n_max.min(
+                ((r0.first().copied().unwrap_or(0.0) - hi) / p)
+                    .ceil()
+                    .max(0.0),
+            )
+        } else {
+            n_max
+        };
+        let mut lost = 0u32;
+        let mut ambiguous = false;
+        let mut k_offset = 0.0;
+        if n_max >= 1.0 {
+            let n = n_max;
+            let step = n * p;
+            // The loss may also lie after the front: positions q where
+            // samples before q stay within the latency spread and samples
+            // from q on stay above the line after the shift.
+            let mut q_max = 0;
+            while q_max + 1 < r0.len() && r0[q_max] <= hi && r0[q_max + 1] - step >= -tol {
+                q_max += 1;
+            }
+            if q_max == 0 || r0[0] > hi {
+                lost = n as u32;
+            } else {
+                // Most likely place under the latency histogram; ties (a
+                // flat density) go to the middle of the tied places.
+                let ll_after: Vec<f64> = r0[..=q_max]
+                    .iter()
+                    .map(|r| self.density(r - step).ln())
+                    .collect();
+                let ll_before: Vec<f64> =
+                    r0[..=q_max].iter().map(|r| self.density(*r).ln()).collect();
+                let mut ll: Vec<f64> = Vec::with_capacity(q_max + 1);
+                let mut before = 0.0;
+                let after_total: f64 = ll_after.iter().sum();
+                let mut after = after_total;
+                for q in 0..=q_max {
+                    ll.push(before + after);
+                    before += ll_before[q];
+                    after -= ll_after[q];
+                }
+                let best = ll.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                let tied: Vec<usize> = (0..=q_max).filter(|&q| ll[q] >= best - 0.1).collect();
+                let q = tied.get(tied.len() / 2).copied().unwrap_or(0);
+                // Ambiguous: another place keeps ≥ 1 % of the likelihood.
+                let plausible: Vec<usize> = (0..=q_max)
+                    .filter(|&q| ll[q] >= best - AMBIGUOUS_LN)
+                    .collect();
+                ambiguous = plausible.len() > 1;
+                // Posterior of the places: P(loss at or before sample j).
+                let w: Vec<f64> = ll.iter().map(|l| (l - best).exp()).collect();
+                let total: f64 = w.iter().sum();
+                let mut cum = Vec::with_capacity(w.len());
+                let mut acc = 0.0;
+                for x in &w {
+                    acc += x / total;
+                    cum.push(acc);
+                }
+                let p_before_front = cum.first().copied().unwrap_or(1.0);
+                if q == 0 {
+                    lost = n as u32;
+                    k_offset = -n * (1.0 - p_before_front);
+                    if ambiguous {
+                        self.ambiguous_left = plausible.last().copied().unwrap_or(0);
+                        self.ambiguous_post = cum.iter().skip(1).copied().collect();
+                    }
+                } else {
+                    k_offset = n * p_before_front;
+                }
+            }
+        }
+        if !ambiguous && self.ambiguous_left > 0 {
+            ambiguous = true;
+            self.ambiguous_left -= 1;
+            // Indexed after the loss; before it with the remaining odds.
+            let p_before = self.ambiguous_post.pop_front().unwrap_or(1.0);
+            k_offset = -self.last_step * (1.0 - p_before);
+        }
+        if lost > 0 {
+            self.last_step = lost as f64;
+        }
+        let Some(item) = self.pending.pop_front() else {
+            return;
+        };
+        let t = item.t.unwrap_or(f64::NAN);
+        let k = next + lost as i64;
+        if lost > 0 {
+            self.lost += lost as u64;
+            self.gaps += 1;
+        }
+        if ambiguous {
+            self.ambiguous += 1;
+        }
+        self.samples += 1;
+        self.last_k = Some(k);
+        let r = t - (a + p * k as f64);
+        if r.is_finite() && r >= -tol {
+            let i = ((r.max(0.0) / BIN_S) as usize).min(BINS - 1);
+            self.hist[i] += 1.0;
+            self.hist_n += 1.0;
+            // Spread: a slowly forgetting maximum.
+            self.spread = (self.spread * (1.0 - 1e-4)).max(r);
+        }
+        // A sample whose index is uncertain stays out of the envelope: one
+        // placed a period too early would lie a period below it and pull
+        // the lower envelope down.
+        if !ambiguous {
+            self.points.push_back((k as f64, t));
+        }
+        self.indexed.push_back(Timed {
+            tag: item.tag,
+            time: t,
+            k,
+            lost_before: lost,
+            ambiguous,
+            k_offset: if ambiguous { k_offset } else { 0.0 },
+            sample: true,
+        });
+        self.since_fit += 1;
+        if self.since_fit >= 200 {
+            self.refit_line();
+        }
+    }
+
+    /// The decision line: lower envelope over the last 10 s of indexed
+    /// samples.
+    fn refit_line(&mut self) {
+        self.since_fit = 0;
+        let Some(&(_, t_last)) = self.points.back() else {
+            return;
+        };
+        let pts: Vec<(f64, f64)> = self
+            .points
+            .iter()
+            .rev()
+            .take_while(|&&(_, t)| t_last - t <= 10.0)
+            .copied()
+            .collect();
+        if pts.len() < 50 {
+            return;
+        }
+        if let Some(f) = EnvelopeFit::fit(&pts, 1).filter(|f| f.degree() == 1) {
+            let p = f.slope(0.0);
+            if p.is_finite() && p > 0.0 {
+                self.line = Some((f.eval(0.0), p));
+            }
+        }
+    }
+
+    /// The stamping envelope of block `b` (receive time `BLOCK_S` blocks).
+    fn block_fit(&mut self, b: i64, t: f64) -> Option<EnvelopeFit> {
+        if let Some((_, f)) = self.fits.iter().find(|(bb, _)| *bb == b) {
+            return Some(f.clone());
+        }
+        let w = self.cfg.window_s;
+        let (lo, hi) = if self.cfg.causal {
+            // Refitted once a block, over the window ending at the first
+            // sample stamped in it.
+            (t - w, t)
+        } else {
+            let mid = (b as f64 + 0.5) * BLOCK_S;
+            (mid - 0.5 * w, mid + 0.5 * w)
+        };
+        let pts: Vec<(f64, f64)> = self
+            .points
+            .iter()
+            .filter(|&&(_, tp)| tp >= lo && tp <= hi)
+            .copied()
+            .collect();
+        // A line needs points enough to average the latencies down.
+        if pts.len() < MIN_FIT_POINTS {
+            return None;
+        }
+        // Degree 2 over a long window: the IMU clock drifts with
+        // temperature (ppm over minutes).
+        let span = pts.last()?.1 - pts.first()?.1;
+        let deg = if span >= 10.0 { 2 } else { 1 };
+        let f = EnvelopeFit::fit(&pts, deg)?;
+        self.mean_excess_s = f.mean_excess;
+        self.fit_points = pts.len();
+        let mid_k = pts[pts.len() / 2].0;
+        self.period_s = Some(f.slope(mid_k));
+        // Causal fits at the start grow with the data: not kept until full.
+        if !self.cfg.causal || span >= 0.5 * w {
+            self.fits.retain(|(bb, _)| (bb - b).abs() <= 2 && *bb != b);
+            self.fits.push((b, f.clone()));
+        }
+        Some(f)
+    }
+
+    fn stamp(&mut self, flush: bool, out: &mut Vec<Timed<T>>) {
+        let half = if self.cfg.causal {
+            0.0
+        } else {
+            0.5 * self.cfg.window_s + BLOCK_S
+        };
+        // Latest indexed receive time: windows are complete up to it.
+        let indexed_latest = self.points.back().map_or(f64::NEG_INFINITY, |p| p.1);
+        while let Some(front) = self.indexed.front() {
+            if !front.sample {
+                let Some(mut it) = self.indexed.pop_front() else {
+                    break;
+                };
+                if let Some((time, k)) = self.last_time {
+                    it.time = time;
+                    it.k = k;
+                }
+                out.push(it);
+                continue;
+            }
+            if !flush && indexed_latest - front.time < half {
+                break;
+            }
+            let Some(mut it) = self.indexed.pop_front() else {
+                break;
+            };
+            let t = it.time;
+            let x = it.k as f64 + it.k_offset;
+            let time = if self.cfg.causal {
+                let b = (t / BLOCK_S).floor() as i64;
+                self.block_fit(b, t).map(|f| f.eval(x).min(t))
+            } else {
+                // Blend the fits of the two nearest blocks: continuous stamps.
+                let u = t / BLOCK_S - 0.5;
+                let b0 = u.floor();
+                let w = u - b0;
+                match (
+                    self.block_fit(b0 as i64, t),
+                    self.block_fit(b0 as i64 + 1, t),
+                ) {
+                    (Some(f0), Some(f1)) => {
+                        let e0 = f0.eval(x);
+                        Some(e0 + w * (f1.eval(x) - e0))
+                    }
+                    (Some(f), None) | (None, Some(f)) => Some(f.eval(x)),
+                    (None, None) => None,
+                }
+            };
+            // Too few points for an envelope: the decision line, else the
+            // receive time itself.
+            let line = self.line.map(|(a, p)| (a + p * x).min(t));
+            it.time = time.filter(|v| v.is_finite()).or(line).unwrap_or(t);
+            self.last_time = Some((it.time, it.k));
+            out.push(it);
+        }
+        // Memory: points older than any window still needed.
+        let oldest = self
+            .indexed
+            .front()
+            .map_or(indexed_latest, |i| i.time)
+            .min(indexed_latest);
+        let keep = (self.cfg.window_s + 2.0 * BLOCK_S).max(12.0);
+        while self.points.front().is_some_and(|p| oldest - p.1 > keep) {
+            self.points.pop_front();
+        }
+    }
+
+    /// Current period estimate (s).
+    pub fn current_period_s(&self) -> Option<f64> {
+        self.period_s.or(self.period())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::rng::{self, SimRng};
+
+    /// Receive times of a 200 Hz IMU (+37 ppm) with latencies drawn by
+    /// `lat`, FIFO, some samples lost; returns (true index, true time,
+    /// receive time) of the received ones.
+    fn receive_log(
+        n: usize,
+        lost: &[usize],
+        mut lat: impl FnMut(&mut SimRng) -> f64,
+        seed: u64,
+    ) -> Vec<(i64, f64, f64)> {
+        let mut r = rng::stream(seed, "sampleclock.test");
+        let p = 0.005 * (1.0 + 37e-6);
+        let mut last = f64::NEG_INFINITY;
+        let mut v = Vec::new();
+        for k in 0..n {
+            let s = 3.0 + k as f64 * p;
+            let t = (s + lat(&mut r)).max(last);
+            if lost.contains(&k) {
+                continue;
+            }
+            last = t;
+            v.push((k as i64, s, t));
+        }
+        v
+    }
+
+    fn run(log: &[(i64, f64, f64)], causal: bool) -> Vec<Timed<usize>> {
+        let mut c = SampleClock::new(SampleClockConfig {
+            nominal_period_s: Some(0.005),
+            causal,
+            ..Default::default()
+        });
+        let mut out = Vec::new();
+        for (i, &(_, _, t)) in log.iter().enumerate() {
+            c.push(i, t, &mut out);
+        }
+        c.flush(&mut out);
+        out
+    }
+
+    /// Stamp error std over samples; the constant (fastest latency) and
+    /// the flagged ambiguous samples reported apart.
+    fn errors(log: &[(i64, f64, f64)], out: &[Timed<usize>]) -> (f64, usize, usize) {
+        let e: Vec<f64> = out.iter().map(|o| o.time - log[o.tag].1).collect();
+        let m = e.iter().sum::<f64>() / e.len() as f64;
+        let sd = (e.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / e.len() as f64).sqrt();
+        let wrong_index = out
+            .iter()
+            .filter(|o| o.k - out[0].k != log[o.tag].0 - log[0].0)
+            .count();
+        let amb = out.iter().filter(|o| o.ambiguous).count();
+        (sd, wrong_index, amb)
+    }
+
+    #[test]
+    fn uniform_latency_losses_found_none_false() {
+        // 120 s, uniform 1–10 ms: the latency spread is 1.8 periods.
+        let lost = [1000, 5000, 5001, 9000, 15000, 20000, 20001, 20002];
+        let log = receive_log(24_000, &lost, |r| rng::uniform_in(r, 1e-3, 10e-3), 1);
+        let out = run(&log, false);
+        assert_eq!(out.len(), log.len());
+        let found: u32 = out.iter().map(|o| o.lost_before).sum();
+        assert_eq!(found as usize, lost.len());
+        let gaps = out.iter().filter(|o| o.lost_before > 0).count();
+        assert_eq!(gaps, 5);
+        let (sd, wrong, amb) = errors(&log, &out);
+        // A misplaced loss puts a sample one period (5 ms) off; those are
+        // among the flagged ones.
+        assert!(wrong <= amb, "{wrong} wrong, {amb} flagged");
+        // The envelope of ~4000 points over 20 s with a 9 ms spread is
+        // µs-accurate; the misplaced samples dominate: n·(5 ms)²/N.
+        let bound = (20e-6f64.powi(2) + wrong as f64 * 25e-6 / log.len() as f64).sqrt();
+        assert!(sd <= bound, "sd {sd} > {bound}");
+    }
+
+    #[test]
+    fn exponential_latency_places_losses_exactly() {
+        // Exponential latency (mean 2 ms): a loss shifts a sample into the
+        // thin tail, so its place is clear.
+        let lost = [3000, 8000, 8001, 14000];
+        let log = receive_log(
+            20_000,
+            &lost,
+            |r| 0.5e-3 - 2e-3 * (1.0 - rng::uniform(r)).ln(),
+            2,
+        );
+        let out = run(&log, false);
+        let found: u32 = out.iter().map(|o| o.lost_before).sum();
+        assert_eq!(found, 4);
+        let (sd, wrong, _) = errors(&log, &out);
+        assert!(wrong <= 2, "{wrong} misplaced");
+        assert!(sd < 50e-6, "sd {sd}");
+    }
+
+    #[test]
+    fn host_stall_burst_is_no_loss() {
+        // A 300 ms stall: the backlog arrives in one burst.
+        let mut log = receive_log(6000, &[], |r| rng::uniform_in(r, 1e-3, 3e-3), 3);
+        let stall_end = log[3000].1 + 0.3;
+        let mut last = 0.0f64;
+        for e in log.iter_mut() {
+            if e.1 >= log_first(3000) && e.1 < stall_end {
+                e.2 = e.2.max(stall_end);
+            }
+            e.2 = e.2.max(last);
+            last = e.2;
+        }
+        let out = run(&log, false);
+        let found: u32 = out.iter().map(|o| o.lost_before).sum();
+        assert_eq!(found, 0);
+        let (sd, wrong, _) = errors(&log, &out);
+        assert_eq!(wrong, 0);
+        assert!(sd < 20e-6, "sd {sd}");
+
+        fn log_first(k: usize) -> f64 {
+            3.0 + k as f64 * 0.005 * (1.0 + 37e-6)
+        }
+    }
+}
