@@ -788,3 +788,120 @@ fn hybrid_sync_recovers_sample_instants_and_implausible_logs_fail_loudly() {
     assert!(f(&r["truth"]["rms_us"]) < 0.4, "{}", r["truth"]);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// No initpos/initvel/initatt in the configuration: the run aligns itself
+/// (levelling over the opening standstill, heading from GNSS course) and
+/// ends as accurate as the run initialised from truth; a drive that never
+/// moves says that heading is unobservable and still writes a solution.
+#[test]
+fn a_configuration_without_initial_state_aligns_from_the_data() {
+    let dir = temp_dir("align");
+    let strip = |cfg: &Path, out: &Path| {
+        let text: String = std::fs::read_to_string(cfg)
+            .unwrap()
+            .lines()
+            .filter(|l| {
+                !(l.starts_with("initpos:")
+                    || l.starts_with("initvel:")
+                    || l.starts_with("initatt:"))
+            })
+            .map(|l| format!("{l}\n"))
+            .collect();
+        std::fs::write(out, text).unwrap();
+    };
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args([
+            "simulate",
+            "--quiet",
+            "--internal-rate",
+            "0",
+            "--scenario",
+            "test-track",
+        ])
+        .args([
+            "--duration",
+            "300",
+            "--imu-grade",
+            "adis16465",
+            "--seed",
+            "1",
+            "--output",
+        ])
+        .arg(&sim));
+    assert!(ok, "{err}");
+    strip(&sim.join("kf-gins.yaml"), &sim.join("align.yaml"));
+    let eval = |cfg: &str, name: &str| -> (f64, String) {
+        let out = dir.join(name);
+        let (ok, text, err) = run(bin()
+            .args(["fuse", "--config"])
+            .arg(sim.join(cfg))
+            .arg("--output")
+            .arg(&out));
+        assert!(ok, "{text}\n{err}");
+        let (ok, _, err) = run(bin()
+            .args(["eval", "--truth"])
+            .arg(sim.join("truth.nav"))
+            .arg("--nav")
+            .arg(out.join("navresult.nav"))
+            .arg("--json")
+            .arg(out.join("eval.json")));
+        assert!(ok, "{err}");
+        let e: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("eval.json")).unwrap()).unwrap();
+        (e["pos_horizontal_m"]["rms"].as_f64().unwrap(), text)
+    };
+    let (truth_init, _) = eval("kf-gins.yaml", "truth-init");
+    let (aligned, text) = eval("align.yaml", "aligned");
+    assert!(
+        text.contains("alignment:") && text.contains("standstill"),
+        "{text}"
+    );
+    // The alignment starts at the standstill; its errors are the levelling
+    // error (accelerometer bias / g) and the course's σ, which the filter
+    // removes within seconds of driving.
+    assert!(
+        aligned < 1.1 * truth_init,
+        "aligned {aligned} m, from truth {truth_init} m"
+    );
+
+    // A drive that never moves.
+    let still = dir.join("still");
+    let (ok, _, err) = run(bin()
+        .args([
+            "simulate",
+            "--quiet",
+            "--internal-rate",
+            "0",
+            "--scenario",
+            "static",
+        ])
+        .args(["--duration", "60", "--seed", "1", "--output"])
+        .arg(&still));
+    assert!(ok, "{err}");
+    strip(&still.join("kf-gins.yaml"), &still.join("align.yaml"));
+    let (ok, text, err) = run(bin()
+        .args(["fuse", "--config"])
+        .arg(still.join("align.yaml"))
+        .arg("--output")
+        .arg(dir.join("still-out")));
+    assert!(ok, "{text}\n{err}");
+    assert!(text.contains("unobservable"), "{text}");
+    assert!(dir.join("still-out/navresult.nav").is_file());
+
+    // No GNSS at all: the position is unknown, said plainly.
+    std::fs::write(still.join("empty-gnss.txt"), "").unwrap();
+    let cfg = std::fs::read_to_string(still.join("align.yaml"))
+        .unwrap()
+        .replace("./gnss.txt", "./empty-gnss.txt");
+    std::fs::write(still.join("nognss.yaml"), cfg).unwrap();
+    let (ok, _, err) = run(bin()
+        .args(["fuse", "--config"])
+        .arg(still.join("nognss.yaml"))
+        .arg("--output")
+        .arg(dir.join("nognss-out")));
+    assert!(
+        !ok && (err.contains("GNSS") || err.contains("empty")),
+        "{err}"
+    );
+}

@@ -145,14 +145,24 @@ pub struct Aligner {
     /// IMU sums since the last GNSS fix, and over the current standstill.
     since_fix: Sums,
     still: Sums,
+    /// The standstill's sums up to its last still fix.
+    still_confirmed: Sums,
     still_start: Option<GpsTime>,
     /// The last completed standstill: its sums, start and end.
     last_still: Option<(Sums, GpsTime, GpsTime)>,
-    prev_fix: Option<(GnssFix, Vector3<f64>)>,
+    /// The first fix of the current standstill and of the last one.
+    still_start_fix: Option<GnssFix>,
+    last_still_fix: Option<GnssFix>,
+    /// Angle increments since the last standstill ended (rad, body).
+    dth_since_still: Vector3<f64>,
+    /// The previous fix and its velocity, when it had one.
+    prev_fix: Option<(GnssFix, Option<Vector3<f64>>)>,
     /// The previous interval's IMU sums (for the fix before).
     first_fix: Option<GnssFix>,
     /// The last velocity from positions: middle of its interval, value.
     last_mid: Option<(GpsTime, Vector3<f64>)>,
+    /// The last such velocity's correction to the fix time (m/s).
+    last_corr: Vector3<f64>,
     done: bool,
 }
 
@@ -163,11 +173,16 @@ impl Aligner {
             last_imu: None,
             since_fix: Sums::default(),
             still: Sums::default(),
+            still_confirmed: Sums::default(),
             still_start: None,
             last_still: None,
+            still_start_fix: None,
+            last_still_fix: None,
+            dth_since_still: Vector3::zeros(),
             prev_fix: None,
             first_fix: None,
             last_mid: None,
+            last_corr: Vector3::zeros(),
             done: false,
         }
     }
@@ -190,6 +205,8 @@ impl Aligner {
         self.since_fix.add(s, dt);
         if self.still_start.is_some() {
             self.still.add(s, dt);
+        } else {
+            self.dth_since_still += s.dtheta;
         }
     }
 
@@ -224,12 +241,14 @@ impl Aligner {
         .map(f64::sqrt)
             / dt;
         let mut v = v_mid;
+        self.last_corr = Vector3::zeros();
         if let Some((t0, v0)) = self.last_mid {
             let span = t_mid.seconds_since(t0);
             if span > 0.0 && span <= 2.0 {
                 let corr = (v_mid - v0) / span * (0.5 * dt);
                 v += corr;
                 sd += corr.abs() * 0.5;
+                self.last_corr = corr;
             }
         }
         self.last_mid = Some((t_mid, v_mid));
@@ -255,20 +274,37 @@ impl Aligner {
             if still {
                 if self.still_start.is_none() {
                     self.still_start = Some(fix.time);
+                    self.still_start_fix = Some(*fix);
                     self.still = Sums::default();
                 }
+                self.still_confirmed = self.still;
             } else if let Some(start) = self.still_start.take() {
-                if self.still.dt > 0.5 {
-                    self.last_still = Some((self.still, start, fix.time));
+                // Only the samples up to the last still fix.
+                let s = std::mem::take(&mut self.still_confirmed);
+                if s.dt > 0.5 {
+                    self.last_still = Some((s, start, start.add_seconds(s.dt)));
+                    self.last_still_fix = self.still_start_fix;
+                    // The rotation since the standstill counts from here:
+                    // the samples after its last still fix.
+                    self.dth_since_still = interval.dth;
                 }
                 self.still = Sums::default();
             }
-            if speed >= self.opts.min_speed_mps && interval.n > 0 {
+            // In motion without a recent standstill, levelling needs the
+            // vehicle's acceleration: a velocity at the previous fix too.
+            let levelled = self
+                .last_still
+                .is_some_and(|(_, _, end)| fix.time.seconds_since(end) <= 60.0);
+            let have_accel = self
+                .prev_fix
+                .as_ref()
+                .is_some_and(|(p, pv)| pv.is_some() && fix.time.seconds_since(p.time) <= 2.0);
+            if speed >= self.opts.min_speed_mps && interval.n > 0 && (levelled || have_accel) {
                 result = Some(self.align_at(fix, &v, &v_sd, speed, &interval));
             }
-            self.prev_fix = Some((*fix, v));
+            self.prev_fix = Some((*fix, Some(v)));
         } else {
-            self.prev_fix = Some((*fix, Vector3::zeros()));
+            self.prev_fix = Some((*fix, None));
         }
         if result.is_some() {
             self.done = true;
@@ -289,6 +325,7 @@ impl Aligner {
         // Vehicle acceleration over the interval, from GNSS velocity.
         let accel = self.prev_fix.as_ref().and_then(|(p, pv)| {
             let dt = fix.time.seconds_since(p.time);
+            let pv = (*pv)?;
             (dt > 0.0 && dt <= 2.0).then(|| (v - pv) / dt)
         });
         // Roll and pitch: a standstill that ended at most 60 s ago, else
@@ -296,12 +333,25 @@ impl Aligner {
         let recent_still = self
             .last_still
             .filter(|(_, _, end)| fix.time.seconds_since(*end) <= 60.0);
+        let mut reversing = false;
+        let mut checked = false;
         let (roll, pitch, tilt_sd, method, standstill_s) = match recent_still {
             Some((s, start, end)) => {
                 let (r, p) = level(&s.f());
                 // σ: bias over g, and the mean of white noise over the span
-                // (taken from the spread of the 1 s means: 1 mg floor).
+                // (1 mg per √s floor).
                 let sd = (o.accel_bias_sd_mps2 / g).hypot(0.001 / s.dt.max(1.0).sqrt());
+                // Reversing: the along-track acceleration from GNSS against
+                // the IMU's forward specific force with gravity removed
+                // (pitch known from the standstill).
+                if let Some(a_n) = accel {
+                    let a_track = (a_n.x * v.x + a_n.y * v.y) / speed;
+                    let a_x = interval.f().x - g * p.sin();
+                    if a_track.abs() > 0.3 && a_x.abs() > 0.15 {
+                        checked = true;
+                        reversing = a_track * a_x < 0.0;
+                    }
+                }
                 (
                     r,
                     p,
@@ -311,41 +361,43 @@ impl Aligner {
                 )
             }
             None => {
-                // f^n = a^n − g^n; heading first (below), then solve tilt
-                // from the body specific force rotated by heading only:
-                // a small-angle levelling of f^b − C_ψᵀ a^n.
+                // f^b = C_n^b (a^n − g^n): remove the vehicle acceleration
+                // expressed in a level frame along the course (forward) or
+                // against it (reversing), then level. Only the right
+                // hypothesis leaves a specific force of norm g; the wrong
+                // one leaves ≈ √(g² + 4a²).
                 let a_n = accel.unwrap_or_else(Vector3::zeros);
                 let psi = v.y.atan2(v.x);
-                let (s, c) = psi.sin_cos();
-                // Vehicle acceleration in a level, heading-aligned frame.
-                let a_h = Vector3::new(c * a_n.x + s * a_n.y, -s * a_n.x + c * a_n.y, a_n.z);
-                let f = interval.f() - a_h;
-                let (r, p) = level(&f);
+                let (sn, cs) = psi.sin_cos();
+                let a_h = Vector3::new(cs * a_n.x + sn * a_n.y, -sn * a_n.x + cs * a_n.y, a_n.z);
+                let f = interval.f();
+                let f_fwd = f - a_h;
+                let f_rev = f - Vector3::new(-a_h.x, -a_h.y, a_h.z);
+                if a_h.x.hypot(a_h.y) > 0.5 {
+                    checked = true;
+                    reversing = (f_rev.norm() - g).abs() < (f_fwd.norm() - g).abs();
+                }
+                let (r, p) = level(if reversing { &f_rev } else { &f_fwd });
                 let a_sd = v_sd.norm() * std::f64::consts::SQRT_2;
                 let sd = (o.accel_bias_sd_mps2.hypot(a_sd)) / g;
                 (r, p, sd, AlignMethod::InMotion, 0.0)
             }
         };
-        // Reversing check: along-track acceleration from GNSS against the
-        // IMU's forward specific force with gravity removed.
-        let mut reversing = false;
-        let mut checked = false;
-        if let Some(a_n) = accel {
-            let a_track = (a_n.x * v.x + a_n.y * v.y) / speed;
-            let a_x = interval.f().x - g * pitch.sin();
-            if a_track.abs() > 0.3 && a_x.abs() > 0.15 {
-                checked = true;
-                reversing = a_track * a_x < 0.0;
-            }
-        }
         let course = v.y.atan2(v.x);
         let mut yaw = course - o.mount_yaw_rad;
         if reversing {
             yaw += std::f64::consts::PI;
         }
         let yaw = wrap_pi(yaw);
-        let v_h_sd = v_sd.x.hypot(v_sd.y) / std::f64::consts::SQRT_2;
-        let yaw_sd = (v_h_sd / speed).hypot(o.heading_allowance_rad);
+        // Heading error comes from the cross-track velocity error only:
+        // the noise part of σ_v, and half the cross-track part of the
+        // correction of a velocity from positions to the fix time.
+        let (sn, cs) = course.sin_cos();
+        let corr_cross = (-sn * self.last_corr.x + cs * self.last_corr.y).abs();
+        let corr_abs = self.last_corr.x.hypot(self.last_corr.y);
+        let noise_h = (v_sd.x.hypot(v_sd.y) - 0.5 * corr_abs).max(0.0) / std::f64::consts::SQRT_2;
+        let v_cross_sd = noise_h.hypot(0.5 * corr_cross);
+        let yaw_sd = (v_cross_sd / speed).hypot(o.heading_allowance_rad);
         let att = Euler::new(roll, pitch, yaw);
         let mut nav = NavState::new(fix.time, fix.pos, *v, &att);
         // The fix is the antenna's: move to the IMU.
@@ -354,6 +406,29 @@ impl Aligner {
         nav.pos.lat_rad -= d.x;
         nav.pos.lon_rad -= d.y;
         nav.pos.h_m -= d.z;
+        // Levelled over a standstill: the vehicle stood with this attitude
+        // turned back by the rotation since (about the down axis, which is
+        // −f̂ of the standstill in the body frame). Start the run at the
+        // standstill's first fix, at rest, so that the filter learns the
+        // biases there as it would from a known initial state.
+        let mut start_s = 0.0;
+        if let (Some((st, _, _)), Some(sf)) = (recent_still, self.last_still_fix) {
+            let down_b = -st.f().normalize();
+            let turned = self.dth_since_still.dot(&down_b);
+            let yaw0 = wrap_pi(yaw - turned);
+            let mut n0 = NavState::new(
+                sf.time,
+                sf.pos,
+                Vector3::zeros(),
+                &Euler::new(roll, pitch, yaw0),
+            );
+            let d = le.ned_to_geodetic_delta(&(n0.c_nb() * Vector3::from(o.lever_b)));
+            n0.pos.lat_rad -= d.x;
+            n0.pos.lon_rad -= d.y;
+            n0.pos.h_m -= d.z;
+            start_s = fix.time.seconds_since(sf.time);
+            nav = n0;
+        }
         let note = format!(
             "aligned at {:.3} s of week, {:.1} m/s: roll {:.2}°, pitch {:.2}° ({}), heading {:.2}° ± {:.2}° from GNSS course{}",
             fix.time.sow(),
@@ -372,15 +447,26 @@ impl Aligner {
                 (true, false) => "",
                 (false, _) => " (reversing not checked: too little acceleration)",
             }
-        );
+        ) + &if start_s > 0.0 {
+            format!(
+                "; the run starts at the standstill, {start_s:.1} s earlier ({:.3} s of week)",
+                nav.time.sow()
+            )
+        } else {
+            String::new()
+        };
         Alignment {
-            time: fix.time,
-            time_sow: fix.time.sow(),
+            time: nav.time,
+            time_sow: nav.time.sow(),
             nav,
             attitude_deg: [roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()],
             att_sd_rad: [tilt_sd, tilt_sd, yaw_sd],
             pos_sd_m: fix.pos_sd.into(),
-            vel_sd_mps: (*v_sd).into(),
+            vel_sd_mps: if start_s > 0.0 {
+                [0.05; 3]
+            } else {
+                (*v_sd).into()
+            },
             method,
             standstill_s,
             speed_mps: speed,
@@ -402,8 +488,8 @@ impl Aligner {
             .last_still
             .map(|(s, a, b)| (s, b.seconds_since(a)))
             .or_else(|| {
-                (self.still_start.is_some() && self.still.dt > 0.5)
-                    .then_some((self.still, self.still.dt))
+                (self.still_start.is_some() && self.still_confirmed.dt > 0.5)
+                    .then_some((self.still_confirmed, self.still_confirmed.dt))
             });
         let (roll, pitch, standstill_s) = match still {
             Some((s, len)) => {
