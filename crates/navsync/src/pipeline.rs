@@ -242,6 +242,16 @@ impl FuseOptions {
         if let Some(m) = &self.gnss_error {
             m.validate().map_err(Error::Invalid)?;
         }
+        if let Some(a) = &self.align
+            && !(a.min_speed_mps.is_finite()
+                && a.min_speed_mps > a.still_speed_mps
+                && a.still_speed_mps > 0.0)
+        {
+            return bad(format!(
+                "alignment speed must be above the standstill speed ({} m/s), got {} m/s",
+                a.still_speed_mps, a.min_speed_mps
+            ));
+        }
         if let Some(sm) = &self.smooth {
             if self.latency != LatencyMode::Offline {
                 return bad(
