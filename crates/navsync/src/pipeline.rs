@@ -757,16 +757,7 @@ fn run_inner(
         }
         _ => None,
     };
-    let mut interp = match &opts.output_at {
-        Some(p) => {
-            let mut ip = NavInterpolator::new(opts.output_at_n);
-            for t in crate::io::kfgins::read_times(p, opts.week)? {
-                ip.request(t);
-            }
-            Some(ip)
-        }
-        None => None,
-    };
+    let mut interp = output_at_interpolator(opts)?;
     let mut at_written = 0usize;
     let realtime = !matches!(opts.latency, LatencyMode::Offline);
     // Offline, fixes are queued ahead (the engine processes each at its
@@ -1064,16 +1055,7 @@ fn write_smoothed(
     let tau_index = fusion.state_layout().index_of("time_offset");
     let mut smoothed = fusion.smooth()?;
     let backward_s = started.elapsed().as_secs_f64() - forward_s;
-    let mut interp = match &opts.output_at {
-        Some(p) => {
-            let mut ip = NavInterpolator::new(opts.output_at_n);
-            for t in crate::io::kfgins::read_times(p, opts.week)? {
-                ip.request(t);
-            }
-            Some(ip)
-        }
-        None => None,
-    };
+    let mut interp = output_at_interpolator(opts)?;
     let aux_ns = (opts.aux_interval_s * 1e9).round() as i64;
     // The forward run's auxiliary epochs: from the start sample on.
     let mut next_aux: Option<GpsTime> = t0;
@@ -1125,6 +1107,18 @@ fn write_smoothed(
         time_offset_start_s: start_offset.map(|o| o.0),
         time_offset_start_sd_s: start_offset.map(|o| o.1),
     })
+}
+
+/// The `--output-at` interpolator with the requested epochs, if any.
+fn output_at_interpolator(opts: &FuseOptions) -> Result<Option<NavInterpolator>, Error> {
+    let Some(p) = &opts.output_at else {
+        return Ok(None);
+    };
+    let mut ip = NavInterpolator::new(opts.output_at_n);
+    for t in crate::io::kfgins::read_times(p, opts.week)? {
+        ip.request(t);
+    }
+    Ok(Some(ip))
 }
 
 /// The alignment pre-pass: reads the IMU and GNSS files from `start` until
