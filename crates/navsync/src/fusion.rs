@@ -1635,18 +1635,16 @@ impl Fusion {
     /// Ends the forward run and runs the smoother's backward pass: the
     /// smoothed solution at every epoch the forward run returned.
     pub fn smooth(&mut self) -> Result<Smoothed, Error> {
-        if self.recorder.is_none() {
-            return Err(Error::Invalid("the smoother was not enabled".into()));
-        }
         let nav = self.core.nav;
         self.core.filter.finish_nodes(&nav);
         self.core.collect_nodes();
         self.store_nodes()?;
         let layout = self.core.filter.layout().clone();
-        match self.recorder.take() {
-            Some(rec) => rec.smooth(layout),
-            None => Err(Error::Invalid("the smoother was not enabled".into())),
-        }
+        let rec = self
+            .recorder
+            .take()
+            .ok_or_else(|| Error::Invalid("the smoother was not enabled".into()))?;
+        rec.smooth(layout)
     }
 
     /// The error-state layout (state names and indices).

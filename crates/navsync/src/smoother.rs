@@ -367,13 +367,13 @@ impl Recorder {
             p: last.p_plus.clone(),
         };
         let mut next_node = last;
-        write_result(&mut out, &next_node, &next, &next_node.dx, &last_nom)?;
+        write_result(&mut out, &next_node, &next, &last_nom)?;
         let mut failures = 0usize;
         for k in (0..count - 1).rev() {
             let (node, nominal) = self.read_node(k)?;
             let (step, ok) = rts_step(&node.p_plus, &next_node, &next);
             failures += usize::from(!ok);
-            write_result(&mut out, &node, &step, &node.dx, &nominal)?;
+            write_result(&mut out, &node, &step, &nominal)?;
             next = step;
             next_node = node;
         }
@@ -465,14 +465,13 @@ fn write_result(
     out: &mut RecordFile,
     node: &SmootherNode,
     s: &BackwardStep,
-    dx: &[f64],
     nominal: &NodeNominal,
 ) -> Result<(), Error> {
     let n = s.e.len();
     let mut v = Vec::with_capacity(1 + 3 * n + 9 + NOMINAL_LEN);
     v.push(time_to_f64(node.time));
     v.extend_from_slice(&s.e);
-    v.extend(s.e.iter().zip(dx).map(|(a, b)| a + b));
+    v.extend(s.e.iter().zip(&node.dx).map(|(a, b)| a + b));
     v.extend((0..n).map(|i| s.p.get(i, i).max(0.0).sqrt()));
     for i in 0..3 {
         for j in 0..3 {
@@ -578,7 +577,9 @@ impl Smoothed {
                 && nb.time <= time
             {
                 k += 1;
-                a = b.take().unwrap_or_else(|| a.clone());
+                if let Some(nb) = b.take() {
+                    a = nb;
+                }
                 b = if k + 1 < self.count {
                     Some(self.node(k + 1)?)
                 } else {

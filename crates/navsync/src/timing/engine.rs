@@ -636,17 +636,7 @@ impl SyncEngine {
         while let Some(p) = self.pending_imu.front().copied() {
             if p.flags.unstamped {
                 self.pending_imu.pop_front();
-                if hybrid {
-                    let tag = HybridTag {
-                        p,
-                        bound: f64::INFINITY,
-                        hold: false,
-                        unstamped: true,
-                    };
-                    self.sample_clock.pass(tag, &mut timed);
-                } else {
-                    self.emit_unstamped(p, out);
-                }
+                self.pass_unstamped(p, hybrid, &mut timed, out);
                 continue;
             }
             if !self.hw_ready(p.counter, flush) {
@@ -654,17 +644,7 @@ impl SyncEngine {
             }
             self.pending_imu.pop_front();
             let Some((t, sd, hold)) = self.hw_time(p.counter) else {
-                if hybrid {
-                    let tag = HybridTag {
-                        p,
-                        bound: f64::INFINITY,
-                        hold: false,
-                        unstamped: true,
-                    };
-                    self.sample_clock.pass(tag, &mut timed);
-                } else {
-                    self.emit_unstamped(p, out);
-                }
+                self.pass_unstamped(p, hybrid, &mut timed, out);
                 continue;
             };
             if hybrid {
@@ -868,6 +848,28 @@ impl SyncEngine {
             b = b.max(period);
         }
         self.emit_imu(p, t, b, flags, out);
+    }
+
+    /// A sample that cannot be stamped: through the sample clock in hybrid
+    /// mode (it still holds a place in the sample count), else out as is.
+    fn pass_unstamped(
+        &mut self,
+        p: PendingImu,
+        hybrid: bool,
+        timed: &mut Vec<Timed<HybridTag>>,
+        out: &mut Vec<SyncOutput>,
+    ) {
+        if hybrid {
+            let tag = HybridTag {
+                p,
+                bound: f64::INFINITY,
+                hold: false,
+                unstamped: true,
+            };
+            self.sample_clock.pass(tag, timed);
+        } else {
+            self.emit_unstamped(p, out);
+        }
     }
 
     fn emit_unstamped(&mut self, p: PendingImu, out: &mut Vec<SyncOutput>) {
