@@ -9,10 +9,14 @@
 //!   (Groves, *Principles of GNSS, Inertial, and Multisensor Integrated
 //!   Navigation Systems*, 2nd ed., §5.6.2, eqs 5.101–5.102). Their σ is
 //!   the accelerometer bias over g (the bias is not separable from tilt at
-//!   rest) and the averaged noise.
+//!   rest) and the averaged noise. The tilt error is the bias itself seen
+//!   through gravity (see [`levelling_tilt_coupling`]), so a run started at
+//!   the standstill gets that correlation in its initial covariance.
 //! - **In motion, without a standstill**: the same from the specific force
 //!   with the vehicle's acceleration (from GNSS velocity) removed,
-//!   f^n = a^n − g^n.
+//!   f^n = a^n − g^n, averaged over a window of GNSS velocities
+//!   (`motion_window_s`, 5 s) with the specific force carried into the body
+//!   frame at the window's start by the gyros; the run starts there.
 //! - **Heading from GNSS velocity** (course over ground) once the vehicle
 //!   moves faster than `min_speed_mps`: a land vehicle moves along its
 //!   forward axis (no sideslip at low lateral acceleration; Groves §6.1.4,
@@ -24,7 +28,7 @@
 //!   sense the earth's rotation); the run starts levelled with heading 0
 //!   and σ_ψ = 180°, and says so.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 use crate::attitude::Euler;
@@ -50,6 +54,9 @@ pub struct AlignOptions {
     pub lever_b: [f64; 3],
     /// Yaw of the IMU's x axis relative to the vehicle's forward axis (rad).
     pub mount_yaw_rad: f64,
+    /// Starting in motion: the span of GNSS velocities (s) over which the
+    /// tilt and heading are averaged before the run starts at its beginning.
+    pub motion_window_s: f64,
 }
 
 impl Default for AlignOptions {
@@ -62,6 +69,7 @@ impl Default for AlignOptions {
             accel_bias_sd_mps2: 0.01,
             lever_b: [0.0; 3],
             mount_yaw_rad: 0.0,
+            motion_window_s: 5.0,
         }
     }
 }
@@ -102,6 +110,30 @@ pub struct Alignment {
     /// Whether the reversing check had enough acceleration to decide.
     pub reversing_checked: bool,
     pub note: String,
+    /// Levelled at the run's start (over a standstill the run starts at, or
+    /// in motion): the tilt error is M·δb_a ([`levelling_tilt_coupling`]),
+    /// and `tilt_noise_sd_rad` is the part of the tilt σ that is not the
+    /// accelerometer bias.
+    #[serde(skip)]
+    pub levelling_coupling: Option<Matrix3<f64>>,
+    #[serde(skip)]
+    pub tilt_noise_sd_rad: f64,
+}
+
+/// The attitude error φ (Ĉ = (I − φ×)C, NED) that static levelling makes
+/// from an accelerometer bias error δb_a = b̂ − b (body), φ = M·δb_a.
+///
+/// Levelling makes Ĉ(f^b − b̂) point up. The true specific force at rest
+/// has C f^b = (0, 0, −g), so to first order in φ and δb
+/// φ × (0, 0, −g) = −C δb, i.e. φ_N = −(C δb)_E / g, φ_E = (C δb)_N / g,
+/// φ_D = 0 (Groves, *Principles of GNSS, Inertial, and Multisensor
+/// Integrated Navigation Systems*, 2nd ed., §5.6.2: levelling's tilt error
+/// is the horizontal accelerometer bias over g). The two are one unknown
+/// at rest; starting the filter with them uncorrelated lets it misassign
+/// the first GNSS-observed tilt to the bias or back.
+pub fn levelling_tilt_coupling(c_nb: &Matrix3<f64>, g_mps2: f64) -> Matrix3<f64> {
+    let swap = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    swap * c_nb / g_mps2
 }
 
 /// Running sums of specific force and angular rate over a span.
@@ -163,7 +195,32 @@ pub struct Aligner {
     last_mid: Option<(GpsTime, Vector3<f64>)>,
     /// The last such velocity's correction to the fix time (m/s).
     last_corr: Vector3<f64>,
+    /// Starting in motion: the window being averaged.
+    window: Option<MotionWindow>,
     done: bool,
+}
+
+/// In-motion levelling and heading averaged over a window that starts at a
+/// fix: the specific force carried into the body frame at the start, b₀,
+/// by the gyros, f̄^{b₀} = (1/T)∫C_b^{b₀} f^b dt = C_n^{b₀}(Δv^n/T − g^n)
+/// (Groves §5.6.2 with the vehicle acceleration from GNSS velocity over the
+/// window, whose error σ_v√2/T shrinks with T), and the course at each fix
+/// turned back by the gyro yaw since b₀.
+#[derive(Clone, Debug)]
+struct MotionWindow {
+    fix0: GnssFix,
+    v0: Vector3<f64>,
+    v0_sd: Vector3<f64>,
+    /// Body at the window start ← current body.
+    c_b0_b: Matrix3<f64>,
+    /// ∫ C_b^{b₀} f^b dt (m/s) and the span summed (s).
+    dv_b0: Vector3<f64>,
+    dt_s: f64,
+    /// Σ sin, Σ cos of the heading at b₀ from each fix, Σ of 1/σ² of each.
+    heading_sin: f64,
+    heading_cos: f64,
+    heading_info: f64,
+    fixes: usize,
 }
 
 impl Aligner {
@@ -183,6 +240,7 @@ impl Aligner {
             first_fix: None,
             last_mid: None,
             last_corr: Vector3::zeros(),
+            window: None,
             done: false,
         }
     }
@@ -200,7 +258,15 @@ impl Aligner {
         // Gaps: do not average across them.
         if dt > 0.5 {
             self.since_fix = Sums::default();
+            self.window = None;
             return;
+        }
+        if let Some(w) = self.window.as_mut() {
+            // The velocity increment in b₀ with the rotation over the step
+            // to first order (dθ × dv / 2; Savage, Strapdown Analytics §7).
+            w.dv_b0 += w.c_b0_b * (s.dvel + 0.5 * s.dtheta.cross(&s.dvel));
+            w.c_b0_b *= nalgebra::Rotation3::new(s.dtheta).into_inner();
+            w.dt_s += dt;
         }
         self.since_fix.add(s, dt);
         if self.still_start.is_some() {
@@ -299,8 +365,12 @@ impl Aligner {
                 .prev_fix
                 .as_ref()
                 .is_some_and(|(p, pv)| pv.is_some() && fix.time.seconds_since(p.time) <= 2.0);
-            if speed >= self.opts.min_speed_mps && interval.n > 0 && (levelled || have_accel) {
+            if speed >= self.opts.min_speed_mps && interval.n > 0 && levelled {
                 result = Some(self.align_at(fix, &v, &v_sd, speed, &interval));
+            } else if speed >= self.opts.min_speed_mps && interval.n > 0 {
+                result = self.push_motion_fix(fix, &v, &v_sd, speed, have_accel, &interval);
+            } else {
+                self.window = None;
             }
             self.prev_fix = Some((*fix, Some(v)));
         } else {
@@ -310,6 +380,149 @@ impl Aligner {
             self.done = true;
         }
         result
+    }
+
+    /// σ of the course from one GNSS velocity (rad): the cross-track
+    /// velocity error only, the noise part of σ_v and half the cross-track
+    /// part of the correction of a velocity from positions to the fix time.
+    fn course_sd(&self, v: &Vector3<f64>, v_sd: &Vector3<f64>, speed: f64) -> f64 {
+        let course = v.y.atan2(v.x);
+        let (sn, cs) = course.sin_cos();
+        let corr_cross = (-sn * self.last_corr.x + cs * self.last_corr.y).abs();
+        let corr_abs = self.last_corr.x.hypot(self.last_corr.y);
+        let noise_h = (v_sd.x.hypot(v_sd.y) - 0.5 * corr_abs).max(0.0) / std::f64::consts::SQRT_2;
+        noise_h.hypot(0.5 * corr_cross) / speed
+    }
+
+    /// Starting in motion: opens the averaging window at this fix, adds the
+    /// fix to it, and aligns at the window's start once it spans
+    /// `motion_window_s`. With a window of 0 it aligns at once (needs the
+    /// acceleration at this fix).
+    fn push_motion_fix(
+        &mut self,
+        fix: &GnssFix,
+        v: &Vector3<f64>,
+        v_sd: &Vector3<f64>,
+        speed: f64,
+        have_accel: bool,
+        interval: &Sums,
+    ) -> Option<Alignment> {
+        if self.opts.motion_window_s <= 0.0 {
+            return have_accel.then(|| self.align_at(fix, v, v_sd, speed, interval));
+        }
+        let course_sd = self.course_sd(v, v_sd, speed);
+        let w = self.window.get_or_insert_with(|| MotionWindow {
+            fix0: *fix,
+            v0: *v,
+            v0_sd: *v_sd,
+            c_b0_b: Matrix3::identity(),
+            dv_b0: Vector3::zeros(),
+            dt_s: 0.0,
+            heading_sin: 0.0,
+            heading_cos: 0.0,
+            heading_info: 0.0,
+            fixes: 0,
+        });
+        // The gyro yaw since b₀ (rotation of the forward axis about the
+        // down axis of b₀; tilt over the window is small).
+        let fwd = w.c_b0_b.column(0);
+        let heading_b0 = v.y.atan2(v.x) - fwd.y.atan2(fwd.x);
+        let info = 1.0 / (course_sd * course_sd).max(1e-12);
+        w.heading_sin += info * heading_b0.sin();
+        w.heading_cos += info * heading_b0.cos();
+        w.heading_info += info;
+        w.fixes += 1;
+        let span = fix.time.seconds_since(w.fix0.time);
+        if span + 1e-6 < self.opts.motion_window_s || w.fixes < 3 {
+            return None;
+        }
+        let w = self.window.take()?;
+        Some(self.align_over_window(&w, fix, v, v_sd, span))
+    }
+
+    fn align_over_window(
+        &self,
+        w: &MotionWindow,
+        fix: &GnssFix,
+        v: &Vector3<f64>,
+        v_sd: &Vector3<f64>,
+        span_s: f64,
+    ) -> Alignment {
+        let o = &self.opts;
+        let g = crate::earth::gravity(w.fix0.pos.lat_rad.sin(), w.fix0.pos.h_m);
+        // Course at b₀ (the vehicle's forward axis at the window start).
+        let course0 = w.heading_sin.atan2(w.heading_cos);
+        let a_n = (v - w.v0) / span_s;
+        let (sn, cs) = course0.sin_cos();
+        // The mean acceleration in a level frame along the course; minus
+        // the mean specific force in b₀ leaves −C_n^{b₀} g^n to level
+        // (tilt × acceleration neglected, as in `align_at`).
+        let a_h = Vector3::new(cs * a_n.x + sn * a_n.y, -sn * a_n.x + cs * a_n.y, a_n.z);
+        let f = w.dv_b0 / w.dt_s.max(1e-9);
+        let f_fwd = f - a_h;
+        let f_rev = f - Vector3::new(-a_h.x, -a_h.y, a_h.z);
+        let mut reversing = false;
+        let mut checked = false;
+        if a_h.x.hypot(a_h.y) > 0.3 {
+            checked = true;
+            reversing = (f_rev.norm() - g).abs() < (f_fwd.norm() - g).abs();
+        }
+        let (roll, pitch) = level(if reversing { &f_rev } else { &f_fwd });
+        // σ: the acceleration error from two velocities T apart, the bias,
+        // and the neglected Coriolis and transport terms (2 ω_ie v ≤ 2 mm/s²
+        // at 15 m/s).
+        let a_sd = (w.v0_sd.norm().hypot(v_sd.norm()) / span_s).hypot(0.002);
+        let tilt_sd = o.accel_bias_sd_mps2.hypot(a_sd) / g;
+        let mut yaw = course0 - o.mount_yaw_rad;
+        if reversing {
+            yaw += std::f64::consts::PI;
+        }
+        let yaw = wrap_pi(yaw);
+        // Consecutive velocities from positions share a fix: count half the
+        // fixes as independent.
+        let yaw_sd = (1.0 / (0.5 * w.heading_info).sqrt()).hypot(o.heading_allowance_rad);
+        let att = Euler::new(roll, pitch, yaw);
+        let mut nav = NavState::new(w.fix0.time, w.fix0.pos, w.v0, &att);
+        let le = LocalEarth::new(&nav.pos, &nav.vel);
+        let d = le.ned_to_geodetic_delta(&(nav.c_nb() * Vector3::from(o.lever_b)));
+        nav.pos.lat_rad -= d.x;
+        nav.pos.lon_rad -= d.y;
+        nav.pos.h_m -= d.z;
+        let speed0 = w.v0.x.hypot(w.v0.y);
+        let note = format!(
+            "aligned in motion over {span_s:.1} s of GNSS velocity ({} fixes) from {:.3} s of week, {speed0:.1} m/s: roll {:.2}°, pitch {:.2}°, heading {:.2}° ± {:.2}° from GNSS course{}; the run starts at the window's start (aligned at {:.3} s of week)",
+            w.fixes,
+            w.fix0.time.sow(),
+            roll.to_degrees(),
+            pitch.to_degrees(),
+            yaw.to_degrees(),
+            yaw_sd.to_degrees(),
+            match (checked, reversing) {
+                (true, true) => ", vehicle reversing: turned by 180°",
+                (true, false) => "",
+                (false, _) => " (reversing not checked: too little acceleration)",
+            },
+            fix.time.sow(),
+        );
+        Alignment {
+            time: nav.time,
+            time_sow: nav.time.sow(),
+            // Levelled in motion, the tilt error is the accelerometer bias
+            // error seen through gravity just as at rest.
+            levelling_coupling: Some(levelling_tilt_coupling(&nav.c_nb(), g)),
+            tilt_noise_sd_rad: a_sd / g,
+            nav,
+            attitude_deg: [roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()],
+            att_sd_rad: [tilt_sd, tilt_sd, yaw_sd],
+            pos_sd_m: w.fix0.pos_sd.into(),
+            vel_sd_mps: w.v0_sd.into(),
+            method: AlignMethod::InMotion,
+            standstill_s: 0.0,
+            speed_mps: speed0,
+            reversing,
+            reversing_checked: checked,
+            note,
+        }
     }
 
     fn align_at(
@@ -340,7 +553,7 @@ impl Aligner {
                 let (r, p) = level(&s.f());
                 // σ: bias over g, and the mean of white noise over the span
                 // (1 mg per √s floor).
-                let sd = (o.accel_bias_sd_mps2 / g).hypot(0.001 / s.dt.max(1.0).sqrt());
+                let sd = (o.accel_bias_sd_mps2 / g).hypot(levelling_noise_sd_rad(s.dt));
                 // Reversing: the along-track acceleration from GNSS against
                 // the IMU's forward specific force with gravity removed
                 // (pitch known from the standstill).
@@ -389,15 +602,9 @@ impl Aligner {
             yaw += std::f64::consts::PI;
         }
         let yaw = wrap_pi(yaw);
-        // Heading error comes from the cross-track velocity error only:
-        // the noise part of σ_v, and half the cross-track part of the
-        // correction of a velocity from positions to the fix time.
-        let (sn, cs) = course.sin_cos();
-        let corr_cross = (-sn * self.last_corr.x + cs * self.last_corr.y).abs();
-        let corr_abs = self.last_corr.x.hypot(self.last_corr.y);
-        let noise_h = (v_sd.x.hypot(v_sd.y) - 0.5 * corr_abs).max(0.0) / std::f64::consts::SQRT_2;
-        let v_cross_sd = noise_h.hypot(0.5 * corr_cross);
-        let yaw_sd = (v_cross_sd / speed).hypot(o.heading_allowance_rad);
+        let yaw_sd = self
+            .course_sd(v, v_sd, speed)
+            .hypot(o.heading_allowance_rad);
         let att = Euler::new(roll, pitch, yaw);
         let mut nav = NavState::new(fix.time, fix.pos, *v, &att);
         // The fix is the antenna's: move to the IMU.
@@ -455,10 +662,29 @@ impl Aligner {
         } else {
             String::new()
         };
+        // The tilt error is M·δb_a with M at the attitude levelled: the
+        // standstill's when the run starts there, else this fix's when
+        // levelled in motion (a levelling from an earlier standstill that
+        // the run does not start at is left uncoupled).
+        let (levelling_coupling, tilt_noise_sd_rad) = match (recent_still, start_s > 0.0) {
+            (Some((s, _, _)), true) => (
+                Some(levelling_tilt_coupling(&nav.c_nb(), g)),
+                levelling_noise_sd_rad(s.dt),
+            ),
+            (Some(_), false) => (None, tilt_sd),
+            (None, _) => (
+                Some(levelling_tilt_coupling(&nav.c_nb(), g)),
+                (tilt_sd * tilt_sd - (o.accel_bias_sd_mps2 / g).powi(2))
+                    .max(0.0)
+                    .sqrt(),
+            ),
+        };
         Alignment {
             time: nav.time,
             time_sow: nav.time.sow(),
             nav,
+            levelling_coupling,
+            tilt_noise_sd_rad,
             attitude_deg: [roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()],
             att_sd_rad: [tilt_sd, tilt_sd, yaw_sd],
             pos_sd_m: fix.pos_sd.into(),
@@ -491,15 +717,16 @@ impl Aligner {
                 (self.still_start.is_some() && self.still_confirmed.dt > 0.5)
                     .then_some((self.still_confirmed, self.still_confirmed.dt))
             });
-        let (roll, pitch, standstill_s) = match still {
+        let (roll, pitch, standstill_s, averaged_s) = match still {
             Some((s, len)) => {
                 let (r, p) = level(&s.f());
-                (r, p, len)
+                (r, p, len, s.dt)
             }
-            None => (0.0, 0.0, 0.0),
+            None => (0.0, 0.0, 0.0, 0.0),
         };
+        let noise_sd = levelling_noise_sd_rad(averaged_s);
         let tilt_sd = if standstill_s > 0.0 {
-            self.opts.accel_bias_sd_mps2 / GAMMA_E
+            (self.opts.accel_bias_sd_mps2 / GAMMA_E).hypot(noise_sd)
         } else {
             10f64.to_radians()
         };
@@ -510,10 +737,18 @@ impl Aligner {
             &Euler::new(roll, pitch, 0.0),
         );
         self.done = true;
+        let levelling_coupling =
+            (standstill_s > 0.0).then(|| levelling_tilt_coupling(&nav.c_nb(), GAMMA_E));
         Some(Alignment {
             time: fix.time,
             time_sow: fix.time.sow(),
             nav,
+            levelling_coupling,
+            tilt_noise_sd_rad: if standstill_s > 0.0 {
+                noise_sd
+            } else {
+                tilt_sd
+            },
             attitude_deg: [roll.to_degrees(), pitch.to_degrees(), 0.0],
             att_sd_rad: [tilt_sd, tilt_sd, std::f64::consts::PI],
             pos_sd_m: fix.pos_sd.into(),
@@ -529,6 +764,13 @@ impl Aligner {
             ),
         })
     }
+}
+
+/// The tilt σ (rad) of averaging the accelerometers over `span_s` of
+/// standstill, apart from the bias: a 1 mg/√s floor over g (vehicle
+/// rocking and noise; conservative against a MEMS VRW).
+fn levelling_noise_sd_rad(span_s: f64) -> f64 {
+    0.001 / span_s.max(1.0).sqrt()
 }
 
 fn wrap_pi(a: f64) -> f64 {
@@ -553,6 +795,50 @@ mod tests {
             dtheta: Vector3::zeros(),
             dvel: f_b * dt,
             odo_speed: None,
+        }
+    }
+
+    /// The coupling predicts the tilt error that levelling makes from an
+    /// accelerometer bias, in the filter's convention (Ĉ = (I − φ×)C,
+    /// δb = b̂ − b with b̂ = 0 here).
+    #[test]
+    fn levelling_tilt_error_is_the_coupled_bias() {
+        let g = 9.8;
+        for (roll, pitch, yaw) in [(0.0, 0.0, 0.0), (3.0, -2.0, 40.0), (-5.0, 4.0, -120.0)] {
+            let att = Euler::new(
+                f64::to_radians(roll),
+                f64::to_radians(pitch),
+                f64::to_radians(yaw),
+            );
+            let c = NavState::new(
+                GpsTime::from_week_ns(2300, 0),
+                Geodetic::default(),
+                Vector3::zeros(),
+                &att,
+            )
+            .c_nb();
+            let bias = Vector3::new(0.02, -0.015, 0.01);
+            let f_meas = c.transpose() * Vector3::new(0.0, 0.0, -g) + bias;
+            let (r, p) = level(&f_meas);
+            let c_hat = NavState::new(
+                GpsTime::from_week_ns(2300, 0),
+                Geodetic::default(),
+                Vector3::zeros(),
+                &Euler::new(r, p, att.yaw_rad),
+            )
+            .c_nb();
+            // (I − φ×) = Ĉ Cᵀ
+            let x = Matrix3::identity() - c_hat * c.transpose();
+            let phi = Vector3::new(x[(2, 1)], x[(0, 2)], x[(1, 0)]);
+            let predicted = levelling_tilt_coupling(&c, g) * (-bias);
+            for i in 0..2 {
+                assert!(
+                    (phi[i] - predicted[i]).abs() < 1e-5,
+                    "attitude ({roll}, {pitch}, {yaw}): φ {phi:?} vs M·δb {predicted:?}"
+                );
+            }
+            // A first-order effect, visibly non-zero: 2 mrad.
+            assert!(phi.xy().norm() > 1e-3);
         }
     }
 
@@ -651,6 +937,71 @@ mod tests {
         assert_eq!(a.method, AlignMethod::InMotion);
         assert!(a.reversing_checked && a.reversing);
         assert!((a.nav.euler().yaw_rad.abs() - std::f64::consts::PI).abs() < 1e-9);
+    }
+
+    /// Starting in motion with noisy GNSS velocities: tilt and heading are
+    /// averaged over the window, the run starts at the window's first fix,
+    /// and the errors are inside the stated σ (3σ) while a single fix's
+    /// acceleration (velocity noise over 1 s) would be several times worse.
+    #[test]
+    fn in_motion_alignment_averages_over_the_window() {
+        let mut al = Aligner::new(AlignOptions::default());
+        let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+        let dt = 0.01;
+        let t0 = GpsTime::from_week_sow(2000, 1000.0);
+        let (roll, pitch, yaw) = (
+            1.0f64.to_radians(),
+            -2.0f64.to_radians(),
+            30.0f64.to_radians(),
+        );
+        let c = NavState::new(t0, pos, Vector3::zeros(), &Euler::new(roll, pitch, yaw)).c_nb();
+        let g = crate::earth::gravity(pos.lat_rad.sin(), pos.h_m);
+        // Constant velocity along the heading: f^b = C_n^bᵀ (0, 0, −g).
+        let f_b = c.transpose() * Vector3::new(0.0, 0.0, -g);
+        let v_true = Vector3::new(10.0 * yaw.cos(), 10.0 * yaw.sin(), 0.0);
+        let noise = [
+            0.05, -0.04, 0.03, -0.05, 0.04, -0.03, 0.05, -0.05, 0.02, -0.04,
+        ];
+        let mut out = None;
+        let mut first_fix = None;
+        for k in 1..=2000 {
+            let t = t0.add_seconds(k as f64 * dt);
+            al.push_imu(&sample(t, f_b, dt));
+            if k % 100 == 0 {
+                let n = noise[(k / 100) % noise.len()];
+                let fix = GnssFix {
+                    time: t,
+                    pos,
+                    pos_sd: Vector3::repeat(0.02),
+                    vel: Some(v_true + Vector3::new(n, -n, 0.5 * n)),
+                    vel_sd: Some(Vector3::repeat(0.05)),
+                };
+                first_fix.get_or_insert(t);
+                if let Some(x) = al.push_gnss(&fix) {
+                    out = Some(x);
+                    break;
+                }
+            }
+        }
+        let a = out.expect("aligned");
+        assert_eq!(a.method, AlignMethod::InMotion);
+        assert_eq!(
+            Some(a.time),
+            first_fix,
+            "the run starts at the window's first fix"
+        );
+        let e = a.nav.euler();
+        let tilt = [(e.roll_rad - roll).abs(), (e.pitch_rad - pitch).abs()];
+        for (err, sd) in tilt.iter().zip(&a.att_sd_rad[..2]) {
+            assert!(*err < 3.0 * sd, "tilt error {err} rad, σ {sd} rad");
+        }
+        // One fix's acceleration error, 0.1 m/s² over g, is 0.6°.
+        assert!(
+            tilt[0].max(tilt[1]) < 0.15f64.to_radians(),
+            "tilt errors {tilt:?} rad"
+        );
+        assert!(wrap_pi(e.yaw_rad - yaw).abs() < 3.0 * a.att_sd_rad[2]);
+        assert!(a.levelling_coupling.is_some());
     }
 
     /// Never moving: levelled, heading unknown with σ 180°.

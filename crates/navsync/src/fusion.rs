@@ -336,6 +336,11 @@ pub struct FusionConfig {
     pub misalignment_sd_rad: Option<[f64; 2]>,
     /// Time-correlated GNSS position error as filter states.
     pub gnss_error: Option<GnssErrorModel>,
+    /// Started levelled over a standstill: the tilt error is M·δb_a
+    /// ([`crate::align::levelling_tilt_coupling`]). P starts with
+    /// P_φφ += M Σ_b Mᵀ and P_φb = M Σ_b (Σ_b from `init_std.accel_bias`);
+    /// `init_std.att` then holds only the tilt σ that is not the bias.
+    pub levelling_coupling: Option<Matrix3<f64>>,
 }
 
 impl FusionConfig {
@@ -365,6 +370,7 @@ impl FusionConfig {
             latency: LatencyMode::Offline,
             misalignment_sd_rad: None,
             gnss_error: None,
+            levelling_coupling: None,
         }
     }
 }
@@ -668,7 +674,21 @@ impl Core {
                 extra_var.push(m.gm_sd_m[i] * m.gm_sd_m[i]);
             }
         }
-        let filter = ErrorStateFilter::new(layout, cfg.noise, &cfg.init_std, &extra_var);
+        let mut filter = ErrorStateFilter::new(layout, cfg.noise, &cfg.init_std, &extra_var);
+        if let Some(m) = cfg.levelling_coupling {
+            use crate::filter::idx;
+            let sigma_b = Matrix3::from_diagonal(
+                &cfg.init_std
+                    .accel_bias
+                    .component_mul(&cfg.init_std.accel_bias),
+            );
+            let p = filter.covariance_mut();
+            let p_att = p.block3(idx::ATT, idx::ATT) + m * sigma_b * m.transpose();
+            let p_att_ba = m * sigma_b;
+            p.set_block3(idx::ATT, idx::ATT, &p_att);
+            p.set_block3(idx::ATT, idx::BA, &p_att_ba);
+            p.set_block3(idx::BA, idx::ATT, &p_att_ba.transpose());
+        }
         let gate = match cfg.gnss_weighting {
             GnssWeighting::Gate { prob } if prob > 0.0 && prob < 1.0 => {
                 Some(chi2_quantile(prob, 3.0))

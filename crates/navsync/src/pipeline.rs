@@ -734,6 +734,11 @@ fn run_inner(
         diag.note(a.note.clone());
         fc.init_nav = a.nav;
         fc.init_std.att = Vector3::from(a.att_sd_rad);
+        if let Some(m) = a.levelling_coupling {
+            fc.init_std.att.x = a.tilt_noise_sd_rad;
+            fc.init_std.att.y = a.tilt_noise_sd_rad;
+            fc.levelling_coupling = Some(m);
+        }
         fc.init_std.pos = Vector3::from(a.pos_sd_m);
         fc.init_std.vel = Vector3::from(a.vel_sd_mps);
         Some(a)
