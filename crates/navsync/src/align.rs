@@ -87,6 +87,9 @@ pub enum AlignMethod {
     NoMotion,
 }
 
+/// How far back fixes are kept for velocities from positions (s).
+const BASELINE_HISTORY_S: f64 = 2.0;
+
 /// The initial state the alignment found.
 #[derive(Clone, Debug, Serialize)]
 pub struct Alignment {
@@ -189,6 +192,12 @@ pub struct Aligner {
     dth_since_still: Vector3<f64>,
     /// The previous fix and its velocity, when it had one.
     prev_fix: Option<(GnssFix, Option<Vector3<f64>>)>,
+    /// Fixes of the last [`BASELINE_HISTORY_S`], for velocities from
+    /// positions over a baseline of about a second.
+    recent_fixes: std::collections::VecDeque<GnssFix>,
+    /// The baseline of the last velocity from positions (s; 0: the
+    /// receiver's own velocity).
+    last_baseline_s: f64,
     /// The previous interval's IMU sums (for the fix before).
     first_fix: Option<GnssFix>,
     /// The last velocity from positions: middle of its interval, value.
@@ -221,6 +230,9 @@ struct MotionWindow {
     heading_cos: f64,
     heading_info: f64,
     fixes: usize,
+    /// Σ of the position baselines of the velocities (s; 0 for receiver
+    /// velocities).
+    baseline_sum_s: f64,
 }
 
 impl Aligner {
@@ -237,6 +249,8 @@ impl Aligner {
             last_still_fix: None,
             dth_since_still: Vector3::zeros(),
             prev_fix: None,
+            recent_fixes: std::collections::VecDeque::new(),
+            last_baseline_s: 0.0,
             first_fix: None,
             last_mid: None,
             last_corr: Vector3::zeros(),
@@ -282,18 +296,35 @@ impl Aligner {
     /// between the last two middles, and its σ allows for the change of
     /// acceleration (half of that correction).
     fn velocity_of(&mut self, fix: &GnssFix) -> Option<(Vector3<f64>, Vector3<f64>)> {
-        if let (Some(v), Some(sd)) = (fix.vel, fix.vel_sd) {
-            return Some((v, sd));
-        }
         if let Some(v) = fix.vel {
-            return Some((v, Vector3::repeat(0.1)));
+            self.last_baseline_s = 0.0;
+            return Some((v, fix.vel_sd.unwrap_or(Vector3::repeat(0.1))));
         }
-        let (prev, _) = self.prev_fix.as_ref()?;
+        // The baseline: the latest fix at least 0.9 s older (a 10 Hz
+        // receiver's neighbouring fixes 0.1 s apart would give 10× the
+        // velocity noise), else the previous fix; at most 2 s.
+        while self
+            .recent_fixes
+            .front()
+            .is_some_and(|f| fix.time.seconds_since(f.time) > BASELINE_HISTORY_S)
+        {
+            self.recent_fixes.pop_front();
+        }
+        let prev = self
+            .recent_fixes
+            .iter()
+            .rev()
+            .find(|f| fix.time.seconds_since(f.time) >= 0.9)
+            .or(self.recent_fixes.back())
+            .copied();
+        self.recent_fixes.push_back(*fix);
+        let prev = prev?;
         let dt = fix.time.seconds_since(prev.time);
         if !(dt > 0.0 && dt <= 2.0) {
             self.last_mid = None;
             return None;
         }
+        self.last_baseline_s = dt;
         let le = LocalEarth::new(&fix.pos, &Vector3::zeros());
         let d = le.geodetic_delta_to_ned(
             fix.pos.lat_rad - prev.pos.lat_rad,
@@ -308,16 +339,20 @@ impl Aligner {
             / dt;
         let mut v = v_mid;
         self.last_corr = Vector3::zeros();
-        if let Some((t0, v0)) = self.last_mid {
-            let span = t_mid.seconds_since(t0);
-            if span > 0.0 && span <= 2.0 {
-                let corr = (v_mid - v0) / span * (0.5 * dt);
-                v += corr;
-                sd += corr.abs() * 0.5;
-                self.last_corr = corr;
-            }
+        // The acceleration from two middles at least 0.5 s apart (at 10 Hz
+        // neighbouring middles 0.1 s apart would amplify the noise).
+        let span = self.last_mid.map(|(t0, _)| t_mid.seconds_since(t0));
+        if let (Some((_, v0)), Some(span)) = (self.last_mid, span)
+            && (0.5..=2.0).contains(&span)
+        {
+            let corr = (v_mid - v0) / span * (0.5 * dt);
+            v += corr;
+            sd += corr.abs() * 0.5;
+            self.last_corr = corr;
         }
-        self.last_mid = Some((t_mid, v_mid));
+        if span.is_none_or(|s| !(0.0..0.5).contains(&s)) {
+            self.last_mid = Some((t_mid, v_mid));
+        }
         Some((v, sd))
     }
 
@@ -422,6 +457,7 @@ impl Aligner {
             heading_cos: 0.0,
             heading_info: 0.0,
             fixes: 0,
+            baseline_sum_s: 0.0,
         });
         // The gyro yaw since b₀ (rotation of the forward axis about the
         // down axis of b₀; tilt over the window is small).
@@ -432,6 +468,7 @@ impl Aligner {
         w.heading_cos += info * heading_b0.cos();
         w.heading_info += info;
         w.fixes += 1;
+        w.baseline_sum_s += self.last_baseline_s;
         let span = fix.time.seconds_since(w.fix0.time);
         if span + 1e-6 < self.opts.motion_window_s || w.fixes < 3 {
             return None;
@@ -478,9 +515,19 @@ impl Aligner {
             yaw += std::f64::consts::PI;
         }
         let yaw = wrap_pi(yaw);
-        // Consecutive velocities from positions share a fix: count half the
-        // fixes as independent.
-        let yaw_sd = (1.0 / (0.5 * w.heading_info).sqrt()).hypot(o.heading_allowance_rad);
+        // Velocities from positions share fixes: independent ones are at
+        // most half the fixes, and at most the span over the mean baseline.
+        let fixes = w.fixes as f64;
+        let mean_baseline_s = w.baseline_sum_s / fixes;
+        let independent = if mean_baseline_s > 0.0 {
+            (0.5 * fixes).min(span_s / mean_baseline_s).max(1.0)
+        } else {
+            0.5 * fixes
+        };
+        let mean_var = fixes / w.heading_info;
+        let yaw_sd = (mean_var / independent)
+            .sqrt()
+            .hypot(o.heading_allowance_rad);
         let att = Euler::new(roll, pitch, yaw);
         let mut nav = NavState::new(w.fix0.time, w.fix0.pos, w.v0, &att);
         let le = LocalEarth::new(&nav.pos, &nav.vel);

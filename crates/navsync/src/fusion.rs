@@ -34,6 +34,7 @@ use crate::error::{Diagnostics, Error};
 use crate::filter::dense::{self, Mat};
 use crate::filter::gnss::{self, GnssFix};
 use crate::filter::nhc::VehicleConstraint;
+use crate::filter::standstill::{self, StandstillDetector, StandstillOptions, StillWindow};
 use crate::filter::{
     ErrorStateFilter, ImuNoise, InitialStd, Observation, SmootherNode, StateLayout, UpdateOutcome,
     feedback,
@@ -341,6 +342,9 @@ pub struct FusionConfig {
     /// P_φφ += M Σ_b Mᵀ and P_φb = M Σ_b (Σ_b from `init_std.accel_bias`);
     /// `init_std.att` then holds only the tilt σ that is not the bias.
     pub levelling_coupling: Option<Matrix3<f64>>,
+    /// Detect standstills and apply zero-velocity and zero-angular-rate
+    /// updates while stopped.
+    pub standstill: Option<StandstillOptions>,
 }
 
 impl FusionConfig {
@@ -371,6 +375,7 @@ impl FusionConfig {
             misalignment_sd_rad: None,
             gnss_error: None,
             levelling_coupling: None,
+            standstill: None,
         }
     }
 }
@@ -417,6 +422,11 @@ pub struct FusionStats {
     pub gnss_fixes_stale: usize,
     pub nhc_updates: usize,
     pub odometer_updates: usize,
+    /// Standstill: zero-velocity and zero-angular-rate updates, and the
+    /// time detected still (s).
+    pub zupt_updates: usize,
+    pub zaru_updates: usize,
+    pub standstill_s: f64,
     pub gaps: usize,
     pub gap_total_s: f64,
     pub max_gap_s: f64,
@@ -616,6 +626,9 @@ struct Core {
     fix_log: Vec<FixRecord>,
     pending: VecDeque<GnssFix>,
     last_w_ib: Vector3<f64>,
+    /// Standstill detection, and the still window awaiting its updates.
+    still_detector: Option<StandstillDetector>,
+    still_window: Option<StillWindow>,
     kin: Kinematics,
     next_nhc: GpsTime,
     next_odo: GpsTime,
@@ -724,6 +737,8 @@ impl Core {
             fix_log: Vec::new(),
             pending: VecDeque::new(),
             last_w_ib: Vector3::zeros(),
+            still_detector: cfg.standstill.map(StandstillDetector::new),
+            still_window: None,
             kin: Kinematics::default(),
             next_nhc: cfg.init_nav.time,
             next_odo: cfg.init_nav.time,
@@ -937,6 +952,9 @@ impl Core {
             *dvel *= ratio;
         }
         self.mech.reset_history();
+        if let Some(d) = self.still_detector.as_mut() {
+            d.reset();
+        }
         self.notes.push(format!(
             "IMU data gap of {:.4} s ({:.1} nominal periods) ending at {}: {}",
             dt,
@@ -957,6 +975,19 @@ impl Core {
         }
         let inc: Increment = self.imu.compensate(dtheta, dvel, dt);
         self.last_w_ib = inc.dtheta / dt;
+        if let Some(d) = self.still_detector.as_mut() {
+            let speed = self.nav.vel.x.hypot(self.nav.vel.y);
+            let window_s = d.options().window_s;
+            let f_n = self.nav.q_nb * (inc.dvel / dt);
+            match d.push(&f_n, &self.last_w_ib, &self.imu.gyro_bias, dt, speed) {
+                Some(Some(w)) => {
+                    self.still_window = Some(w);
+                    self.stats.standstill_s += window_s;
+                }
+                Some(None) => self.still_window = None,
+                None => {}
+            }
+        }
         let step = self.mech.step(&mut self.nav, &inc);
         self.filter.accumulate(&step);
         self.kin.push(&step);
@@ -1483,6 +1514,17 @@ impl Core {
             let obs = nhc.vehicle.nhc(&self.nav, &self.last_w_ib, n);
             if self.apply(&obs, None, &frozen)?.accepted {
                 self.stats.nhc_updates += 1;
+            }
+        }
+        if let (Some(opts), Some(w)) = (self.cfg.standstill, self.still_window.take()) {
+            let obs = standstill::zupt(&self.nav, opts.zupt_sd_mps, n);
+            if self.apply(&obs, None, &frozen)?.accepted {
+                self.stats.zupt_updates += 1;
+            }
+            let obs =
+                standstill::zaru(&self.nav, &self.imu.gyro_bias, &w, opts.zaru_floor_rad_s, n);
+            if self.apply(&obs, None, &frozen)?.accepted {
+                self.stats.zaru_updates += 1;
             }
         }
         if let Some(odo) = self.cfg.odometer

@@ -136,6 +136,9 @@ pub struct FuseOptions {
     /// instead of the configuration's `initatt` ([`crate::align`]); always
     /// done when the configuration has no `initatt`.
     pub align: Option<crate::align::AlignOptions>,
+    /// Detect standstills and apply zero-velocity and zero-angular-rate
+    /// updates while stopped ([`crate::filter::standstill`]).
+    pub standstill: Option<crate::filter::standstill::StandstillOptions>,
 }
 
 /// Settings of the forward–backward smoother ([`crate::smoother`]).
@@ -201,6 +204,7 @@ impl Default for FuseOptions {
             gnss_error: None,
             smooth: None,
             align: None,
+            standstill: None,
         }
     }
 }
@@ -251,6 +255,9 @@ impl FuseOptions {
                 "alignment speed must be above the standstill speed ({} m/s), got {} m/s",
                 a.still_speed_mps, a.min_speed_mps
             ));
+        }
+        if let Some(st) = &self.standstill {
+            st.validate().map_err(Error::Invalid)?;
         }
         if let Some(sm) = &self.smooth {
             if self.latency != LatencyMode::Offline {
@@ -392,6 +399,7 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
         .map(|o| crate::reduced::odometer_options(o, opts.nhc.as_ref()));
     fc.misalignment_sd_rad = opts.misalignment_sd_deg.map(|d| d.map(f64::to_radians));
     fc.gnss_error = opts.gnss_error;
+    fc.standstill = opts.standstill;
     fc
 }
 

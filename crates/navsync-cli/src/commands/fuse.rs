@@ -64,6 +64,15 @@ pub struct Args {
     /// Alignment: take the heading from GNSS velocity from this speed on (m/s).
     #[arg(long, default_value_t = 3.0)]
     pub align_min_speed: f64,
+    /// Detect standstills (IMU quiet and the solution slower than 0.5 m/s)
+    /// and apply zero-velocity and zero-angular-rate updates while stopped:
+    /// keeps heading and biases alive at traffic lights.
+    #[arg(long)]
+    pub zupt: bool,
+    /// Standstill: RMS spread of the specific force over 1 s below which the
+    /// IMU counts as still (m/s²); raise it for an IMU on a vibrating mount.
+    #[arg(long, default_value_t = 0.15)]
+    pub zupt_accel_spread: f64,
     /// Column order of 13-column GNSS files.
     #[arg(long, value_enum, default_value_t = Layout::Cpp)]
     pub gnss_layout: Layout,
@@ -420,6 +429,12 @@ impl Args {
                 min_speed_mps: self.align_min_speed,
                 ..Default::default()
             }),
+            standstill: self
+                .zupt
+                .then_some(navsync::filter::standstill::StandstillOptions {
+                    accel_spread_mps2: self.zupt_accel_spread,
+                    ..Default::default()
+                }),
             smooth: self.smooth.then_some(pipeline::SmoothOptions {
                 node_interval_s: self.smooth_node_interval,
             }),

@@ -23,6 +23,7 @@ pub mod dense;
 pub mod gnss;
 pub mod model;
 pub mod nhc;
+pub mod standstill;
 #[cfg(test)]
 mod tests;
 
