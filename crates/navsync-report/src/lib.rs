@@ -10,6 +10,7 @@ pub mod demo;
 pub mod html;
 pub mod inputs;
 pub mod plot;
+pub mod quality;
 
 pub use html::{Report, build};
 pub use inputs::ReportInputs;
