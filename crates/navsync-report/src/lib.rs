@@ -11,6 +11,7 @@ pub mod html;
 pub mod inputs;
 pub mod plot;
 pub mod quality;
+mod sections;
 
 pub use html::{Report, build};
 pub use inputs::ReportInputs;

@@ -234,18 +234,38 @@ pub struct FixEvidence {
     pub median_fix_h_sd_m: f64,
 }
 
-/// One IMU bias axis against the configured (datasheet) figure.
+/// One IMU bias axis against the configured (datasheet) figures.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct BiasCheck {
     /// e.g. "gyro x".
     pub axis: String,
     pub unit: &'static str,
-    /// The configured initial bias (the envelope's centre) and σ.
+    /// The configured initial bias (the envelope's centre).
     pub center: f64,
-    pub sd: f64,
+    /// The configured initial σ (turn-on) and instability σ (Gauss–Markov).
+    pub init_sd: f64,
+    pub instability_sd: f64,
+    pub corr_time_s: f64,
     pub final_estimate: f64,
-    /// Largest |estimate − centre| / σ over the run.
+    /// The envelope's σ at the last epoch ([`bias_prior_sd`]).
+    pub final_sd: f64,
+    /// Largest |estimate − centre| / σ(t) over the run.
     pub max_sigmas: f64,
+}
+
+/// The configured spread of a bias `t_s` after the start: a first-order
+/// Gauss–Markov process with steady-state σ `instability_sd` and
+/// correlation time τ, starting with σ `init_sd`, has
+/// σ²(t) = σ₀² e^{−2t/τ} + σ_GM² (1 − e^{−2t/τ}) (the variance of a
+/// first-order Markov process; Gelb, "Applied Optimal Estimation", 1974,
+/// ch. 3; KF-GINS's bias model).
+pub fn bias_prior_sd(init_sd: f64, instability_sd: f64, corr_time_s: f64, t_s: f64) -> f64 {
+    let decay = if corr_time_s > 0.0 {
+        (-2.0 * t_s.max(0.0) / corr_time_s).exp()
+    } else {
+        0.0
+    };
+    (init_sd * init_sd * decay + instability_sd * instability_sd * (1.0 - decay)).sqrt()
 }
 
 /// Synchronization facts (sync_report.json, summary.json).
@@ -307,9 +327,10 @@ pub const NIS_MEAN_POOR_FACTOR: f64 = 3.0;
 /// it, above 5× the solution is running on the INS alone.
 pub const FINAL_SD_CAUTION: f64 = 1.5;
 pub const FINAL_SD_POOR: f64 = 5.0;
-/// Biases: the datasheet σ is the bias's 1σ spread; beyond 3σ (0.3 %
-/// chance per axis) the IMU is not what is configured, or the bias state
-/// absorbs another error (misalignment, lever arm, timing).
+/// Biases: the configured σ(t) ([`bias_prior_sd`]) is the bias's 1σ
+/// spread; beyond 3σ (0.3 % chance per axis) the IMU is not what is
+/// configured, or the bias state absorbs another error (misalignment,
+/// lever arm, timing) or has not converged.
 pub const BIAS_SIGMAS: f64 = 3.0;
 /// IMU data loss: at most 1e-5 of samples (Tang, Zhang & Niu, "MEMS IMU
 /// raw data acquisition and time synchronization pitfalls", 2022); above
@@ -596,6 +617,19 @@ mod tests {
     }
 
     #[test]
+    fn the_bias_envelope_relaxes_from_turn_on_to_instability() {
+        // At t = 0 the turn-on σ; after many τ the instability σ; at
+        // t = τ/2 the variance is halfway in e^{−1}.
+        assert!(close(bias_prior_sd(10.0, 2.0, 3600.0, 0.0), 10.0, 1e-12));
+        assert!(close(bias_prior_sd(10.0, 2.0, 3600.0, 1e6), 2.0, 1e-12));
+        let e = (-1.0f64).exp();
+        let want = (100.0 * e + 4.0 * (1.0 - e)).sqrt();
+        assert!(close(bias_prior_sd(10.0, 2.0, 3600.0, 1800.0), want, 1e-12));
+        // No correlation time: the instability alone.
+        assert!(close(bias_prior_sd(10.0, 2.0, 0.0, 5.0), 2.0, 1e-12));
+    }
+
+    #[test]
     fn gaps_and_the_drift_through_them() {
         let mut t: Vec<f64> = (0..50).map(|k| 0.1 * k as f64).collect();
         t.extend((0..20).map(|k| 10.0 + 0.1 * k as f64));
@@ -686,16 +720,22 @@ mod tests {
                 axis: "gyro z".into(),
                 unit: "deg/h",
                 center: 0.0,
-                sd: 10.0,
+                init_sd: 10.0,
+                instability_sd: 10.0,
+                corr_time_s: 3600.0,
                 final_estimate: 35.0,
+                final_sd: 10.0,
                 max_sigmas: 3.5,
             },
             BiasCheck {
                 axis: "accel x".into(),
                 unit: "mGal",
                 center: 0.0,
-                sd: 100.0,
+                init_sd: 100.0,
+                instability_sd: 100.0,
+                corr_time_s: 3600.0,
                 final_estimate: 50.0,
+                final_sd: 100.0,
                 max_sigmas: 0.9,
             },
         ];
