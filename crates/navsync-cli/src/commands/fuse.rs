@@ -482,10 +482,6 @@ pub fn run(args: Args) -> Result<()> {
     if let (Some(m), Some(obj)) = (crate::procstat::peak_rss_mb(), json.as_object_mut()) {
         obj.insert("peak_memory_mb".into(), m.into());
     }
-    // The configured IMU model, for `navsync report`'s datasheet envelope.
-    if let Some(obj) = json.as_object_mut() {
-        obj.insert("imu_model".into(), imu_model_json(&cfg));
-    }
     let json = serde_json::to_string_pretty(&json)?;
     let summary_path = out_dir.join("summary.json");
     std::fs::write(&summary_path, json)
@@ -596,30 +592,6 @@ pub fn run(args: Args) -> Result<()> {
         print_diagnostics(&summary.diagnostics, 10);
     }
     Ok(())
-}
-
-/// The configuration's IMU error model in the configuration's units
-/// (deg/h, mGal, ppm, deg/√h, m/s/√h): the datasheet figures a report
-/// compares the estimates with.
-fn imu_model_json(cfg: &KfGinsConfig) -> serde_json::Value {
-    const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
-    const MGAL: f64 = 1e-5;
-    const PPM: f64 = 1e-6;
-    let v = |x: [f64; 3], unit: f64| x.map(|c| c / unit);
-    let n = &cfg.noise;
-    serde_json::json!({
-        "gyro_bias_sd_deg_h": v(n.gyro_bias_sd.into(), DEG_H),
-        "accel_bias_sd_mgal": v(n.accel_bias_sd.into(), MGAL),
-        "gyro_scale_sd_ppm": v(n.gyro_scale_sd.into(), PPM),
-        "accel_scale_sd_ppm": v(n.accel_scale_sd.into(), PPM),
-        "arw_deg_sqrt_h": v(n.arw.into(), std::f64::consts::PI / 180.0 / 60.0),
-        "vrw_mps_sqrt_h": v(n.vrw.into(), 1.0 / 60.0),
-        "corr_time_s": n.corr_time_s,
-        "init_gyro_bias_deg_h": v(cfg.init_imu.gyro_bias.into(), DEG_H),
-        "init_accel_bias_mgal": v(cfg.init_imu.accel_bias.into(), MGAL),
-        "init_gyro_bias_sd_deg_h": v(cfg.init_std.gyro_bias.into(), DEG_H),
-        "init_accel_bias_sd_mgal": v(cfg.init_std.accel_bias.into(), MGAL),
-    })
 }
 
 #[cfg(test)]
