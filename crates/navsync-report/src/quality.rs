@@ -41,7 +41,7 @@ fn ln_gamma(x: f64) -> f64 {
 /// modified Lentz method (Press et al., "Numerical Recipes", 3rd ed.,
 /// §6.2; Abramowitz & Stegun 6.5.29 and 6.5.31).
 pub fn gamma_p(a: f64, x: f64) -> f64 {
-    if !(a > 0.0) || x.is_nan() {
+    if a.is_nan() || a <= 0.0 || x.is_nan() {
         return f64::NAN;
     }
     if x <= 0.0 {
@@ -160,7 +160,7 @@ pub fn find_gaps(times: &[f64]) -> Vec<(f64, f64)> {
     let mut dt: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
     dt.sort_by(f64::total_cmp);
     let median = dt[dt.len() / 2];
-    if !(median > 0.0) {
+    if median.is_nan() || median <= 0.0 {
         return Vec::new();
     }
     times
@@ -447,7 +447,7 @@ pub fn assess(ev: &Evidence) -> Verdict {
         let outside: Vec<&BiasCheck> = ev
             .biases
             .iter()
-            .filter(|b| !(b.max_sigmas <= BIAS_SIGMAS))
+            .filter(|b| b.max_sigmas.is_nan() || b.max_sigmas > BIAS_SIGMAS)
             .collect();
         checks.push(Check {
             name: "IMU biases vs datasheet",
@@ -521,7 +521,7 @@ pub fn assess(ev: &Evidence) -> Verdict {
         checks.push(Check {
             name: "alignment",
             grade: Some(
-                if no_heading || !(a.yaw_sd_deg <= ALIGN_YAW_SD_CAUTION_DEG) {
+                if no_heading || a.yaw_sd_deg.is_nan() || a.yaw_sd_deg > ALIGN_YAW_SD_CAUTION_DEG {
                     Grade::Caution
                 } else {
                     Grade::Good

@@ -143,7 +143,7 @@ pub(crate) fn bias_checks(summary: Option<&Value>, imu_err: Option<&[Vec<f64>]>)
                 .fold(0.0, f64::max);
             let Some(last) = rows.last() else { continue };
             let final_sd = sd_at(last[0]);
-            if !(final_sd > 0.0) {
+            if final_sd.is_nan() || final_sd <= 0.0 {
                 continue;
             }
             out.push(BiasCheck {
@@ -470,7 +470,7 @@ pub(crate) fn nis_section(
                     pts: mean_pts,
                 },
                 Line {
-                    name: format!("95 % interval of a {w}-fix mean"),
+                    name: format!("95 % of a {w}-fix mean"),
                     color: BLUE,
                     width: 1,
                     pts: hline(lo_w),
