@@ -997,7 +997,8 @@ fn gnss_weighting_section(
     outage_shade: &Shade,
 ) -> Result<(), Error> {
     // χ²(3) quantiles: 95 % 7.815, 99.99 % 21.108.
-    let (q95, q9999) = (7.815_f64, 21.108_f64);
+    let q = |p: f64| quality::chi2_quantile(p, quality::POSITION_DOF).unwrap_or(f64::NAN);
+    let (q95, q9999) = (q(0.95), q(0.9999));
     let pts = |f: &dyn Fn(&FixWeight) -> f64| -> Vec<(f64, f64)> {
         fixes.iter().map(|x| (rel_s(x.sow, t0), f(x))).collect()
     };
