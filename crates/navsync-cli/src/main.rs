@@ -20,10 +20,12 @@ enum Command {
     /// The whole chain on a built-in drive (simulate → sync → fuse → eval)
     /// and its HTML report: navsync-demo/report.html.
     Demo(commands::demo::Args),
-    /// One self-contained HTML report of a run: trajectory, errors with
-    /// ±3σ, IMU errors, time offset, synchronization timeline, metrics
-    /// (std.txt, imu_err.txt, time_offset.txt, summary.json beside --nav
-    /// are used unless given).
+    /// One self-contained HTML report of a run: a quality verdict, GNSS
+    /// innovations and NIS, the filter's σ, IMU biases against the
+    /// configuration, gaps and predicted drift, time offset,
+    /// synchronization; with --truth also the errors with ±3σ and metrics
+    /// (std.txt, imu_err.txt, time_offset.txt, summary.json,
+    /// gnss_residuals.txt beside --nav are used unless given).
     Report(commands::report::Args),
     /// Fuse IMU and GNSS files described by a KF-GINS configuration.
     Fuse(commands::fuse::Args),

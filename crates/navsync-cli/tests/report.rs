@@ -102,12 +102,18 @@ fn the_demo_report_shows_what_eval_computes() {
     assert!(html.contains(&format!("<b>{drift:.3} m</b>")));
     // Every figure (trajectory, position, velocity, attitude, IMU errors
     // and GNSS weighting found beside the nav file, time offset, timeline,
-    // latency) inline, nothing fetched.
-    assert_eq!(html.matches("<svg").count(), 9, "figures");
+    // latency; and the verdict's: bias envelope, innovations, NIS, σ)
+    // inline, nothing fetched.
+    assert_eq!(html.matches("<svg").count(), 13, "figures");
     for section in [
+        "verdict",
         "trajectory",
         "imu",
+        "imu-envelope",
         "gnss-weighting",
+        "innovations",
+        "nis",
+        "filter-sigma",
         "time-offset",
         "sync",
         "latency",
@@ -233,4 +239,176 @@ fn report_bad_inputs_name_file_and_line() {
         .arg(&page));
     assert!(!ok && err.contains("no epoch overlaps"), "{err}");
     assert!(!err.contains("panicked"));
+}
+
+/// The verdict JSON a report page carries.
+fn embedded_verdict(html: &str) -> Value {
+    let tag = "<script type=\"application/json\" id=\"navsync-verdict\">";
+    let start = html.find(tag).expect("verdict block") + tag.len();
+    let end = start + html[start..].find("</script>").unwrap();
+    serde_json::from_str(&html[start..end]).unwrap()
+}
+
+fn check<'a>(v: &'a Value, name: &str) -> &'a Value {
+    v["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == name)
+        .unwrap_or_else(|| panic!("no check {name}: {v}"))
+}
+
+#[test]
+fn a_report_without_truth_judges_the_run_from_its_own_statistics() {
+    // A 200 s drive (ADIS16465-class IMU, 1 Hz RTK-class fixes) fused with
+    // two 20 s outages: what a user without a reference has.
+    let dir = temp_dir("truthless");
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args(["simulate", "--quiet", "--internal-rate", "0"])
+        .args(["--scenario", "test-track", "--duration", "200"])
+        .args(["--imu-grade", "adis16465", "--seed", "3", "--output"])
+        .arg(&sim));
+    assert!(ok, "{err}");
+    let out = dir.join("out");
+    let (ok, text, err) = run(bin()
+        .args(["fuse", "--outage-period", "100", "--outage-len", "20"])
+        .args(["--outage-first", "60", "--config"])
+        .arg(sim.join("kf-gins.yaml"))
+        .arg("--output")
+        .arg(&out));
+    assert!(ok, "{text}\n{err}");
+    // The configured IMU model is in summary.json, in the YAML's units.
+    let summary = read_json(&out.join("summary.json"));
+    let gbstd = summary["imu_model"]["gyro_bias_sd_deg_h"][0]
+        .as_f64()
+        .unwrap();
+    assert!((gbstd - 2.0).abs() < 1e-9, "{}", summary["imu_model"]);
+
+    let page = dir.join("r.html");
+    let (ok, text, err) = run(bin()
+        .arg("report")
+        .arg("--nav")
+        .arg(out.join("navresult.nav"))
+        .arg("--gnss")
+        .arg(sim.join("gnss.txt"))
+        .arg("--output")
+        .arg(&page));
+    assert!(ok, "{text}\n{err}");
+    assert!(text.contains("no truth, verdict: "), "{text}");
+    let html = std::fs::read_to_string(&page).unwrap();
+    for id in [
+        "verdict",
+        "trajectory",
+        "innovations",
+        "nis",
+        "gnss-weighting",
+        "filter-sigma",
+        "imu",
+        "imu-envelope",
+        "gaps",
+        "outage-drift",
+    ] {
+        assert!(html.contains(&format!("<section id=\"{id}\">")), "{id}");
+    }
+    // No truth: no error plots, no scores.
+    assert!(!html.contains("<section id=\"position\">") && !html.contains("navsync-eval"));
+    // The verdict heads the page and names its grade.
+    let v = embedded_verdict(&html);
+    let words = match v["grade"].as_str().unwrap() {
+        "good" => "good",
+        "caution" => "usable with caution",
+        "poor" => "poor",
+        g => panic!("grade {g}"),
+    };
+    assert!(text.contains(&format!("verdict: {words};")), "{text}");
+    let top = html.find("<section id=\"verdict\">").unwrap();
+    assert!(top < html.find("<section id=\"trajectory\">").unwrap());
+    // 159 fixes fused (40 withheld), the NIS mean tested against χ²(3n)/n.
+    let nis = check(&v, "NIS mean");
+    assert!(
+        nis["finding"].as_str().unwrap().contains("over 159 fixes"),
+        "{nis}"
+    );
+    // Six bias axes against the configured envelope.
+    let bias = check(&v, "IMU biases vs datasheet");
+    assert!(bias["finding"].as_str().unwrap().contains("of 6"), "{bias}");
+    // The two scheduled outages, each with the filter's σ growing through
+    // it: an ADIS16465 coasting 20 s drifts far beyond an RTK fix's σ.
+    let drift = &html[html.find("<section id=\"outage-drift\">").unwrap()..];
+    let rows: Vec<&str> = drift
+        .lines()
+        .filter(|l| l.contains("scheduled outage"))
+        .collect();
+    assert_eq!(rows.len(), 2, "{drift}");
+    for r in rows {
+        let cells: Vec<f64> = r
+            .split("<td>")
+            .filter_map(|c| {
+                c.split("</td>")
+                    .next()?
+                    .trim_start_matches('×')
+                    .parse()
+                    .ok()
+            })
+            .collect();
+        // start, length, σ start, σ end, growth, 3σ end
+        assert_eq!(cells.len(), 6, "{r}");
+        assert!((cells[1] - 20.0).abs() < 0.1, "{r}");
+        assert!(cells[3] > 5.0 * cells[2] && cells[3] > 0.1, "{r}");
+    }
+    // Self-contained as before.
+    assert!(!html.contains("src=") && !html.contains("https:"));
+
+    // With --truth: today's error sections and scores, plus the verdict.
+    let (ok, text, err) = run(bin()
+        .args(["report", "--truth"])
+        .arg(sim.join("truth.nav"))
+        .arg("--nav")
+        .arg(out.join("navresult.nav"))
+        .arg("--output")
+        .arg(&page));
+    assert!(ok, "{text}\n{err}");
+    let html = std::fs::read_to_string(&page).unwrap();
+    for id in [
+        "verdict",
+        "position",
+        "velocity",
+        "attitude",
+        "nis",
+        "outage-drift",
+    ] {
+        assert!(html.contains(&format!("<section id=\"{id}\">")), "{id}");
+    }
+    assert!(embedded_eval(&page)["epochs_compared"].as_u64().unwrap() > 1000);
+
+    // A nav file that is missing: the error names it.
+    let missing = dir.join("nowhere/navresult.nav");
+    let (ok, _, err) = run(bin()
+        .arg("report")
+        .arg("--nav")
+        .arg(&missing)
+        .arg("--output")
+        .arg(&page));
+    assert!(!ok && err.contains("nowhere/navresult.nav"), "{err}");
+    assert!(!err.contains("panicked"));
+    // A gnss_residuals.txt beside the nav file that is not one: file and line.
+    let bad = dir.join("bad");
+    std::fs::create_dir_all(&bad).unwrap();
+    std::fs::copy(out.join("navresult.nav"), bad.join("navresult.nav")).unwrap();
+    std::fs::write(
+        bad.join("gnss_residuals.txt"),
+        "# header\n100001.000 position 0 0 0 1 1 1 0.5 1 1 1 used\n100002.000 position 0 0\n",
+    )
+    .unwrap();
+    let (ok, _, err) = run(bin()
+        .arg("report")
+        .arg("--nav")
+        .arg(bad.join("navresult.nav"))
+        .arg("--output")
+        .arg(&page));
+    assert!(
+        !ok && err.contains("gnss_residuals.txt:3") && err.contains("expected 13 columns"),
+        "{err}"
+    );
 }

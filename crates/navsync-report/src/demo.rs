@@ -187,13 +187,14 @@ pub fn run_demo(
     let t_report = Instant::now();
     let tau_true = true_time_offset_s(&scn);
     let outages = outage_windows(&scn);
+    let truth = dirs.sim.join("truth.nav");
     let inputs = ReportInputs {
         title: format!(
             "navsync demo: {:.0} s test-track drive, ADIS16465 at {} Hz, hardware-synchronized logger",
             sim.duration_s(),
             scn.imu.output_rate_hz
         ),
-        truth: dirs.sim.join("truth.nav"),
+        truth: Some(truth.clone()),
         nav: dirs.fused.join("navresult.nav"),
         sync_report: Some(dirs.synced.join("sync_report.json")),
         summary: Some(dirs.fused.join("summary.json")),
@@ -208,13 +209,18 @@ pub fn run_demo(
         ..ReportInputs::default()
     };
     let report = crate::build(&inputs)?;
+    let Some(eval) = report.eval else {
+        return Err(Error::Invalid(
+            "the demo's report was built without its truth".into(),
+        ));
+    };
     let report_path = opts.output.join("report.html");
     std::fs::write(&report_path, &report.html).map_err(|e| Error::io(&report_path, e))?;
-    write_json(&opts.output.join("eval.json"), &report.eval)?;
+    write_json(&opts.output.join("eval.json"), &eval)?;
     times.push(("report".into(), t_report.elapsed().as_secs_f64()));
     progress("report", 1.0);
 
-    let e = &report.eval;
+    let e = &eval;
     let s = &run.sync.report;
     let longest = s
         .holdover
@@ -252,7 +258,7 @@ pub fn run_demo(
     let d = |p: &Path| p.display().to_string();
     let report_command = format!(
         "navsync report --truth {} --nav {} --sync-report {} --std {} --imu-err {} --imu-err-truth {} --gnss {} --outages {} --time-offset-truth {} --output {}",
-        d(&inputs.truth),
+        d(&truth),
         d(&inputs.nav),
         d(&dirs.synced.join("sync_report.json")),
         d(&dirs.fused.join("std.txt")),
@@ -269,7 +275,7 @@ pub fn run_demo(
     );
     Ok(DemoOutcome {
         summary,
-        eval: report.eval,
+        eval,
         report_path,
         report_command,
     })

@@ -9,23 +9,28 @@ use navsync::{Diagnostics, Error};
 
 use crate::inputs::{
     Epochs, FixWeight, IMU_ERR_LAYOUT, ReportInputs, STD_LAYOUT, TIME_OFFSET_LAYOUT,
-    read_fix_weights, read_gnss, read_summary, read_sync_report, read_table, rel_s, score,
+    read_fix_weights, read_gnss, read_solution, read_summary, read_sync_report, read_table, rel_s,
+    score,
 };
 use crate::plot::{
     self, AXES, BLUE, Band, Figure, GREY, Line, ORANGE, OUTAGE, PURPLE, Panel, RED, Shade,
     Timeline, Trajectory,
 };
+use crate::quality::{self, Verdict};
+use crate::sections;
 
 /// Points per plotted series at most.
-const MAX_POINTS: usize = 1200;
+pub(crate) const MAX_POINTS: usize = 1200;
 /// Figure width (px).
-const WIDTH: u32 = 1100;
+pub(crate) const WIDTH: u32 = 1100;
 
 /// A built report.
 pub struct Report {
     pub html: String,
-    /// The scores shown, as `navsync eval` computes them.
-    pub eval: EvalReport,
+    /// The scores shown, as `navsync eval` computes them (with a truth).
+    pub eval: Option<EvalReport>,
+    /// The quality verdict at the top of the page.
+    pub verdict: Verdict,
     /// Lines skipped in the navigation and truth files (as `navsync eval`).
     pub diagnostics: Diagnostics,
 }
@@ -71,13 +76,13 @@ fn series(t: &[f64], v: impl Fn(usize) -> f64) -> Vec<(f64, f64)> {
 
 /// One rows-per-epoch table resampled to at most [`MAX_POINTS`] rows, with
 /// times relative to `t0_sow`.
-struct Rows {
-    t: Vec<f64>,
-    rows: Vec<Vec<f64>>,
+pub(crate) struct Rows {
+    pub(crate) t: Vec<f64>,
+    pub(crate) rows: Vec<Vec<f64>>,
 }
 
 impl Rows {
-    fn new(rows: Vec<Vec<f64>>, t0_sow: f64) -> Rows {
+    pub(crate) fn new(rows: Vec<Vec<f64>>, t0_sow: f64) -> Rows {
         let k = plot::stride(rows.len(), MAX_POINTS);
         let rows: Vec<Vec<f64>> = rows.into_iter().step_by(k).collect();
         Rows {
@@ -85,7 +90,7 @@ impl Rows {
             rows,
         }
     }
-    fn col(&self, c: usize, scale: f64) -> Vec<(f64, f64)> {
+    pub(crate) fn col(&self, c: usize, scale: f64) -> Vec<(f64, f64)> {
         self.t
             .iter()
             .zip(&self.rows)
@@ -101,7 +106,7 @@ impl Rows {
     }
 }
 
-fn section(html: &mut String, id: &str, title: &str, note: &str, svg: &str) {
+pub(crate) fn section(html: &mut String, id: &str, title: &str, note: &str, svg: &str) {
     let _ = write!(
         html,
         "<section id=\"{id}\"><h2>{}</h2>\n{}<figure>{svg}</figure></section>\n",
@@ -210,6 +215,7 @@ fn error_figure(
                 y_label: format!("{} ({unit})", comps[c]),
                 lines,
                 bands,
+                dots: Vec::new(),
                 y_range: None,
             }
         })
@@ -224,7 +230,7 @@ fn error_figure(
     })
 }
 
-fn row(html: &mut String, cells: &[String]) {
+pub(crate) fn row(html: &mut String, cells: &[String]) {
     html.push_str("<tr>");
     for c in cells {
         let _ = write!(html, "<td>{c}</td>");
@@ -434,7 +440,13 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     } else {
         inp.outages.clone()
     };
-    let (eval, ep) = score(&inp.truth, &inp.nav, &outages, &mut diag)?;
+    let (eval, ep) = match &inp.truth {
+        Some(truth) => {
+            let (e, ep) = score(truth, &inp.nav, &outages, &mut diag)?;
+            (Some(e), ep)
+        }
+        None => (None, read_solution(&inp.nav, &mut diag)?),
+    };
     let t0 = ep.t0_sow;
     let x1 = ep.t.last().copied().unwrap_or(1.0).max(1e-3);
     let outage_spans: Vec<(f64, f64)> = outages
@@ -449,21 +461,29 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         color: OUTAGE,
         spans: outage_spans.clone(),
     };
-    let rows = |p: &Option<std::path::PathBuf>, columns: usize, layout: &str| {
+    let table = |p: &Option<std::path::PathBuf>, columns: usize, layout: &str| {
         p.as_deref()
-            .map(|p| read_table(p, columns, layout).map(|r| Rows::new(r, t0)))
+            .map(|p| read_table(p, columns, layout))
             .transpose()
     };
-    let std = rows(&inp.std, 22, STD_LAYOUT)?;
-    // A smoothed solution's forward run, scored the same way.
-    let forward = match &inp.forward_nav {
-        Some(p) => {
-            let (fe, fep) = score(&inp.truth, p, &outages, &mut diag)?;
-            Some((fe, fep, rows(&inp.forward_std, 22, STD_LAYOUT)?))
-        }
-        None => None,
+    let rows = |p: &Option<std::path::PathBuf>, columns: usize, layout: &str| {
+        table(p, columns, layout).map(|r| r.map(|r| Rows::new(r, t0)))
     };
-    let imu_err = rows(&inp.imu_err, 13, IMU_ERR_LAYOUT)?;
+    // Full-rate σ (std.txt), and the forward filter's when smoothed: the
+    // predicted σ through gaps is the filter's, not the smoother's.
+    let std_full = table(&inp.std, 22, STD_LAYOUT)?;
+    let forward_std_full = table(&inp.forward_std, 22, STD_LAYOUT)?;
+    let std = std_full.clone().map(|r| Rows::new(r, t0));
+    // A smoothed solution's forward run, scored the same way.
+    let forward = match (&inp.forward_nav, &inp.truth) {
+        (Some(p), Some(truth)) => {
+            let (fe, fep) = score(truth, p, &outages, &mut diag)?;
+            Some((fe, fep, forward_std_full.clone().map(|r| Rows::new(r, t0))))
+        }
+        _ => None,
+    };
+    let imu_err_full = table(&inp.imu_err, 13, IMU_ERR_LAYOUT)?;
+    let imu_err = imu_err_full.clone().map(|r| Rows::new(r, t0));
     let imu_err_truth = rows(&inp.imu_err_truth, 13, IMU_ERR_LAYOUT)?;
     let offset = inp
         .time_offset
@@ -480,6 +500,46 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         _ => Vec::new(),
     };
 
+    // The evidence for the verdict and the sections without a truth.
+    let fixes = inp
+        .gnss_residuals
+        .as_deref()
+        .map(read_fix_weights)
+        .transpose()?
+        .unwrap_or_default();
+    let sigma_h = forward_std_full
+        .as_ref()
+        .or(std_full.as_ref())
+        .map(|s| sections::horizontal_sigma(s, t0))
+        .unwrap_or_default();
+    let mut fix_times: Vec<f64> = if gnss.is_empty() {
+        fixes.iter().map(|f| rel_s(f.sow, t0)).collect()
+    } else {
+        gnss.iter().map(|g| rel_s(g.0, t0)).collect()
+    };
+    fix_times.sort_by(f64::total_cmp);
+    let median_fix_interval_s = {
+        let mut dt: Vec<f64> = fix_times.windows(2).map(|w| w[1] - w[0]).collect();
+        dt.sort_by(f64::total_cmp);
+        dt.get(dt.len() / 2).copied()
+    };
+    let gaps = sections::gaps(&fix_times, &outage_spans, &sigma_h, t0);
+    let biases = sections::bias_checks(summary.as_ref(), imu_err_full.as_deref());
+    let verdict = quality::assess(&sections::evidence(sections::Gathered {
+        fixes: &fixes,
+        std: std_full.as_deref(),
+        biases: biases.clone(),
+        sync: sync.as_ref(),
+        summary: summary.as_ref(),
+        time_offset: offset.as_deref(),
+        gaps: &gaps,
+    }));
+    let gap_shade = Shade {
+        name: "GNSS gap or outage".into(),
+        color: OUTAGE,
+        spans: gaps.iter().map(|g| (g.start, g.end)).collect(),
+    };
+
     let mut html = String::with_capacity(1 << 20);
     let title = if inp.title.is_empty() {
         "navsync report"
@@ -492,28 +552,51 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
          body{{font-family:sans-serif;max-width:1140px;margin:1em auto;padding:0 1em;color:#222}}\n\
          h1{{font-size:1.5em}} h2{{font-size:1.2em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}}\n\
          table.metrics{{border-collapse:collapse;margin:.5em 0}} table.metrics td,table.metrics th{{border:1px solid #ccc;padding:.2em .6em;text-align:right}}\n\
-         table.metrics td:first-child,table.metrics th:first-child{{text-align:left}} table.metrics th{{background:#f2f2f2}} table.kv td{{text-align:left}} table.kv td:first-child{{white-space:nowrap}}\n\
+         table.metrics td:first-child,table.metrics th:first-child{{text-align:left}} table.metrics th{{background:#f2f2f2}} table.kv td,table.kv th{{text-align:left}} table.kv td:first-child{{white-space:nowrap}}\n\
          .cols{{display:flex;flex-wrap:wrap;gap:0 2em;align-items:flex-start}} .cols>div{{flex:1 1 480px;min-width:0}} h3{{font-size:1.05em;margin:.6em 0 .3em}}\n\
          figure{{margin:.5em 0}} figure svg{{max-width:100%;height:auto}} .note{{color:#555;font-size:.92em}} code{{font-size:.95em}}\n\
+         .grade{{padding:.05em .5em;border-radius:.3em}} .grade.good{{background:#cdeccd}} .grade.caution{{background:#ffe8a8}} .grade.poor{{background:#f6c4c4}}\n\
          </style></head><body>\n<h1>{t}</h1>\n",
         t = escape(title)
     );
-    let _ = writeln!(
-        html,
-        "<p class=\"note\">navsync {} — solution <code>{}</code> against <code>{}</code>; first epoch GPS week {} SOW {:.3} (t = 0 below). Errors are solution − truth, with the truth interpolated to each epoch; figures show at most {} points per curve.</p>",
-        env!("CARGO_PKG_VERSION"),
-        escape(&inp.nav.display().to_string()),
-        escape(&inp.truth.display().to_string()),
-        ep.week,
-        t0,
-        MAX_POINTS
-    );
+    match &inp.truth {
+        Some(truth) => {
+            let _ = writeln!(
+                html,
+                "<p class=\"note\">navsync {} — solution <code>{}</code> against <code>{}</code>; first epoch GPS week {} SOW {:.3} (t = 0 below). Errors are solution − truth, with the truth interpolated to each epoch; figures show at most {} points per curve.</p>",
+                env!("CARGO_PKG_VERSION"),
+                escape(&inp.nav.display().to_string()),
+                escape(&truth.display().to_string()),
+                ep.week,
+                t0,
+                MAX_POINTS
+            );
+        }
+        None => {
+            let _ = writeln!(
+                html,
+                "<p class=\"note\">navsync {} — solution <code>{}</code> without a reference trajectory: judged from the filter's own statistics and the files beside it; first epoch GPS week {} SOW {:.3} (t = 0 below); figures show at most {} points per curve.</p>",
+                env!("CARGO_PKG_VERSION"),
+                escape(&inp.nav.display().to_string()),
+                ep.week,
+                t0,
+                MAX_POINTS
+            );
+        }
+    }
+    sections::verdict_section(&mut html, &verdict, eval.is_some());
 
     // Metrics first.
-    html.push_str("<section id=\"metrics\"><h2>Metrics</h2>\n<div class=\"cols\"><div>\n");
-    metrics_tables(&mut html, &eval);
-    if let Some((fe, _, _)) = &forward {
-        forward_comparison(&mut html, fe, &eval);
+    let _ = writeln!(
+        html,
+        "<section id=\"metrics\"><h2>{}</h2>\n<div class=\"cols\"><div>",
+        if eval.is_some() { "Metrics" } else { "Summary" }
+    );
+    if let Some(eval) = &eval {
+        metrics_tables(&mut html, eval);
+        if let Some((fe, _, _)) = &forward {
+            forward_comparison(&mut html, fe, eval);
+        }
     }
     let final_offset = offset.as_ref().and_then(|r| r.last()).map(|r| (r[1], r[2]));
     if let Some((o, sd)) = final_offset {
@@ -565,7 +648,11 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     // Trajectory.
     let k = plot::stride(ep.t.len(), 3000);
     let idx: Vec<usize> = (0..ep.t.len()).step_by(k).collect();
-    let truth_ne: Vec<(f64, f64)> = idx.iter().map(|&i| ep.truth_ne[i]).collect();
+    let with_truth = !ep.truth_ne.is_empty();
+    let truth_ne: Vec<(f64, f64)> = idx
+        .iter()
+        .filter_map(|&i| ep.truth_ne.get(i).copied())
+        .collect();
     let sol_ne: Vec<(f64, f64)> = idx.iter().map(|&i| ep.sol_ne[i]).collect();
     let inside = |a: f64, b: f64| -> Vec<usize> {
         (0..ep.t.len())
@@ -581,10 +668,12 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
             gnss: &gnss_ne,
             truth_in_outage: outage_spans
                 .iter()
+                .filter(|_| with_truth)
                 .map(|&(a, b)| inside(a, b).iter().map(|&i| ep.truth_ne[i]).collect())
                 .collect(),
             solution_in_outage: outage_spans
                 .iter()
+                .filter(|_| with_truth)
                 .map(|&(a, b)| inside(a, b).iter().map(|&i| ep.sol_ne[i]).collect())
                 .collect(),
         },
@@ -595,44 +684,51 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         &mut html,
         "trajectory",
         "Trajectory",
-        "North/east of the first truth position, equal scales.",
+        if with_truth {
+            "North/east of the first truth position, equal scales."
+        } else {
+            "North/east of the first solution position, equal scales; GNSS fixes as dots when --gnss is given."
+        },
         &svg,
     );
 
     let shades = [outage_shade.clone()];
-    let nav_note = if std.is_some() {
-        "Grey band: the filter's ±3σ (std.txt); shaded: GNSS outages."
-    } else {
-        "Shaded: GNSS outages (no std.txt given: no ±3σ bands)."
-    };
-    let fwd_series = forward.as_ref().map(|(_, fep, fstd)| ForwardSeries {
-        ep: fep,
-        std: fstd.as_ref(),
-    });
-    let nav_note = if fwd_series.is_some() {
-        "Smoothed solution (dark) with the smoother's ±3σ (grey), the forward filter's errors (light) with its ±3σ (lilac), from forward/; shaded: GNSS outages."
-    } else {
-        nav_note
-    };
-    let fw = fwd_series.as_ref();
-    let svg = error_figure(&ep, std.as_ref(), &shades, &POSITION, fw, |e, i, c| {
-        e.pos_err[i][c]
-    })?;
-    section(&mut html, "position", "Position error", nav_note, &svg);
-    let svg = error_figure(&ep, std.as_ref(), &shades, &VELOCITY, fw, |e, i, c| {
-        e.vel_err[i][c]
-    })?;
-    section(&mut html, "velocity", "Velocity error", nav_note, &svg);
-    let svg = error_figure(&ep, std.as_ref(), &shades, &ATTITUDE, fw, |e, i, c| {
-        e.att_err[i][c]
-    })?;
-    section(
-        &mut html,
-        "attitude",
-        "Attitude error",
-        "Roll/pitch/yaw differences; the band is the φ-angle σ (std.txt), which equals the Euler-angle σ near level attitude.",
-        &svg,
-    );
+    // The errors against the truth.
+    if eval.is_some() {
+        let nav_note = if std.is_some() {
+            "Grey band: the filter's ±3σ (std.txt); shaded: GNSS outages."
+        } else {
+            "Shaded: GNSS outages (no std.txt given: no ±3σ bands)."
+        };
+        let fwd_series = forward.as_ref().map(|(_, fep, fstd)| ForwardSeries {
+            ep: fep,
+            std: fstd.as_ref(),
+        });
+        let nav_note = if fwd_series.is_some() {
+            "Smoothed solution (dark) with the smoother's ±3σ (grey), the forward filter's errors (light) with its ±3σ (lilac), from forward/; shaded: GNSS outages."
+        } else {
+            nav_note
+        };
+        let fw = fwd_series.as_ref();
+        let svg = error_figure(&ep, std.as_ref(), &shades, &POSITION, fw, |e, i, c| {
+            e.pos_err[i][c]
+        })?;
+        section(&mut html, "position", "Position error", nav_note, &svg);
+        let svg = error_figure(&ep, std.as_ref(), &shades, &VELOCITY, fw, |e, i, c| {
+            e.vel_err[i][c]
+        })?;
+        section(&mut html, "velocity", "Velocity error", nav_note, &svg);
+        let svg = error_figure(&ep, std.as_ref(), &shades, &ATTITUDE, fw, |e, i, c| {
+            e.att_err[i][c]
+        })?;
+        section(
+            &mut html,
+            "attitude",
+            "Attitude error",
+            "Roll/pitch/yaw differences; the band is the φ-angle σ (std.txt), which equals the Euler-angle σ near level attitude.",
+            &svg,
+        );
+    }
 
     if let Some(est) = &imu_err {
         let names = [
@@ -668,6 +764,7 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
                     y_label: format!("{name} ({unit})"),
                     lines,
                     bands: Vec::new(),
+                    dots: Vec::new(),
                     y_range: None,
                 }
             })
@@ -696,12 +793,18 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         };
         section(&mut html, "imu", "IMU error estimates", text, &svg);
     }
+    let new_shades = [gap_shade.clone()];
+    if let (false, Some(est)) = (biases.is_empty(), &imu_err) {
+        sections::imu_envelope_section(&mut html, &biases, est, x1, &new_shades)?;
+    }
 
-    if let Some(path) = &inp.gnss_residuals {
-        let fixes = read_fix_weights(path)?;
-        if !fixes.is_empty() {
-            gnss_weighting_section(&mut html, &fixes, t0, x1, &outage_shade)?;
-        }
+    if !fixes.is_empty() {
+        gnss_weighting_section(&mut html, &fixes, t0, x1, &outage_shade)?;
+        sections::innovation_section(&mut html, &fixes, std_full.as_deref(), t0, x1, &new_shades)?;
+        sections::nis_section(&mut html, &fixes, t0, x1, &new_shades)?;
+    }
+    if let Some(s) = &std {
+        sections::sigma_section(&mut html, s, x1, &new_shades, inp.forward_nav.is_some())?;
     }
 
     if let Some(rows) = &offset {
@@ -770,6 +873,7 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
                         })
                         .collect(),
                 }],
+                dots: Vec::new(),
                 y_range: Some(((lo - pad) * 1e3, (hi + pad) * 1e3)),
             }],
             width: WIDTH,
@@ -846,15 +950,38 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         }
     }
 
-    // The scores as data, for tools and tests.
-    let json = serde_json::to_string(&eval).map_err(|e| Error::Invalid(e.to_string()))?;
+    sections::gaps_section(
+        &mut html,
+        &gaps,
+        median_fix_interval_s,
+        sync.as_ref(),
+        summary.as_ref(),
+    );
+    sections::drift_section(
+        &mut html,
+        &gaps,
+        forward_std_full.is_some(),
+        !sigma_h.is_empty(),
+    );
+
+    // The scores and the verdict as data, for tools and tests.
+    let json_err = |e: serde_json::Error| Error::Invalid(e.to_string());
+    if let Some(eval) = &eval {
+        let json = serde_json::to_string(eval).map_err(json_err)?;
+        let _ = writeln!(
+            html,
+            "<script type=\"application/json\" id=\"navsync-eval\">{json}</script>"
+        );
+    }
+    let json = serde_json::to_string(&verdict).map_err(json_err)?;
     let _ = write!(
         html,
-        "<script type=\"application/json\" id=\"navsync-eval\">{json}</script>\n</body></html>\n"
+        "<script type=\"application/json\" id=\"navsync-verdict\">{json}</script>\n</body></html>\n"
     );
     Ok(Report {
         html,
         eval,
+        verdict,
         diagnostics: diag,
     })
 }
@@ -870,7 +997,8 @@ fn gnss_weighting_section(
     outage_shade: &Shade,
 ) -> Result<(), Error> {
     // χ²(3) quantiles: 95 % 7.815, 99.99 % 21.108.
-    let (q95, q9999) = (7.815_f64, 21.108_f64);
+    let q = |p: f64| quality::chi2_quantile(p, quality::POSITION_DOF).unwrap_or(f64::NAN);
+    let (q95, q9999) = (q(0.95), q(0.9999));
     let pts = |f: &dyn Fn(&FixWeight) -> f64| -> Vec<(f64, f64)> {
         fixes.iter().map(|x| (rel_s(x.sow, t0), f(x))).collect()
     };
@@ -904,6 +1032,7 @@ fn gnss_weighting_section(
                     },
                 ],
                 bands: Vec::new(),
+                dots: Vec::new(),
                 y_range: None,
             },
             Panel {
@@ -916,6 +1045,7 @@ fn gnss_weighting_section(
                     pts: pts(&min_w),
                 }],
                 bands: Vec::new(),
+                dots: Vec::new(),
                 y_range: Some((0.0, 1.05)),
             },
         ],

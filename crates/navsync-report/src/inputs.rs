@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use navsync::earth::{Geodetic, ned_offset};
 use navsync::eval::{self, EvalReport};
-use navsync::io::kfgins::{GnssLayout, GnssReader};
+use navsync::io::kfgins::{GnssLayout, GnssReader, NavReader};
 use navsync::io::text::{LineReader, is_blank_or_comment, parse_f64, split_fields};
 use navsync::time::GpsTime;
 use navsync::timing::SyncReport;
@@ -22,8 +22,9 @@ use navsync::{Diagnostics, Error};
 #[derive(Clone, Debug, Default)]
 pub struct ReportInputs {
     pub title: String,
-    /// Reference trajectory (11-column nav format).
-    pub truth: PathBuf,
+    /// Reference trajectory (11-column nav format); without it the report
+    /// judges the run from the filter's own statistics.
+    pub truth: Option<PathBuf>,
     /// The solution (11-column nav format).
     pub nav: PathBuf,
     pub sync_report: Option<PathBuf>,
@@ -176,6 +177,26 @@ pub fn score(
         ep.att_err.push(e.att_deg.into());
     })?;
     Ok((report, ep))
+}
+
+/// The solution's epochs without a reference (positions relative to its
+/// first epoch; no errors). Bad lines are skipped and reported, as
+/// `navsync eval` does.
+pub fn read_solution(nav: &Path, diag: &mut Diagnostics) -> Result<Epochs, Error> {
+    let mut r = NavReader::open(nav)?;
+    let mut ep = Epochs::default();
+    while let Some(rec) = r.next_record(diag)? {
+        let pos = Geodetic::from_deg(rec.lat_deg, rec.lon_deg, rec.h_m);
+        let origin = *ep.origin.get_or_insert(pos);
+        if ep.t.is_empty() {
+            ep.t0_sow = rec.time.sow();
+            ep.week = rec.week;
+        }
+        let d = ned_offset(&origin, &pos);
+        ep.t.push(rel_s(rec.time.sow(), ep.t0_sow));
+        ep.sol_ne.push((d.x, d.y));
+    }
+    Ok(ep)
 }
 
 /// Reads a whitespace/comma table whose every record has exactly

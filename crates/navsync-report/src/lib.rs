@@ -10,6 +10,8 @@ pub mod demo;
 pub mod html;
 pub mod inputs;
 pub mod plot;
+pub mod quality;
+mod sections;
 
 pub use html::{Report, build};
 pub use inputs::ReportInputs;

@@ -37,6 +37,9 @@ pub struct Panel {
     pub y_label: String,
     pub lines: Vec<Line>,
     pub bands: Vec<Band>,
+    /// Points drawn as dots (not joined), outside the automatic y range:
+    /// those beyond it are drawn at its edge.
+    pub dots: Vec<Line>,
     /// Fixed y range; values outside are drawn at its edge.
     pub y_range: Option<(f64, f64)>,
 }
@@ -303,6 +306,19 @@ fn draw_panel<DB: DrawingBackend>(
             legend.push((l.name.clone(), Swatch::Line(l.color, l.width.max(2))));
         }
     }
+    for d in &p.dots {
+        let (color, r) = (d.color, d.width.max(1));
+        chart
+            .draw_series(
+                d.pts
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, clamp(y)), r, color.filled())),
+            )
+            .map_err(pe)?;
+        if !d.name.is_empty() && !d.pts.is_empty() {
+            legend.push((d.name.clone(), Swatch::Dot(color)));
+        }
+    }
     side_legend(&legend_area, &legend, 40)
 }
 
@@ -346,10 +362,11 @@ pub fn trajectory(t: &Trajectory, width: u32, height: u32) -> Result<String, Err
         )?;
         let en = |v: &[(f64, f64)]| v.iter().map(|p| (p.1, p.0)).collect::<Vec<_>>();
         let truth_c = RGBColor(60, 60, 60);
-        let mut legend = vec![
-            ("truth".to_string(), Swatch::Line(truth_c, 3)),
-            ("solution".to_string(), Swatch::Line(BLUE, 2)),
-        ];
+        let mut legend = Vec::new();
+        if !t.truth.is_empty() {
+            legend.push(("truth".to_string(), Swatch::Line(truth_c, 3)));
+        }
+        legend.push(("solution".to_string(), Swatch::Line(BLUE, 2)));
         chart
             .draw_series(LineSeries::new(en(t.truth), truth_c.stroke_width(3)))
             .map_err(pe)?;
@@ -579,6 +596,7 @@ mod tests {
                     color: GREY,
                     pts: (0..10).map(|i| (i as f64, -2.0, 2.0)).collect(),
                 }],
+                dots: Vec::new(),
                 y_range: None,
             }],
             width: 600,

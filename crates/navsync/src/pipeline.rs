@@ -322,9 +322,55 @@ pub struct FuseSummary {
     pub smoother: Option<SmootherSummary>,
     /// The initial alignment, when the run aligned itself.
     pub alignment: Option<crate::align::Alignment>,
+    /// The configuration's IMU error model (the datasheet figures a report
+    /// compares the estimates with).
+    pub imu_model: ImuModelSummary,
     pub options: FuseOptions,
     pub run_time_s: f64,
     pub diagnostics: Diagnostics,
+}
+
+/// The configured IMU error model in the configuration's units (KF-GINS
+/// `imunoise`, `initgyrbias`/`initaccbias`, `initbgstd`/`initbastd`).
+#[derive(Clone, Debug, Serialize)]
+pub struct ImuModelSummary {
+    /// Bias instability: steady-state σ of the Gauss–Markov biases.
+    pub gyro_bias_sd_deg_h: [f64; 3],
+    pub accel_bias_sd_mgal: [f64; 3],
+    pub gyro_scale_sd_ppm: [f64; 3],
+    pub accel_scale_sd_ppm: [f64; 3],
+    pub arw_deg_sqrt_h: [f64; 3],
+    pub vrw_mps_sqrt_h: [f64; 3],
+    /// Gauss–Markov correlation time (s).
+    pub corr_time_s: f64,
+    /// Initial biases and their σ.
+    pub init_gyro_bias_deg_h: [f64; 3],
+    pub init_accel_bias_mgal: [f64; 3],
+    pub init_gyro_bias_sd_deg_h: [f64; 3],
+    pub init_accel_bias_sd_mgal: [f64; 3],
+}
+
+impl ImuModelSummary {
+    pub fn of(cfg: &KfGinsConfig) -> Self {
+        const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
+        const MGAL: f64 = 1e-5;
+        const PPM: f64 = 1e-6;
+        let v = |x: &Vector3<f64>, unit: f64| [x.x / unit, x.y / unit, x.z / unit];
+        let n = &cfg.noise;
+        ImuModelSummary {
+            gyro_bias_sd_deg_h: v(&n.gyro_bias_sd, DEG_H),
+            accel_bias_sd_mgal: v(&n.accel_bias_sd, MGAL),
+            gyro_scale_sd_ppm: v(&n.gyro_scale_sd, PPM),
+            accel_scale_sd_ppm: v(&n.accel_scale_sd, PPM),
+            arw_deg_sqrt_h: v(&n.arw, std::f64::consts::PI / 180.0 / 60.0),
+            vrw_mps_sqrt_h: v(&n.vrw, 1.0 / 60.0),
+            corr_time_s: n.corr_time_s,
+            init_gyro_bias_deg_h: v(&cfg.init_imu.gyro_bias, DEG_H),
+            init_accel_bias_mgal: v(&cfg.init_imu.accel_bias, MGAL),
+            init_gyro_bias_sd_deg_h: v(&cfg.init_std.gyro_bias, DEG_H),
+            init_accel_bias_sd_mgal: v(&cfg.init_std.accel_bias, MGAL),
+        }
+    }
 }
 
 /// The GNSS observations the filter down-weighted or rejected.
@@ -1047,6 +1093,7 @@ fn run_inner(
         gnss_weighting: WeightingReport::from_records(&records),
         smoother,
         alignment,
+        imu_model: ImuModelSummary::of(cfg),
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,

@@ -14,7 +14,8 @@ pub mod speed_sim;
 pub mod sync;
 pub mod track;
 
-/// A solution and the reference it is scored against (`eval`, `report`).
+/// A solution and the reference it is scored against (`eval`; `report`
+/// has its own arguments, with the truth optional).
 #[derive(clap::Args)]
 pub struct Scored {
     /// Reference trajectory (11-column nav format).
@@ -23,8 +24,7 @@ pub struct Scored {
     /// Solution to score (11-column nav format).
     #[arg(long)]
     pub nav: std::path::PathBuf,
-    /// GNSS outage windows "sow:len,sow:len" in which drift is measured
-    /// (`report`: by default those in summary.json).
+    /// GNSS outage windows "sow:len,sow:len" in which drift is measured.
     #[arg(long, default_value = "")]
     pub outages: String,
 }

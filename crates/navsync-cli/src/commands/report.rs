@@ -10,8 +10,19 @@ use super::print_diagnostics;
 
 #[derive(clap::Args)]
 pub struct Args {
-    #[command(flatten)]
-    pub scored: super::Scored,
+    /// Reference trajectory (11-column nav format). Without it the page
+    /// judges the run from the filter's own statistics (verdict, GNSS
+    /// innovations and NIS, σ, IMU biases against the configuration, gaps).
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    /// The solution (11-column nav format); the files `navsync fuse` writes
+    /// beside it (std.txt, imu_err.txt, summary.json, …) are picked up.
+    #[arg(long)]
+    pub nav: PathBuf,
+    /// GNSS outage windows "sow:len,sow:len" (by default those in
+    /// summary.json); with --truth, the drift in them is measured.
+    #[arg(long, default_value = "")]
+    pub outages: String,
     /// sync_report.json of `navsync sync`: timeline and latency histogram.
     #[arg(long)]
     pub sync_report: Option<PathBuf>,
@@ -27,7 +38,8 @@ pub struct Args {
     /// The true IMU errors (the simulator's imu_err_truth.txt).
     #[arg(long)]
     pub imu_err_truth: Option<PathBuf>,
-    /// GNSS fixes (7 or 13 columns) for the trajectory plot.
+    /// GNSS fixes (7 or 13 columns) for the trajectory plot and the gaps
+    /// table.
     #[arg(long)]
     pub gnss: Option<PathBuf>,
     /// time_offset.txt of `navsync fuse --estimate-time-offset`.
@@ -47,8 +59,8 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let inputs = ReportInputs {
         title: a.title,
-        truth: a.scored.truth,
-        nav: a.scored.nav,
+        truth: a.truth,
+        nav: a.nav,
         sync_report: a.sync_report,
         summary: a.summary,
         std: a.std,
@@ -58,16 +70,20 @@ pub fn run(a: Args) -> Result<()> {
         time_offset: a.time_offset,
         gnss_residuals: None,
         time_offset_truth_s: a.time_offset_truth,
-        outages: parse_outages(&a.scored.outages, 0)?,
+        outages: parse_outages(&a.outages, 0)?,
         ..ReportInputs::default()
     }
     .with_siblings_of_nav();
     let report = navsync_report::build(&inputs)?;
     std::fs::write(&a.output, &report.html)
         .with_context(|| format!("writing {}", a.output.display()))?;
+    let scored = match &report.eval {
+        Some(e) => format!("{} epochs scored, ", e.epochs_compared),
+        None => "no truth, ".into(),
+    };
     println!(
-        "navsync report: {} epochs scored; wrote {} ({:.0} kB)",
-        report.eval.epochs_compared,
+        "navsync report: {scored}verdict: {}; wrote {} ({:.0} kB)",
+        report.verdict.grade.words(),
         a.output.display(),
         report.html.len() as f64 / 1e3
     );

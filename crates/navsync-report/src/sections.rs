@@ -1,0 +1,818 @@
+//! The sections that judge a run from the filter's own statistics (no
+//! reference needed): the verdict, GNSS innovations and NIS, the filter's
+//! σ, the IMU biases against the configured datasheet figures, data gaps
+//! and the predicted drift through them.
+
+use std::fmt::Write as _;
+
+use navsync::Error;
+use navsync::timing::SyncReport;
+use serde_json::Value;
+
+use crate::html::{MAX_POINTS, Rows, WIDTH, escape, row, section};
+use crate::inputs::{FixWeight, rel_s};
+use crate::plot::{self, AXES, BLUE, Band, Figure, GREY, Line, ORANGE, PURPLE, Panel, RED, Shade};
+use crate::quality::{
+    self, AlignEvidence, BIAS_SIGMAS, BiasCheck, DRIFT_MIN_GAP_S, Evidence, FixEvidence,
+    GAP_FACTOR, Grade, NIS_CONF, POSITION_DOF, SyncEvidence, Verdict,
+};
+
+const X_LABEL: &str = "time since the first epoch (s)";
+
+/// One GNSS gap or scheduled outage (times relative to the first epoch).
+#[derive(Clone, Debug)]
+pub(crate) struct Gap {
+    pub start: f64,
+    pub end: f64,
+    pub start_sow: f64,
+    /// "gap in the fixes" or "scheduled outage".
+    pub kind: &'static str,
+    /// Predicted horizontal σ at the start and its peak inside (m).
+    pub drift: Option<(f64, f64)>,
+}
+
+/// The filter's horizontal σ over time, (t, √(σ_n² + σ_e²)) from std.txt.
+pub(crate) fn horizontal_sigma(std: &[Vec<f64>], t0: f64) -> Vec<(f64, f64)> {
+    std.iter()
+        .map(|r| (rel_s(r[0], t0), r[1].hypot(r[2])))
+        .collect()
+}
+
+/// GNSS gaps in `fix_times` (relative, sorted) and the scheduled outages
+/// not already among them, with the predicted drift through those of at
+/// least [`DRIFT_MIN_GAP_S`].
+pub(crate) fn gaps(
+    fix_times: &[f64],
+    outages: &[(f64, f64)],
+    sigma_h: &[(f64, f64)],
+    t0: f64,
+) -> Vec<Gap> {
+    let mut out: Vec<Gap> = quality::find_gaps(fix_times)
+        .into_iter()
+        .map(|(a, b)| Gap {
+            start: a,
+            end: b,
+            start_sow: t0 + a,
+            kind: "gap in the fixes",
+            drift: None,
+        })
+        .collect();
+    for &(a, b) in outages {
+        if !out.iter().any(|g| g.start < b && a < g.end) {
+            out.push(Gap {
+                start: a,
+                end: b,
+                start_sow: t0 + a,
+                kind: "scheduled outage",
+                drift: None,
+            });
+        }
+    }
+    out.sort_by(|x, y| x.start.total_cmp(&y.start));
+    for g in &mut out {
+        if g.end - g.start >= DRIFT_MIN_GAP_S {
+            g.drift = quality::drift_through(sigma_h, g.start, g.end);
+        }
+    }
+    out
+}
+
+/// The fixes' share of the evidence.
+pub(crate) fn fix_evidence(fixes: &[FixWeight]) -> FixEvidence {
+    let mut h_sd: Vec<f64> = fixes.iter().map(|f| f.sd[0].hypot(f.sd[1])).collect();
+    h_sd.sort_by(f64::total_cmp);
+    FixEvidence {
+        fixes: fixes.len(),
+        rejected: fixes.iter().filter(|f| f.status == "rejected").count(),
+        down_weighted: fixes.iter().filter(|f| f.status == "down-weighted").count(),
+        nis: fixes
+            .iter()
+            .filter(|f| f.status != "rejected" && f.nis.is_finite())
+            .map(|f| f.nis)
+            .collect(),
+        median_fix_h_sd_m: h_sd.get(h_sd.len() / 2).copied().unwrap_or(0.0),
+    }
+}
+
+fn triplet(v: Option<&Value>) -> Option<[f64; 3]> {
+    let a = v?.as_array()?;
+    if a.len() != 3 {
+        return None;
+    }
+    Some([a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?])
+}
+
+/// Each bias axis of `imu_err.txt` against summary.json's `imu_model`:
+/// the configured initial bias ± σ(t) relaxing from the configured initial
+/// σ to the bias instability ([`quality::bias_prior_sd`]). Empty when
+/// either is missing (summaries written before `imu_model` existed).
+pub(crate) fn bias_checks(summary: Option<&Value>, imu_err: Option<&[Vec<f64>]>) -> Vec<BiasCheck> {
+    let (Some(model), Some(rows)) = (summary.and_then(|s| s.get("imu_model")), imu_err) else {
+        return Vec::new();
+    };
+    let Some(t_first) = rows.first().map(|r| r[0]) else {
+        return Vec::new();
+    };
+    let tau = model
+        .get("corr_time_s")
+        .and_then(Value::as_f64)
+        .unwrap_or(0.0);
+    let mut out = Vec::new();
+    for (g, (what, unit, key)) in [
+        ("gyro", "deg/h", "gyro_bias"),
+        ("accel", "mGal", "accel_bias"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let get = |name: String| triplet(model.get(&name));
+        let (Some(instab), Some(init_sd), Some(center)) = (
+            get(format!("{key}_sd_{}", unit_key(unit))),
+            get(format!("init_{key}_sd_{}", unit_key(unit))),
+            get(format!("init_{key}_{}", unit_key(unit))),
+        ) else {
+            continue;
+        };
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            let sd_at =
+                |sow: f64| quality::bias_prior_sd(init_sd[a], instab[a], tau, rel_s(sow, t_first));
+            let col = 1 + 3 * g + a;
+            let max_sigmas = rows
+                .iter()
+                .map(|r| (r[col] - center[a]).abs() / sd_at(r[0]))
+                .fold(0.0, f64::max);
+            let Some(last) = rows.last() else { continue };
+            let final_sd = sd_at(last[0]);
+            if final_sd.is_nan() || final_sd <= 0.0 {
+                continue;
+            }
+            out.push(BiasCheck {
+                axis: format!("{what} {axis}"),
+                unit,
+                center: center[a],
+                init_sd: init_sd[a],
+                instability_sd: instab[a],
+                corr_time_s: tau,
+                final_estimate: last[col],
+                final_sd,
+                max_sigmas,
+            });
+        }
+    }
+    out
+}
+
+/// The suffix of summary.json's `imu_model` keys for a unit.
+fn unit_key(unit: &str) -> &'static str {
+    if unit == "deg/h" { "deg_h" } else { "mgal" }
+}
+
+/// The synchronization facts the verdict weighs.
+pub(crate) fn sync_evidence(
+    sync: Option<&SyncReport>,
+    summary: Option<&Value>,
+) -> Option<SyncEvidence> {
+    let max_imu_gap_s = summary
+        .and_then(|s| s.get("stats"))
+        .and_then(|st| st.get("max_gap_s"))
+        .and_then(Value::as_f64);
+    if sync.is_none() && max_imu_gap_s.is_none() {
+        return None;
+    }
+    Some(SyncEvidence {
+        imu_loss_fraction: sync.map(|s| {
+            let lost = s.imu.lost as f64;
+            lost / (s.records.imu as f64 + lost).max(1.0)
+        }),
+        max_stamp_bound_us: sync.and_then(|s| s.stamp_bound_us.max),
+        max_imu_gap_s,
+    })
+}
+
+/// summary.json's `alignment` object, when `fuse --align` ran.
+pub(crate) fn align_evidence(summary: Option<&Value>) -> Option<AlignEvidence> {
+    let a = summary?.get("alignment")?;
+    if a.is_null() {
+        return None;
+    }
+    Some(AlignEvidence {
+        method: a.get("method")?.as_str()?.to_string(),
+        time_sow: a.get("time_sow")?.as_f64()?,
+        yaw_sd_deg: triplet(a.get("att_sd_rad"))?[2].to_degrees(),
+        note: a
+            .get("note")
+            .and_then(Value::as_str)
+            .unwrap_or_default()
+            .to_string(),
+    })
+}
+
+/// The worst predicted drift among the gaps: (length s, σ at its end m).
+pub(crate) fn worst_gap(gaps: &[Gap]) -> Option<(f64, f64)> {
+    gaps.iter()
+        .filter_map(|g| g.drift.map(|(_, peak)| (g.end - g.start, peak)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+fn grade_cell(g: Option<Grade>) -> String {
+    match g {
+        Some(g) => format!(
+            "<span class=\"grade {}\">{}</span>",
+            match g {
+                Grade::Good => "good",
+                Grade::Caution => "caution",
+                Grade::Poor => "poor",
+            },
+            g.words()
+        ),
+        None => "information".into(),
+    }
+}
+
+/// The verdict at the top of the page.
+pub(crate) fn verdict_section(html: &mut String, v: &Verdict, with_truth: bool) {
+    let _ = writeln!(
+        html,
+        "<section id=\"verdict\"><h2>Verdict: {}</h2>",
+        grade_cell(Some(v.grade))
+    );
+    let reasons: Vec<String> = v
+        .checks
+        .iter()
+        .filter(|c| c.grade.is_some_and(|g| g > Grade::Good))
+        .map(|c| format!("{}: {}", escape(c.name), escape(&c.finding)))
+        .collect();
+    if reasons.is_empty() {
+        html.push_str("<p>Every graded check passed.</p>\n");
+    } else {
+        let _ = writeln!(html, "<p>Because of: {}.</p>", reasons.join("; "));
+    }
+    let _ = writeln!(
+        html,
+        "<p class=\"note\">The verdict is the worst grade of the checks below, made from the filter's own statistics{}; each rule and why it has its value is in docs/report.md. Absent files are not assessed.</p>",
+        if with_truth {
+            " (the truth comparison further down is not part of it)"
+        } else {
+            ", without a reference trajectory"
+        }
+    );
+    html.push_str("<table class=\"metrics kv\"><tr><th>check</th><th>grade</th><th>finding</th><th>rule</th></tr>\n");
+    for c in &v.checks {
+        row(
+            html,
+            &[
+                escape(c.name),
+                grade_cell(c.grade),
+                escape(&c.finding),
+                escape(&c.rule),
+            ],
+        );
+    }
+    html.push_str("</table></section>\n");
+}
+
+/// σ of one std.txt component at `t` (the last row at or before it).
+fn sigma_at(std: &[(f64, [f64; 3])], t: f64) -> Option<[f64; 3]> {
+    let k = std.partition_point(|r| r.0 <= t);
+    (k > 0).then(|| std[k - 1].1)
+}
+
+fn stride_pts(pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    let k = plot::stride(pts.len(), MAX_POINTS);
+    pts.into_iter().step_by(k).collect()
+}
+
+/// GNSS innovations N/E/D with ±3σ of the innovation, the rejected and
+/// down-weighted fixes marked.
+pub(crate) fn innovation_section(
+    html: &mut String,
+    fixes: &[FixWeight],
+    std: Option<&[Vec<f64>]>,
+    t0: f64,
+    x1: f64,
+    shades: &[Shade],
+) -> Result<(), Error> {
+    let pos_sd: Vec<(f64, [f64; 3])> = std
+        .unwrap_or_default()
+        .iter()
+        .map(|r| (rel_s(r[0], t0), [r[1], r[2], r[3]]))
+        .collect();
+    let panels = (0..3)
+        .map(|c| {
+            let of = |status: &str| {
+                stride_pts(
+                    fixes
+                        .iter()
+                        .filter(|f| f.status == status)
+                        .map(|f| (rel_s(f.sow, t0), f.innovation[c]))
+                        .collect(),
+                )
+            };
+            // S_ii ≈ σ_fix² + σ_filter² (H = I for a position fix; the lever
+            // arm's attitude term is left out).
+            let band: Vec<(f64, f64, f64)> = stride_pts(
+                fixes
+                    .iter()
+                    .map(|f| {
+                        let t = rel_s(f.sow, t0);
+                        let p = sigma_at(&pos_sd, t).map_or(0.0, |s| s[c]);
+                        (t, 3.0 * f.sd[c].hypot(p))
+                    })
+                    .collect(),
+            )
+            .into_iter()
+            .map(|(t, s)| (t, -s, s))
+            .collect();
+            let mut used = of("used");
+            used.extend(of("drift-accepted"));
+            used.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let mut mags: Vec<f64> = used
+                .iter()
+                .map(|p| p.1.abs())
+                .chain(band.iter().map(|b| b.2))
+                .collect();
+            mags.sort_by(f64::total_cmp);
+            let top = mags
+                .get((mags.len() as f64 * 0.995) as usize)
+                .or(mags.last())
+                .copied()
+                .unwrap_or(1.0)
+                .max(1e-3)
+                * 1.1;
+            Panel {
+                title: format!("GNSS position innovation, {}", ["north", "east", "down"][c]),
+                y_label: "predicted − measured (m)".into(),
+                lines: Vec::new(),
+                bands: vec![Band {
+                    name: if std.is_some() {
+                        "±3√(σ_fix² + σ_filter²)"
+                    } else {
+                        "±3σ_fix (no std.txt)"
+                    }
+                    .into(),
+                    color: GREY,
+                    pts: band,
+                }],
+                dots: vec![
+                    Line {
+                        name: "used".into(),
+                        color: AXES[c],
+                        width: 1,
+                        pts: used,
+                    },
+                    Line {
+                        name: "down-weighted".into(),
+                        color: ORANGE,
+                        width: 3,
+                        pts: of("down-weighted"),
+                    },
+                    Line {
+                        name: "rejected".into(),
+                        color: RED,
+                        width: 3,
+                        pts: of("rejected"),
+                    },
+                ],
+                y_range: Some((-top, top)),
+            }
+        })
+        .collect();
+    let svg = plot::time_series(&Figure {
+        x_label: X_LABEL.into(),
+        x_range: (0.0, x1),
+        shades: shades.to_vec(),
+        panels,
+        width: WIDTH,
+        panel_height: 210,
+    })?;
+    section(
+        html,
+        "innovations",
+        "GNSS innovations",
+        "Innovation = the filter's predicted position − the fix (gnss_residuals.txt). The band is ±3 × the innovation's σ, taken as √(σ_fix² + σ_filter²) with σ_filter from std.txt: about 99.7 % of the dots should fall inside when both σ are right. Fixes beyond the plot's range are drawn at its edge.",
+        &svg,
+    );
+    Ok(())
+}
+
+/// NIS of every position fix, its single-fix 95 % interval, and its
+/// running mean against the interval of a mean over the window.
+pub(crate) fn nis_section(
+    html: &mut String,
+    fixes: &[FixWeight],
+    t0: f64,
+    x1: f64,
+    shades: &[Shade],
+) -> Result<(), Error> {
+    let Some((lo1, hi1)) = quality::nis_mean_interval(1, POSITION_DOF, NIS_CONF) else {
+        return Ok(());
+    };
+    let lg = |x: f64| x.max(1e-6).log10();
+    let kept: Vec<&FixWeight> = fixes
+        .iter()
+        .filter(|f| f.status != "rejected" && f.nis.is_finite())
+        .collect();
+    // Window of the running mean: 1/20 of the fixes, 10 … 100.
+    let w = (kept.len() / 20).clamp(10, 100).min(kept.len().max(1));
+    let mut mean_pts = Vec::new();
+    let mut sum = 0.0;
+    for (i, f) in kept.iter().enumerate() {
+        sum += f.nis;
+        if i >= w {
+            sum -= kept[i - w].nis;
+        }
+        if i + 1 >= w {
+            mean_pts.push((rel_s(f.sow, t0), lg(sum / w as f64)));
+        }
+    }
+    let (lo_w, hi_w) = quality::nis_mean_interval(w, POSITION_DOF, NIS_CONF).unwrap_or((lo1, hi1));
+    let dots = |status: &str| -> Vec<(f64, f64)> {
+        stride_pts(
+            fixes
+                .iter()
+                .filter(|f| f.status == status)
+                .map(|f| (rel_s(f.sow, t0), lg(f.nis)))
+                .collect(),
+        )
+    };
+    let hline = |v: f64| vec![(0.0, lg(v)), (x1, lg(v))];
+    let inside = kept.iter().filter(|f| f.nis >= lo1 && f.nis <= hi1).count();
+    let mean = kept.iter().map(|f| f.nis).sum::<f64>() / kept.len().max(1) as f64;
+    let (lo_n, hi_n) =
+        quality::nis_mean_interval(kept.len(), POSITION_DOF, NIS_CONF).unwrap_or((lo1, hi1));
+    let mut used = dots("used");
+    used.extend(dots("drift-accepted"));
+    used.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let svg = plot::time_series(&Figure {
+        x_label: X_LABEL.into(),
+        x_range: (0.0, x1),
+        shades: shades.to_vec(),
+        panels: vec![Panel {
+            title: "GNSS position NIS at the stated σ, log10 (3 degrees of freedom)".into(),
+            y_label: "log10 NIS".into(),
+            lines: vec![
+                Line {
+                    name: "single-fix 95 % interval".into(),
+                    color: GREY,
+                    width: 2,
+                    pts: hline(lo1),
+                },
+                Line {
+                    name: String::new(),
+                    color: GREY,
+                    width: 2,
+                    pts: hline(hi1),
+                },
+                Line {
+                    name: format!("mean of {w} fixes"),
+                    color: PURPLE,
+                    width: 2,
+                    pts: mean_pts,
+                },
+                Line {
+                    name: format!("95 % of a {w}-fix mean"),
+                    color: BLUE,
+                    width: 1,
+                    pts: hline(lo_w),
+                },
+                Line {
+                    name: String::new(),
+                    color: BLUE,
+                    width: 1,
+                    pts: hline(hi_w),
+                },
+            ],
+            bands: Vec::new(),
+            dots: vec![
+                Line {
+                    name: "NIS (used)".into(),
+                    color: GREY,
+                    width: 1,
+                    pts: used,
+                },
+                Line {
+                    name: "down-weighted".into(),
+                    color: ORANGE,
+                    width: 3,
+                    pts: dots("down-weighted"),
+                },
+                Line {
+                    name: "rejected".into(),
+                    color: RED,
+                    width: 3,
+                    pts: dots("rejected"),
+                },
+            ],
+            y_range: Some((-3.0, 4.0)),
+        }],
+        width: WIDTH,
+        panel_height: 320,
+    })?;
+    let note = format!(
+        "NIS = νᵀS⁻¹ν with the stated fix σ (gnss_residuals.txt): χ²(3) when the filter is consistent. {} of {} fixes not rejected ({:.1} %) inside the single-fix 95 % interval [{lo1:.3}, {hi1:.3}] (95 % expected); mean {mean:.2} against the 95 % interval of a mean over {} fixes [{lo_n:.3}, {hi_n:.3}] (χ²(3n)/n, Bar-Shalom, Li & Kirubarajan 2001, §5.4.2). Consecutive fixes are correlated, so the intervals of means are narrower than they should be. Values beyond 10⁴ or below 10⁻³ are drawn at the edge.",
+        inside,
+        kept.len(),
+        100.0 * inside as f64 / kept.len().max(1) as f64,
+        kept.len()
+    );
+    section(html, "nis", "GNSS NIS (filter consistency)", &note, &svg);
+    Ok(())
+}
+
+/// The filter's σ over time from std.txt.
+pub(crate) fn sigma_section(
+    html: &mut String,
+    std: &Rows,
+    x1: f64,
+    shades: &[Shade],
+    smoothed: bool,
+) -> Result<(), Error> {
+    let groups = [
+        ("position", "m", 1, ["north", "east", "down"]),
+        ("velocity", "m/s", 4, ["north", "east", "down"]),
+        ("attitude", "deg", 7, ["roll", "pitch", "yaw"]),
+        ("gyro bias", "deg/h", 10, ["x", "y", "z"]),
+        ("accelerometer bias", "mGal", 13, ["x", "y", "z"]),
+    ];
+    // The y scale leaves out the first 5 % of the run, where the initial σ
+    // would flatten everything else.
+    let settle = 0.05 * x1;
+    let panels = groups
+        .iter()
+        .map(|(name, unit, c0, comps)| {
+            let top = std
+                .t
+                .iter()
+                .zip(&std.rows)
+                .filter(|(t, _)| **t >= settle)
+                .flat_map(|(_, r)| (0..3).map(move |k| r[c0 + k]))
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max);
+            Panel {
+                title: format!("{name} σ"),
+                y_label: format!("σ ({unit})"),
+                lines: (0..3)
+                    .map(|k| Line {
+                        name: comps[k].to_string(),
+                        color: AXES[k],
+                        width: 2,
+                        pts: std.col(c0 + k, 1.0),
+                    })
+                    .collect(),
+                bands: Vec::new(),
+                dots: Vec::new(),
+                y_range: (top > 0.0).then_some((0.0, 1.15 * top)),
+            }
+        })
+        .collect();
+    let svg = plot::time_series(&Figure {
+        x_label: X_LABEL.into(),
+        x_range: (0.0, x1),
+        shades: shades.to_vec(),
+        panels,
+        width: WIDTH,
+        panel_height: 190,
+    })?;
+    section(
+        html,
+        "filter-sigma",
+        if smoothed {
+            "The smoother's σ"
+        } else {
+            "The filter's σ"
+        },
+        "Standard deviations from std.txt (attitude: the φ-angle σ). The y scale leaves out the first 5 % of the run; larger values are drawn at the top edge. Shaded: GNSS gaps and outages.",
+        &svg,
+    );
+    Ok(())
+}
+
+/// The bias estimates with the configured ±σ and ±3σ, and a table.
+pub(crate) fn imu_envelope_section(
+    html: &mut String,
+    checks: &[BiasCheck],
+    imu_err: &Rows,
+    x1: f64,
+    shades: &[Shade],
+) -> Result<(), Error> {
+    let panels = checks
+        .iter()
+        .map(|b| {
+            let g = usize::from(!b.axis.starts_with("gyro"));
+            let axis = ["x", "y", "z"]
+                .iter()
+                .position(|x| b.axis.ends_with(x))
+                .unwrap_or(0);
+            let env = |k: f64| -> Vec<(f64, f64, f64)> {
+                imu_err
+                    .t
+                    .iter()
+                    .map(|&t| {
+                        let t_run = t - imu_err.t.first().copied().unwrap_or(0.0);
+                        let sd = quality::bias_prior_sd(
+                            b.init_sd,
+                            b.instability_sd,
+                            b.corr_time_s,
+                            t_run,
+                        );
+                        (t, b.center - k * sd, b.center + k * sd)
+                    })
+                    .collect()
+            };
+            Panel {
+                title: format!("{} bias", b.axis),
+                y_label: format!("({})", b.unit),
+                lines: vec![Line {
+                    name: "estimate".into(),
+                    color: AXES[axis],
+                    width: 2,
+                    pts: imu_err.col(1 + 3 * g + axis, 1.0),
+                }],
+                bands: vec![
+                    Band {
+                        name: "configured ±3σ".into(),
+                        color: GREY,
+                        pts: env(BIAS_SIGMAS),
+                    },
+                    Band {
+                        name: "configured ±σ".into(),
+                        color: BLUE,
+                        pts: env(1.0),
+                    },
+                ],
+                dots: Vec::new(),
+                y_range: None,
+            }
+        })
+        .collect();
+    let svg = plot::time_series(&Figure {
+        x_label: X_LABEL.into(),
+        x_range: (0.0, x1),
+        shades: shades.to_vec(),
+        panels,
+        width: WIDTH,
+        panel_height: 170,
+    })?;
+    section(
+        html,
+        "imu-envelope",
+        "IMU biases against the datasheet",
+        "Estimates (imu_err.txt) against the configured spread of each bias about the configured initial bias (initgyrbias, initaccbias): σ(t)² = σ₀² e^(−2t/τ) + σ_GM² (1 − e^(−2t/τ)), from the initial σ (initbgstd, initbastd) toward the bias instability (imunoise gbstd, abstd) with the correlation time τ (corrtime), the first-order Gauss–Markov model the filter uses, as summary.json's imu_model records them.",
+        &svg,
+    );
+    html.push_str("<table class=\"metrics\"><tr><th>bias</th><th>unit</th><th>configured</th><th>σ at start</th><th>instability σ</th><th>σ at end</th><th>final estimate</th><th>final (σ)</th><th>largest (σ)</th><th>inside ±3σ throughout</th></tr>\n");
+    for b in checks {
+        row(
+            html,
+            &[
+                escape(&b.axis),
+                b.unit.into(),
+                format!("{:.1}", b.center),
+                format!("{:.1}", b.init_sd),
+                format!("{:.1}", b.instability_sd),
+                format!("{:.1}", b.final_sd),
+                format!("{:.1}", b.final_estimate),
+                format!("{:+.2}", (b.final_estimate - b.center) / b.final_sd),
+                format!("{:.2}", b.max_sigmas),
+                if b.max_sigmas <= BIAS_SIGMAS {
+                    "yes".into()
+                } else {
+                    "<b>no</b>".into()
+                },
+            ],
+        );
+    }
+    html.push_str("</table>\n");
+    Ok(())
+}
+
+/// The data gaps: GNSS gaps and outages, IMU gaps and losses.
+pub(crate) fn gaps_section(
+    html: &mut String,
+    gaps: &[Gap],
+    median_fix_interval_s: Option<f64>,
+    sync: Option<&SyncReport>,
+    summary: Option<&Value>,
+) {
+    html.push_str("<section id=\"gaps\"><h2>Data gaps</h2>\n");
+    match median_fix_interval_s {
+        Some(m) => {
+            let _ = writeln!(
+                html,
+                "<p class=\"note\">A GNSS gap: consecutive fixes more than {GAP_FACTOR}× the median interval ({m:.3} s) apart; scheduled outages (fixes withheld by <code>fuse --outage-*</code>, summary.json) are listed too.</p>"
+            );
+        }
+        None => html.push_str("<p class=\"note\">No GNSS fix times (neither --gnss nor gnss_residuals.txt): GNSS gaps not assessed.</p>\n"),
+    }
+    if gaps.is_empty() {
+        html.push_str("<p>No GNSS gap.</p>\n");
+    } else {
+        let total: f64 = gaps.iter().map(|g| g.end - g.start).sum();
+        let _ = writeln!(
+            html,
+            "<p>{} GNSS gaps, {total:.1} s in all, longest {:.1} s.</p>",
+            gaps.len(),
+            gaps.iter().map(|g| g.end - g.start).fold(0.0, f64::max)
+        );
+        html.push_str("<details open><summary>GNSS gaps</summary><table class=\"metrics\"><tr><th>start t (s)</th><th>start SOW</th><th>length (s)</th><th>kind</th></tr>\n");
+        for g in gaps.iter().take(200) {
+            row(
+                html,
+                &[
+                    format!("{:.2}", g.start),
+                    format!("{:.3}", g.start_sow),
+                    format!("{:.2}", g.end - g.start),
+                    g.kind.into(),
+                ],
+            );
+        }
+        html.push_str("</table></details>\n");
+        if gaps.len() > 200 {
+            let _ = writeln!(html, "<p>… and {} more.</p>", gaps.len() - 200);
+        }
+    }
+    let stats = summary.and_then(|s| s.get("stats"));
+    let num = |k: &str| stats.and_then(|s| s.get(k)).and_then(Value::as_f64);
+    if let (Some(n), Some(total), Some(max)) = (num("gaps"), num("gap_total_s"), num("max_gap_s")) {
+        let _ = writeln!(
+            html,
+            "<p>IMU: {n:.0} gaps bridged by the fusion (summary.json), {total:.3} s in all, longest {max:.3} s.</p>"
+        );
+    }
+    if let Some(s) = sync {
+        let _ = writeln!(
+            html,
+            "<p>IMU acquisition (sync_report.json): {} samples, {} lost, {} duplicated, {} unstamped.</p>",
+            s.records.imu, s.imu.lost, s.imu.duplicated, s.imu.unstamped
+        );
+    }
+    html.push_str("</section>\n");
+}
+
+/// The filter's predicted horizontal σ through each gap of a few seconds.
+pub(crate) fn drift_section(html: &mut String, gaps: &[Gap], forward: bool, have_std: bool) {
+    html.push_str("<section id=\"outage-drift\"><h2>Predicted drift through GNSS gaps</h2>\n");
+    let _ = writeln!(
+        html,
+        "<p class=\"note\">For every GNSS gap or outage of at least {DRIFT_MIN_GAP_S} s: the {} horizontal σ √(σ_n² + σ_e²) at the gap's start and its largest value inside it (just before the first fix after it). This is the drift the filter predicts with its error model; the NIS section shows whether that model fits the data.</p>",
+        if forward {
+            "forward filter's (forward/std.txt, not the smoother's)"
+        } else {
+            "filter's (std.txt)"
+        }
+    );
+    let long: Vec<&Gap> = gaps
+        .iter()
+        .filter(|g| g.end - g.start >= DRIFT_MIN_GAP_S)
+        .collect();
+    if !have_std {
+        html.push_str("<p>No std.txt: not assessed.</p>\n");
+    } else if long.is_empty() {
+        let _ = writeln!(html, "<p>No GNSS gap of {DRIFT_MIN_GAP_S} s or more.</p>");
+    } else {
+        html.push_str("<table class=\"metrics\"><tr><th>start t (s)</th><th>length (s)</th><th>kind</th><th>σ_h at start (m)</th><th>σ_h at end (m)</th><th>growth</th><th>3σ_h at end (m)</th></tr>\n");
+        for g in long.iter().take(200) {
+            let cells = match g.drift {
+                Some((a, b)) => [
+                    format!("{a:.3}"),
+                    format!("{b:.3}"),
+                    format!("×{:.1}", b / a.max(1e-9)),
+                    format!("{:.2}", 3.0 * b),
+                ],
+                None => ["–".into(), "–".into(), "–".into(), "–".into()],
+            };
+            let mut r = vec![
+                format!("{:.2}", g.start),
+                format!("{:.2}", g.end - g.start),
+                g.kind.to_string(),
+            ];
+            r.extend(cells);
+            row(html, &r);
+        }
+        html.push_str("</table>\n");
+    }
+    html.push_str("</section>\n");
+}
+
+/// Gathers the evidence.
+pub(crate) struct Gathered<'a> {
+    pub fixes: &'a [FixWeight],
+    pub std: Option<&'a [Vec<f64>]>,
+    pub biases: Vec<BiasCheck>,
+    pub sync: Option<&'a SyncReport>,
+    pub summary: Option<&'a Value>,
+    pub time_offset: Option<&'a [Vec<f64>]>,
+    pub gaps: &'a [Gap],
+}
+
+pub(crate) fn evidence(g: Gathered) -> Evidence {
+    Evidence {
+        fixes: (!g.fixes.is_empty()).then(|| fix_evidence(g.fixes)),
+        final_h_sd_m: g.std.and_then(|s| s.last()).map(|r| r[1].hypot(r[2])),
+        biases: g.biases,
+        sync: sync_evidence(g.sync, g.summary),
+        time_offset_sd_s: g.time_offset.and_then(|r| r.last()).map(|r| r[2]),
+        alignment: align_evidence(g.summary),
+        worst_gap: worst_gap(g.gaps),
+    }
+}
