@@ -390,6 +390,30 @@ fn receipt_envelope(path: &Path) -> Result<f64> {
     Ok(c0)
 }
 
+/// Raises the yaw σ column (deg; std.txt: sow, position σ ×3, velocity
+/// σ ×3, attitude σ ×3, …) to at least `yaw_sd_deg` on every line.
+fn pin_yaw_sd(path: &Path, yaw_sd_deg: f64) -> Result<()> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut out = String::with_capacity(text.len());
+    for line in text.lines() {
+        let mut f: Vec<&str> = line.split_whitespace().collect();
+        let pinned;
+        if !line.starts_with('#')
+            && let Some(v) = f.get(9).and_then(|v| v.parse::<f64>().ok())
+            && v < yaw_sd_deg
+        {
+            pinned = format!("{yaw_sd_deg:.8}");
+            f[9] = &pinned;
+            out.push_str(&f.join(" "));
+        } else {
+            out.push_str(line);
+        }
+        out.push('\n');
+    }
+    std::fs::write(path, out).with_context(|| format!("writing {}", path.display()))
+}
+
 /// The report stage: one HTML page of the run. `truth` is optional for
 /// `navsync process`; `ReportInputs::truth` is required in this version,
 /// so without one the build fails and the caller warns (when it becomes
@@ -487,6 +511,9 @@ pub fn run(a: Args) -> Result<()> {
             hold_when_unobservable: true,
             search_range_s: 0.5,
         }),
+        // The solution on GPS time (IMU stamps + the estimated offset):
+        // the GNSS receiver's clock is the trusted one.
+        output_gnss_time: estimate_offset,
         align: Some(AlignOptions {
             min_speed_mps: a.align_min_speed,
             ..AlignOptions::default()
@@ -520,6 +547,15 @@ pub fn run(a: Args) -> Result<()> {
         );
         eprintln!("navsync process: WARNING: {w}");
         warnings.push(w);
+        // The linearised filter lets the heading σ shrink from 180° while
+        // standing (a small-angle error model cannot hold an unknown
+        // heading): the files keep the alignment's 180°.
+        for dir in [fuse_dir.clone(), fuse_dir.join("forward")] {
+            let p = dir.join("std.txt");
+            if p.is_file() {
+                pin_yaw_sd(&p, al.att_sd_rad[2].to_degrees())?;
+            }
+        }
     }
 
     println!("[3/4] report");
