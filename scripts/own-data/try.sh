@@ -10,7 +10,8 @@ N=$(realpath "${NAVSYNC:-target/release/navsync}")
 W=$(realpath -m "${1:-target/own-data}")
 S=$(realpath "${DATA:-../shared/data/comma2k19-example1}")
 rm -rf "$W" && mkdir -p "$W"
-hrms() { "$N" eval --truth "$1" --nav "$2" | awk '/position horizontal/ {print $3}'; }
+# RMS column of eval's first table (a smoothed solution's comparison follows it).
+hrms() { "$N" eval --truth "$1" --nav "$2" | awk '/position horizontal/ {print $4; exit}'; }
 
 echo "## (a) simulated drive: test-track 400 s, ADIS16465, seed 1"
 "$N" simulate --quiet --internal-rate 0 --scenario test-track --duration 400 \
@@ -41,14 +42,24 @@ sed -i -e 's/^  arw_deg_sqrt_h: .*/  arw_deg_sqrt_h: 0.5/' \
   -e 's/^  gyro_scale_ppm: .*/  gyro_scale_ppm: 5000.0/' \
   -e 's/^  accel_scale_ppm: .*/  accel_scale_ppm: 5000.0/' \
   -e 's/^gnss_default_sd_m: .*/gnss_default_sd_m: [1.0, 1.0, 2.0]/' "$W/phone.yaml"
+cp "$W/phone.yaml" "$W/phone-edited.yaml"
+"$N" init --preset icm20602 --output "$W/phone.yaml" --force > /dev/null
+mv "$W/phone.yaml" "$W/untouched.yaml" && mv "$W/phone-edited.yaml" "$W/phone.yaml"
 # The reference, for scoring only (comma's pose, camera frame, boot + 357697.8495 s).
 python3 docs/reduced/comma2k19_to_kfgins.py "$S" "$W/comma-ref" > /dev/null
 "$N" process "$S/gnss_ublox.csv" "$S/imu.csv" --sensor "$W/phone.yaml" \
   --output "$W/comma-run" --truth "$W/comma-ref/truth.nav" > "$W/comma-run.log" 2>&1
 grep -E "time offset \(|alignment:" "$W/comma-run.log" | head -2
+# The same with the untouched icm20602 sheet (what docs/own-data.md §5 is about).
+"$N" process "$S/gnss_ublox.csv" "$S/imu.csv" --sensor "$W/untouched.yaml" \
+  --output "$W/comma-untouched" > "$W/comma-untouched.log" 2>&1
+# Initialised from the reference, on the reference's clock (docs/smoothing.md).
+"$N" fuse --config "$W/comma-ref/kf-gins.yaml" --output "$W/comma-ref-init" > /dev/null 2>&1
+"$N" fuse --config "$W/comma-ref/kf-gins.yaml" --output "$W/comma-ref-init-smooth" --smooth > /dev/null 2>&1
 echo "| solution | horizontal RMS (m) | 3D RMS (m) | yaw RMS (deg) |"
 echo "|---|---|---|---|"
-for s in fuse/navresult.nav fuse/forward/navresult.nav; do
-  "$N" eval --truth "$W/comma-ref/truth.nav" --nav "$W/comma-run/$s" |
-    awk -v s="$s" '/position horizontal/ {h=$3} /position 3D/ {d=$3} /^yaw/ {y=$3} END {printf "| %s | %s | %s | %s |\n", s, h, d, y}'
+for s in comma-run/fuse/navresult.nav comma-run/fuse/forward/navresult.nav \
+  comma-untouched/fuse/navresult.nav comma-ref-init/navresult.nav comma-ref-init-smooth/navresult.nav; do
+  "$N" eval --truth "$W/comma-ref/truth.nav" --nav "$W/$s" |
+    awk -v s="$s" '/position horizontal/ && !h {h=$4} /position 3D/ && !d {d=$4} /^yaw/ && !y {y=$3} END {printf "| %s | %s | %s | %s |\n", s, h, d, y}'
 done
