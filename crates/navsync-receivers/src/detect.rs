@@ -162,7 +162,7 @@ fn detect_text(buf: &[u8]) -> Option<FileKind> {
         v[v.len() / 2]
     };
     let dt = median(rows.windows(2).map(|w| w[1][0] - w[0][0]).collect());
-    if !(dt > 0.0) {
+    if !(dt.is_finite() && dt > 0.0) {
         return None;
     }
     match n {

@@ -326,7 +326,8 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
     let overlap = is.first_sow < gs.last_sow && gs.first_sow < is.last_sow;
     let mut software_timed = false;
     if !overlap {
-        let Some(receipt) = &receipt else {
+        let receipt = receipt.as_ref().filter(|_| matches!(ik, FileKind::RateCsv));
+        let Some(receipt) = receipt else {
             bail!(
                 "the IMU log's times ({:.3} … {:.3} s) and the GNSS fixes' GPS times of week ({:.3} … {:.3} s) \
                  do not overlap: the IMU log is not on GPS time, and no receive times relate the two clocks. \
@@ -516,6 +517,9 @@ pub fn run(a: Args) -> Result<()> {
         output_gnss_time: estimate_offset,
         align: Some(AlignOptions {
             min_speed_mps: a.align_min_speed,
+            // Heading from the course is the vehicle's: turned by the
+            // IMU's mounting yaw.
+            mount_yaw_rad: sheet.mount_deg[2].to_radians(),
             ..AlignOptions::default()
         }),
         smooth: (!a.no_smooth).then_some(SmoothOptions::default()),
