@@ -328,10 +328,12 @@ impl SensorSheet {
             return Err(Error::config(
                 path,
                 format!(
-                    "missing key{} {}: give them, or 'imu.preset' (one of {}) to fill them",
+                    "missing key{} {}: give {}, or 'imu.preset' (one of {}) to fill {}",
                     if list.len() > 1 { "s" } else { "" },
                     list.join(", "),
-                    PRESETS.join(", ")
+                    if list.len() > 1 { "them" } else { "it" },
+                    PRESETS.join(", "),
+                    if list.len() > 1 { "them" } else { "it" },
                 ),
             ));
         }
@@ -476,10 +478,16 @@ fn yaml_error(path: &Path, e: &serde_saphyr::Error) -> Error {
     // source snippet may follow).
     let text = e.to_string();
     let msg = text.lines().next().unwrap_or("invalid YAML").trim();
-    let msg = msg
-        .trim_start_matches("error: ")
-        .replace('`', "'")
-        .to_string();
+    let mut msg = msg.trim_start_matches("error: ").replace('`', "'");
+    // The location is given as the line number: drop its repetition.
+    if msg.starts_with("line ")
+        && let Some(i) = msg.find(": ")
+    {
+        msg = msg[i + 2..].to_string();
+    }
+    // A missing key has no line of its own (the location is the end of
+    // its mapping).
+    let line = line.filter(|_| !msg.contains("missing field"));
     let hint = if msg.contains("unknown field") {
         ""
     } else if msg.contains("missing field") {
