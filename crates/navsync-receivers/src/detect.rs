@@ -225,7 +225,7 @@ mod tests {
             Some(FileKind::RigLog)
         );
         let nmea = b"$GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*47\r\n\
-$GPGGA,123520,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*4F\r\n";
+$GPGGA,123520,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*4D\r\n";
         assert_eq!(detect_bytes(nmea), Some(FileKind::Nmea));
         let rate = b"# t gyro accel\n0.000 0.01 0.0 0.0 0.1 0.0 -9.8\n0.005 0.01 0.0 0.0 0.1 0.0 -9.8\n0.010 0.01 0.0 0.0 0.1 0.0 -9.8\n";
         assert_eq!(detect_bytes(rate), Some(FileKind::RateCsv));
