@@ -17,6 +17,13 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Write a commented sensor sheet (sensor.yaml) for `navsync process`:
+    /// IMU figures, antenna lever arm, mounting, odometer.
+    Init(commands::init::Args),
+    /// A whole drive in one command: raw logs (a rig log, or a receiver log
+    /// and an IMU log) + sensor sheet → sync/convert, align, fuse, smooth,
+    /// report, in one folder.
+    Process(commands::process::Args),
     /// The whole chain on a built-in drive (simulate → sync → fuse → eval)
     /// and its HTML report: navsync-demo/report.html.
     Demo(commands::demo::Args),
@@ -62,6 +69,8 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Init(a) => commands::init::run(a),
+        Command::Process(a) => commands::process::run(a),
         Command::Demo(a) => commands::demo::run(a),
         Command::Report(a) => commands::report::run(a),
         Command::Fuse(a) => commands::fuse::run(a),

@@ -18,6 +18,7 @@
 //! (`nmea`, later serial and PPS) stay optional for library users.
 
 pub mod convert;
+pub mod detect;
 pub mod fixes;
 pub mod geoid;
 pub mod gnsstime;

@@ -30,6 +30,7 @@ pub mod montecarlo;
 pub mod offset_search;
 pub mod pipeline;
 pub mod reduced;
+pub mod sensor;
 pub mod sim;
 pub mod smoother;
 pub mod stats;

@@ -473,22 +473,32 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!("configuration notes:");
         print_diagnostics(&diag, 20);
     }
+    execute(&cfg, &opts, &out_dir)?;
+    Ok(())
+}
+
+/// Runs the fusion of `cfg` into `out_dir` (the smoothed solution there and
+/// the forward one in `forward/` with [`FuseOptions::smooth`]), writes
+/// summary.json and prints what was done (also `navsync process`'s fuse stage).
+pub fn execute(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    out_dir: &std::path::Path,
+) -> Result<pipeline::FuseSummary> {
     let pb = crate::progress::bar("fuse");
-    let mut sink = KfGinsSink::create(&out_dir, opts.week)?;
+    let mut sink = KfGinsSink::create(out_dir, opts.week)?;
     let summary = if opts.smooth.is_some() {
         let fwd_dir = out_dir.join("forward");
         let mut forward = KfGinsSink::create(&fwd_dir, opts.week)?;
         let mut fwd_opts = opts.clone();
-        fwd_opts.output_dir = Some(out_dir.clone());
-        let summary = pipeline::run_smoothed(&cfg, &fwd_opts, &mut forward, &mut sink, &mut |f| {
+        fwd_opts.output_dir = Some(out_dir.to_path_buf());
+        let summary = pipeline::run_smoothed(cfg, &fwd_opts, &mut forward, &mut sink, &mut |f| {
             crate::progress::set(&pb, f)
         })?;
         forward.finish()?;
         summary
     } else {
-        pipeline::run(&cfg, &opts, &mut sink, &mut |f| {
-            crate::progress::set(&pb, f)
-        })?
+        pipeline::run(cfg, opts, &mut sink, &mut |f| crate::progress::set(&pb, f))?
     };
     sink.finish()?;
     pb.finish_and_clear();
@@ -606,7 +616,7 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!("{} reported conditions:", summary.diagnostics.total);
         print_diagnostics(&summary.diagnostics, 10);
     }
-    Ok(())
+    Ok(summary)
 }
 
 #[cfg(test)]

@@ -191,7 +191,7 @@ pub fn run(args: Args) -> Result<()> {
 
 use navsync::timing::report::Implausible;
 
-fn print_summary(r: &SyncReport, wall: f64, out_dir: &Path) {
+pub fn print_summary(r: &SyncReport, wall: f64, out_dir: &Path) {
     let mode = if r.causal {
         "causal"
     } else {

@@ -1,0 +1,300 @@
+//! `navsync init` and `navsync process`: a whole simulated drive from its
+//! raw rig log and a sensor sheet, and the bad inputs a new user meets.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{bin, run, temp_dir};
+
+/// Simulates a short drive (ADIS16465, test track: a standstill, then
+/// driving) and returns its folder.
+fn simulate(dir: &Path, scenario: &str, duration_s: &str) -> PathBuf {
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin().args([
+        "simulate",
+        "--quiet",
+        "--internal-rate",
+        "0",
+        "--scenario",
+        scenario,
+        "--duration",
+        duration_s,
+        "--imu-grade",
+        "adis16465",
+        "--seed",
+        "3",
+        "--output",
+        sim.to_str().unwrap(),
+    ]));
+    assert!(ok, "{err}");
+    sim
+}
+
+/// `navsync init --preset adis16465`, with the simulator's lever arm.
+fn sheet(dir: &Path) -> PathBuf {
+    let p = dir.join("sensor.yaml");
+    let (ok, out, err) = run(bin().args([
+        "init",
+        "--preset",
+        "adis16465",
+        "--output",
+        p.to_str().unwrap(),
+    ]));
+    assert!(ok && out.contains("wrote"), "{out}{err}");
+    // The simulator's antenna: 0.1 m forward, 0.5 m right, 1.2 m up.
+    let text = std::fs::read_to_string(&p).unwrap().replace(
+        "antenna_lever_m: [0.0, 0.0, 0.0]",
+        "antenna_lever_m: [0.1, 0.5, -1.2]",
+    );
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn json(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+/// Horizontal RMS of `nav` against `truth` (`navsync eval --json`).
+fn horizontal_rms(truth: &Path, nav: &Path, dir: &Path) -> f64 {
+    let j = dir.join("eval.json");
+    let (ok, _, err) = run(bin().args([
+        "eval",
+        "--truth",
+        truth.to_str().unwrap(),
+        "--nav",
+        nav.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+    ]));
+    assert!(ok, "{err}");
+    json(&j)["pos_horizontal_m"]["rms"].as_f64().unwrap()
+}
+
+#[test]
+fn init_then_process_a_simulated_rig_log() {
+    let d = temp_dir("sim-drive");
+    let sim = simulate(&d, "test-track", "400");
+    let sensor = sheet(&d);
+    let out = d.join("out");
+    let (ok, stdout, err) = run(bin().args([
+        "process",
+        sim.join("rig.csv").to_str().unwrap(),
+        "--sensor",
+        sensor.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+        "--truth",
+        sim.join("truth.nav").to_str().unwrap(),
+    ]));
+    assert!(ok, "{stdout}{err}");
+    assert!(stdout.contains("rig log (rig-log v1)"), "{stdout}");
+    for f in [
+        "sync/imu.txt",
+        "sync/gnss.txt",
+        "sync/sync_report.json",
+        "fuse/navresult.nav",
+        "fuse/std.txt",
+        "fuse/summary.json",
+        "fuse/forward/navresult.nav",
+        "report.html",
+        "process.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing:\n{stdout}{err}");
+    }
+    let p = json(&out.join("process.json"));
+    assert!(p["alignment"]["method"].is_string(), "{p}");
+    let rms = p["eval"]["pos_horizontal_m"]["rms"].as_f64().unwrap();
+    // Bound: the fixes' own horizontal σ (RTK-like, 1.8 cm per axis here):
+    // a smoothed solution through 1 Hz fixes must not be worse than the
+    // fixes themselves.
+    let sd_h = 0.018f64.hypot(0.018);
+    assert!(rms < sd_h, "horizontal RMS {rms} m ≥ fix σ {sd_h} m");
+    // And close to a run that knew the initial state (the simulator's
+    // configuration, from truth), forward filter against forward filter.
+    let (ok, _, err) = run(bin().args([
+        "fuse",
+        "--config",
+        sim.join("kf-gins.yaml").to_str().unwrap(),
+        "--output",
+        d.join("truth-init").to_str().unwrap(),
+    ]));
+    assert!(ok, "{err}");
+    let from_truth = horizontal_rms(
+        &sim.join("truth.nav"),
+        &d.join("truth-init/navresult.nav"),
+        &d,
+    );
+    let aligned = horizontal_rms(
+        &sim.join("truth.nav"),
+        &out.join("fuse/forward/navresult.nav"),
+        &d,
+    );
+    assert!(
+        aligned < 1.5 * from_truth + 0.005,
+        "aligned forward {aligned} m vs truth-initialised {from_truth} m"
+    );
+}
+
+#[test]
+fn init_refuses_to_overwrite() {
+    let d = temp_dir("init-overwrite");
+    let p = d.join("sensor.yaml");
+    std::fs::write(&p, "mine").unwrap();
+    let (ok, _, err) = run(bin().args(["init", "--output", p.to_str().unwrap()]));
+    assert!(
+        !ok && err.contains("exists") && err.contains("--force"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&p).unwrap(), "mine");
+    let (ok, _, err) = run(bin().args(["init", "--output", p.to_str().unwrap(), "--force"]));
+    assert!(ok, "{err}");
+    let (ok, _, err) = run(bin().args([
+        "init",
+        "--output",
+        p.to_str().unwrap(),
+        "--force",
+        "--preset",
+        "mems",
+    ]));
+    assert!(!ok && err.contains("unknown IMU preset 'mems'"), "{err}");
+}
+
+/// A process run expected to fail: its stderr.
+fn process_fails(raw: &[&Path], sensor: &Path, out: &Path) -> String {
+    let mut cmd = bin();
+    cmd.arg("process");
+    for r in raw {
+        cmd.arg(r);
+    }
+    cmd.args([
+        "--sensor",
+        sensor.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+    ]);
+    let (ok, stdout, err) = run(&mut cmd);
+    assert!(!ok, "should fail:\n{stdout}{err}");
+    err
+}
+
+#[test]
+fn sensor_sheet_with_misspelled_or_missing_key() {
+    let d = temp_dir("bad-sheet");
+    let sensor = sheet(&d);
+    let text = std::fs::read_to_string(&sensor).unwrap();
+    let rig = d.join("rig.csv");
+    std::fs::write(&rig, "# rig-log v1\n").unwrap();
+
+    let bad = d.join("misspelled.yaml");
+    std::fs::write(&bad, text.replace("mount_deg:", "mount_degs:")).unwrap();
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("mount_deg:"))
+        .unwrap()
+        + 1;
+    let err = process_fails(&[&rig], &bad, &d.join("o1"));
+    assert!(
+        err.contains(&format!("misspelled.yaml:{line}:"))
+            && err.contains("unknown field 'mount_degs'")
+            && err.contains("mount_deg,"),
+        "{err}"
+    );
+
+    let bad = d.join("missing.yaml");
+    let without: String = text
+        .lines()
+        .filter(|l| !l.starts_with("antenna_lever_m"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&bad, without).unwrap();
+    let err = process_fails(&[&rig], &bad, &d.join("o2"));
+    assert!(
+        err.contains("missing.yaml") && err.contains("missing field 'antenna_lever_m'"),
+        "{err}"
+    );
+}
+
+#[test]
+fn drive_that_never_moves_says_heading_is_unobservable() {
+    let d = temp_dir("static");
+    let sim = simulate(&d, "static", "60");
+    let sensor = sheet(&d);
+    let out = d.join("out");
+    let (ok, stdout, err) = run(bin().args([
+        "process",
+        sim.join("rig.csv").to_str().unwrap(),
+        "--sensor",
+        sensor.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+        "--no-smooth",
+    ]));
+    assert!(ok, "{stdout}{err}");
+    assert!(err.contains("heading is unobservable"), "{err}");
+    // No reference: the run goes on without the report and says why.
+    assert!(err.contains("report.html not written"), "{err}");
+    assert!(out.join("fuse/navresult.nav").is_file());
+    // The heading σ written with the solution stays large (std.txt: sow,
+    // position, velocity, attitude σ in deg).
+    let std = std::fs::read_to_string(out.join("fuse/std.txt")).unwrap();
+    let last = std.lines().last().unwrap();
+    let yaw_sd: f64 = last.split_whitespace().nth(9).unwrap().parse().unwrap();
+    assert!(yaw_sd >= 179.0, "yaw σ {yaw_sd}° at the end: {last}");
+    let p = json(&out.join("process.json"));
+    assert_eq!(p["alignment"]["method"], "no-motion", "{p}");
+}
+
+#[test]
+fn drive_without_gnss_and_unknown_files_are_refused() {
+    let d = temp_dir("no-gnss");
+    let sim = simulate(&d, "test-track", "30");
+    let sensor = sheet(&d);
+    let rig = std::fs::read_to_string(sim.join("rig.csv")).unwrap();
+    let no_gnss = d.join("no-gnss.csv");
+    let kept: String = rig
+        .lines()
+        .filter(|l| !l.starts_with("gnss,"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&no_gnss, kept).unwrap();
+    let err = process_fails(&[&no_gnss], &sensor, &d.join("o1"));
+    // With 1PPS, sync stops first (pulses cannot be labelled without
+    // fixes); without, process does: either names the file and the cause.
+    assert!(
+        err.contains("no-gnss.csv")
+            && (err.contains("no GNSS fix") || err.contains("no gnss messages")),
+        "{err}"
+    );
+    // The same log without its 1PPS lines (software sync).
+    let no_pps = d.join("no-gnss-no-pps.csv");
+    let kept: String = rig
+        .lines()
+        .filter(|l| !l.starts_with("gnss,") && !l.starts_with("pps,"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&no_pps, kept).unwrap();
+    let err = process_fails(&[&no_pps], &sensor, &d.join("o1b"));
+    assert!(
+        err.contains("no-gnss-no-pps.csv") && err.to_lowercase().contains("gnss"),
+        "{err}"
+    );
+
+    // An IMU log alone: no GNSS log among the inputs.
+    let imu_csv = d.join("imu.csv");
+    std::fs::write(
+        &imu_csv,
+        "0.000 0.01 0 0 0.1 0 -9.8\n0.005 0.01 0 0 0.1 0 -9.8\n0.010 0.01 0 0 0.1 0 -9.8\n",
+    )
+    .unwrap();
+    let err = process_fails(&[&imu_csv], &sensor, &d.join("o2"));
+    assert!(err.contains("no GNSS log among the inputs"), "{err}");
+
+    let junk = d.join("notes.txt");
+    std::fs::write(&junk, "my drive on tuesday\nit rained\n").unwrap();
+    let err = process_fails(&[&junk, &imu_csv], &sensor, &d.join("o3"));
+    assert!(
+        err.contains("notes.txt") && err.contains("unknown file type") && err.contains("rig log"),
+        "{err}"
+    );
+}

@@ -1,0 +1,708 @@
+//! The sensor sheet (`sensor.yaml`): what a user knows about their rig —
+//! the IMU's datasheet figures (or a named preset), the GNSS antenna lever
+//! arm, the IMU's mounting in the vehicle, an optional odometer — and
+//! nothing about the drive itself. `navsync init` writes a commented
+//! template ([`template`]); `navsync process` reads it ([`SensorSheet::load`])
+//! and turns it, with the data's own start time and rate, into the
+//! KF-GINS-style configuration of the filter ([`SensorSheet::kfgins_config`])
+//! whose initial state is then found by alignment ([`crate::align`]).
+//!
+//! Units are in the key names (datasheet units: deg/√h, m/s/√h, deg/h,
+//! mGal, ppm), as on an IMU datasheet; they are converted to SI here, the
+//! same way KF-GINS converts its `imunoise` block (`kf_gins.cpp`,
+//! `loadConfig`).
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use crate::attitude::Euler;
+use crate::earth::Geodetic;
+use crate::error::Error;
+use crate::filter::{ImuNoise, InitialStd};
+use crate::ins::ImuErrors;
+use crate::io::config::KfGinsConfig;
+use crate::sim::ImuSpec;
+
+const DEG: f64 = std::f64::consts::PI / 180.0;
+
+/// The IMU presets a sheet may name (those of `navsync simulate`).
+pub const PRESETS: &[&str] = &["adis16465", "icm20602", "tactical", "nav"];
+
+/// The IMU block keys and what each holds (for messages and the template).
+pub const IMU_KEYS: &[(&str, &str)] = &[
+    ("preset", "a named IMU whose figures fill the keys left out"),
+    (
+        "rate_hz",
+        "IMU output rate (Hz); measured from the data if left out",
+    ),
+    ("arw_deg_sqrt_h", "gyro angle random walk (deg/√h)"),
+    (
+        "vrw_mps_sqrt_h",
+        "accelerometer velocity random walk (m/s/√h)",
+    ),
+    (
+        "gyro_bias_instability_deg_h",
+        "gyro in-run bias instability (deg/h)",
+    ),
+    (
+        "accel_bias_instability_mgal",
+        "accelerometer in-run bias instability (mGal; 1 mGal = 1e-5 m/s² ≈ 1 µg)",
+    ),
+    ("gyro_turn_on_bias_deg_h", "gyro turn-on bias σ (deg/h)"),
+    (
+        "accel_turn_on_bias_mgal",
+        "accelerometer turn-on bias σ (mGal)",
+    ),
+    ("gyro_scale_ppm", "gyro scale-factor error σ (ppm)"),
+    (
+        "accel_scale_ppm",
+        "accelerometer scale-factor error σ (ppm)",
+    ),
+    (
+        "bias_corr_time_s",
+        "correlation time of the bias instability (s)",
+    ),
+];
+
+/// Top-level keys.
+pub const SHEET_KEYS: &[(&str, &str)] = &[
+    ("imu", "the IMU block (a preset or the datasheet figures)"),
+    (
+        "antenna_lever_m",
+        "[forward, right, down] from the IMU to the GNSS antenna, IMU axes (m)",
+    ),
+    (
+        "mount_deg",
+        "[roll, pitch, yaw] of the IMU in the vehicle (deg)",
+    ),
+    (
+        "nhc",
+        "apply the non-holonomic constraint of a land vehicle (true/false)",
+    ),
+    ("odometer", "an optional wheel/CAN speed input"),
+    ("time_offset", "optional IMU–GNSS time-offset estimation"),
+    (
+        "gnss_default_sd_m",
+        "[north, east, down] σ (m) for fixes that carry none",
+    ),
+];
+
+/// The IMU as the sheet gives it: every figure optional here, so that a
+/// preset can fill what is left out; [`SensorSheet::imu_figures`] says
+/// which is missing.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImuSheet {
+    pub preset: Option<String>,
+    pub rate_hz: Option<f64>,
+    pub arw_deg_sqrt_h: Option<f64>,
+    pub vrw_mps_sqrt_h: Option<f64>,
+    pub gyro_bias_instability_deg_h: Option<f64>,
+    pub accel_bias_instability_mgal: Option<f64>,
+    pub gyro_turn_on_bias_deg_h: Option<f64>,
+    pub accel_turn_on_bias_mgal: Option<f64>,
+    pub gyro_scale_ppm: Option<f64>,
+    pub accel_scale_ppm: Option<f64>,
+    pub bias_corr_time_s: Option<f64>,
+}
+
+/// The IMU's figures, all present (datasheet units).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ImuFigures {
+    pub arw_deg_sqrt_h: f64,
+    pub vrw_mps_sqrt_h: f64,
+    pub gyro_bias_instability_deg_h: f64,
+    pub accel_bias_instability_mgal: f64,
+    pub gyro_turn_on_bias_deg_h: f64,
+    pub accel_turn_on_bias_mgal: f64,
+    pub gyro_scale_ppm: f64,
+    pub accel_scale_ppm: f64,
+    pub bias_corr_time_s: f64,
+}
+
+impl ImuFigures {
+    /// A preset's figures (the simulator's presets, `crate::sim::imu`).
+    pub fn preset(name: &str) -> Option<ImuFigures> {
+        if !PRESETS.contains(&name) {
+            return None;
+        }
+        let s = ImuSpec::preset(name)?;
+        Some(ImuFigures {
+            arw_deg_sqrt_h: s.gyro.arw_deg_sqrt_h,
+            vrw_mps_sqrt_h: s.accel.vrw_mps_sqrt_h,
+            gyro_bias_instability_deg_h: s.gyro.bias_instability_deg_h,
+            accel_bias_instability_mgal: s.accel.bias_instability_mgal,
+            gyro_turn_on_bias_deg_h: s.gyro.turn_on_bias_deg_h,
+            accel_turn_on_bias_mgal: s.accel.turn_on_bias_mgal,
+            gyro_scale_ppm: s.gyro.scale_ppm,
+            accel_scale_ppm: s.accel.scale_ppm,
+            bias_corr_time_s: s.gm_corr_time_s,
+        })
+    }
+
+    fn as_pairs(&self) -> [(&'static str, f64); 9] {
+        [
+            ("arw_deg_sqrt_h", self.arw_deg_sqrt_h),
+            ("vrw_mps_sqrt_h", self.vrw_mps_sqrt_h),
+            (
+                "gyro_bias_instability_deg_h",
+                self.gyro_bias_instability_deg_h,
+            ),
+            (
+                "accel_bias_instability_mgal",
+                self.accel_bias_instability_mgal,
+            ),
+            ("gyro_turn_on_bias_deg_h", self.gyro_turn_on_bias_deg_h),
+            ("accel_turn_on_bias_mgal", self.accel_turn_on_bias_mgal),
+            ("gyro_scale_ppm", self.gyro_scale_ppm),
+            ("accel_scale_ppm", self.accel_scale_ppm),
+            ("bias_corr_time_s", self.bias_corr_time_s),
+        ]
+    }
+
+    /// The filter's process noise (SI), as KF-GINS converts its `imunoise`
+    /// block; floors keep a "perfect" figure from making the filter
+    /// over-confident (as `navsync simulate`'s configuration does).
+    pub fn noise(&self) -> ImuNoise {
+        ImuNoise {
+            arw: Vector3::repeat(self.arw_deg_sqrt_h.max(1e-3) * DEG / 60.0),
+            vrw: Vector3::repeat(self.vrw_mps_sqrt_h.max(1e-3) / 60.0),
+            gyro_bias_sd: Vector3::repeat(
+                self.gyro_bias_instability_deg_h.max(0.01) * DEG / 3600.0,
+            ),
+            accel_bias_sd: Vector3::repeat(self.accel_bias_instability_mgal.max(1.0) * 1e-5),
+            gyro_scale_sd: Vector3::repeat(self.gyro_scale_ppm.max(10.0) * 1e-6),
+            accel_scale_sd: Vector3::repeat(self.accel_scale_ppm.max(10.0) * 1e-6),
+            corr_time_s: self.bias_corr_time_s,
+        }
+    }
+
+    /// Initial σ of the IMU error states: the turn-on bias and the
+    /// instability together (root sum of squares), the scale factors.
+    pub fn initial_std(&self) -> InitialStd {
+        let bg = self
+            .gyro_turn_on_bias_deg_h
+            .hypot(self.gyro_bias_instability_deg_h)
+            .max(0.01);
+        let ba = self
+            .accel_turn_on_bias_mgal
+            .hypot(self.accel_bias_instability_mgal)
+            .max(1.0);
+        InitialStd {
+            // Position, velocity and attitude σ come from the alignment.
+            pos: Vector3::repeat(1.0),
+            vel: Vector3::repeat(0.1),
+            att: Vector3::repeat(DEG),
+            gyro_bias: Vector3::repeat(bg * DEG / 3600.0),
+            accel_bias: Vector3::repeat(ba * 1e-5),
+            gyro_scale: Vector3::repeat(self.gyro_scale_ppm.max(10.0) * 1e-6),
+            accel_scale: Vector3::repeat(self.accel_scale_ppm.max(10.0) * 1e-6),
+        }
+    }
+}
+
+/// Wheel or CAN speed input.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OdometerSheet {
+    /// Speed file: `sow speed_mps` per line, GPS seconds of week; relative
+    /// paths are relative to the sheet's folder.
+    pub file: PathBuf,
+    /// Speed σ (m/s).
+    #[serde(default = "default_odo_sd")]
+    pub sd_mps: f64,
+    /// Lever arm from the IMU to the wheel contact point, IMU axes (m).
+    #[serde(default)]
+    pub lever_m: [f64; 3],
+}
+
+fn default_odo_sd() -> f64 {
+    0.1
+}
+
+/// IMU–GNSS time-offset estimation.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeOffsetSheet {
+    /// Estimate the offset as a filter state.
+    pub estimate: bool,
+    /// Initial σ of the offset (s).
+    #[serde(default = "default_offset_sd")]
+    pub sd_s: f64,
+}
+
+fn default_offset_sd() -> f64 {
+    0.2
+}
+
+/// A sensor sheet as written.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorSheet {
+    pub imu: ImuSheet,
+    pub antenna_lever_m: [f64; 3],
+    #[serde(default)]
+    pub mount_deg: [f64; 3],
+    #[serde(default)]
+    pub nhc: bool,
+    #[serde(default)]
+    pub odometer: Option<OdometerSheet>,
+    #[serde(default)]
+    pub time_offset: Option<TimeOffsetSheet>,
+    #[serde(default = "default_gnss_sd")]
+    pub gnss_default_sd_m: [f64; 3],
+}
+
+fn default_gnss_sd() -> [f64; 3] {
+    [5.0, 5.0, 10.0]
+}
+
+impl SensorSheet {
+    /// Reads and checks a sheet; relative paths in it (the odometer file)
+    /// become relative to the sheet's folder.
+    pub fn load(path: &Path) -> Result<SensorSheet, Error> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let mut s = Self::parse(&text, path)?;
+        if let (Some(o), Some(dir)) = (&mut s.odometer, path.parent())
+            && o.file.is_relative()
+        {
+            o.file = dir.join(&o.file);
+        }
+        Ok(s)
+    }
+
+    /// Parses and checks YAML text; `path` names it in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<SensorSheet, Error> {
+        let sheet: SensorSheet = serde_saphyr::from_str(text).map_err(|e| yaml_error(path, &e))?;
+        sheet.validate(path)?;
+        Ok(sheet)
+    }
+
+    /// The IMU figures: the preset's, overridden by any figure given; an
+    /// error names the keys still missing.
+    pub fn imu_figures(&self, path: &Path) -> Result<ImuFigures, Error> {
+        let i = &self.imu;
+        let base = match &i.preset {
+            Some(p) => Some(ImuFigures::preset(p).ok_or_else(|| {
+                Error::config(
+                    path,
+                    format!(
+                        "key 'imu.preset': unknown IMU '{p}'; expected one of {}",
+                        PRESETS.join(", ")
+                    ),
+                )
+            })?),
+            None => None,
+        };
+        let given = [
+            i.arw_deg_sqrt_h,
+            i.vrw_mps_sqrt_h,
+            i.gyro_bias_instability_deg_h,
+            i.accel_bias_instability_mgal,
+            i.gyro_turn_on_bias_deg_h,
+            i.accel_turn_on_bias_mgal,
+            i.gyro_scale_ppm,
+            i.accel_scale_ppm,
+            i.bias_corr_time_s,
+        ];
+        let base_vals = base.map(|b| b.as_pairs().map(|p| p.1));
+        let mut v = [0.0; 9];
+        let mut missing = Vec::new();
+        for k in 0..9 {
+            match (given[k], base_vals) {
+                (Some(x), _) => v[k] = x,
+                (None, Some(b)) => v[k] = b[k],
+                // The correlation time has a usual value; the others are
+                // the IMU's own.
+                (None, None) if k == 8 => v[k] = 3600.0,
+                (None, None) => missing.push(IMU_KEYS[k + 2]),
+            }
+        }
+        if !missing.is_empty() {
+            let list: Vec<String> = missing
+                .iter()
+                .map(|(k, what)| format!("'imu.{k}' ({what})"))
+                .collect();
+            return Err(Error::config(
+                path,
+                format!(
+                    "missing key{} {}: give {}, or 'imu.preset' (one of {}) to fill {}",
+                    if list.len() > 1 { "s" } else { "" },
+                    list.join(", "),
+                    if list.len() > 1 { "them" } else { "it" },
+                    PRESETS.join(", "),
+                    if list.len() > 1 { "them" } else { "it" },
+                ),
+            ));
+        }
+        let f = ImuFigures {
+            arw_deg_sqrt_h: v[0],
+            vrw_mps_sqrt_h: v[1],
+            gyro_bias_instability_deg_h: v[2],
+            accel_bias_instability_mgal: v[3],
+            gyro_turn_on_bias_deg_h: v[4],
+            accel_turn_on_bias_mgal: v[5],
+            gyro_scale_ppm: v[6],
+            accel_scale_ppm: v[7],
+            bias_corr_time_s: v[8],
+        };
+        for (k, x) in f.as_pairs() {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(Error::config(
+                    path,
+                    format!("key 'imu.{k}' must be a number ≥ 0, got {x}"),
+                ));
+            }
+        }
+        if f.bias_corr_time_s <= 0.0 {
+            return Err(Error::config(
+                path,
+                format!(
+                    "key 'imu.bias_corr_time_s' must be positive, got {}",
+                    f.bias_corr_time_s
+                ),
+            ));
+        }
+        Ok(f)
+    }
+
+    /// Checks every value (the IMU figures included).
+    pub fn validate(&self, path: &Path) -> Result<(), Error> {
+        self.imu_figures(path)?;
+        let bad = |k: &str, m: String| Err(Error::config(path, format!("key '{k}' {m}")));
+        if let Some(r) = self.imu.rate_hz
+            && !(r.is_finite() && r > 0.0)
+        {
+            return bad("imu.rate_hz", format!("must be positive (Hz), got {r}"));
+        }
+        for (k, v, lim) in [
+            ("antenna_lever_m", self.antenna_lever_m, 100.0),
+            ("mount_deg", self.mount_deg, 180.0),
+            ("gnss_default_sd_m", self.gnss_default_sd_m, 1e4),
+        ] {
+            if v.iter().any(|x| !(x.is_finite() && x.abs() <= lim)) {
+                return bad(k, format!("must hold 3 numbers within ±{lim}, got {v:?}"));
+            }
+        }
+        if self.gnss_default_sd_m.iter().any(|x| *x <= 0.0) {
+            return bad(
+                "gnss_default_sd_m",
+                format!("must be positive, got {:?}", self.gnss_default_sd_m),
+            );
+        }
+        if let Some(o) = &self.odometer {
+            if !(o.sd_mps.is_finite() && o.sd_mps > 0.0) {
+                return bad(
+                    "odometer.sd_mps",
+                    format!("must be positive, got {}", o.sd_mps),
+                );
+            }
+            if o.lever_m
+                .iter()
+                .any(|x| !(x.is_finite() && x.abs() <= 100.0))
+            {
+                return bad(
+                    "odometer.lever_m",
+                    format!("must hold 3 numbers within ±100 m, got {:?}", o.lever_m),
+                );
+            }
+        }
+        if let Some(t) = &self.time_offset
+            && !(t.sd_s.is_finite() && t.sd_s > 0.0)
+        {
+            return bad(
+                "time_offset.sd_s",
+                format!("must be positive, got {}", t.sd_s),
+            );
+        }
+        Ok(())
+    }
+
+    /// The filter configuration for a drive: the sheet's IMU and lever arm,
+    /// the data's files, rate and start time; no initial state (the run
+    /// aligns itself: `init_state_given` is false).
+    pub fn kfgins_config(
+        &self,
+        sheet_path: &Path,
+        data: &DriveFiles,
+    ) -> Result<KfGinsConfig, Error> {
+        let fig = self.imu_figures(sheet_path)?;
+        let imu_rate_hz = self.imu.rate_hz.or(data.imu_rate_hz).ok_or_else(|| {
+            Error::config(
+                sheet_path,
+                "the IMU rate could not be measured from the data: give 'imu.rate_hz' (Hz)",
+            )
+        })?;
+        Ok(KfGinsConfig {
+            path: sheet_path.to_path_buf(),
+            imu_path: data.imu.clone(),
+            gnss_path: data.gnss.clone(),
+            output_path: data.output.clone(),
+            imu_columns: 7,
+            imu_rate_hz,
+            start_sow: data.start_sow,
+            end_sow: None,
+            init_pos: Geodetic::from_deg(0.0, 0.0, 0.0),
+            init_vel: Vector3::zeros(),
+            init_att: Euler::from_deg(0.0, 0.0, 0.0),
+            init_state_given: false,
+            init_imu: ImuErrors::default(),
+            init_std: fig.initial_std(),
+            noise: fig.noise(),
+            antenna_lever: Vector3::from(self.antenna_lever_m),
+        })
+    }
+}
+
+/// The KF-GINS files of one drive and what is known of them.
+#[derive(Clone, Debug)]
+pub struct DriveFiles {
+    /// IMU increments (KF-GINS, 7 columns).
+    pub imu: PathBuf,
+    /// GNSS fixes (KF-GINS, 7 or 13 columns).
+    pub gnss: PathBuf,
+    /// Output folder of the fusion.
+    pub output: PathBuf,
+    /// IMU rate measured from the data (Hz).
+    pub imu_rate_hz: Option<f64>,
+    /// First IMU epoch (GPS seconds of week).
+    pub start_sow: f64,
+}
+
+/// A YAML error as "the file, line N: what; expected keys …".
+fn yaml_error(path: &Path, e: &serde_saphyr::Error) -> Error {
+    let line = e.location().map(|l| l.line()).filter(|l| *l > 0);
+    // The first line of the rendered message is the message itself (a
+    // source snippet may follow).
+    let text = e.to_string();
+    let msg = text.lines().next().unwrap_or("invalid YAML").trim();
+    let mut msg = msg.trim_start_matches("error: ").replace('`', "'");
+    // The location is given as the line number: drop its repetition.
+    if msg.starts_with("line ")
+        && let Some(i) = msg.find(": ")
+    {
+        msg = msg[i + 2..].to_string();
+    }
+    // A missing key has no line of its own (the location is the end of
+    // its mapping).
+    let line = line.filter(|_| !msg.contains("missing field"));
+    let hint = if msg.contains("unknown field") {
+        ""
+    } else if msg.contains("missing field") {
+        if msg.contains("'imu'") || msg.contains("'antenna_lever_m'") {
+            " (a sensor sheet needs 'imu' and 'antenna_lever_m'; `navsync init` writes one)"
+        } else {
+            ""
+        }
+    } else {
+        " (`navsync init` writes a commented template)"
+    };
+    match line {
+        Some(l) => Error::Parse {
+            path: path.to_path_buf(),
+            line: l as usize,
+            msg: format!("{msg}{hint}"),
+        },
+        None => Error::config(path, format!("{msg}{hint}")),
+    }
+}
+
+/// The commented template `navsync init` writes, with the figures of
+/// `preset` filled in (all keys active, so that the user edits numbers,
+/// not comments).
+pub fn template(preset: &str) -> Result<String, Error> {
+    let f = ImuFigures::preset(preset).ok_or_else(|| {
+        Error::Invalid(format!(
+            "unknown IMU preset '{preset}': expected one of {}",
+            PRESETS.join(", ")
+        ))
+    })?;
+    let mut y = String::new();
+    y.push_str(&format!(
+        "# navsync sensor sheet (written by `navsync init --preset {preset}`).\n\
+         # What you know about your rig; nothing about the drive. Used by\n\
+         #   navsync process RAW... --sensor THIS_FILE --output DIR\n\
+         # Axes: IMU body frame forward-right-down (FRD). Units are in the key names.\n\
+         \n\
+         # The IMU. Either name a preset and delete the figures below\n\
+         # (presets: {}), or give every figure from your IMU's datasheet;\n\
+         # figures given override the preset's.\n\
+         imu:\n\
+         \x20 # preset: {preset}\n\
+         \x20 # IMU output rate (Hz). Left out: measured from the data.\n\
+         \x20 # rate_hz: 200\n",
+        PRESETS.join(", ")
+    ));
+    let comment = |k: &str| -> &str {
+        IMU_KEYS
+            .iter()
+            .find(|p| p.0 == k)
+            .map(|p| p.1)
+            .unwrap_or("")
+    };
+    for (k, v) in f.as_pairs() {
+        y.push_str(&format!("  # {}\n  {k}: {}\n", comment(k), fmt_num(v)));
+    }
+    y.push_str(
+        "\n# Lever arm from the IMU to the GNSS antenna phase centre, in the IMU's\n\
+         # axes [forward, right, down] (m). An antenna above the IMU has a negative\n\
+         # down component. Measure it to a few cm: errors go straight into position.\n\
+         antenna_lever_m: [0.0, 0.0, 0.0]\n\
+         \n\
+         # Land vehicle: apply the non-holonomic constraint (no sideways or vertical\n\
+         # velocity of the vehicle). Needs the IMU's mounting angles below.\n\
+         nhc: false\n\
+         # IMU-to-vehicle mounting [roll, pitch, yaw] (deg): the rotation from the\n\
+         # vehicle's axes to the IMU's. 0 when the IMU's x axis points forward.\n\
+         mount_deg: [0.0, 0.0, 0.0]\n\
+         \n\
+         # Optional wheel or CAN speed: a file of `sow speed_mps` lines (GPS seconds\n\
+         # of week, m/s; relative to this sheet's folder), its σ (m/s) and the lever\n\
+         # arm from the IMU to the wheel contact point [forward, right, down] (m).\n\
+         # odometer:\n\
+         #   file: speed.txt\n\
+         #   sd_mps: 0.1\n\
+         #   lever_m: [0.0, 0.0, 0.0]\n\
+         \n\
+         # Optional: estimate the IMU-GNSS time offset (GNSS time tag minus true time\n\
+         # of validity) as a filter state, with this initial σ (s). Worth it with\n\
+         # software time stamps (no 1PPS), e.g. an IMU and a receiver on USB.\n\
+         # time_offset:\n\
+         #   estimate: true\n\
+         #   sd_s: 0.2\n\
+         \n\
+         # σ [north, east, down] (m) given to fixes that carry none (NMEA without GST).\n\
+         gnss_default_sd_m: [5.0, 5.0, 10.0]\n",
+    );
+    Ok(y)
+}
+
+/// Shortest round-trip form of a number (so a template parses back to the
+/// very values it was written from).
+fn fmt_num(x: f64) -> String {
+    let s = format!("{x:?}");
+    if s.contains('.') || s.contains('e') {
+        s
+    } else {
+        format!("{s}.0")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn template_round_trips_to_the_preset() {
+        for p in PRESETS {
+            let t = template(p).unwrap();
+            let s = SensorSheet::parse(&t, Path::new("sensor.yaml")).unwrap();
+            let f = s.imu_figures(Path::new("sensor.yaml")).unwrap();
+            assert_eq!(f, ImuFigures::preset(p).unwrap(), "{p}");
+            assert_eq!(s.antenna_lever_m, [0.0; 3]);
+            assert!(!s.nhc && s.odometer.is_none() && s.time_offset.is_none());
+        }
+        // The preset alone gives the same figures.
+        let s = SensorSheet::parse(
+            "imu:\n  preset: icm20602\nantenna_lever_m: [0.1, 0, -0.5]\n",
+            Path::new("s.yaml"),
+        )
+        .unwrap();
+        let f = s.imu_figures(Path::new("s.yaml")).unwrap();
+        assert_eq!(f, ImuFigures::preset("icm20602").unwrap());
+        // ICM-20602 datasheet ARW 0.24°/√h → rad/√s.
+        assert!((f.noise().arw.x - 0.24 * DEG / 60.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn misspelled_key_names_file_line_and_expected_keys() {
+        let t = template("adis16465")
+            .unwrap()
+            .replace("antenna_lever_m:", "antena_lever_m:");
+        let e = SensorSheet::parse(&t, Path::new("my/sensor.yaml"))
+            .unwrap_err()
+            .to_string();
+        let line = t
+            .lines()
+            .position(|l| l.starts_with("antena_lever_m"))
+            .unwrap()
+            + 1;
+        assert!(e.contains("my/sensor.yaml"), "{e}");
+        assert!(e.contains("'antena_lever_m'"), "{e}");
+        assert!(e.contains(&format!(":{line}:")), "line {line}: {e}");
+        assert!(
+            e.contains("antenna_lever_m") && e.contains("mount_deg"),
+            "{e}"
+        );
+
+        let t = template("adis16465")
+            .unwrap()
+            .replace("  vrw_mps_sqrt_h:", "  vrw_mps_sqrth:");
+        let e = SensorSheet::parse(&t, Path::new("s.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("'vrw_mps_sqrth'") && e.contains("vrw_mps_sqrt_h"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn missing_keys_are_named() {
+        let e = SensorSheet::parse("imu:\n  preset: nav\n", Path::new("s.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("s.yaml") && e.contains("antenna_lever_m"), "{e}");
+
+        // No preset: every figure is needed, and the missing one is named.
+        let t = template("adis16465")
+            .unwrap()
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("vrw_mps_sqrt_h"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let e = SensorSheet::parse(&t, Path::new("s.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("s.yaml") && e.contains("missing key 'imu.vrw_mps_sqrt_h'"),
+            "{e}"
+        );
+        let e = SensorSheet::parse(
+            "imu:\n  preset: adis1646\nantenna_lever_m: [0, 0, 0]\n",
+            Path::new("s.yaml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("unknown IMU 'adis1646'"), "{e}");
+        let e = SensorSheet::parse(
+            "imu:\n  preset: nav\n  rate_hz: -5\nantenna_lever_m: [0, 0, 0]\n",
+            Path::new("s.yaml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("'imu.rate_hz' must be positive"), "{e}");
+    }
+
+    #[test]
+    fn config_has_no_initial_state_and_si_noise() {
+        let s = SensorSheet::parse(&template("adis16465").unwrap(), Path::new("s.yaml")).unwrap();
+        let d = DriveFiles {
+            imu: "imu.txt".into(),
+            gnss: "gnss.txt".into(),
+            output: "out".into(),
+            imu_rate_hz: Some(200.0),
+            start_sow: 100.0,
+        };
+        let c = s.kfgins_config(Path::new("s.yaml"), &d).unwrap();
+        assert!(!c.init_state_given);
+        assert_eq!(c.imu_rate_hz, 200.0);
+        assert_eq!(c.start_sow, 100.0);
+        // 2 deg/h bias instability → rad/s.
+        assert!((c.noise.gyro_bias_sd.x - 2.0 * DEG / 3600.0).abs() < 1e-18);
+        // Initial gyro bias σ: turn-on 10 deg/h with 2 deg/h in-run.
+        assert!((c.init_std.gyro_bias.x - 104f64.sqrt() * DEG / 3600.0).abs() < 1e-15);
+    }
+}
