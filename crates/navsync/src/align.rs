@@ -777,12 +777,27 @@ impl Aligner {
         } else {
             10f64.to_radians()
         };
-        let nav = NavState::new(
+        let mut nav = NavState::new(
             fix.time,
             fix.pos,
             Vector3::zeros(),
             &Euler::new(roll, pitch, 0.0),
         );
+        // The fix is the antenna's: move to the IMU with heading 0. The
+        // horizontal part of the lever arm then points anywhere: its length
+        // joins the horizontal σ.
+        let lever_b = Vector3::from(self.opts.lever_b);
+        let le = LocalEarth::new(&nav.pos, &nav.vel);
+        let d = le.ned_to_geodetic_delta(&(nav.c_nb() * lever_b));
+        nav.pos.lat_rad -= d.x;
+        nav.pos.lon_rad -= d.y;
+        nav.pos.h_m -= d.z;
+        let lever_h_m = (nav.c_nb() * lever_b).xy().norm();
+        let pos_sd_m = [
+            fix.pos_sd.x.hypot(lever_h_m),
+            fix.pos_sd.y.hypot(lever_h_m),
+            fix.pos_sd.z,
+        ];
         self.done = true;
         let levelling_coupling =
             (standstill_s > 0.0).then(|| levelling_tilt_coupling(&nav.c_nb(), GAMMA_E));
@@ -798,7 +813,7 @@ impl Aligner {
             },
             attitude_deg: [roll.to_degrees(), pitch.to_degrees(), 0.0],
             att_sd_rad: [tilt_sd, tilt_sd, std::f64::consts::PI],
-            pos_sd_m: fix.pos_sd.into(),
+            pos_sd_m,
             vel_sd_mps: [0.1; 3],
             method: AlignMethod::NoMotion,
             standstill_s,

@@ -629,6 +629,8 @@ struct Core {
     /// Standstill detection, and the still window awaiting its updates.
     still_detector: Option<StandstillDetector>,
     still_window: Option<StillWindow>,
+    /// The initial heading is unknown (σ > 90°): yaw is never updated.
+    heading_unknown: bool,
     kin: Kinematics,
     next_nhc: GpsTime,
     next_odo: GpsTime,
@@ -739,6 +741,7 @@ impl Core {
             last_w_ib: Vector3::zeros(),
             still_detector: cfg.standstill.map(StandstillDetector::new),
             still_window: None,
+            heading_unknown: cfg.init_std.att.z > std::f64::consts::FRAC_PI_2,
             kin: Kinematics::default(),
             next_nhc: cfg.init_nav.time,
             next_odo: cfg.init_nav.time,
@@ -1004,6 +1007,16 @@ impl Core {
         frozen: &[usize],
     ) -> Result<UpdateOutcome, Error> {
         self.propagate();
+        // An unknown heading (σ beyond 90°: a vehicle that never moved) is
+        // held: a small-angle error model linearised at a wrong heading
+        // would let the lever arm or gyrocompassing terms "observe" it.
+        let held_yaw;
+        let frozen = if self.heading_unknown {
+            held_yaw = [frozen, &[crate::filter::idx::ATT + 2]].concat();
+            &held_yaw[..]
+        } else {
+            frozen
+        };
         let outcome = self
             .filter
             .update_with_frozen(obs, gate, frozen, self.nav.time)?;

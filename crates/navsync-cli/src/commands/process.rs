@@ -391,34 +391,8 @@ fn receipt_envelope(path: &Path) -> Result<f64> {
     Ok(c0)
 }
 
-/// Raises the yaw σ column (deg; std.txt: sow, position σ ×3, velocity
-/// σ ×3, attitude σ ×3, …) to at least `yaw_sd_deg` on every line.
-fn pin_yaw_sd(path: &Path, yaw_sd_deg: f64) -> Result<()> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut out = String::with_capacity(text.len());
-    for line in text.lines() {
-        let mut f: Vec<&str> = line.split_whitespace().collect();
-        let pinned;
-        if !line.starts_with('#')
-            && let Some(v) = f.get(9).and_then(|v| v.parse::<f64>().ok())
-            && v < yaw_sd_deg
-        {
-            pinned = format!("{yaw_sd_deg:.8}");
-            f[9] = &pinned;
-            out.push_str(&f.join(" "));
-        } else {
-            out.push_str(line);
-        }
-        out.push('\n');
-    }
-    std::fs::write(path, out).with_context(|| format!("writing {}", path.display()))
-}
-
-/// The report stage: one HTML page of the run. `truth` is optional for
-/// `navsync process`; `ReportInputs::truth` is required in this version,
-/// so without one the build fails and the caller warns (when it becomes
-/// an `Option`, pass `truth.map(Path::to_path_buf)`).
+/// The report stage: one HTML page of the run, scored against `truth`
+/// when given, judged from the filter's own statistics otherwise.
 fn write_report(
     fuse_dir: &Path,
     truth: Option<&Path>,
@@ -426,12 +400,9 @@ fn write_report(
     gnss: &Path,
     html: &Path,
 ) -> Result<()> {
-    let Some(truth) = truth else {
-        bail!("this version's report needs a reference trajectory (--truth FILE)");
-    };
     let inputs = ReportInputs {
         title: "navsync process".into(),
-        truth: truth.to_path_buf(),
+        truth: truth.map(Path::to_path_buf),
         nav: fuse_dir.join("navresult.nav"),
         sync_report: sync_report.map(Path::to_path_buf),
         gnss: Some(gnss.to_path_buf()),
@@ -440,11 +411,15 @@ fn write_report(
     .with_siblings_of_nav();
     let report = navsync_report::build(&inputs)?;
     std::fs::write(html, &report.html).with_context(|| format!("writing {}", html.display()))?;
+    let scored = match &report.eval {
+        Some(e) => format!("{} epochs scored", e.epochs_compared),
+        None => "no reference".into(),
+    };
     println!(
-        "  wrote {} ({:.0} kB, {} epochs scored)",
+        "  wrote {} ({:.0} kB, {scored}); verdict: {}",
         html.display(),
         report.html.len() as f64 / 1e3,
-        report.eval.epochs_compared
+        report.verdict.grade.words()
     );
     Ok(())
 }
@@ -523,6 +498,8 @@ pub fn run(a: Args) -> Result<()> {
             ..AlignOptions::default()
         }),
         smooth: (!a.no_smooth).then_some(SmoothOptions::default()),
+        // Zero-velocity and zero-angular-rate updates at stops.
+        standstill: Some(navsync::filter::standstill::StandstillOptions::default()),
         ..FuseOptions::default()
     };
     opts.validate()?;
@@ -551,15 +528,8 @@ pub fn run(a: Args) -> Result<()> {
         );
         eprintln!("navsync process: WARNING: {w}");
         warnings.push(w);
-        // The linearised filter lets the heading σ shrink from 180° while
-        // standing (a small-angle error model cannot hold an unknown
-        // heading): the files keep the alignment's 180°.
-        for dir in [fuse_dir.clone(), fuse_dir.join("forward")] {
-            let p = dir.join("std.txt");
-            if p.is_file() {
-                pin_yaw_sd(&p, al.att_sd_rad[2].to_degrees())?;
-            }
-        }
+        // The filter holds the unknown heading (its σ stays at the
+        // alignment's 180° in fuse/std.txt).
     }
 
     println!("[3/4] report");
