@@ -6,122 +6,13 @@
 //! Every threshold is a named constant below with the reason for its value;
 //! the report page prints the same rules beside each finding.
 
-/// ln Γ(x) for x > 0: Lanczos approximation, g = 7, 9 coefficients
-/// (Lanczos, SIAM J. Numer. Anal. B 1, 1964; coefficients as in Press et
-/// al., "Numerical Recipes", 3rd ed., §6.1), relative error < 1e-14.
-fn ln_gamma(x: f64) -> f64 {
-    const G: f64 = 7.0;
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    if x < 0.5 {
-        // Reflection: Γ(x) Γ(1 − x) = π / sin(πx).
-        let pi = std::f64::consts::PI;
-        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
-    }
-    let x = x - 1.0;
-    let mut a = C[0];
-    let t = x + G + 0.5;
-    for (i, c) in C.iter().enumerate().skip(1) {
-        a += c / (x + i as f64);
-    }
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
-}
+pub use navsync::stats::{chi2_cdf, gamma_p, ln_gamma};
 
-/// The regularized lower incomplete gamma function P(a, x): its series
-/// for x < a + 1, else 1 − Q(a, x) from Q's continued fraction by the
-/// modified Lentz method (Press et al., "Numerical Recipes", 3rd ed.,
-/// §6.2; Abramowitz & Stegun 6.5.29 and 6.5.31).
-pub fn gamma_p(a: f64, x: f64) -> f64 {
-    if a.is_nan() || a <= 0.0 || x.is_nan() {
-        return f64::NAN;
-    }
-    if x <= 0.0 {
-        return 0.0;
-    }
-    if x.is_infinite() {
-        return 1.0;
-    }
-    let front = (-x + a * x.ln() - ln_gamma(a)).exp();
-    if x < a + 1.0 {
-        let (mut term, mut sum, mut ap) = (1.0 / a, 1.0 / a, a);
-        for _ in 0..10_000 {
-            ap += 1.0;
-            term *= x / ap;
-            sum += term;
-            if term.abs() < sum.abs() * 1e-16 {
-                break;
-            }
-        }
-        (sum * front).min(1.0)
-    } else {
-        let tiny = 1e-300;
-        let mut b = x + 1.0 - a;
-        let mut c = 1.0 / tiny;
-        let mut d = 1.0 / b;
-        let mut h = d;
-        for i in 1..10_000 {
-            let an = -(i as f64) * (i as f64 - a);
-            b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let delta = d * c;
-            h *= delta;
-            if (delta - 1.0).abs() < 1e-16 {
-                break;
-            }
-        }
-        (1.0 - front * h).max(0.0)
-    }
-}
-
-/// The χ² distribution function with `dof` degrees of freedom:
-/// F(x) = P(dof/2, x/2).
-pub fn chi2_cdf(x: f64, dof: f64) -> f64 {
-    gamma_p(0.5 * dof, 0.5 * x)
-}
-
-/// The `p` quantile of χ²(`dof`): F⁻¹(p) by bisection on [`chi2_cdf`]
-/// (monotonic), to a relative 1e-13. `None` unless 0 < p < 1 and dof > 0.
+/// The `p` quantile of χ²(`dof`) ([`navsync::stats::chi2_quantile`]);
+/// `None` unless 0 < p < 1 and dof > 0.
 pub fn chi2_quantile(p: f64, dof: f64) -> Option<f64> {
-    if !(p > 0.0 && p < 1.0 && dof > 0.0 && dof.is_finite()) {
-        return None;
-    }
-    let mut hi = dof.max(1.0);
-    while chi2_cdf(hi, dof) < p {
-        hi *= 2.0;
-        if !hi.is_finite() {
-            return None;
-        }
-    }
-    let mut lo = 0.0;
-    for _ in 0..400 {
-        let mid = 0.5 * (lo + hi);
-        if chi2_cdf(mid, dof) < p {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if hi - lo <= 1e-13 * hi {
-            break;
-        }
-    }
-    Some(0.5 * (lo + hi))
+    (p > 0.0 && p < 1.0 && dof > 0.0 && dof.is_finite())
+        .then(|| navsync::stats::chi2_quantile(p, dof))
 }
 
 /// Degrees of freedom of a GNSS position fix's NIS (north, east, down).

@@ -87,6 +87,16 @@ pub enum AlignMethod {
     NoMotion,
 }
 
+/// Moves a state placed at the GNSS antenna to the IMU: minus the lever
+/// arm (body FRD, m) resolved with the state's attitude.
+fn antenna_to_imu(nav: &mut NavState, lever_b: &[f64; 3]) {
+    let le = LocalEarth::new(&nav.pos, &nav.vel);
+    let d = le.ned_to_geodetic_delta(&(nav.c_nb() * Vector3::from(*lever_b)));
+    nav.pos.lat_rad -= d.x;
+    nav.pos.lon_rad -= d.y;
+    nav.pos.h_m -= d.z;
+}
+
 /// How far back fixes are kept for velocities from positions (s).
 const BASELINE_HISTORY_S: f64 = 2.0;
 
@@ -530,11 +540,7 @@ impl Aligner {
             .hypot(o.heading_allowance_rad);
         let att = Euler::new(roll, pitch, yaw);
         let mut nav = NavState::new(w.fix0.time, w.fix0.pos, w.v0, &att);
-        let le = LocalEarth::new(&nav.pos, &nav.vel);
-        let d = le.ned_to_geodetic_delta(&(nav.c_nb() * Vector3::from(o.lever_b)));
-        nav.pos.lat_rad -= d.x;
-        nav.pos.lon_rad -= d.y;
-        nav.pos.h_m -= d.z;
+        antenna_to_imu(&mut nav, &o.lever_b);
         let speed0 = w.v0.x.hypot(w.v0.y);
         let note = format!(
             "aligned in motion over {span_s:.1} s of GNSS velocity ({} fixes) from {:.3} s of week, {speed0:.1} m/s: roll {:.2}°, pitch {:.2}°, heading {:.2}° ± {:.2}° from GNSS course{}; the run starts at the window's start (aligned at {:.3} s of week)",
@@ -655,11 +661,7 @@ impl Aligner {
         let att = Euler::new(roll, pitch, yaw);
         let mut nav = NavState::new(fix.time, fix.pos, *v, &att);
         // The fix is the antenna's: move to the IMU.
-        let le = LocalEarth::new(&nav.pos, &nav.vel);
-        let d = le.ned_to_geodetic_delta(&(nav.c_nb() * Vector3::from(o.lever_b)));
-        nav.pos.lat_rad -= d.x;
-        nav.pos.lon_rad -= d.y;
-        nav.pos.h_m -= d.z;
+        antenna_to_imu(&mut nav, &o.lever_b);
         // Levelled over a standstill: the vehicle stood with this attitude
         // turned back by the rotation since (about the down axis, which is
         // −f̂ of the standstill in the body frame). Start the run at the
@@ -676,10 +678,7 @@ impl Aligner {
                 Vector3::zeros(),
                 &Euler::new(roll, pitch, yaw0),
             );
-            let d = le.ned_to_geodetic_delta(&(n0.c_nb() * Vector3::from(o.lever_b)));
-            n0.pos.lat_rad -= d.x;
-            n0.pos.lon_rad -= d.y;
-            n0.pos.h_m -= d.z;
+            antenna_to_imu(&mut n0, &o.lever_b);
             start_s = fix.time.seconds_since(sf.time);
             nav = n0;
         }
@@ -786,13 +785,8 @@ impl Aligner {
         // The fix is the antenna's: move to the IMU with heading 0. The
         // horizontal part of the lever arm then points anywhere: its length
         // joins the horizontal σ.
-        let lever_b = Vector3::from(self.opts.lever_b);
-        let le = LocalEarth::new(&nav.pos, &nav.vel);
-        let d = le.ned_to_geodetic_delta(&(nav.c_nb() * lever_b));
-        nav.pos.lat_rad -= d.x;
-        nav.pos.lon_rad -= d.y;
-        nav.pos.h_m -= d.z;
-        let lever_h_m = (nav.c_nb() * lever_b).xy().norm();
+        antenna_to_imu(&mut nav, &self.opts.lever_b);
+        let lever_h_m = (nav.c_nb() * Vector3::from(self.opts.lever_b)).xy().norm();
         let pos_sd_m = [
             fix.pos_sd.x.hypot(lever_h_m),
             fix.pos_sd.y.hypot(lever_h_m),

@@ -44,7 +44,7 @@ pub fn gamma_p(a: f64, x: f64) -> f64 {
         let mut ap = a;
         let mut sum = 1.0 / a;
         let mut del = sum;
-        for _ in 0..1000 {
+        for _ in 0..10_000 {
             ap += 1.0;
             del *= x / ap;
             sum += del;
@@ -59,7 +59,7 @@ pub fn gamma_p(a: f64, x: f64) -> f64 {
         let mut c = 1.0 / tiny;
         let mut d = 1.0 / b;
         let mut h = d;
-        for i in 1..1000 {
+        for i in 1..10_000 {
             let an = -(i as f64) * (i as f64 - a);
             b += 2.0;
             d = an * d + b;
@@ -95,7 +95,7 @@ pub fn chi2_quantile(p: f64, dof: f64) -> f64 {
     while chi2_cdf(hi, dof) < p {
         hi *= 2.0;
     }
-    for _ in 0..200 {
+    for _ in 0..400 {
         let mid = 0.5 * (lo + hi);
         if chi2_cdf(mid, dof) < p {
             lo = mid;
