@@ -87,6 +87,40 @@ pub enum AlignMethod {
     NoMotion,
 }
 
+/// Levelling in motion: f^b = C_n^b (a^n − g^n), so the vehicle
+/// acceleration `a_n` (NED), expressed in a level frame along `course_rad`
+/// (forward) or against it (reversing), is removed from the specific force
+/// `f_b` before levelling (tilt × acceleration neglected). Only the right
+/// hypothesis leaves a specific force of norm g; the wrong one leaves
+/// ≈ √(g² + 4a²), which decides once the horizontal acceleration exceeds
+/// `min_accel_mps2`. Returns roll, pitch, reversing, and whether it was
+/// checked.
+fn level_in_motion(
+    f_b: &Vector3<f64>,
+    a_n: &Vector3<f64>,
+    course_rad: f64,
+    g: f64,
+    min_accel_mps2: f64,
+) -> (f64, f64, bool, bool) {
+    let (sn, cs) = course_rad.sin_cos();
+    let a_h = Vector3::new(cs * a_n.x + sn * a_n.y, -sn * a_n.x + cs * a_n.y, a_n.z);
+    let f_fwd = f_b - a_h;
+    let f_rev = f_b - Vector3::new(-a_h.x, -a_h.y, a_h.z);
+    let checked = a_h.x.hypot(a_h.y) > min_accel_mps2;
+    let reversing = checked && (f_rev.norm() - g).abs() < (f_fwd.norm() - g).abs();
+    let (roll, pitch) = level(if reversing { &f_rev } else { &f_fwd });
+    (roll, pitch, reversing, checked)
+}
+
+/// The alignment note's words on reversing.
+fn reversing_note(checked: bool, reversing: bool) -> &'static str {
+    match (checked, reversing) {
+        (true, true) => ", vehicle reversing: turned by 180°",
+        (true, false) => "",
+        (false, _) => " (reversing not checked: too little acceleration)",
+    }
+}
+
 /// Moves a state placed at the GNSS antenna to the IMU: minus the lever
 /// arm (body FRD, m) resolved with the state's attitude.
 fn antenna_to_imu(nav: &mut NavState, lever_b: &[f64; 3]) {
@@ -499,22 +533,11 @@ impl Aligner {
         let g = crate::earth::gravity(w.fix0.pos.lat_rad.sin(), w.fix0.pos.h_m);
         // Course at b₀ (the vehicle's forward axis at the window start).
         let course0 = w.heading_sin.atan2(w.heading_cos);
+        // The mean acceleration over the window against the mean specific
+        // force in b₀ (the window's averaging tells reversing from 0.3 m/s²).
         let a_n = (v - w.v0) / span_s;
-        let (sn, cs) = course0.sin_cos();
-        // The mean acceleration in a level frame along the course; minus
-        // the mean specific force in b₀ leaves −C_n^{b₀} g^n to level
-        // (tilt × acceleration neglected, as in `align_at`).
-        let a_h = Vector3::new(cs * a_n.x + sn * a_n.y, -sn * a_n.x + cs * a_n.y, a_n.z);
         let f = w.dv_b0 / w.dt_s.max(1e-9);
-        let f_fwd = f - a_h;
-        let f_rev = f - Vector3::new(-a_h.x, -a_h.y, a_h.z);
-        let mut reversing = false;
-        let mut checked = false;
-        if a_h.x.hypot(a_h.y) > 0.3 {
-            checked = true;
-            reversing = (f_rev.norm() - g).abs() < (f_fwd.norm() - g).abs();
-        }
-        let (roll, pitch) = level(if reversing { &f_rev } else { &f_fwd });
+        let (roll, pitch, reversing, checked) = level_in_motion(&f, &a_n, course0, g, 0.3);
         // σ: the acceleration error from two velocities T apart, the bias,
         // and the neglected Coriolis and transport terms (2 ω_ie v ≤ 2 mm/s²
         // at 15 m/s).
@@ -550,11 +573,7 @@ impl Aligner {
             pitch.to_degrees(),
             yaw.to_degrees(),
             yaw_sd.to_degrees(),
-            match (checked, reversing) {
-                (true, true) => ", vehicle reversing: turned by 180°",
-                (true, false) => "",
-                (false, _) => " (reversing not checked: too little acceleration)",
-            },
+            reversing_note(checked, reversing),
             fix.time.sow(),
         );
         Alignment {
@@ -627,23 +646,9 @@ impl Aligner {
                 )
             }
             None => {
-                // f^b = C_n^b (a^n − g^n): remove the vehicle acceleration
-                // expressed in a level frame along the course (forward) or
-                // against it (reversing), then level. Only the right
-                // hypothesis leaves a specific force of norm g; the wrong
-                // one leaves ≈ √(g² + 4a²).
                 let a_n = accel.unwrap_or_else(Vector3::zeros);
-                let psi = v.y.atan2(v.x);
-                let (sn, cs) = psi.sin_cos();
-                let a_h = Vector3::new(cs * a_n.x + sn * a_n.y, -sn * a_n.x + cs * a_n.y, a_n.z);
-                let f = interval.f();
-                let f_fwd = f - a_h;
-                let f_rev = f - Vector3::new(-a_h.x, -a_h.y, a_h.z);
-                if a_h.x.hypot(a_h.y) > 0.5 {
-                    checked = true;
-                    reversing = (f_rev.norm() - g).abs() < (f_fwd.norm() - g).abs();
-                }
-                let (r, p) = level(if reversing { &f_rev } else { &f_fwd });
+                let (r, p, rev, chk) = level_in_motion(&interval.f(), &a_n, v.y.atan2(v.x), g, 0.5);
+                (reversing, checked) = (rev, chk);
                 let a_sd = v_sd.norm() * std::f64::consts::SQRT_2;
                 let sd = (o.accel_bias_sd_mps2.hypot(a_sd)) / g;
                 (r, p, sd, AlignMethod::InMotion, 0.0)
@@ -695,11 +700,7 @@ impl Aligner {
             },
             yaw.to_degrees(),
             yaw_sd.to_degrees(),
-            match (checked, reversing) {
-                (true, true) => ", vehicle reversing: turned by 180°",
-                (true, false) => "",
-                (false, _) => " (reversing not checked: too little acceleration)",
-            }
+            reversing_note(checked, reversing)
         ) + &if start_s > 0.0 {
             format!(
                 "; the run starts at the standstill, {start_s:.1} s earlier ({:.3} s of week)",
