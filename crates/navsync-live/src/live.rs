@@ -37,8 +37,10 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use navsync::filter::gnss::GnssFix;
-use navsync::fusion::{Fusion, FusionConfig, LatencyMode, NavOutput};
+use navsync::fusion::{FusionConfig, LatencyMode, NavOutput};
 use navsync::io::riglog::{ImuTiming, RigGnss, RigHeader, RigRecord};
+use navsync::navigator::{Navigator, Step};
+use navsync::pipeline::NullSink;
 use navsync::time::GpsTime;
 use navsync::timing::{
     IncrementBuilder, LockState, Oscillator, SyncConfig, SyncEngine, SyncMode, SyncOutput,
@@ -659,7 +661,8 @@ struct Core {
     inc: IncrementBuilder,
     fusion_cfg: FusionConfig,
     init_from_gnss: bool,
-    fusion: Option<Fusion>,
+    /// The fusion stream, once it has an initial state.
+    navigator: Option<Navigator>,
     /// Latest IMU stamp out of the engine.
     last_imu_time: Option<GpsTime>,
     max_gnss_latency_s: f64,
@@ -718,7 +721,8 @@ impl Core {
             sync_cfg,
             inc: IncrementBuilder::new(imu_kind(cfg)),
             init_from_gnss: cfg.init_from_gnss,
-            fusion: (!cfg.init_from_gnss).then(|| Fusion::new(fusion_cfg.clone())),
+            navigator: (!cfg.init_from_gnss)
+                .then(|| Navigator::new(fusion_cfg.clone()).with_aux_interval(None)),
             last_imu_time: None,
             max_gnss_latency_s: cfg.max_gnss_latency_s,
             fusion_cfg,
@@ -817,12 +821,15 @@ impl Core {
                     let Some(sample) = self.inc.push(s.time, &s.values, &s.flags) else {
                         continue;
                     };
-                    let Some(f) = self.fusion.as_mut() else {
+                    let Some(f) = self.navigator.as_mut() else {
                         continue;
                     };
-                    let Some(nav) = f.push_imu(&sample)? else {
+                    // Live output goes to the live sink below, with the
+                    // sample's arrival and bound.
+                    let Step::Solution(nav) = f.push_imu(&sample, &mut NullSink)? else {
                         continue;
                     };
+                    self.counts.gnss_fused = f.fusion().stats().gnss_fixes_used as u64;
                     let lat = hostclock::now_ns().saturating_sub(arrival);
                     self.latency.push(lat);
                     self.counts.solutions += 1;
@@ -837,7 +844,7 @@ impl Core {
                     let sec = nav.nav.time.ns().div_euclid(navsync::time::NS_PER_S);
                     if self.aux_second != Some(sec) {
                         self.aux_second = Some(sec);
-                        let sd = f.std_devs();
+                        let sd = f.fusion_mut().std_devs();
                         sink.aux(&nav, &sd)?;
                     }
                     self.last = Some((nav, info));
@@ -852,17 +859,17 @@ impl Core {
                     let stale = self
                         .last_imu_time
                         .is_some_and(|t| t.seconds_since(g.received) > self.max_gnss_latency_s);
-                    if self.fusion.is_none() && stale {
+                    if self.navigator.is_none() && stale {
                         continue;
                     }
-                    if self.fusion.is_none() && self.init_from_gnss {
+                    if self.navigator.is_none() && self.init_from_gnss {
                         let mut fc = self.fusion_cfg.clone();
                         fc.init_nav.time = fix.time;
                         fc.init_nav.pos = fix.pos;
                         if let Some(v) = fix.vel {
                             fc.init_nav.vel = v;
                         }
-                        self.fusion = Some(Fusion::new(fc));
+                        self.navigator = Some(Navigator::new(fc).with_aux_interval(None));
                         let msg = format!(
                             "fusion started at {} from the GNSS fix ({:.7}°, {:.7}°, {:.2} m)",
                             fix.time,
@@ -872,9 +879,9 @@ impl Core {
                         );
                         self.note(sink, SourceId::Engine, &msg);
                     }
-                    if let Some(f) = self.fusion.as_mut() {
-                        f.push_gnss(fix)?;
-                        self.counts.gnss_fused = f.stats().gnss_fixes_used as u64;
+                    if let Some(f) = self.navigator.as_mut() {
+                        // Fused at the next IMU sample, which counts it.
+                        f.push_gnss(fix);
                     }
                 }
             }

@@ -1743,6 +1743,11 @@ impl Fusion {
         std::mem::take(&mut self.fix_log)
     }
 
+    /// The configuration the filter runs with.
+    pub fn config(&self) -> &FusionConfig {
+        self.cfg()
+    }
+
     fn cfg(&self) -> &FusionConfig {
         &self.core.cfg
     }

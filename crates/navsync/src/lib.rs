@@ -2,8 +2,11 @@
 //! first-class.
 //!
 //! The library is streaming-first: every stage takes one sample at a time
-//! and returns what it can ([`fusion::Fusion::push_imu`]), and batch
-//! processing of files is a loop over the same API ([`pipeline::run`]).
+//! and returns what it can. [`navigator::Navigator`] composes them: raw
+//! rig-log records or synchronized IMU samples and GNSS fixes go in, fused
+//! solutions come out through a [`pipeline::NavSink`]; batch processing of
+//! files ([`pipeline::run`]) and `navsync live` are loops over it. See the
+//! crate's `examples/` (`stream_rig_log`, `batch`).
 //!
 //! Conventions: SI units inside; body frame FRD, navigation frame NED;
 //! `q_nb`/`c_nb` rotate body to navigation; GPS time as integer nanoseconds
@@ -27,6 +30,7 @@ pub mod ins;
 pub mod interp;
 pub mod io;
 pub mod montecarlo;
+pub mod navigator;
 pub mod offset_search;
 pub mod pipeline;
 pub mod reduced;

@@ -25,6 +25,7 @@ use crate::io::kfgins::{
     GnssLayout, GnssReader, ImuReader, TextWriter, format_imu_err_line, format_nav_line,
     format_std_line,
 };
+use crate::navigator::{Navigator, Step, StreamCounts};
 use crate::time::GpsTime;
 
 /// GNSS outages simulated by withholding fixes: windows of `len_s` every
@@ -804,34 +805,23 @@ fn run_inner(
     let end = cfg
         .end_sow
         .map(|e| GpsTime::from_week_ns(opts.week, (e * 1e9).round() as i64));
-    let mut fusion = Fusion::new(fc);
+    let mut navigator = Navigator::from_options(fc, opts)?.with_end(end);
     let smoothing = match (opts.smooth, smoothed_sink) {
         (Some(sm), Some(s)) => {
             let dir = opts
                 .output_dir
                 .clone()
                 .unwrap_or_else(|| cfg.output_path.clone());
-            fusion.enable_smoother(&dir, sm.node_interval_s)?;
+            navigator
+                .fusion_mut()
+                .enable_smoother(&dir, sm.node_interval_s)?;
             Some(s)
         }
         _ => None,
     };
-    let mut interp = output_at_interpolator(opts)?;
-    let mut at_written = 0usize;
-    let realtime = !matches!(opts.latency, LatencyMode::Offline);
-    // Offline, fixes are queued ahead (the engine processes each at its
-    // corrected time); in a real-time mode each is delivered at its arrival.
-    let lead_ns: i64 = if realtime {
-        -((opts.gnss_latency_s * 1e9).round() as i64)
-    } else {
-        ((1.0
-            + opts
-                .time_offset
-                .map(|t| t.search_range_s.max(3.0 * t.sd_s))
-                .unwrap_or(0.0))
-            * 1e9)
-            .round() as i64
-    };
+    // Fixes are read from the file as far ahead of the IMU as the
+    // navigator delivers them (it holds them until then).
+    let lead_ns = crate::navigator::fix_lead_ns(opts);
 
     let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
     let mut next_fix: Option<GnssFix> = gnss.next_fix(&mut diag)?;
@@ -843,7 +833,6 @@ fn run_inner(
         )?),
         None => None,
     };
-    let nominal_dt = 1.0 / cfg.imu_rate_hz;
 
     // IMU reader thread: batches of parsed samples.
     let imu_path = cfg.imu_path.clone();
@@ -869,12 +858,6 @@ fn run_inner(
         Ok((r.count(), d))
     });
 
-    let aux_ns = (opts.aux_interval_s * 1e9).round() as i64;
-    let mut next_aux: Option<GpsTime> = None;
-    let mut t0: Option<GpsTime> = None;
-    let mut last_time = start;
-    let mut withheld = 0usize;
-    let mut outside = 0usize;
     let mut fixes_read = usize::from(next_fix.is_some());
     let span = end.map(|e| e.seconds_since(start)).unwrap_or(f64::NAN);
     let mut last_progress = Instant::now();
@@ -882,108 +865,32 @@ fn run_inner(
 
     'outer: for batch in rx.iter() {
         for s in &batch {
-            if let Some(e) = end
-                && s.time > e
+            while let Some(fix) = next_fix
+                && fix.time <= s.time + lead_ns
             {
-                break 'outer;
-            }
-            // Deliver the fixes this sample reaches.
-            while let Some(fix) = next_fix {
-                if fix.time > s.time + lead_ns {
-                    break;
-                }
-                // Outages are measured from the first IMU epoch, which is the
-                // first sample at or after the start time.
-                let t_ref = t0.unwrap_or(s.time);
-                let keep = if fix.time <= start {
-                    outside += 1;
-                    false
-                } else if let Some(o) = opts.outages
-                    && o.contains(t_ref, fix.time)
-                {
-                    withheld += 1;
-                    false
-                } else {
-                    true
-                };
-                if keep && let Err(e) = fusion.push_gnss(fix) {
-                    result = Err(e);
-                    break 'outer;
-                }
+                navigator.push_gnss(fix);
                 next_fix = gnss.next_fix(&mut diag)?;
                 fixes_read += usize::from(next_fix.is_some());
-            }
-            let mut s = *s;
-            if let Some(r) = &opts.reduced_imu {
-                let dt = s.time.seconds_since(fusion.nav().time);
-                let dt = if dt > 0.0 && dt < 1.0 { dt } else { nominal_dt };
-                r.fill(&mut s, fusion.nav(), fusion.imu_errors(), dt);
             }
             if let Some(sp) = speeds.as_mut()
                 && let Some(v) = sp.at(s.time, &mut diag)?
             {
-                fusion.push_speed(v);
+                navigator.push_speed(v);
             }
-            let out = match fusion.push_imu(&s) {
-                Ok(o) => o,
+            match navigator.push_imu(s, sink) {
+                Ok(Step::Ended) => break 'outer,
+                Ok(_) => {}
                 Err(e) => {
                     result = Err(e);
                     break 'outer;
                 }
-            };
-            let Some(out) = out else {
-                if t0.is_none() && s.time >= start {
-                    t0 = Some(s.time);
-                    next_aux = Some(s.time);
-                }
-                continue;
-            };
-            last_time = out.nav.time;
-            // Solutions are on the IMU's time base; on request, move them to
-            // GNSS time with the offset estimate (GNSS time = IMU time + τ̂).
-            let mut nav_out = out.nav;
-            if opts.output_gnss_time
-                && let Some(o) = fusion.time_offset()
-            {
-                nav_out.time = nav_out.time.add_seconds(o.offset_s);
-            }
-            if let Err(e) = sink.nav(&nav_out, &out.imu) {
-                result = Err(e);
-                break 'outer;
-            }
-            if let Some(ip) = interp.as_mut() {
-                for at in ip.push(&nav_out) {
-                    at_written += 1;
-                    if let Err(e) = sink.nav_at(&at) {
-                        result = Err(e);
-                        break 'outer;
-                    }
-                }
-            }
-            if let Some(na) = next_aux
-                && out.nav.time >= na
-            {
-                let sd = fusion.std_devs();
-                if let Err(e) = sink
-                    .aux(out.nav.time, &out.imu, &sd, fusion.time_offset())
-                    .and_then(|()| {
-                        sink.position_covariance(out.nav.time, &fusion.position_covariance())
-                    })
-                {
-                    result = Err(e);
-                    break 'outer;
-                }
-                next_aux = Some(if aux_ns > 0 {
-                    na + aux_ns
-                } else {
-                    out.nav.time
-                });
             }
         }
         if last_progress.elapsed().as_millis() > 100 {
             last_progress = Instant::now();
+            let last = navigator.counts().last_epoch.unwrap_or(start);
             let frac = if span.is_finite() && span > 0.0 {
-                last_time.seconds_since(start) / span
+                last.seconds_since(start) / span
             } else {
                 f64::NAN
             };
@@ -1005,27 +912,36 @@ fn run_inner(
     {
         diag.note(note);
     }
-    let Some(t0) = t0 else {
+    let stream = if opts.dry_run {
+        navigator.finish(&mut NullSink)?
+    } else {
+        navigator.finish(sink)?
+    };
+    let StreamCounts {
+        first_epoch,
+        last_epoch,
+        fixes_withheld: withheld,
+        fixes_outside: outside,
+        output_at_written: at_written,
+        output_at_skipped,
+    } = stream.counts;
+    let Some(t0) = first_epoch else {
         return Err(Error::NoData {
             path: cfg.imu_path.clone(),
             msg: format!("no IMU record at or after starttime {}", cfg.start_sow),
         });
     };
+    let last_time = last_epoch.unwrap_or(start);
     progress(1.0);
 
-    let at_skipped = interp.as_mut().map(|ip| {
-        ip.finish();
-        ip.skipped
-    });
+    let at_skipped = opts.output_at.as_ref().map(|_| output_at_skipped);
     let gnss_skipped = diag.total;
     let imu_skipped = imu_diag.total;
     let mut all = imu_diag;
     all.extend(diag);
-    all.extend(fusion.take_diagnostics());
-    let records = fusion.take_fix_log();
-    if !opts.dry_run {
-        sink.fix_records(&records)?;
-    }
+    all.extend(stream.diagnostics);
+    let mut fusion = navigator.into_fusion();
+    let records = stream.fix_records;
     let smoother = match smoothing {
         Some(out) => {
             if !opts.dry_run {

@@ -12,7 +12,7 @@ use super::{IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncOutput};
 use crate::error::{Diagnostics, Error};
 use crate::ins::ImuSample;
 use crate::io::kfgins::{TextWriter, format_gnss_line};
-use crate::io::riglog::{RateSampling, RigLogReader, RigRecord};
+use crate::io::riglog::{RigLogReader, RigRecord};
 
 /// What a synchronization run produced.
 pub struct SyncSummary {
@@ -46,12 +46,7 @@ pub fn sync_file(
     let mut reader = RigLogReader::open(rig, &mut read_diag)?;
     let header = reader.header().clone();
     let kind = header.imu_kind;
-    // Unless told: the header's `imu_rates`, else instantaneous samples
-    // (seed 001 §1.1's trapezoid).
-    let rule = rule.unwrap_or(match header.imu_rates {
-        Some(RateSampling::IntervalAverage) => RateRule::Average,
-        _ => RateRule::Trapezoid,
-    });
+    let rule = rule.unwrap_or_else(|| RateRule::for_header(&header));
 
     // Reader thread: parsed records in batches.
     let (rec_tx, rec_rx) = mpsc::sync_channel::<Vec<(RigRecord, usize)>>(8);

@@ -290,6 +290,17 @@ pub enum RateRule {
     Average,
 }
 
+impl RateRule {
+    /// The rule a rig log's header asks for: its `imu_rates`, else
+    /// instantaneous samples (seed 001 §1.1's trapezoid).
+    pub fn for_header(header: &crate::io::riglog::RigHeader) -> Self {
+        match header.imu_rates {
+            Some(crate::io::riglog::RateSampling::IntervalAverage) => RateRule::Average,
+            _ => RateRule::Trapezoid,
+        }
+    }
+}
+
 impl IncrementBuilder {
     pub fn new(kind: ImuKind) -> Self {
         Self::with_rule(kind, RateRule::Trapezoid)
