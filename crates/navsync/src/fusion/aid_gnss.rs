@@ -1,0 +1,599 @@
+//! Aid source: GNSS position and velocity fixes. The observation models
+//! (lever arm, time-offset columns), validity checks, the χ² gate with its
+//! reopening rule, robust (IGG-III / Huber) down-weighting and the drift
+//! acceptance after an outage.
+
+use super::*;
+
+/// A GNSS position fix the gate rejected: its innovation and noise, and the
+/// NIS ratio (NIS / gate) of the first rejection of its run.
+#[derive(Clone)]
+pub(super) struct RejectedFix {
+    pub(super) time: GpsTime,
+    pub(super) z: Vec<f64>,
+    pub(super) r: Mat,
+    pub(super) first_ratio: f64,
+}
+
+/// Largest stated GNSS σ (m or m/s) taken at face value: beyond it a fix
+/// carries no usable information and is refused with a diagnostic.
+pub const MAX_GNSS_SD_M: f64 = 1000.0;
+
+/// Why a fix cannot be used at all, if so: non-finite values, σ that are
+/// not positive, or σ beyond [`MAX_GNSS_SD_M`].
+pub(super) fn invalid_fix(fix: &GnssFix) -> Option<String> {
+    let p = &fix.pos;
+    if !(p.lat_rad.is_finite() && p.lon_rad.is_finite() && p.h_m.is_finite()) {
+        return Some("its position is not a number".into());
+    }
+    if p.lat_rad.abs() > std::f64::consts::FRAC_PI_2 || p.h_m.abs() > 1e6 {
+        return Some(format!(
+            "its position ({:.6}°, {:.1} m) is off the Earth",
+            p.lat_rad.to_degrees(),
+            p.h_m
+        ));
+    }
+    let check = |sd: &Vector3<f64>, what: &str, unit: &str| -> Option<String> {
+        if sd.iter().any(|s| !s.is_finite() || *s <= 0.0) {
+            return Some(format!(
+                "its {what} standard deviations {:?} {unit} must be positive numbers",
+                sd.as_slice()
+            ));
+        }
+        if sd.max() > MAX_GNSS_SD_M {
+            return Some(format!(
+                "its {what} standard deviation {:.3e} {unit} exceeds {MAX_GNSS_SD_M} {unit}: no usable information",
+                sd.max()
+            ));
+        }
+        None
+    };
+    if let Some(w) = check(&fix.pos_sd, "position", "m") {
+        return Some(w);
+    }
+    if let Some(v) = &fix.vel {
+        if v.iter().any(|x| !x.is_finite()) {
+            return Some("its velocity is not a number".into());
+        }
+        match &fix.vel_sd {
+            Some(sd) => return check(sd, "velocity", "m/s"),
+            None => return Some("it has a velocity without standard deviations".into()),
+        }
+    }
+    None
+}
+
+/// Consecutive fixes further apart than this (s) are not differenced:
+/// the INS is then no longer a sharp relative reference.
+pub(super) const PAIR_MAX_GAP_S: f64 = 2.5;
+
+/// A used fix's posterior residual (robust weighting), for the next
+/// fix's differenced innovation.
+#[derive(Copy, Clone, Debug)]
+pub(super) struct ResidualMemo {
+    pub(super) time: GpsTime,
+    /// z⁺ = predicted (after the update) − measured.
+    pub(super) residual: Vector3<f64>,
+    /// Diagonal of H P⁺ Hᵀ.
+    pub(super) hph_post: Vector3<f64>,
+    /// Diagonal of the stated R.
+    pub(super) r_stated: Vector3<f64>,
+}
+/// A fix whose R grew by more than ×2 on some axis is reported as
+/// down-weighted.
+pub(super) const DOWN_WEIGHTED_BELOW: f64 = 0.5;
+
+/// zᵀ S⁻¹ z, or `None` when S is not positive definite.
+pub(super) fn nis_of(s: &Mat, z: &[f64]) -> Option<f64> {
+    let l = dense::cholesky(s)?;
+    let mut x = z.to_vec();
+    dense::cholesky_solve(&l, &mut x);
+    let v: f64 = z.iter().zip(&x).map(|(a, b)| a * b).sum();
+    v.is_finite().then_some(v)
+}
+
+impl RejectedFix {
+    /// Whether `obs` (innovation covariance `s`) agrees with this earlier
+    /// fix: the difference of the innovations passes the χ² `threshold`
+    /// with covariance S_k + R_{k−1}.
+    pub(super) fn agrees_with(&self, obs: &Observation, s: &Mat, threshold: f64) -> bool {
+        if self.z.len() != obs.z.len() {
+            return false;
+        }
+        let mut c = s.clone();
+        for (x, y) in c.data.iter_mut().zip(&self.r.data) {
+            *x += y;
+        }
+        let d: Vec<f64> = obs.z.iter().zip(&self.z).map(|(a, b)| a - b).collect();
+        nis_of(&c, &d).is_some_and(|chi2| chi2 <= threshold)
+    }
+}
+
+/// The covariance inflation that makes an innovation's size match its
+/// covariance, λ = (zᵀz − tr R) / tr(H P Hᵀ) (the moment estimate of an
+/// adaptive fading factor, Xia et al. 1994), within [1, MAX_INFLATION].
+pub(super) fn moment_inflation(obs: &Observation, s: &Mat) -> Option<f64> {
+    let m = obs.dim();
+    let z2: f64 = obs.z.iter().map(|x| x * x).sum();
+    let tr_r: f64 = (0..m).map(|i| obs.r.get(i, i)).sum();
+    let tr_hph: f64 = (0..m).map(|i| s.get(i, i) - obs.r.get(i, i)).sum();
+    let factor = ((z2 - tr_r) / tr_hph).clamp(1.0, MAX_INFLATION);
+    factor.is_finite().then_some(factor)
+}
+
+/// Fixes further apart than this (s) are not compared with each other.
+pub(super) const CONSISTENCY_MAX_GAP_S: f64 = 5.0;
+/// A run of rejections that began with a NIS above this multiple of the
+/// gate (an innovation more than twice the gate's radius) started with a
+/// jump: a GNSS fault, never taken for INS drift.
+pub(super) const SMOOTH_START_RATIO: f64 = 4.0;
+/// At most one drift acceptance in this long (s): drift beyond the model is
+/// an episode (a hard turn with misaligned gyros); a disagreement that keeps
+/// coming back is systematic (late time tags, a wrong lever arm) and
+/// inflating P for it again and again would let biased fixes tear the
+/// attitude apart. Then the gate and its reopening rule stand.
+pub(super) const CONSISTENCY_COOLDOWN_S: f64 = 60.0;
+/// Robust weighting: a run of this many rejected fixes that agree with
+/// each other is taken as INS drift however it began (a fault that stays
+/// consistent that long cannot be told from drift; KF-GINS would have
+/// followed it from the start).
+pub(super) const LONG_DRIFT_RUN: usize = 10;
+/// Largest covariance inflation of one drift acceptance.
+pub(super) const MAX_INFLATION: f64 = 100.0;
+
+impl Core {
+    /// The position observation of a fix, with the time-offset column.
+    pub(super) fn position_obs(&self, fix: &GnssFix) -> Observation {
+        let lever = self.cfg.antenna_lever_b;
+        let mut obs = gnss::position(&self.nav, fix, &lever, self.filter.n());
+        if let (Some(i), Some(m)) = (self.gnss_bias_index, &self.cfg.gnss_error) {
+            // Predicted fix r̂_ant + b̂: z gains +b̂, ∂z/∂δb = I; R keeps the
+            // white part of the stated σ.
+            for k in 0..3 {
+                obs.z[k] += self.gnss_bias[k];
+                obs.h.set(k, i + k, 1.0);
+                let r = obs.r.get(k, k);
+                let gm2 = m.gm_sd_m[k] * m.gm_sd_m[k];
+                obs.r.set(k, k, (r - gm2).max(0.09 * r));
+            }
+        }
+        if let Some(i) = self.tau_index {
+            // ∂z/∂δτ = −v of the antenna (seed 004 eq 15).
+            let c = self.nav.c_nb();
+            let w_nb = crate::ins::omega_nb_b(&self.nav, &self.last_w_ib);
+            let v_ant = self.nav.vel + c * w_nb.cross(&lever);
+            for r in 0..3 {
+                obs.h.set(r, i, -v_ant[r]);
+            }
+        }
+        obs
+    }
+
+    /// The velocity observation of a fix (when it has one), with the
+    /// time-offset column.
+    pub(super) fn velocity_obs(&self, fix: &GnssFix) -> Option<Observation> {
+        let lever = self.cfg.antenna_lever_b;
+        let mut obs = gnss::velocity(&self.nav, fix, &lever, &self.last_w_ib, self.filter.n())?;
+        if let Some(i) = self.tau_index {
+            for r in 0..3 {
+                obs.h.set(r, i, -self.kin.acc[r]);
+            }
+        }
+        Some(obs)
+    }
+
+    pub(super) fn gnss_update(&mut self, fix: &GnssFix) -> Result<(), Error> {
+        if self.is_stale(fix) {
+            return Ok(());
+        }
+        match self.cfg.gnss_weighting {
+            GnssWeighting::Robust(rw) => self.robust_gnss_update(fix, &rw)?,
+            GnssWeighting::Off | GnssWeighting::Gate { .. } => self.gated_gnss_update(fix)?,
+        }
+        self.last_fix = Some((fix.time, fix.pos, self.nav.pos));
+        Ok(())
+    }
+
+    /// A fix whose position repeats the previous fix's to the last bit
+    /// while the solution moved more than 1 m: a receiver repeating a stale
+    /// output. Reported and skipped.
+    pub(super) fn is_stale(&mut self, fix: &GnssFix) -> bool {
+        let Some((_, prev_pos, prev_nav)) = self.last_fix else {
+            return false;
+        };
+        if prev_pos != fix.pos {
+            return false;
+        }
+        let le = LocalEarth::new(&self.nav.pos, &self.nav.vel);
+        let moved = le
+            .geodetic_delta_to_ned(
+                self.nav.pos.lat_rad - prev_nav.lat_rad,
+                self.nav.pos.lon_rad - prev_nav.lon_rad,
+                self.nav.pos.h_m - prev_nav.h_m,
+            )
+            .norm();
+        if moved <= 1.0 {
+            return false;
+        }
+        self.stats.gnss_fixes_stale += 1;
+        self.notes.push(format!(
+            "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.1} m: a stale receiver output; ignored",
+            fix.time
+        ));
+        true
+    }
+
+    /// The first round's rule: χ² gate, drift acceptance, reopening.
+    pub(super) fn gated_gnss_update(&mut self, fix: &GnssFix) -> Result<(), Error> {
+        let obs = self.position_obs(fix);
+        let frozen = self.frozen_states();
+        let gate = if self.consecutive_rejects >= self.cfg.max_consecutive_rejects {
+            None
+        } else {
+            self.gate
+        };
+        let outcome = self.apply(&obs, gate, &frozen)?;
+        let mut record = FixRecord {
+            time: fix.time,
+            sow: fix.time.sow(),
+            kind: "position",
+            innovation: [obs.z[0], obs.z[1], obs.z[2]],
+            sd: [0, 1, 2].map(|i| obs.r.get(i, i).sqrt()),
+            nis: outcome.nis,
+            weight: [1.0; 3],
+            status: FixStatus::Used,
+        };
+        if !outcome.accepted
+            && let Some(threshold) = gate
+        {
+            let verdict = self.consistent_with_last_rejected(&obs, fix.time, threshold);
+            record.status = match verdict {
+                Some(_) => FixStatus::DriftAccepted,
+                None => {
+                    record.weight = [0.0; 3];
+                    FixStatus::Rejected
+                }
+            };
+            self.fix_log.push(record);
+            match verdict {
+                Some(factor) => {
+                    self.notes.push(format!(
+                        "GNSS fix at {} over the gate (NIS {:.1} > {:.1}) accepted: it agrees with the previous rejected fix, so the INS drifted beyond its covariance; covariance inflated x{:.2}",
+                        fix.time, outcome.nis, threshold, factor
+                    ));
+                    self.filter.inflate(factor);
+                    self.apply(&obs, None, &frozen)?;
+                    self.stats.gnss_fixes_accepted_consistent += 1;
+                    self.last_drift_accept = Some(fix.time);
+                }
+                None => {
+                    self.consecutive_rejects += 1;
+                    self.stats.gnss_fixes_rejected += 1;
+                    self.notes.push(format!(
+                        "GNSS fix at {} rejected by the innovation gate (innovation {:.3} m, NIS {:.1} > {:.1})",
+                        fix.time,
+                        Vector3::from_column_slice(&obs.z).norm(),
+                        outcome.nis,
+                        threshold
+                    ));
+                    let first_ratio = match &self.last_rejected {
+                        Some(prev) => prev.first_ratio,
+                        None => outcome.nis / threshold,
+                    };
+                    self.last_rejected = Some(RejectedFix {
+                        time: fix.time,
+                        z: obs.z.clone(),
+                        r: obs.r.clone(),
+                        first_ratio,
+                    });
+                    return Ok(());
+                }
+            }
+        }
+        if outcome.accepted {
+            self.fix_log.push(record);
+        }
+        self.last_rejected = None;
+        if gate.is_none() && self.gate.is_some() {
+            self.stats.gate_reopened += 1;
+            self.notes.push(format!(
+                "GNSS fix at {} accepted without gating after {} consecutive rejections",
+                fix.time, self.consecutive_rejects
+            ));
+        }
+        self.consecutive_rejects = 0;
+        self.stats.gnss_fixes_used += 1;
+        if self.cfg.use_gnss_velocity
+            && let Some(obs) = self.velocity_obs(fix)
+        {
+            if self.apply(&obs, self.gate, &frozen)?.accepted {
+                self.stats.gnss_velocity_used += 1;
+            } else {
+                self.stats.gnss_velocity_rejected += 1;
+                self.notes.push(format!(
+                    "GNSS velocity at {} rejected by the innovation gate",
+                    fix.time
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Robust GNSS update ([`RobustWeighting`]): position, then velocity.
+    pub(super) fn robust_gnss_update(
+        &mut self,
+        fix: &GnssFix,
+        rw: &RobustWeighting,
+    ) -> Result<(), Error> {
+        let frozen = self.frozen_states();
+        let obs = self.position_obs(fix);
+        let status = self.robust_apply(obs, 0, fix.time, rw, &frozen)?;
+        match status {
+            FixStatus::Rejected => {
+                self.stats.gnss_fixes_rejected += 1;
+                return Ok(());
+            }
+            FixStatus::DownWeighted => self.stats.gnss_fixes_downweighted += 1,
+            FixStatus::DriftAccepted => self.stats.gnss_fixes_accepted_consistent += 1,
+            FixStatus::Used => {}
+        }
+        self.stats.gnss_fixes_used += 1;
+        if self.cfg.use_gnss_velocity
+            && let Some(obs) = self.velocity_obs(fix)
+        {
+            match self.robust_apply(obs, 1, fix.time, rw, &frozen)? {
+                FixStatus::Rejected => {
+                    self.stats.gnss_velocity_rejected += 1;
+                    return Ok(());
+                }
+                FixStatus::DownWeighted => self.stats.gnss_velocity_downweighted += 1,
+                _ => {}
+            }
+            self.stats.gnss_velocity_used += 1;
+        }
+        Ok(())
+    }
+
+    /// Weights one 3-axis GNSS observation (`slot` 0 position, 1 velocity)
+    /// and applies it unless every axis is rejected.
+    ///
+    /// 1. Noise scale. Over a second the INS is a far better relative
+    ///    reference than a degraded fix, so the change between this
+    ///    innovation and the previous fix's posterior residual,
+    ///    Δz = z_k − z⁺_{k−1} = (δr_k − δr⁺_{k−1}) − (e_k − e_{k−1}),
+    ///    measures the fixes' own errors e while a smooth INS drift cancels
+    ///    (an estimate from the innovations alone would take a drifting INS
+    ///    for bad fixes, discount them and drift further). Per axis,
+    ///    u = Δz² / ((HPHᵀ)_k − (HP⁺Hᵀ)_{k−1} + R_k + R_{k−1}) (stated R),
+    ///    whose mean is 1 for fixes as good as stated, feeds an
+    ///    inverse-gamma posterior IG(α, β) of the scale s (R = s·R_stated):
+    ///    α ← α + ½, β ← β + ½u (Särkkä & Nummenmaa, "Recursive noise
+    ///    adaptive Kalman filtering by variational Bayesian approximations",
+    ///    IEEE TAC 54(3), 2009, eqs 14–18, on differenced innovations), with
+    ///    forgetting toward the prior IG(ν₀/2, ν₀/2) by exp(−Δt/τ), and
+    ///    ŝ = max(1, β/α): no fix is trusted more than it claims.
+    /// 2. Gross errors: the IGG-III weight w_i of v_i = z_i/√(HPHᵀ + ŝR)_ii.
+    /// 3. The update with R' = diag(ŝ_i R_i / w_i).
+    pub(super) fn robust_apply(
+        &mut self,
+        mut obs: Observation,
+        slot: usize,
+        time: GpsTime,
+        rw: &RobustWeighting,
+        frozen: &[usize],
+    ) -> Result<FixStatus, Error> {
+        self.propagate();
+        let r_stated = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
+        let sd = [0, 1, 2].map(|i| r_stated[i].sqrt());
+        let s_stated = self.filter.innovation_covariance(&obs);
+        let nis = nis_of(&s_stated, &obs.z).unwrap_or(f64::INFINITY);
+        let mut hph =
+            Matrix3::from_fn(|r, c| s_stated.get(r, c)) - Matrix3::from_diagonal(&r_stated);
+        let z = Vector3::new(obs.z[0], obs.z[1], obs.z[2]);
+
+        // 1. Forgetting toward the prior, then the differenced innovation.
+        let prior = 0.5 * rw.prior_fixes;
+        let (mut post, last) = self.noise_scale[slot];
+        let rho = if rw.memory_s > 0.0 {
+            (-time.seconds_since(last).max(0.0) / rw.memory_s).exp()
+        } else {
+            0.0
+        };
+        for (a, b) in post.iter_mut() {
+            *a = prior + (*a - prior) * rho;
+            *b = prior + (*b - prior) * rho;
+        }
+        let mut jump_sq = [0.0; 3];
+        if let Some(prev) = self.last_residual[slot]
+            && time.seconds_since(prev.time) <= PAIR_MAX_GAP_S
+        {
+            for i in 0..3 {
+                let var =
+                    (hph[(i, i)] - prev.hph_post[i]).max(0.0) + r_stated[i] + prev.r_stated[i];
+                let d = z[i] - prev.residual[i];
+                jump_sq[i] = d * d / var;
+                // A jump too large for any noise scale is a gross error,
+                // left to step 2 (it must not inflate the scale for long).
+                let u = jump_sq[i].min(rw.k1 * rw.k1);
+                post[i].0 += 0.5;
+                post[i].1 += 0.5 * u;
+            }
+        }
+        let scale = post.map(|(a, b)| (b / a).max(1.0));
+
+        // 2. Gross errors: beyond k1 on any axis, the whole fix is wrong
+        //    (a receiver's faults are not confined to one axis).
+        let mut w = [1.0; 3];
+        for i in 0..3 {
+            let s_ii = hph[(i, i)] + scale[i] * r_stated[i];
+            w[i] = rw.weight(z[i] / s_ii.max(f64::MIN_POSITIVE).sqrt());
+        }
+        if w.contains(&0.0) {
+            w = [0.0; 3];
+        }
+        let kind = if slot == 0 { "position" } else { "velocity" };
+        let mut record = FixRecord {
+            time,
+            sow: time.sow(),
+            kind,
+            innovation: [z[0], z[1], z[2]],
+            sd,
+            nis,
+            weight: [0.0; 3],
+            status: FixStatus::Used,
+        };
+        self.noise_scale[slot] = (post, time);
+        // A disagreement that persists smoothly (down-weighted or rejected
+        // fixes that agree with each other) is the INS drifting.
+        let mut drift = false;
+        if slot == 0 {
+            if w.iter().any(|w| *w < 1.0) {
+                drift = self.robust_drift_check(&obs, &s_stated, time, rw)?;
+            } else {
+                self.rejected_run.clear();
+            }
+        }
+        if drift {
+            record.status = FixStatus::DriftAccepted;
+            w = [1.0; 3];
+            let s = self.filter.innovation_covariance(&obs);
+            hph = Matrix3::from_fn(|r, c| s.get(r, c)) - Matrix3::from_diagonal(&r_stated);
+        } else if w.iter().all(|w| *w == 0.0) {
+            record.status = FixStatus::Rejected;
+            self.fix_log.push(record);
+            self.notes.push(format!(
+                "GNSS {kind} at {time} rejected by robust weighting (innovation {:.3}, NIS {:.1}; beyond {} σ)",
+                z.norm(),
+                nis,
+                rw.k1
+            ));
+            return Ok(FixStatus::Rejected);
+        }
+
+        // 3. The update.
+        let mut r_eff = r_stated;
+        for i in 0..3 {
+            r_eff[i] = if w[i] > 0.0 {
+                scale[i] * r_stated[i] / w[i]
+            } else {
+                r_stated[i] * 1e12
+            };
+            record.weight[i] = (r_stated[i] / r_eff[i]).min(1.0);
+            obs.r.set(i, i, r_eff[i]);
+        }
+        if record.status == FixStatus::Used
+            && record.weight.iter().any(|w| *w < DOWN_WEIGHTED_BELOW)
+        {
+            record.status = FixStatus::DownWeighted;
+        }
+        self.apply(&obs, None, frozen)?;
+        // Posterior residual z⁺ = R' S⁻¹ z and H P⁺ Hᵀ = HPHᵀ S⁻¹ R'.
+        let r_mat = Matrix3::from_diagonal(&r_eff);
+        self.last_residual[slot] = (hph + r_mat).try_inverse().map(|s_inv| {
+            let hp_post = hph * s_inv * r_mat;
+            ResidualMemo {
+                time,
+                residual: r_mat * s_inv * z,
+                hph_post: Vector3::new(hp_post[(0, 0)], hp_post[(1, 1)], hp_post[(2, 2)]),
+                r_stated,
+            }
+        });
+        self.fix_log.push(record);
+        Ok(record.status)
+    }
+
+    /// After a position fix that was down-weighted or rejected: when the last
+    /// `drift_run` such fixes agree with each other (consecutive
+    /// innovations differ by no more than their covariances allow) and the
+    /// run began just past k1 (at most 2·k1: a fault jumps), or when
+    /// [`LONG_DRIFT_RUN`] of them agree, the INS drifted beyond its
+    /// covariance, as after a long outage, and P is
+    /// inflated by the moment estimate λ = (zᵀz − tr R)/tr(HPHᵀ) (an
+    /// adaptive fading factor, Xia et al. 1994), capped at
+    /// [`MAX_INFLATION`], at most once per [`CONSISTENCY_COOLDOWN_S`].
+    /// Returns whether P was inflated.
+    pub(super) fn robust_drift_check(
+        &mut self,
+        obs: &Observation,
+        s: &Mat,
+        time: GpsTime,
+        rw: &RobustWeighting,
+    ) -> Result<bool, Error> {
+        let threshold = chi2_quantile(0.9999, obs.dim() as f64);
+        if let Some(prev) = self.rejected_run.last() {
+            let agrees = time.seconds_since(prev.time) <= CONSISTENCY_MAX_GAP_S
+                && prev.agrees_with(obs, s, threshold);
+            if !agrees {
+                self.rejected_run.clear();
+            }
+        }
+        // How far past k1 the worst axis is (squared, as the gate's ratio).
+        let ratio = (0..obs.dim())
+            .map(|i| obs.z[i] * obs.z[i] / s.get(i, i))
+            .fold(0.0, f64::max)
+            / (rw.k1 * rw.k1);
+        self.rejected_run.push(RejectedFix {
+            time,
+            z: obs.z.clone(),
+            r: obs.r.clone(),
+            first_ratio: ratio,
+        });
+        let cooled = self
+            .last_drift_accept
+            .is_none_or(|t| time.seconds_since(t) >= CONSISTENCY_COOLDOWN_S);
+        // A drifting INS crosses k1 gradually; a fault jumps far past it.
+        let smooth_start = self.rejected_run[0].first_ratio <= SMOOTH_START_RATIO;
+        let run = self.rejected_run.len();
+        if !cooled || !((run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN) {
+            return Ok(false);
+        }
+        let Some(factor) = moment_inflation(obs, s) else {
+            return Ok(false);
+        };
+        self.notes.push(format!(
+            "GNSS fix at {time}: {} consecutive disagreeing fixes agree with each other, so the INS drifted beyond its covariance; covariance inflated x{factor:.2}",
+            self.rejected_run.len()
+        ));
+        self.filter.inflate(factor);
+        self.last_drift_accept = Some(time);
+        self.rejected_run.clear();
+        Ok(true)
+    }
+
+    /// Tells INS drift from a GNSS fault when a fix fails the gate. A fault
+    /// (multipath, a wrong fix) makes the innovation jump; a filter whose
+    /// model left errors out (axis misalignment, vibration, a rough
+    /// nonlinearity) sees it grow smoothly past the gate while consecutive
+    /// fixes keep agreeing with each other. So the fix is taken when the
+    /// run of rejections began just over the gate and the difference of
+    /// this innovation and the last rejected one passes the same gate with
+    /// covariance S_k + R_{k−1}. Returns the covariance inflation that
+    /// makes the innovation's size match its covariance
+    /// (λ = (zᵀz − tr R) / tr(H P Hᵀ), the moment estimate of an adaptive
+    /// fading factor, Xia et al. 1994), at least 1, at most
+    /// [`MAX_INFLATION`]; none within [`CONSISTENCY_COOLDOWN_S`] of the last.
+    pub(super) fn consistent_with_last_rejected(
+        &self,
+        obs: &Observation,
+        time: GpsTime,
+        threshold: f64,
+    ) -> Option<f64> {
+        let prev = self.last_rejected.as_ref()?;
+        if self
+            .last_drift_accept
+            .is_some_and(|t| time.seconds_since(t) < CONSISTENCY_COOLDOWN_S)
+        {
+            return None;
+        }
+        if prev.first_ratio > SMOOTH_START_RATIO
+            || time.seconds_since(prev.time) > CONSISTENCY_MAX_GAP_S
+        {
+            return None;
+        }
+        let s = self.filter.innovation_covariance(obs);
+        if !prev.agrees_with(obs, &s, threshold) {
+            return None;
+        }
+        moment_inflation(obs, &s)
+    }
+}

@@ -1,0 +1,86 @@
+//! Aid source: the IMU–GNSS time offset τ as a filter state (seed 004
+//! eqs 11–16): the kinematics that make it observable, holding it while it
+//! is not, and the coarse search's re-initialisation.
+
+use super::*;
+
+/// Exponential-moving-average kinematics of the solution, used to decide
+/// whether the time offset is observable and for the velocity row −a.
+#[derive(Copy, Clone, Debug, Default)]
+pub(super) struct Kinematics {
+    pub(super) acc: Vector3<f64>,
+    pub(super) acc_slow: Vector3<f64>,
+}
+
+impl Kinematics {
+    pub(super) const TAU_FAST_S: f64 = 0.05;
+    pub(super) const TAU_SLOW_S: f64 = 1.0;
+
+    pub(super) fn push(&mut self, step: &StepInfo) {
+        if step.dt <= 0.0 {
+            return;
+        }
+        let a = step.dv_n / step.dt;
+        let kf = (step.dt / Self::TAU_FAST_S).min(1.0);
+        let ks = (step.dt / Self::TAU_SLOW_S).min(1.0);
+        self.acc += (a - self.acc) * kf;
+        self.acc_slow += (a - self.acc_slow) * ks;
+    }
+}
+
+impl Core {
+    /// Whether the motion currently carries information on the time offset:
+    /// the fix's along-track offset −v·δτ can only be told from a position
+    /// error while the velocity changes (speed or direction).
+    pub(super) fn offset_observable(&self) -> bool {
+        let speed = (self.nav.vel.x.powi(2) + self.nav.vel.y.powi(2)).sqrt();
+        let acc_h = self.kin.acc_slow.norm();
+        speed > 0.5 && acc_h > 0.1
+    }
+
+    pub(super) fn frozen_states(&mut self) -> Vec<usize> {
+        match (self.tau_index, self.cfg.time_offset) {
+            (Some(i), Some(to)) => {
+                self.tau_observable = self.offset_observable();
+                if to.hold_when_unobservable && !self.tau_observable {
+                    self.stats.time_offset_held_updates += 1;
+                    vec![i]
+                } else {
+                    vec![]
+                }
+            }
+            _ => vec![],
+        }
+    }
+
+    /// Re-initialises τ̂ from the coarse search when the filter disagrees.
+    pub(super) fn adopt_coarse(&mut self, est: &OffsetEstimate) -> Option<String> {
+        let i = self.tau_index?;
+        let sd_f = self.filter.sd(i);
+        let diff = self.tau - est.offset_s;
+        if diff.abs() <= 3.0 * (sd_f * sd_f + est.sd_s * est.sd_s).sqrt() {
+            return Some(format!(
+                "time-offset coarse search: {:.4} s ± {:.4} s agrees with the filter ({:.4} s ± {:.4} s)",
+                est.offset_s, est.sd_s, self.tau, sd_f
+            ));
+        }
+        let mut dx = vec![0.0; self.filter.n()];
+        dx[i] = self.tau - est.offset_s;
+        self.filter.record_correction(self.nav.time, &dx);
+        self.tau = est.offset_s;
+        let p = self.filter.covariance_mut();
+        for j in 0..p.rows {
+            p.set(i, j, 0.0);
+            p.set(j, i, 0.0);
+        }
+        let sd = est.sd_s.max(0.002);
+        p.set(i, i, sd * sd);
+        Some(format!(
+            "time-offset coarse search: {:.4} s ± {:.4} s over {} epochs; filter re-initialised from {:.4} s",
+            est.offset_s,
+            est.sd_s,
+            est.epochs,
+            est.offset_s + diff
+        ))
+    }
+}

@@ -1,0 +1,394 @@
+//! The engine's settings and the figures it reports: latency modes, GNSS
+//! weighting, vehicle constraints, the time-offset state, statistics.
+
+use super::*;
+
+/// How to treat the increments of the sample that ends a data gap.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GapPolicy {
+    /// Decide from the physics: the accelerometer increment's magnitude
+    /// (≈ g·Δt for a land vehicle) tells whether it covers the whole gap or
+    /// one nominal period.
+    #[default]
+    Auto,
+    /// The increments cover one nominal period; the rates are held over the
+    /// rest of the gap.
+    HoldRate,
+    /// The increments cover the whole gap (an accumulating IMU).
+    AsIs,
+}
+
+/// How GNSS fixes that arrive after their time of validity are used.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
+#[serde(rename_all = "kebab-case", tag = "mode")]
+pub enum LatencyMode {
+    /// Post-processing: fixes are pushed before the IMU passes them and
+    /// processed exactly at their (corrected) time of validity.
+    #[default]
+    Offline,
+    /// Real time, uncompensated: a fix is applied when it arrives as if it
+    /// were valid then (what a filter without latency handling does).
+    Naive,
+    /// (a) Known fixed latency (PX4 EKF2 style): the filter runs `lag_s`
+    /// behind real time so every fix is fused at its time of validity, and
+    /// the output is predicted forward to real time by re-integrating the
+    /// buffered IMU samples.
+    FixedLag { lag_s: f64 },
+    /// (b) Seed 002 step 5: the fix valid at t_v is used at its receipt
+    /// time, moved forward by the INS change over the latency.
+    Extrapolate,
+    /// (c) Delayed-state update: return to the stored state at t_v, update
+    /// there and propagate forward again through the buffered IMU samples.
+    DelayedState { max_latency_s: f64 },
+}
+
+/// How GNSS fixes that disagree with the INS prediction are weighted.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "kebab-case", tag = "mode")]
+pub enum GnssWeighting {
+    /// Every fix at its stated σ (what KF-GINS does).
+    Off,
+    /// Chi-square gate at probability `prob`: a fix over it is rejected,
+    /// unless it agrees with the previous rejected fix (taken as INS drift:
+    /// P is inflated), and after `max_consecutive_rejects` rejections the
+    /// next fix is accepted without gating.
+    Gate { prob: f64 },
+    /// Robust down-weighting (the default); see [`RobustWeighting`].
+    Robust(RobustWeighting),
+}
+
+impl Default for GnssWeighting {
+    fn default() -> Self {
+        GnssWeighting::Robust(RobustWeighting::default())
+    }
+}
+
+/// Robust GNSS weighting. Real GNSS errors come in episodes (multipath,
+/// float solutions) in which they exceed the receiver's stated σ several
+/// times, correlated over seconds. Two mechanisms (see
+/// `Core::robust_apply`):
+///
+/// - The scale of each axis's noise is estimated by variational Bayes
+///   from the jump between consecutive fixes (measured against the INS,
+///   whose drift cancels), forgetting with the correlation time
+///   `memory_s`; it never drops below the stated σ.
+/// - Gross errors: an IGG-III equivalent-weight function on each NED axis
+///   of the standardised innovation v_i = z_i/√S_ii (Yang, Song & Xu,
+///   "Robust estimator for correlated observations based on bifactor
+///   equivalent weights", Journal of Geodesy 76, 2002; its use in a
+///   Kalman filter: Yang, He & Xu, "Adaptively robust filtering for
+///   kinematic geodetic positioning", Journal of Geodesy 75, 2001):
+///
+///   w = 1 for |v| ≤ k0; w = (k0/|v|)·((k1 − |v|)/(k1 − k0))² for
+///   k0 < |v| ≤ k1; w = 0 beyond k1, and R_ii is divided by w.
+///
+/// A fix rejected on every axis is counted as rejected; only a run of at
+/// least `drift_run` rejected fixes that agree with each other (the INS
+/// drifted beyond its covariance, as after a long outage) inflates P.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct RobustWeighting {
+    /// Below this |v| a fix keeps its stated σ (4: 6e-5 of honest
+    /// Gaussian residuals per axis are touched; real MEMS filters are
+    /// often 2–3× overconfident through GNSS gaps, and a lower k0 then
+    /// blames good fixes for the INS's drift).
+    pub k0: f64,
+    /// Beyond this |v| an axis is rejected.
+    pub k1: f64,
+    /// Correlation time of the noise-scale estimate (s): how long a
+    /// degraded episode is remembered. 0 (the default) judges each fix by
+    /// its jump from the previous one alone: on the real drive tried, any
+    /// memory also discounted the good fixes that end an episode.
+    pub memory_s: f64,
+    /// Weight of the prior (scale 1: the stated σ) in equivalent fixes.
+    pub prior_fixes: f64,
+    /// Consecutive rejected fixes, agreeing with each other, that are
+    /// taken as INS drift.
+    pub drift_run: usize,
+}
+
+impl Default for RobustWeighting {
+    fn default() -> Self {
+        RobustWeighting {
+            k0: 4.0,
+            k1: 10.0,
+            memory_s: 0.0,
+            prior_fixes: 4.0,
+            drift_run: 3,
+        }
+    }
+}
+
+impl RobustWeighting {
+    /// The IGG-III equivalent weight of a standardised residual.
+    pub fn weight(&self, v: f64) -> f64 {
+        let a = v.abs();
+        if a <= self.k0 {
+            1.0
+        } else if a <= self.k1 {
+            let r = (self.k1 - a) / (self.k1 - self.k0);
+            self.k0 / a * r * r
+        } else {
+            0.0
+        }
+    }
+
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.k0 > 0.0 && self.k1 > self.k0 && self.k1.is_finite()) {
+            return Err(format!(
+                "robust GNSS weighting needs 0 < k0 < k1 (k0 {}, k1 {})",
+                self.k0, self.k1
+            ));
+        }
+        let finite = self.memory_s.is_finite() && self.prior_fixes.is_finite();
+        if !finite || self.memory_s < 0.0 || self.prior_fixes < 1.0 || self.drift_run < 2 {
+            return Err(
+                "robust GNSS memory must be >= 0 s, the prior >= 1 fix and the drift run >= 2 fixes"
+                    .into(),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// What happened to one GNSS observation (position or velocity of a fix).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FixStatus {
+    Used,
+    DownWeighted,
+    Rejected,
+    /// Accepted after a run of rejections that agreed with each other.
+    DriftAccepted,
+}
+
+/// One GNSS observation as the filter saw it (for `gnss_residuals.txt`
+/// and the report).
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct FixRecord {
+    #[serde(skip)]
+    pub time: GpsTime,
+    /// Seconds of the GPS week.
+    pub sow: f64,
+    /// "position" or "velocity".
+    pub kind: &'static str,
+    /// Innovation, predicted minus measured (m or m/s, NED).
+    pub innovation: [f64; 3],
+    /// Stated standard deviations (m or m/s).
+    pub sd: [f64; 3],
+    /// Normalised innovation squared with the stated σ (3 degrees of freedom).
+    pub nis: f64,
+    /// Weight per axis (R divided by it, memory included).
+    pub weight: [f64; 3],
+    pub status: FixStatus,
+}
+
+/// A receiver's time-correlated position error (multipath, atmosphere,
+/// ambiguity residuals) modelled as three first-order Gauss–Markov filter
+/// states b (NED): the fix is r_ant + b + white noise, and R keeps only
+/// the white part, R_white = max(R_stated − σ_GM², (0.3 σ_stated)²): the
+/// stated σ is taken as the total. Without it, a filter that averages
+/// many fixes believes it beat an error that does not average down.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct GnssErrorModel {
+    /// Steady-state σ of the correlated error per NED axis (m).
+    pub gm_sd_m: [f64; 3],
+    /// Its correlation time (s).
+    pub corr_time_s: f64,
+}
+
+impl GnssErrorModel {
+    pub fn validate(&self) -> Result<(), String> {
+        if self.gm_sd_m.iter().any(|s| !(s.is_finite() && *s > 0.0))
+            || !(self.corr_time_s.is_finite() && self.corr_time_s > 0.0)
+        {
+            return Err(format!(
+                "the correlated GNSS error needs positive σ and correlation time (σ {:?} m, τ {} s)",
+                self.gm_sd_m, self.corr_time_s
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Non-holonomic constraint settings.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct NhcOptions {
+    pub vehicle: VehicleConstraint,
+    /// Seconds between constraint updates.
+    pub interval_s: f64,
+}
+
+/// Odometer speed update settings (speeds come from the IMU file's 8th
+/// column or from [`Fusion::push_speed`]).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct OdometerOptions {
+    pub vehicle: VehicleConstraint,
+    pub sd_mps: f64,
+    pub interval_s: f64,
+    /// Estimate an odometer scale factor with this initial σ.
+    pub scale_sd: Option<f64>,
+}
+
+/// The IMU–GNSS time-offset state.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct TimeOffsetOptions {
+    /// Initial estimate τ̂₀ (s): GNSS time tag − true time of validity.
+    pub init_s: f64,
+    /// Initial σ (s).
+    pub sd_s: f64,
+    /// Random-walk power spectral density (s²/s).
+    pub random_walk_psd: f64,
+    /// Freeze τ̂ while the motion gives it no information.
+    pub hold_when_unobservable: bool,
+    /// Run the coarse search over ±this range (s); 0 disables it.
+    pub search_range_s: f64,
+}
+
+impl Default for TimeOffsetOptions {
+    fn default() -> Self {
+        TimeOffsetOptions {
+            init_s: 0.0,
+            sd_s: 0.2,
+            random_walk_psd: 1e-12,
+            hold_when_unobservable: true,
+            search_range_s: 0.5,
+        }
+    }
+}
+
+/// Everything the engine needs to start.
+#[derive(Clone, Debug)]
+pub struct FusionConfig {
+    /// Initial navigation state; its `time` is the start: samples before it
+    /// are skipped and the first sample at or after it starts the run.
+    pub init_nav: NavState,
+    pub init_imu: ImuErrors,
+    pub init_std: InitialStd,
+    pub noise: ImuNoise,
+    /// GNSS antenna position in the body frame (m, FRD).
+    pub antenna_lever_b: Vector3<f64>,
+    /// Nominal IMU rate (Hz), for gap detection.
+    pub imu_rate_hz: f64,
+    /// A step longer than this many nominal periods is a gap.
+    pub gap_factor: f64,
+    pub gap_policy: GapPolicy,
+    /// Covariance propagation step (s); 0 propagates at every IMU sample.
+    pub cov_step_s: f64,
+    /// How disagreeing GNSS fixes are weighted.
+    pub gnss_weighting: GnssWeighting,
+    /// Gate mode: accept a fix anyway after this many consecutive
+    /// rejections (the filter, not the fixes, is then the likely culprit).
+    pub max_consecutive_rejects: usize,
+    /// Use GNSS velocity when a fix carries it.
+    pub use_gnss_velocity: bool,
+    pub nhc: Option<NhcOptions>,
+    pub odometer: Option<OdometerOptions>,
+    pub time_offset: Option<TimeOffsetOptions>,
+    pub latency: LatencyMode,
+    /// Estimate the 12 axis misalignments of the gyro and accelerometer
+    /// triads (random constants) with these initial σ (rad): gyro, accel.
+    /// A MEMS IMU's ±0.05° couples a 10°/s turn into 30°/h of tilt rate,
+    /// which the 21 KF-GINS states leave out (the filter is then
+    /// overconfident in turns and outages).
+    pub misalignment_sd_rad: Option<[f64; 2]>,
+    /// Time-correlated GNSS position error as filter states.
+    pub gnss_error: Option<GnssErrorModel>,
+    /// Started levelled over a standstill: the tilt error is M·δb_a
+    /// ([`crate::align::levelling_tilt_coupling`]). P starts with
+    /// P_φφ += M Σ_b Mᵀ and P_φb = M Σ_b (Σ_b from `init_std.accel_bias`);
+    /// `init_std.att` then holds only the tilt σ that is not the bias.
+    pub levelling_coupling: Option<Matrix3<f64>>,
+    /// Detect standstills and apply zero-velocity and zero-angular-rate
+    /// updates while stopped.
+    pub standstill: Option<StandstillOptions>,
+}
+
+impl FusionConfig {
+    /// Sensible defaults around an initial state and noise model.
+    pub fn new(
+        init_nav: NavState,
+        init_std: InitialStd,
+        noise: ImuNoise,
+        imu_rate_hz: f64,
+    ) -> Self {
+        FusionConfig {
+            init_nav,
+            init_imu: ImuErrors::default(),
+            init_std,
+            noise,
+            antenna_lever_b: Vector3::zeros(),
+            imu_rate_hz,
+            gap_factor: 2.5,
+            gap_policy: GapPolicy::Auto,
+            cov_step_s: 0.1,
+            gnss_weighting: GnssWeighting::default(),
+            max_consecutive_rejects: 5,
+            use_gnss_velocity: true,
+            nhc: None,
+            odometer: None,
+            time_offset: None,
+            latency: LatencyMode::Offline,
+            misalignment_sd_rad: None,
+            gnss_error: None,
+            levelling_coupling: None,
+            standstill: None,
+        }
+    }
+}
+
+/// The solution at one IMU epoch.
+#[derive(Copy, Clone, Debug)]
+pub struct NavOutput {
+    pub nav: NavState,
+    pub imu: ImuErrors,
+}
+
+/// The time-offset estimate at some epoch.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct TimeOffsetState {
+    pub offset_s: f64,
+    pub sd_s: f64,
+    /// False while τ̂ is held (unobservable motion).
+    pub observable: bool,
+}
+
+/// Counters the engine keeps.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct FusionStats {
+    pub imu_samples: usize,
+    pub gnss_fixes_used: usize,
+    pub gnss_fixes_rejected: usize,
+    pub gnss_fixes_late: usize,
+    pub gnss_velocity_used: usize,
+    pub gnss_velocity_rejected: usize,
+    pub gnss_split_intervals: usize,
+    pub gate_reopened: usize,
+    /// Fixes over the gate accepted because they agreed with the previous
+    /// rejected fix (the INS had drifted beyond its covariance, which was
+    /// inflated); see `Core::gnss_update`.
+    pub gnss_fixes_accepted_consistent: usize,
+    /// Robust weighting: fixes used with an inflated R on some axis.
+    pub gnss_fixes_downweighted: usize,
+    pub gnss_velocity_downweighted: usize,
+    /// Fixes refused before use: non-finite values, σ ≤ 0 or beyond
+    /// [`MAX_GNSS_SD_M`], a time already seen, or a position repeated
+    /// while the vehicle moved (a stale receiver output).
+    pub gnss_fixes_invalid: usize,
+    pub gnss_fixes_duplicate: usize,
+    pub gnss_fixes_stale: usize,
+    pub nhc_updates: usize,
+    pub odometer_updates: usize,
+    /// Standstill: zero-velocity and zero-angular-rate updates, and the
+    /// time detected still (s).
+    pub zupt_updates: usize,
+    pub zaru_updates: usize,
+    pub standstill_s: f64,
+    pub gaps: usize,
+    pub gap_total_s: f64,
+    pub max_gap_s: f64,
+    pub covariance_propagations: usize,
+    pub time_offset_held_updates: usize,
+    pub delayed_state_replays: usize,
+}

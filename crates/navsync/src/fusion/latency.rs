@@ -1,0 +1,217 @@
+//! Real-time latency modes: the fixed-lag output predictor, the INS
+//! extrapolation of late fixes (seed 002 step 5) and the delayed-state
+//! update with its state history.
+
+use super::*;
+
+/// The fixed-lag mode's output predictor: the lagged filter state carried
+/// forward through the buffered samples.
+#[derive(Clone)]
+pub(super) struct Predictor {
+    pub(super) nav: NavState,
+    pub(super) mech: Mechanization,
+    pub(super) last: GpsTime,
+    /// The lagged filter's correction count this prediction started from.
+    pub(super) corrections: usize,
+}
+
+impl Predictor {
+    pub(super) fn step(&mut self, s: &ImuSample, imu: &ImuErrors) {
+        let dt = s.time.seconds_since(self.last);
+        if dt <= 0.0 {
+            return;
+        }
+        let inc = imu.compensate(&s.dtheta, &s.dvel, dt);
+        self.mech.step(&mut self.nav, &inc);
+        self.nav.time = s.time;
+        self.last = s.time;
+    }
+}
+
+/// Interval between stored filter states in the delayed-state mode.
+pub(super) const SNAPSHOT_INTERVAL_NS: i64 = 50_000_000;
+
+/// A recent solution epoch kept for real-time latency handling.
+#[derive(Copy, Clone, Debug)]
+pub(super) struct HistoryEntry {
+    pub(super) time: GpsTime,
+    pub(super) pos: Geodetic,
+    pub(super) vel: Vector3<f64>,
+}
+
+impl Fusion {
+    /// (a) The filter consumes samples `lag_s` behind; the output is its
+    /// state predicted through the buffered samples.
+    pub(super) fn push_imu_lagged(
+        &mut self,
+        sample: &ImuSample,
+        lag_s: f64,
+    ) -> Result<Option<NavOutput>, Error> {
+        self.imu_buffer.push_back(*sample);
+        let horizon = sample.time.add_seconds(-lag_s);
+        while let Some(s) = self.imu_buffer.front().copied()
+            && s.time <= horizon
+        {
+            self.imu_buffer.pop_front();
+            self.core.push_imu(&s)?;
+        }
+        if !self.core.started {
+            return Ok(None);
+        }
+        // Output predictor: the lagged state carried through the buffered
+        // samples. It is rebuilt only when the lagged filter corrected its
+        // state; otherwise the newest sample is integrated onto it.
+        let corrections = self.core.corrections();
+        let rebuild = self
+            .predictor
+            .as_ref()
+            .is_none_or(|p| p.corrections != corrections);
+        if rebuild {
+            let mut p = Predictor {
+                nav: self.core.nav,
+                mech: self.core.mech.clone(),
+                last: self.core.last_time,
+                corrections,
+            };
+            for s in &self.imu_buffer {
+                p.step(s, &self.core.imu);
+            }
+            self.predictor = Some(p);
+        } else if let Some(p) = self.predictor.as_mut() {
+            p.step(sample, &self.core.imu);
+        }
+        let nav = self
+            .predictor
+            .as_ref()
+            .map(|p| p.nav)
+            .unwrap_or(self.core.nav);
+        Ok(Some(NavOutput {
+            nav,
+            imu: self.core.imu,
+        }))
+    }
+
+    /// (b) Seed 002 step 5: shift the fix by the INS change between its time
+    /// of validity and now, and apply it now.
+    pub(super) fn extrapolated_update(&mut self, fix: GnssFix) -> Result<(), Error> {
+        if !self.core.started {
+            self.core.queue(fix);
+            return Ok(());
+        }
+        let now = self.core.nav;
+        let Some(then) = self.history_at(fix.time) else {
+            self.core.stats.gnss_fixes_late += 1;
+            self.core.notes.push(format!(
+                "GNSS fix at {} is older than the kept INS history; dropped",
+                fix.time
+            ));
+            return Ok(());
+        };
+        let le = LocalEarth::new(&then.pos, &then.vel);
+        let d_ned = le.geodetic_delta_to_ned(
+            now.pos.lat_rad - then.pos.lat_rad,
+            now.pos.lon_rad - then.pos.lon_rad,
+            now.pos.h_m - then.pos.h_m,
+        );
+        let d = LocalEarth::new(&fix.pos, &then.vel).ned_to_geodetic_delta(&d_ned);
+        let mut moved = fix;
+        moved.time = now.time;
+        moved.pos = Geodetic::new(
+            fix.pos.lat_rad + d.x,
+            fix.pos.lon_rad + d.y,
+            fix.pos.h_m + d.z,
+        );
+        moved.vel = fix.vel.map(|v| v + (now.vel - then.vel));
+        self.core.gnss_update(&moved)
+    }
+
+    pub(super) fn history_at(&self, t: GpsTime) -> Option<HistoryEntry> {
+        let h = &self.history;
+        let n = h.len();
+        if n == 0 || t < h[0].time {
+            return None;
+        }
+        if t >= h[n - 1].time {
+            return Some(h[n - 1]);
+        }
+        let i = h.partition_point(|e| e.time <= t).clamp(1, n - 1);
+        let (a, b) = (h[i - 1], h[i]);
+        let u = (t - a.time) as f64 / (b.time - a.time) as f64;
+        Some(HistoryEntry {
+            time: t,
+            pos: Geodetic::new(
+                a.pos.lat_rad + (b.pos.lat_rad - a.pos.lat_rad) * u,
+                a.pos.lon_rad + (b.pos.lon_rad - a.pos.lon_rad) * u,
+                a.pos.h_m + (b.pos.h_m - a.pos.h_m) * u,
+            ),
+            vel: a.vel + (b.vel - a.vel) * u,
+        })
+    }
+
+    /// Stores the filter state every [`SNAPSHOT_INTERVAL_NS`] (a delayed fix
+    /// replays at most that much more than its latency).
+    pub(super) fn maybe_snapshot(&mut self) {
+        let due = self
+            .snapshots
+            .back()
+            .is_none_or(|s| self.core.nav.time - s.nav.time >= SNAPSHOT_INTERVAL_NS);
+        if due {
+            self.snapshots.push_back(self.core.clone());
+        }
+    }
+
+    /// (c) Return to the stored state before the fix, insert it, and
+    /// re-process the buffered IMU samples.
+    pub(super) fn delayed_update(&mut self, fix: GnssFix) -> Result<(), Error> {
+        let tp = self.core.proc_time(&fix);
+        if !self.core.started || tp > self.core.nav.time {
+            self.core.queue(fix);
+            self.applied.push_back(fix);
+            return Ok(());
+        }
+        let Some(k) = self.snapshots.iter().rposition(|s| s.nav.time < tp) else {
+            self.core.stats.gnss_fixes_late += 1;
+            self.core.notes.push(format!(
+                "GNSS fix at {} is older than the stored states; dropped (raise the maximum latency)",
+                fix.time
+            ));
+            return Ok(());
+        };
+        let notes = std::mem::take(&mut self.core.notes);
+        let mut core = self.snapshots[k].clone();
+        core.notes = notes;
+        self.replays += 1;
+        // Fixes already applied after the snapshot must be applied again.
+        let t_snap = core.nav.time;
+        for f in &self.applied {
+            if core.proc_time(f) > t_snap && !core.pending.iter().any(|p| p.time == f.time) {
+                core.queue(*f);
+            }
+        }
+        core.queue(fix);
+        self.applied.push_back(fix);
+        let oldest = self.snapshots[0].nav.time;
+        while self
+            .applied
+            .front()
+            .is_some_and(|f| self.core.proc_time(f) < oldest)
+        {
+            self.applied.pop_front();
+        }
+        self.snapshots.truncate(k + 1);
+        let replay: Vec<ImuSample> = self
+            .imu_buffer
+            .iter()
+            .filter(|s| s.time > t_snap)
+            .copied()
+            .collect();
+        self.core = core;
+        for s in &replay {
+            self.core.push_imu(s)?;
+            self.maybe_snapshot();
+        }
+        // The coarse search already saw these steps on the first pass.
+        self.core.steps.clear();
+        Ok(())
+    }
+}

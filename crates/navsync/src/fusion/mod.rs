@@ -1,0 +1,826 @@
+//! The streaming GNSS/INS engine: push IMU samples and GNSS fixes, get the
+//! navigation state at every IMU epoch.
+//!
+//! Loosely coupled, indirect-feedback (closed-loop) Kalman filter (seed 000
+//! §1.2; seed 004 §1.1): the strapdown mechanization runs on every IMU
+//! sample; GNSS fixes, the non-holonomic constraint and odometer speeds
+//! correct it through the error-state filter, and the estimated errors are
+//! fed back at once.
+//!
+//! Timing is explicit everywhere:
+//! - A GNSS fix that falls between two IMU samples is processed at its own
+//!   time: the IMU interval is split there (linear-rate assumption), the
+//!   first part is integrated, the fix applied, the remainder follows.
+//! - Every IMU sample uses its own interval; a gap longer than `gap_factor`
+//!   nominal periods is reported, never bridged silently.
+//! - Optionally the IMU–GNSS time offset τ (GNSS time tag − true time of
+//!   validity) is a filter state (seed 004 eqs 11–16: observation row
+//!   [H, −v]; PSINS's delay state has the same rows): a fix tagged t is
+//!   processed at t − τ̂ and its rows are −v_antenna (position) and −a
+//!   (velocity). τ̂ is held while it is unobservable (standstill, constant
+//!   velocity), and a coarse search ([`crate::offset_search`]) brings large
+//!   offsets (±0.5 s) within the filter's linear range.
+//! - Fixes that arrive late in real time (latency) are handled by one of
+//!   the [`LatencyMode`]s.
+//!
+//! Files: this one holds the engine ([`Fusion`]) and its filter core
+//! (mechanization, gaps, covariance propagation, feedback); each aid source
+//! has its own file with its model and control logic: `aid_gnss.rs` (GNSS
+//! position and velocity, gating, robust weighting), `aid_vehicle.rs`
+//! (non-holonomic constraint, odometer, standstill), `aid_time_offset.rs`
+//! (the time-offset state); `latency.rs` the real-time latency modes;
+//! `config.rs` the settings and statistics.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use nalgebra::{Matrix3, Vector3};
+use serde::Serialize;
+
+use crate::earth::{Geodetic, LocalEarth};
+use crate::error::{Diagnostics, Error};
+use crate::filter::dense::{self, Mat};
+use crate::filter::gnss::{self, GnssFix};
+use crate::filter::nhc::VehicleConstraint;
+use crate::filter::standstill::{self, StandstillDetector, StandstillOptions, StillWindow};
+use crate::filter::{
+    ErrorStateFilter, ImuNoise, InitialStd, Observation, SmootherNode, StateLayout, UpdateOutcome,
+    feedback,
+};
+use crate::ins::{ImuErrors, ImuSample, Increment, Mechanization, NavState, StepInfo};
+use crate::offset_search::{CoarseOffsetSearch, OffsetEstimate};
+use crate::smoother::{NodeNominal, Recorder, Smoothed};
+use crate::stats::chi2_quantile;
+use crate::time::GpsTime;
+
+mod aid_gnss;
+mod aid_time_offset;
+mod aid_vehicle;
+mod config;
+mod latency;
+#[cfg(test)]
+mod tests;
+
+pub use aid_gnss::MAX_GNSS_SD_M;
+use aid_gnss::{RejectedFix, ResidualMemo, invalid_fix};
+use aid_time_offset::Kinematics;
+pub use config::*;
+use latency::{HistoryEntry, Predictor};
+
+/// The filter and navigation state: everything that a delayed-state update
+/// must be able to restore (cloned at each IMU epoch in that mode).
+#[derive(Clone)]
+struct Core {
+    cfg: Arc<FusionConfig>,
+    nav: NavState,
+    imu: ImuErrors,
+    mech: Mechanization,
+    filter: ErrorStateFilter,
+    started: bool,
+    last_time: GpsTime,
+    nominal_dt: f64,
+    gate: Option<f64>,
+    consecutive_rejects: usize,
+    /// The last fix rejected by the gate in the current run of rejections.
+    last_rejected: Option<RejectedFix>,
+    /// When a fix over the gate was last accepted as INS drift.
+    last_drift_accept: Option<GpsTime>,
+    /// Robust weighting: the run of fixes rejected on every axis.
+    rejected_run: Vec<RejectedFix>,
+    /// Robust weighting: the inverse-gamma posterior (α, β) of the noise
+    /// scale of each axis of position and velocity, and when it was set.
+    noise_scale: [([(f64, f64); 3], GpsTime); 2],
+    /// Robust weighting: the last fix's posterior residual, per slot.
+    last_residual: [Option<ResidualMemo>; 2],
+    /// The last fix used (time and position), to spot repeated ones.
+    last_fix: Option<(GpsTime, Geodetic, Geodetic)>,
+    /// Per-observation records since the wrapper last drained them.
+    fix_log: Vec<FixRecord>,
+    pending: VecDeque<GnssFix>,
+    last_w_ib: Vector3<f64>,
+    /// Standstill detection, and the still window awaiting its updates.
+    still_detector: Option<StandstillDetector>,
+    still_window: Option<StillWindow>,
+    /// The initial heading is unknown (σ > 90°): yaw is never updated.
+    heading_unknown: bool,
+    kin: Kinematics,
+    next_nhc: GpsTime,
+    next_odo: GpsTime,
+    pending_speed: Option<f64>,
+    odo_scale: f64,
+    odo_scale_index: Option<usize>,
+    tau: f64,
+    tau_index: Option<usize>,
+    /// Estimated correlated GNSS position error (NED, m) and its first
+    /// state index.
+    gnss_bias: Vector3<f64>,
+    gnss_bias_index: Option<usize>,
+    tau_observable: bool,
+    stats: FusionStats,
+    /// Messages since the wrapper last drained them.
+    notes: Vec<String>,
+    /// Steps since the wrapper last drained them (for the coarse search):
+    /// end time, velocity change, duration, antenna lever arm in NED.
+    steps: Vec<(GpsTime, Vector3<f64>, f64, Vector3<f64>)>,
+    record_steps: bool,
+    /// Smoother: the node interval (s) when nodes are recorded, and the
+    /// nodes completed since the wrapper last drained them.
+    node_interval_s: Option<f64>,
+    nodes: Vec<(SmootherNode, NodeNominal)>,
+}
+
+impl Core {
+    fn new(cfg: Arc<FusionConfig>) -> Self {
+        let mut layout = StateLayout::default();
+        let mut extra_var = Vec::new();
+        let mut odo_scale_index = None;
+        if let Some(odo) = &cfg.odometer
+            && let Some(sd) = odo.scale_sd
+        {
+            odo_scale_index = Some(layout.add("odometer_scale", 1e-10));
+            extra_var.push(sd * sd);
+        }
+        let mut tau_index = None;
+        let mut tau = 0.0;
+        if let Some(to) = &cfg.time_offset {
+            tau_index = Some(layout.add("time_offset", to.random_walk_psd));
+            extra_var.push(to.sd_s * to.sd_s);
+            tau = to.init_s;
+        }
+        if let Some([g, a]) = cfg.misalignment_sd_rad {
+            layout.add_misalignment();
+            extra_var.extend([g * g; 6]);
+            extra_var.extend([a * a; 6]);
+        }
+        let mut gnss_bias_index = None;
+        if let Some(m) = &cfg.gnss_error {
+            const NAMES: [&str; 3] = ["gnss_error_n", "gnss_error_e", "gnss_error_d"];
+            for (i, name) in NAMES.into_iter().enumerate() {
+                let k = layout.add_gauss_markov(name, m.gm_sd_m[i], m.corr_time_s);
+                gnss_bias_index.get_or_insert(k);
+                extra_var.push(m.gm_sd_m[i] * m.gm_sd_m[i]);
+            }
+        }
+        let mut filter = ErrorStateFilter::new(layout, cfg.noise, &cfg.init_std, &extra_var);
+        if let Some(m) = cfg.levelling_coupling {
+            use crate::filter::idx;
+            let sigma_b = Matrix3::from_diagonal(
+                &cfg.init_std
+                    .accel_bias
+                    .component_mul(&cfg.init_std.accel_bias),
+            );
+            let p = filter.covariance_mut();
+            let p_att = p.block3(idx::ATT, idx::ATT) + m * sigma_b * m.transpose();
+            let p_att_ba = m * sigma_b;
+            p.set_block3(idx::ATT, idx::ATT, &p_att);
+            p.set_block3(idx::ATT, idx::BA, &p_att_ba);
+            p.set_block3(idx::BA, idx::ATT, &p_att_ba.transpose());
+        }
+        let gate = match cfg.gnss_weighting {
+            GnssWeighting::Gate { prob } if prob > 0.0 && prob < 1.0 => {
+                Some(chi2_quantile(prob, 3.0))
+            }
+            _ => None,
+        };
+        let record_steps = cfg.time_offset.is_some_and(|t| t.search_range_s > 0.0);
+        Core {
+            nav: cfg.init_nav,
+            imu: cfg.init_imu,
+            mech: Mechanization::new(),
+            filter,
+            started: false,
+            last_time: cfg.init_nav.time,
+            nominal_dt: 1.0 / cfg.imu_rate_hz,
+            gate,
+            consecutive_rejects: 0,
+            last_rejected: None,
+            last_drift_accept: None,
+            rejected_run: Vec::new(),
+            noise_scale: [(
+                [(0.0, 0.0); 3].map(|_| {
+                    let p = match cfg.gnss_weighting {
+                        GnssWeighting::Robust(rw) => 0.5 * rw.prior_fixes,
+                        _ => 1.0,
+                    };
+                    (p, p)
+                }),
+                cfg.init_nav.time,
+            ); 2],
+            last_residual: [None; 2],
+            last_fix: None,
+            fix_log: Vec::new(),
+            pending: VecDeque::new(),
+            last_w_ib: Vector3::zeros(),
+            still_detector: cfg.standstill.map(StandstillDetector::new),
+            still_window: None,
+            heading_unknown: cfg.init_std.att.z > std::f64::consts::FRAC_PI_2,
+            kin: Kinematics::default(),
+            next_nhc: cfg.init_nav.time,
+            next_odo: cfg.init_nav.time,
+            pending_speed: None,
+            odo_scale: 0.0,
+            odo_scale_index,
+            tau,
+            tau_index,
+            gnss_bias: Vector3::zeros(),
+            gnss_bias_index,
+            tau_observable: false,
+            stats: FusionStats::default(),
+            notes: Vec::new(),
+            steps: Vec::new(),
+            record_steps,
+            node_interval_s: None,
+            nodes: Vec::new(),
+            cfg,
+        }
+    }
+
+    /// Propagates the covariance to now and collects any smoother nodes
+    /// this completed, with the nominal state they were corrected to.
+    fn propagate(&mut self) {
+        self.filter.propagate(&self.nav);
+        self.collect_nodes();
+    }
+
+    fn collect_nodes(&mut self) {
+        if self.node_interval_s.is_none() {
+            return;
+        }
+        let nominal = NodeNominal {
+            imu: self.imu,
+            time_offset_s: self.tau,
+            odometer_scale: self.odo_scale,
+        };
+        for node in self.filter.take_nodes() {
+            self.nodes.push((node, nominal));
+        }
+    }
+
+    /// Number of accepted corrections so far (any change of the state by
+    /// the filter).
+    fn corrections(&self) -> usize {
+        let s = &self.stats;
+        s.gnss_fixes_used + s.gnss_velocity_used + s.nhc_updates + s.odometer_updates
+    }
+
+    /// Processing time of a fix: its tag corrected by the offset estimate.
+    fn proc_time(&self, fix: &GnssFix) -> GpsTime {
+        if self.tau_index.is_some() {
+            fix.time.add_seconds(-self.tau)
+        } else {
+            fix.time
+        }
+    }
+
+    fn queue(&mut self, fix: GnssFix) {
+        if self.pending.iter().any(|p| p.time == fix.time)
+            || self.last_fix.is_some_and(|(t, _, _)| t == fix.time)
+        {
+            self.stats.gnss_fixes_duplicate += 1;
+            self.notes.push(format!(
+                "GNSS fix at {} repeats the time of an earlier fix; ignored",
+                fix.time
+            ));
+            return;
+        }
+        if let Some(why) = invalid_fix(&fix) {
+            self.stats.gnss_fixes_invalid += 1;
+            self.notes
+                .push(format!("GNSS fix at {} ignored: {why}", fix.time));
+            return;
+        }
+        if self.started && self.proc_time(&fix) <= self.nav.time {
+            self.stats.gnss_fixes_late += 1;
+            self.notes.push(format!(
+                "GNSS fix at {} arrived after the solution passed it; dropped",
+                fix.time
+            ));
+            return;
+        }
+        let pos = self.pending.partition_point(|f| f.time <= fix.time);
+        self.pending.insert(pos, fix);
+    }
+
+    fn push_imu(&mut self, sample: &ImuSample) -> Result<Option<NavOutput>, Error> {
+        if !self.started {
+            if sample.time < self.cfg.init_nav.time {
+                return Ok(None);
+            }
+            self.started = true;
+            // A start between samples (an alignment epoch): carry the
+            // position to the first sample at the initial velocity.
+            let lag = sample.time.seconds_since(self.nav.time);
+            if lag > 0.0 && lag < 1.0 {
+                let le = LocalEarth::new(&self.nav.pos, &self.nav.vel);
+                let d = le.ned_to_geodetic_delta(&(self.nav.vel * lag));
+                self.nav.pos.lat_rad += d.x;
+                self.nav.pos.lon_rad += d.y;
+                self.nav.pos.h_m += d.z;
+            }
+            if let Some(dt) = self.node_interval_s {
+                self.filter.record_nodes(sample.time, dt);
+                self.collect_nodes();
+            }
+            self.nav.time = sample.time;
+            self.last_time = sample.time;
+            self.next_nhc = sample.time;
+            self.next_odo = sample.time;
+            let first = self
+                .imu
+                .compensate(&sample.dtheta, &sample.dvel, self.nominal_dt);
+            self.mech.set_previous(first);
+            while let Some(f) = self.pending.front()
+                && self.proc_time(f) <= sample.time
+            {
+                self.pending.pop_front();
+            }
+            return Ok(None);
+        }
+        let dt_ns = sample.time - self.last_time;
+        if dt_ns <= 0 {
+            self.notes.push(format!(
+                "IMU sample at {} is not after {}; skipped",
+                sample.time, self.last_time
+            ));
+            return Ok(None);
+        }
+        let dt = dt_ns as f64 * 1e-9;
+        let mut dtheta = sample.dtheta;
+        let mut dvel = sample.dvel;
+        if dt > self.cfg.gap_factor * self.nominal_dt {
+            self.handle_gap(dt, &mut dtheta, &mut dvel);
+        }
+        if let Some(speed) = sample.odo_speed {
+            self.pending_speed = Some(speed);
+        }
+
+        // Split the interval at every GNSS fix inside it.
+        let mut start = self.last_time;
+        while let Some(fix) = self.pending.front().copied() {
+            let tp = self.proc_time(&fix);
+            if tp > sample.time {
+                break;
+            }
+            // Within 1 µs of the sample: apply after the full step.
+            if sample.time - tp <= 1_000 {
+                break;
+            }
+            self.pending.pop_front();
+            if tp <= start {
+                // τ̂ moved the fix behind the solution: apply it now.
+                self.gnss_update(&fix)?;
+                continue;
+            }
+            let frac = (tp - start) as f64 / (sample.time - start) as f64;
+            let seg_dt = (tp - start) as f64 * 1e-9;
+            let (th1, v1) = (dtheta * frac, dvel * frac);
+            dtheta -= th1;
+            dvel -= v1;
+            self.integrate(&th1, &v1, seg_dt, tp);
+            self.nav.time = tp;
+            start = tp;
+            self.stats.gnss_split_intervals += 1;
+            self.gnss_update(&fix)?;
+        }
+        let rest_dt = (sample.time - start) as f64 * 1e-9;
+        self.integrate(&dtheta, &dvel, rest_dt, sample.time);
+        self.nav.time = sample.time;
+        self.last_time = sample.time;
+        self.stats.imu_samples += 1;
+
+        while let Some(fix) = self.pending.front().copied()
+            && self.proc_time(&fix) <= sample.time
+        {
+            self.pending.pop_front();
+            self.gnss_update(&fix)?;
+        }
+        self.vehicle_updates()?;
+        if self.filter.pending_dt() >= self.cfg.cov_step_s {
+            self.propagate();
+            self.stats.covariance_propagations += 1;
+        }
+        Ok(Some(NavOutput {
+            nav: self.nav,
+            imu: self.imu,
+        }))
+    }
+
+    fn handle_gap(&mut self, dt: f64, dtheta: &mut Vector3<f64>, dvel: &mut Vector3<f64>) {
+        self.stats.gaps += 1;
+        self.stats.gap_total_s += dt;
+        self.stats.max_gap_s = self.stats.max_gap_s.max(dt);
+        let ratio = dt / self.nominal_dt;
+        let hold = match self.cfg.gap_policy {
+            GapPolicy::HoldRate => true,
+            GapPolicy::AsIs => false,
+            GapPolicy::Auto => {
+                // |Δv| ≈ |f|·T with |f| ≈ g for a land vehicle: compare the
+                // covered time T with one nominal period and with the gap.
+                let covered = dvel.norm() / crate::earth::GAMMA_E;
+                let to_nominal = (covered / self.nominal_dt).ln().abs();
+                let to_gap = (covered / dt).ln().abs();
+                to_nominal < to_gap
+            }
+        };
+        if hold {
+            *dtheta *= ratio;
+            *dvel *= ratio;
+        }
+        self.mech.reset_history();
+        if let Some(d) = self.still_detector.as_mut() {
+            d.reset();
+        }
+        self.notes.push(format!(
+            "IMU data gap of {:.4} s ({:.1} nominal periods) ending at {}: {}",
+            dt,
+            ratio,
+            self.last_time.add_seconds(dt),
+            if hold {
+                "rates held over the gap"
+            } else {
+                "increments taken to cover the whole gap"
+            }
+        ));
+    }
+
+    /// Mechanizes one raw increment pair over `dt` ending at `t`.
+    fn integrate(&mut self, dtheta: &Vector3<f64>, dvel: &Vector3<f64>, dt: f64, t: GpsTime) {
+        if dt <= 0.0 {
+            return;
+        }
+        let inc: Increment = self.imu.compensate(dtheta, dvel, dt);
+        self.last_w_ib = inc.dtheta / dt;
+        if let Some(d) = self.still_detector.as_mut() {
+            let speed = self.nav.vel.x.hypot(self.nav.vel.y);
+            let window_s = d.options().window_s;
+            let f_n = self.nav.q_nb * (inc.dvel / dt);
+            match d.push(&f_n, &self.last_w_ib, &self.imu.gyro_bias, dt, speed) {
+                Some(Some(w)) => {
+                    self.still_window = Some(w);
+                    self.stats.standstill_s += window_s;
+                }
+                Some(None) => self.still_window = None,
+                None => {}
+            }
+        }
+        let step = self.mech.step(&mut self.nav, &inc);
+        self.filter.accumulate(&step);
+        self.kin.push(&step);
+        if self.record_steps {
+            let lever_n = self.nav.q_nb * self.cfg.antenna_lever_b;
+            self.steps.push((t, step.dv_n, dt, lever_n));
+        }
+    }
+
+    fn apply(
+        &mut self,
+        obs: &Observation,
+        gate: Option<f64>,
+        frozen: &[usize],
+    ) -> Result<UpdateOutcome, Error> {
+        self.propagate();
+        // An unknown heading (σ beyond 90°: a vehicle that never moved) is
+        // held: a small-angle error model linearised at a wrong heading
+        // would let the lever arm or gyrocompassing terms "observe" it.
+        let held_yaw;
+        let frozen = if self.heading_unknown {
+            held_yaw = [frozen, &[crate::filter::idx::ATT + 2]].concat();
+            &held_yaw[..]
+        } else {
+            frozen
+        };
+        let outcome = self
+            .filter
+            .update_with_frozen(obs, gate, frozen, self.nav.time)?;
+        if outcome.accepted {
+            feedback(
+                &outcome.dx,
+                self.filter.layout(),
+                &mut self.nav,
+                &mut self.imu,
+            );
+            if let Some(i) = self.odo_scale_index {
+                self.odo_scale -= outcome.dx[i];
+            }
+            if let Some(i) = self.tau_index {
+                self.tau -= outcome.dx[i];
+            }
+            if let Some(i) = self.gnss_bias_index {
+                for k in 0..3 {
+                    self.gnss_bias[k] -= outcome.dx[i + k];
+                }
+            }
+        }
+        Ok(outcome)
+    }
+}
+
+/// The streaming engine.
+pub struct Fusion {
+    core: Core,
+    search: Option<CoarseOffsetSearch>,
+    search_reported: bool,
+    // Real-time latency handling.
+    history: VecDeque<HistoryEntry>,
+    snapshots: VecDeque<Core>,
+    imu_buffer: VecDeque<ImuSample>,
+    /// Fixes inserted in the delayed-state window (re-queued on a restore).
+    applied: VecDeque<GnssFix>,
+    predictor: Option<Predictor>,
+    replays: usize,
+    now: GpsTime,
+    diag: Diagnostics,
+    /// Every GNSS observation the filter weighed, in time order.
+    fix_log: Vec<FixRecord>,
+    /// The forward run's record for the smoother, when enabled.
+    recorder: Option<Recorder>,
+}
+
+impl Fusion {
+    pub fn new(cfg: FusionConfig) -> Self {
+        let search = cfg
+            .time_offset
+            .filter(|t| t.search_range_s > 0.0)
+            .map(|t| CoarseOffsetSearch::new(t.search_range_s, cfg.init_nav.vel));
+        let now = cfg.init_nav.time;
+        Fusion {
+            core: Core::new(Arc::new(cfg)),
+            search,
+            search_reported: false,
+            history: VecDeque::new(),
+            snapshots: VecDeque::new(),
+            imu_buffer: VecDeque::new(),
+            applied: VecDeque::new(),
+            predictor: None,
+            replays: 0,
+            now,
+            diag: Diagnostics::with_cap(1000),
+            fix_log: Vec::new(),
+            recorder: None,
+        }
+    }
+
+    /// Records the forward run for fixed-interval smoothing
+    /// ([`crate::smoother`]), in temporary files in `dir`, with a node at
+    /// every correction epoch and at least every `node_interval_s`. Call
+    /// before the first sample; then [`Self::smooth`] at the end.
+    /// Smoothing is post-processing: it needs [`LatencyMode::Offline`].
+    pub fn enable_smoother(
+        &mut self,
+        dir: &std::path::Path,
+        node_interval_s: f64,
+    ) -> Result<(), Error> {
+        if self.cfg().latency != LatencyMode::Offline {
+            return Err(Error::Invalid(
+                "smoothing is post-processing: it needs the offline latency mode (fixes at their time of validity)".into(),
+            ));
+        }
+        if !(node_interval_s.is_finite() && node_interval_s > 0.0) {
+            return Err(Error::Invalid(format!(
+                "smoother node interval must be positive, got {node_interval_s}"
+            )));
+        }
+        if self.core.started {
+            return Err(Error::Invalid(
+                "the smoother must be enabled before the first IMU sample".into(),
+            ));
+        }
+        self.recorder = Some(Recorder::create(dir, self.core.filter.n())?);
+        self.core.node_interval_s = Some(node_interval_s);
+        Ok(())
+    }
+
+    fn store_nodes(&mut self) -> Result<(), Error> {
+        if let Some(rec) = self.recorder.as_mut() {
+            for (node, nominal) in self.core.nodes.drain(..) {
+                rec.push_node(&node, &nominal)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Ends the forward run and runs the smoother's backward pass: the
+    /// smoothed solution at every epoch the forward run returned.
+    pub fn smooth(&mut self) -> Result<Smoothed, Error> {
+        let nav = self.core.nav;
+        self.core.filter.finish_nodes(&nav);
+        self.core.collect_nodes();
+        self.store_nodes()?;
+        let layout = self.core.filter.layout().clone();
+        let rec = self
+            .recorder
+            .take()
+            .ok_or_else(|| Error::Invalid("the smoother was not enabled".into()))?;
+        rec.smooth(layout)
+    }
+
+    /// The error-state layout (state names and indices).
+    pub fn state_layout(&self) -> &StateLayout {
+        self.core.filter.layout()
+    }
+
+    /// Nodes and bytes the smoother has recorded so far.
+    pub fn smoother_record(&self) -> Option<(usize, u64)> {
+        self.recorder.as_ref().map(|r| (r.node_count(), r.bytes()))
+    }
+
+    /// The GNSS observations weighed so far (robust weighting): time,
+    /// innovation, NIS, weights and what became of each.
+    pub fn fix_log(&self) -> &[FixRecord] {
+        &self.fix_log
+    }
+
+    /// Takes the GNSS observation records collected so far.
+    pub fn take_fix_log(&mut self) -> Vec<FixRecord> {
+        std::mem::take(&mut self.fix_log)
+    }
+
+    /// The configuration the filter runs with.
+    pub fn config(&self) -> &FusionConfig {
+        self.cfg()
+    }
+
+    fn cfg(&self) -> &FusionConfig {
+        &self.core.cfg
+    }
+
+    /// The current navigation state of the filter (for [`LatencyMode::FixedLag`]
+    /// this is the lagged state, not the predicted output).
+    pub fn nav(&self) -> &NavState {
+        &self.core.nav
+    }
+
+    /// The current IMU error estimates.
+    pub fn imu_errors(&self) -> &ImuErrors {
+        &self.core.imu
+    }
+
+    pub fn stats(&self) -> FusionStats {
+        let mut s = self.core.stats.clone();
+        s.delayed_state_replays = self.replays;
+        s
+    }
+
+    /// Reported conditions (gaps, rejected or late fixes, …).
+    pub fn diagnostics(&self) -> &Diagnostics {
+        &self.diag
+    }
+
+    /// Takes the diagnostics collected so far.
+    pub fn take_diagnostics(&mut self) -> Diagnostics {
+        std::mem::replace(&mut self.diag, Diagnostics::with_cap(1000))
+    }
+
+    /// Estimated odometer scale factor (0 when not estimated).
+    pub fn odometer_scale(&self) -> f64 {
+        self.core.odo_scale
+    }
+
+    /// The time-offset estimate, when the state is enabled.
+    pub fn time_offset(&self) -> Option<TimeOffsetState> {
+        self.core.tau_index.map(|i| TimeOffsetState {
+            offset_s: self.core.tau,
+            sd_s: self.core.filter.sd(i),
+            observable: self.core.tau_observable,
+        })
+    }
+
+    /// The coarse time-offset search result, once it converged.
+    pub fn coarse_offset(&self) -> Option<OffsetEstimate> {
+        self.search.as_ref().and_then(|s| s.result())
+    }
+
+    /// Standard deviations of all states at the current time (propagates
+    /// the covariance first).
+    pub fn std_devs(&mut self) -> Vec<f64> {
+        self.core.propagate();
+        (0..self.core.filter.n())
+            .map(|i| self.core.filter.sd(i))
+            .collect()
+    }
+
+    /// Covariance of the position error δr^n (m², NED) as of the last
+    /// propagation (call [`Self::std_devs`] first for the current time).
+    pub fn position_covariance(&self) -> nalgebra::Matrix3<f64> {
+        let p = self.core.filter.covariance();
+        let i0 = crate::filter::idx::POS;
+        nalgebra::Matrix3::from_fn(|r, c| p.get(i0 + r, i0 + c))
+    }
+
+    /// Sets the odometer speed (m/s) used at the next odometer update.
+    pub fn push_speed(&mut self, speed_mps: f64) {
+        self.core.pending_speed = Some(speed_mps);
+    }
+
+    fn drain_notes(&mut self) {
+        for n in self.core.notes.drain(..) {
+            self.diag.note(n);
+        }
+        // A delayed-state replay weighs fixes again: the new record
+        // replaces the old one of the same time and kind.
+        for r in self.core.fix_log.drain(..) {
+            while let Some(last) = self.fix_log.last()
+                && (last.time > r.time || (last.time == r.time && last.kind == r.kind))
+            {
+                self.fix_log.pop();
+            }
+            self.fix_log.push(r);
+        }
+    }
+
+    fn feed_search(&mut self) {
+        let steps = std::mem::take(&mut self.core.steps);
+        let Some(search) = self.search.as_mut() else {
+            return;
+        };
+        for (t, dv, dt, lever_n) in &steps {
+            search.push_step(*t, dv, *dt, lever_n);
+        }
+        if !self.search_reported
+            && let Some(est) = search.result()
+        {
+            self.search_reported = true;
+            self.core.record_steps = false;
+            if let Some(msg) = self.core.adopt_coarse(&est) {
+                self.diag.note(msg);
+            }
+        }
+    }
+
+    /// Pushes a GNSS fix. In [`LatencyMode::Offline`] fixes must come before
+    /// the IMU samples pass their time; in the real-time modes, push each
+    /// fix when it arrives (after the IMU samples up to its arrival).
+    pub fn push_gnss(&mut self, fix: GnssFix) -> Result<(), Error> {
+        if let Some(s) = self.search.as_mut() {
+            s.push_fix(fix.time, &fix.pos, &fix.pos_sd);
+        }
+        match self.cfg().latency {
+            LatencyMode::Offline | LatencyMode::FixedLag { .. } => self.core.queue(fix),
+            LatencyMode::Naive => {
+                if self.core.started {
+                    let mut f = fix;
+                    f.time = self.core.nav.time;
+                    self.core.gnss_update(&f)?;
+                } else {
+                    self.core.queue(fix);
+                }
+            }
+            LatencyMode::Extrapolate => self.extrapolated_update(fix)?,
+            LatencyMode::DelayedState { .. } => self.delayed_update(fix)?,
+        }
+        self.drain_notes();
+        self.store_nodes()
+    }
+
+    /// Processes one IMU sample and returns the solution at its time, or
+    /// `None` for the starting sample and samples before the start.
+    pub fn push_imu(&mut self, sample: &ImuSample) -> Result<Option<NavOutput>, Error> {
+        self.now = sample.time;
+        let out = match self.cfg().latency {
+            LatencyMode::FixedLag { lag_s } => self.push_imu_lagged(sample, lag_s)?,
+            LatencyMode::DelayedState { max_latency_s } => {
+                let out = self.core.push_imu(sample)?;
+                if out.is_some() {
+                    self.imu_buffer.push_back(*sample);
+                    self.maybe_snapshot();
+                    // Keep the states (and samples after them) that a fix up
+                    // to `max_latency_s` old can need.
+                    let oldest = sample.time.add_seconds(-max_latency_s);
+                    while self.snapshots.len() > 1 && self.snapshots[1].nav.time <= oldest {
+                        self.snapshots.pop_front();
+                    }
+                    let keep_from = self
+                        .snapshots
+                        .front()
+                        .map(|s| s.nav.time)
+                        .unwrap_or(sample.time);
+                    while self.imu_buffer.front().is_some_and(|s| s.time <= keep_from) {
+                        self.imu_buffer.pop_front();
+                    }
+                }
+                out
+            }
+            _ => self.core.push_imu(sample)?,
+        };
+        if let Some(o) = &out
+            && self.cfg().latency == LatencyMode::Extrapolate
+        {
+            self.history.push_back(HistoryEntry {
+                time: o.nav.time,
+                pos: o.nav.pos,
+                vel: o.nav.vel,
+            });
+            let oldest = o.nav.time.add_seconds(-5.0);
+            while self.history.len() > 2 && self.history[1].time <= oldest {
+                self.history.pop_front();
+            }
+        }
+        self.feed_search();
+        self.drain_notes();
+        self.store_nodes()?;
+        if let (Some(rec), Some(o)) = (self.recorder.as_mut(), &out) {
+            rec.push_nav(&o.nav)?;
+        }
+        Ok(out)
+    }
+}

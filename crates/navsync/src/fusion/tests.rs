@@ -1,0 +1,290 @@
+use super::*;
+use crate::testutil::TurningAtRest;
+
+fn setup(latency: LatencyMode) -> (TurningAtRest, FusionConfig) {
+    let m = TurningAtRest {
+        pos: Geodetic::from_deg(30.4, 114.5, 25.0),
+        yaw0_rad: 0.3,
+        rate_rad_s: 0.05,
+        t0: GpsTime::from_week_sow(2300, 1000.0),
+    };
+    let std = InitialStd {
+        pos: Vector3::repeat(1.0),
+        vel: Vector3::repeat(0.1),
+        att: Vector3::repeat(0.01),
+        gyro_bias: Vector3::repeat(1e-5),
+        accel_bias: Vector3::repeat(1e-3),
+        gyro_scale: Vector3::repeat(1e-4),
+        accel_scale: Vector3::repeat(1e-4),
+    };
+    let noise = ImuNoise {
+        arw: Vector3::repeat(1e-5),
+        vrw: Vector3::repeat(1e-4),
+        gyro_bias_sd: Vector3::repeat(1e-6),
+        accel_bias_sd: Vector3::repeat(1e-5),
+        gyro_scale_sd: Vector3::repeat(1e-5),
+        accel_scale_sd: Vector3::repeat(1e-5),
+        corr_time_s: 3600.0,
+    };
+    let mut nav0 = m.state(m.t0);
+    nav0.pos.h_m += 0.5; // an initial error for the fixes to correct
+    let mut cfg = FusionConfig::new(nav0, std, noise, 200.0);
+    cfg.latency = latency;
+    (m, cfg)
+}
+
+/// Runs 30 s with 1 Hz fixes arriving `latency_s` after validity.
+fn run(latency: LatencyMode, latency_s: f64) -> (NavState, NavState, FusionStats) {
+    let (m, cfg) = setup(latency);
+    let mut f = Fusion::new(cfg);
+    let dt = 5_000_000;
+    let mut t = m.t0;
+    let mut last = None;
+    let mut next_fix = m.t0.add_seconds(1.0);
+    for _ in 0..(30 * 200) {
+        let s = m.sample(t + -dt, t);
+        let fix_arrival = next_fix.add_seconds(if latency == LatencyMode::Offline {
+            -0.5
+        } else {
+            latency_s
+        });
+        if t >= fix_arrival {
+            let truth = m.state(next_fix);
+            f.push_gnss(GnssFix {
+                time: next_fix,
+                pos: truth.pos,
+                pos_sd: Vector3::repeat(0.02),
+                vel: None,
+                vel_sd: None,
+            })
+            .unwrap();
+            next_fix = next_fix.add_seconds(1.0);
+        }
+        if let Some(o) = f.push_imu(&s).unwrap() {
+            last = Some(o.nav);
+        }
+        t = t + dt;
+    }
+    let nav = last.unwrap();
+    (nav, m.state(nav.time), f.stats().clone())
+}
+
+#[test]
+fn every_latency_mode_converges_on_a_consistent_scenario() {
+    for (mode, lat) in [
+        (LatencyMode::Offline, 0.0),
+        (LatencyMode::Naive, 0.1),
+        (LatencyMode::FixedLag { lag_s: 0.2 }, 0.1),
+        (LatencyMode::Extrapolate, 0.1),
+        (LatencyMode::DelayedState { max_latency_s: 0.5 }, 0.1),
+    ] {
+        let (nav, truth, stats) = run(mode, lat);
+        let le = LocalEarth::new(&truth.pos, &truth.vel);
+        let dp = le.geodetic_delta_to_ned(
+            nav.pos.lat_rad - truth.pos.lat_rad,
+            nav.pos.lon_rad - truth.pos.lon_rad,
+            nav.pos.h_m - truth.pos.h_m,
+        );
+        // At rest latency costs nothing: all modes remove the 0.5 m
+        // initial height error to well below the fixes' 2 cm.
+        assert!(dp.norm() < 0.01, "{mode:?}: {dp}");
+        assert!(stats.gnss_fixes_used >= 28, "{mode:?}: {stats:?}");
+        assert_eq!(stats.gnss_fixes_late, 0, "{mode:?}");
+    }
+}
+
+/// Runs 60 s at rest with 1 Hz fixes displaced north by `shift(t)` (m,
+/// t in s from the start); returns the final north error against the
+/// fixes' track and the statistics.
+fn run_with_shifted_fixes(shift: impl Fn(f64) -> f64) -> (f64, FusionStats) {
+    run_shifted(GnssWeighting::Gate { prob: 0.9999 }, shift)
+}
+
+fn run_shifted(weighting: GnssWeighting, shift: impl Fn(f64) -> f64) -> (f64, FusionStats) {
+    let (m, mut cfg) = setup(LatencyMode::Offline);
+    cfg.gnss_weighting = weighting;
+    let mut f = Fusion::new(cfg);
+    let dt = 5_000_000;
+    let mut t = m.t0;
+    let mut next_fix = m.t0.add_seconds(1.0);
+    let mut last = None;
+    for _ in 0..(60 * 200) {
+        if t >= next_fix.add_seconds(-0.5) {
+            let mut pos = m.state(next_fix).pos;
+            let le = LocalEarth::new(&pos, &Vector3::zeros());
+            pos.lat_rad += shift(next_fix.seconds_since(m.t0)) / le.rm_h;
+            f.push_gnss(GnssFix {
+                time: next_fix,
+                pos,
+                pos_sd: Vector3::repeat(0.02),
+                vel: None,
+                vel_sd: None,
+            })
+            .unwrap();
+            next_fix = next_fix.add_seconds(1.0);
+        }
+        if let Some(o) = f.push_imu(&m.sample(t + -dt, t)).unwrap() {
+            last = Some(o.nav);
+        }
+        t = t + dt;
+    }
+    let nav = last.unwrap();
+    let truth = m.state(nav.time);
+    let le = LocalEarth::new(&truth.pos, &truth.vel);
+    let north = (nav.pos.lat_rad - truth.pos.lat_rad) * le.rm_h;
+    (
+        north - shift(nav.time.seconds_since(m.t0)),
+        f.stats().clone(),
+    )
+}
+
+#[test]
+fn smooth_drift_past_the_gate_is_followed_and_a_jump_is_rejected() {
+    // The fixes accelerate away from the INS at 0.05 m/s² from 20 s on:
+    // to this overconfident filter (accelerometer bias σ 1 mm/s²) it is
+    // an error its model left out, growing smoothly past the gate while
+    // consecutive fixes agree. The filter must follow the fixes.
+    let (err, stats) = run_with_shifted_fixes(|t| 0.025 * (t - 20.0).max(0.0).powi(2));
+    // One drift episode: accepted once (the cooldown keeps a
+    // disagreement that comes back from inflating P again and again).
+    assert_eq!(stats.gnss_fixes_accepted_consistent, 1, "{stats:?}");
+    assert!(
+        stats.gnss_fixes_rejected <= 3 && stats.gate_reopened == 0,
+        "{stats:?}"
+    );
+    assert!(err.abs() < 0.1, "north error against the fixes {err} m");
+    // A 3 m jump for three epochs is a GNSS fault: all three rejected,
+    // none taken for drift, and the solution stays on the true track.
+    let (err, stats) =
+        run_with_shifted_fixes(|t| if (30.0..33.0).contains(&t) { 3.0 } else { 0.0 });
+    assert_eq!(stats.gnss_fixes_rejected, 3, "{stats:?}");
+    assert_eq!(stats.gnss_fixes_accepted_consistent, 0, "{stats:?}");
+    assert!(err.abs() < 0.01, "north error {err} m");
+}
+
+/// Robust weighting (the default): the same two cases as the gate.
+#[test]
+fn robust_weighting_follows_smooth_drift_and_rejects_a_jump() {
+    let robust = GnssWeighting::default();
+    let (err, stats) = run_shifted(robust, |t| 0.025 * (t - 20.0).max(0.0).powi(2));
+    assert!(
+        err.abs() < 0.1,
+        "north error against the fixes {err} m; {stats:?}"
+    );
+    // A 3 m jump for three epochs: three fixes that agree with each
+    // other, but the run began with a jump, so it is a fault.
+    let (err, stats) = run_shifted(
+        robust,
+        |t| {
+            if (30.0..33.0).contains(&t) { 3.0 } else { 0.0 }
+        },
+    );
+    assert_eq!(stats.gnss_fixes_rejected, 3, "{stats:?}");
+    assert_eq!(stats.gnss_fixes_accepted_consistent, 0, "{stats:?}");
+    assert!(err.abs() < 0.01, "north error {err} m");
+    // Moderately bad fixes (0.3 m jumps, 15 stated σ) for ten epochs
+    // are used, down-weighted, and move the solution by less than their
+    // error.
+    let (err, stats) = run_shifted(robust, |t| {
+        if (30.0..40.0).contains(&t) {
+            if (t as i64) % 2 == 0 { 0.3 } else { -0.3 }
+        } else {
+            0.0
+        }
+    });
+    assert!(stats.gnss_fixes_downweighted >= 5, "{stats:?}");
+    assert!(err.abs() < 0.01, "north error {err} m");
+}
+
+/// A straight drive at 10 m/s with 1 Hz fixes of 2 cm, among which
+/// bad ones: every bad fix is reported, none stops the run, and the
+/// solution stays on the true track.
+#[test]
+fn bad_fixes_are_reported_and_leave_the_state_intact() {
+    use crate::sim::trajectory::{Segment, Trajectory, TrajectoryOptions};
+    use crate::sim::truth::TruthGenerator;
+    let traj = Trajectory::from_segments(
+        Geodetic::from_deg(30.4, 114.5, 25.0),
+        &[Segment::Cruise {
+            duration_s: Some(80.0),
+            distance_m: None,
+        }],
+        TrajectoryOptions {
+            initial_speed_mps: 10.0,
+            initial_heading_rad: 0.4,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let t0 = GpsTime::from_week_sow(2300, 1000.0);
+    let mut truth = TruthGenerator::new(&traj, t0);
+    let (_, cfg0) = setup(LatencyMode::Offline);
+    let mut cfg = FusionConfig::new(truth.state_at(t0).nav, cfg0.init_std, cfg0.noise, 200.0);
+    cfg.init_std.pos = Vector3::repeat(0.05);
+    let mut f = Fusion::new(cfg);
+    let good = |truth: &mut TruthGenerator, t: GpsTime| GnssFix {
+        time: t,
+        pos: truth.state_at(t).nav.pos,
+        pos_sd: Vector3::repeat(0.02),
+        vel: None,
+        vel_sd: None,
+    };
+    let mut worst: f64 = 0.0;
+    let mut stale = None;
+    for k in 1..=200 * 80 {
+        let t = t0.add_seconds(k as f64 * 0.005);
+        if k % 200 == 100 {
+            let sec = k / 200 + 1;
+            let tf = t0.add_seconds(sec as f64);
+            let mut fix = good(&mut truth, tf);
+            match sec {
+                10 => fix.pos_sd = Vector3::new(0.0, 0.02, 0.02),
+                12 => fix.pos.h_m = f64::NAN,
+                14 => fix.pos_sd = Vector3::repeat(1e6),
+                16 => fix.pos.lat_rad += 10_000.0 / 6.4e6,
+                18 => {
+                    // A burst of 20 identical fixes (same time).
+                    for _ in 0..19 {
+                        f.push_gnss(fix).unwrap();
+                    }
+                }
+                // A receiver repeating its 30 s fix for 5 s while moving.
+                30 => stale = Some(fix.pos),
+                31..=35 => fix.pos = stale.unwrap(),
+                _ => {}
+            }
+            f.push_gnss(fix).unwrap();
+        }
+        let (nav, sample) = truth.next(t);
+        if let Some(o) = f.push_imu(&sample).unwrap() {
+            let le = LocalEarth::new(&nav.pos, &nav.vel);
+            let d = le.geodetic_delta_to_ned(
+                o.nav.pos.lat_rad - nav.pos.lat_rad,
+                o.nav.pos.lon_rad - nav.pos.lon_rad,
+                o.nav.pos.h_m - nav.pos.h_m,
+            );
+            if k > 200 {
+                worst = worst.max(d.norm());
+            }
+        }
+    }
+    let st = f.stats();
+    assert_eq!(st.gnss_fixes_invalid, 3, "{st:?}");
+    assert_eq!(st.gnss_fixes_duplicate, 19, "{st:?}");
+    assert_eq!(st.gnss_fixes_stale, 5, "{st:?}");
+    assert_eq!(st.gnss_fixes_rejected, 1, "{st:?}");
+    let notes: Vec<String> = f
+        .diagnostics()
+        .items
+        .iter()
+        .map(|d| d.to_string())
+        .collect();
+    let has = |s: &str| notes.iter().any(|n| n.contains(s));
+    assert!(has("must be positive numbers"), "{notes:?}");
+    assert!(has("not a number"), "{notes:?}");
+    assert!(has("no usable information"), "{notes:?}");
+    assert!(has("rejected by robust weighting"), "{notes:?}");
+    assert!(has("repeats the time"), "{notes:?}");
+    assert!(has("stale receiver output"), "{notes:?}");
+    assert!(worst < 0.1, "worst position error {worst} m");
+}
