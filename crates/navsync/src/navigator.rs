@@ -94,6 +94,10 @@ pub struct StreamCounts {
     /// that fell outside the data.
     pub output_at_written: usize,
     pub output_at_skipped: usize,
+    /// Solutions not written because, moved to GNSS time, they would have
+    /// gone back in time (the offset estimate stepped by more than a
+    /// sample interval).
+    pub solutions_out_of_order: usize,
 }
 
 /// Raw logger records → synchronized samples, in front of the filter.
@@ -129,6 +133,8 @@ pub struct Navigator {
     next_aux: Option<GpsTime>,
     interp: Option<NavInterpolator>,
     counts: StreamCounts,
+    /// Time of the last solution handed to the sink.
+    last_written: Option<GpsTime>,
     rig: Option<RigFrontEnd>,
 }
 
@@ -153,6 +159,7 @@ impl Navigator {
             next_aux: None,
             interp: None,
             counts: StreamCounts::default(),
+            last_written: None,
             rig: None,
         }
     }
@@ -325,7 +332,15 @@ impl Navigator {
             && let Some(o) = self.fusion.time_offset()
         {
             nav_out.time = nav_out.time.add_seconds(o.offset_s);
+            // A step of τ̂ larger than the sample interval would send the
+            // output back in time: such solutions are left out, so the
+            // written solution stays strictly increasing.
+            if self.last_written.is_some_and(|t| nav_out.time <= t) {
+                self.counts.solutions_out_of_order += 1;
+                return Ok(Step::Solution(out));
+            }
         }
+        self.last_written = Some(nav_out.time);
         sink.nav(&nav_out, &out.imu)?;
         if let Some(ip) = self.interp.as_mut() {
             for at in ip.push(&nav_out) {
@@ -415,6 +430,12 @@ impl Navigator {
             self.counts.output_at_skipped = ip.skipped;
         }
         diagnostics.extend(self.fusion.take_diagnostics());
+        if self.counts.solutions_out_of_order > 0 {
+            diagnostics.note(format!(
+                "{} solutions left out of the GNSS-time output: the time-offset estimate stepped back by more than a sample interval",
+                self.counts.solutions_out_of_order
+            ));
+        }
         let fix_records = self.fusion.take_fix_log();
         sink.fix_records(&fix_records)?;
         Ok(StreamEnd {

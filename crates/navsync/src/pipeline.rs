@@ -924,6 +924,7 @@ fn run_inner(
         fixes_outside: outside,
         output_at_written: at_written,
         output_at_skipped,
+        ..
     } = stream.counts;
     let Some(t0) = first_epoch else {
         return Err(Error::NoData {
