@@ -361,7 +361,7 @@ impl Reservoir {
     #[inline]
     fn push(&mut self, v: f64) {
         self.count += 1;
-        if self.count % self.stride != 0 {
+        if !self.count.is_multiple_of(self.stride) {
             return;
         }
         self.data.push(v);
