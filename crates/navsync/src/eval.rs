@@ -5,7 +5,7 @@
 //! slerp): position in NED metres, velocity in m/s, attitude as roll,
 //! pitch and yaw differences (yaw wrapped to ±180°). For each GNSS outage
 //! the maximum horizontal and 3D drift inside it are found, then their RMS
-//! over outages: the metric of the KF-GINS paper and of seed 001 §1.3.3
+//! over outages: the metric of the KF-GINS paper and of Tang, Zhang & Niu 2022 §1.3.3
 //! (Niu et al. 2010, "A proposed evaluation standard for the navigation
 //! results of MEMS INS/GPS integrated systems").
 

@@ -570,7 +570,12 @@ mod tests {
         for x in &r.per_run {
             assert!(x.pos_horizontal_rms_m < 3.0, "{x:?}");
             assert!(x.sync_rms_us.unwrap() < 2.0, "{x:?}");
-            assert!(x.time_offset_error_s.unwrap().abs() < 0.02, "{x:?}");
+            // τ converged: over 50 such runs (seeds 1…50, 200 s) the filter's
+            // σ was 0.94–0.95 ms and the worst error 2.49 ms (2.6σ; NEES 1.08),
+            // so 4σ fails only a filter that did not converge (τ = 10 ms).
+            let sd = x.time_offset_sd_s.unwrap();
+            assert!(sd < 1.5e-3, "{x:?}");
+            assert!(x.time_offset_error_s.unwrap().abs() < 4.0 * sd, "{x:?}");
             // One NEES epoch per second of the run.
             assert!(
                 (195..=201).contains(&x.nees_pos.len()),

@@ -240,7 +240,9 @@ pub enum Latency {
     Naive,
     /// (a) Filter runs a fixed lag behind real time; output predicted forward.
     Fixed,
-    /// (b) Fix moved forward by the INS change over the latency (seed 002).
+    /// (b) Fix moved forward by the INS change over the latency (the patent "A
+    /// time synchronization method for a GPS/SINS integrated navigation
+    /// system").
     Extrapolate,
     /// (c) Delayed-state update: update in the past, propagate forward again.
     Delayed,

@@ -28,14 +28,16 @@ pub struct Args {
 
 #[derive(clap::Subcommand)]
 pub enum Sub {
-    /// Check an IMU log against seed 001 §1.5: gaps, loss, bad data,
-    /// precision, filter, noise.
+    /// Check an IMU log against the acquisition criteria of Tang, Zhang &
+    /// Niu, "MEMS IMU raw data acquisition and time synchronization
+    /// pitfalls" (i2Nav, 2022) §1.5: gaps, loss, bad data, precision,
+    /// filter, noise.
     Check(CheckArgs),
     /// Convert rates (or increments) to KF-GINS increments, with
     /// averaging decimation.
     Convert(ConvertArgs),
     /// Decimate a KF-GINS configuration's IMU to several rates and compare
-    /// the GNSS-outage drift (seed 001 §1.3.3).
+    /// the GNSS-outage drift (Tang, Zhang & Niu 2022 §1.3.3).
     RateStudy(RateStudyArgs),
     /// Time `imu check` on generated data (default 1 h at 200 Hz).
     Bench(BenchArgs),
@@ -106,7 +108,7 @@ pub enum From_ {
 
 #[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Method {
-    /// Average rates / accumulate increments (seed 001 §1.3).
+    /// Average rates / accumulate increments (Tang, Zhang & Niu 2022 §1.3).
     Average,
     /// Keep one sample per window (aliases; for comparison only).
     Point,
@@ -237,8 +239,12 @@ pub fn format_check(r: &QualityReport, show: usize) -> String {
     );
     let _ = writeln!(
         s,
+        "criteria: Tang, Zhang & Niu, \"MEMS IMU raw data acquisition and time synchronization pitfalls\" (i2Nav, 2022)"
+    );
+    let _ = writeln!(
+        s,
         "{:<5} {:<13} {:<60} {:<26} measured",
-        "", "seed 001", "criterion", "limit"
+        "", "section", "criterion", "limit"
     );
     for c in &r.criteria {
         let _ = writeln!(

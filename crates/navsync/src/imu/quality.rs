@@ -991,7 +991,10 @@ impl QualityAnalyzer {
                         last.line,
                         if lost == 1 { "" } else { "s" },
                         if over {
-                            format!("; longer than {} s (seed 001 §1.5-5)", self.cfg.max_gap_s)
+                            format!(
+                                "; longer than {} s (Tang, Zhang & Niu 2022 §1.5-5)",
+                                self.cfg.max_gap_s
+                            )
                         } else {
                             String::new()
                         }
