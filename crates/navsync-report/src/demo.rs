@@ -267,7 +267,7 @@ pub fn run_demo(
         d(&dirs.synced.join("gnss.txt")),
         outages
             .iter()
-            .map(|(s, l)| format!("{:.3}:{l}", s.sow()))
+            .map(|w| w.to_string())
             .collect::<Vec<_>>()
             .join(","),
         tau_true.unwrap_or(0.0),

@@ -15,7 +15,7 @@ use crate::sim::imu::OutputKind;
 use crate::sim::rig::SyncMode as RigSync;
 use crate::sim::scenario::Scenario;
 use crate::sim::{SimReport, Simulation};
-use crate::time::GpsTime;
+use crate::time::{GpsTime, OutageWindow};
 use crate::timing::file::{SyncSummary, sync_file, write_kfgins_config};
 use crate::timing::{RateRule, SyncConfig, SyncMode};
 
@@ -120,13 +120,13 @@ pub fn true_time_offset_s(scn: &Scenario) -> Option<f64> {
     }
 }
 
-/// The scenario's GNSS outages as (start, length s) windows.
-pub fn outage_windows(scn: &Scenario) -> Vec<(GpsTime, f64)> {
+/// The scenario's GNSS outages.
+pub fn outage_windows(scn: &Scenario) -> Vec<OutageWindow> {
     let start = GpsTime::from_week_sow(scn.gps_week, scn.start_sow);
     scn.gnss
         .outages
         .iter()
-        .map(|w| (start.add_seconds(w[0]), w[1]))
+        .map(|w| OutageWindow::new(start.add_seconds(w[0]), w[1]))
         .collect()
 }
 
@@ -229,7 +229,7 @@ mod tests {
         assert_eq!(true_time_offset_s(&scn), Some(0.010));
         let w = outage_windows(&scn);
         assert_eq!(w.len(), 2);
-        assert_eq!(w[0].0.sow(), scn.start_sow + 240.0);
+        assert_eq!(w[0].start.sow(), scn.start_sow + 240.0);
         scn.imu.decimation = Decimation::Point;
         assert_eq!(
             ChainOptions::for_scenario(&scn).rate_rule,

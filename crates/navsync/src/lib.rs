@@ -26,7 +26,9 @@ pub mod imu;
 pub mod ins;
 pub mod interp;
 pub mod io;
+// Number formatting without allocation (under time and io::text).
 pub mod montecarlo;
+mod numfmt;
 pub mod offset_search;
 pub mod pipeline;
 pub mod reduced;
@@ -41,4 +43,4 @@ pub mod timing;
 pub mod tracking;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
-pub use time::GpsTime;
+pub use time::{GpsTime, OutageWindow};

@@ -25,7 +25,7 @@ use crate::io::kfgins::{
     GnssLayout, GnssReader, ImuReader, TextWriter, format_imu_err_line, format_nav_line,
     format_std_line,
 };
-use crate::time::GpsTime;
+use crate::time::{GpsTime, OutageWindow};
 
 /// GNSS outages simulated by withholding fixes: windows of `len_s` every
 /// `period_s`, the first starting `first_s` after the first IMU epoch.
@@ -47,13 +47,33 @@ impl OutageSchedule {
         rel - k * self.period_s < self.len_s
     }
 
-    /// The outage windows `(start, length_s)` inside `[t0, t1]`.
-    pub fn windows(&self, t0: GpsTime, t1: GpsTime) -> Vec<(GpsTime, f64)> {
+    /// Checks 0 < length < period and first ≥ 0.
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = self.period_s.is_finite()
+            && self.len_s > 0.0
+            && self.len_s < self.period_s
+            && self.first_s.is_finite()
+            && self.first_s >= 0.0;
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "outages need 0 < length ({} s) < period ({} s) and first start ({} s) >= 0",
+                self.len_s, self.period_s, self.first_s
+            ))
+        }
+    }
+
+    /// The outage windows inside `[t0, t1]`.
+    pub fn windows(&self, t0: GpsTime, t1: GpsTime) -> Vec<OutageWindow> {
         let mut out = Vec::new();
         let mut s = self.first_s;
         let span = t1.seconds_since(t0);
         while s < span {
-            out.push((t0.add_seconds(s), self.len_s.min(span - s)));
+            out.push(OutageWindow::new(
+                t0.add_seconds(s),
+                self.len_s.min(span - s),
+            ));
             s += self.period_s;
         }
         out
@@ -213,6 +233,47 @@ impl FuseOptions {
     /// Checks the settings that the engine cannot take as they are.
     pub fn validate(&self) -> Result<(), Error> {
         let bad = |m: String| Err(Error::Invalid(m));
+        if let Some(o) = &self.outages {
+            o.validate().map_err(Error::Invalid)?;
+        }
+        if !(self.gnss_latency_s.is_finite() && self.gnss_latency_s >= 0.0) {
+            return bad(format!(
+                "GNSS latency {} s must be >= 0",
+                self.gnss_latency_s
+            ));
+        }
+        if self.gnss_latency_s > 0.0 && self.latency == LatencyMode::Offline {
+            return bad(
+                "a GNSS latency needs a real-time latency mode (naive, fixed, extrapolate or delayed)"
+                    .into(),
+            );
+        }
+        if let Some(t) = &self.time_offset
+            && !(t.sd_s.is_finite() && t.sd_s > 0.0 && t.init_s.is_finite())
+        {
+            return bad(format!(
+                "time-offset σ {} s must be positive (initial value {} s finite)",
+                t.sd_s, t.init_s
+            ));
+        }
+        if let Some(o) = &self.odometer
+            && !(o.sd_mps > 0.0 && o.interval_s >= 0.0 && o.scale_sd.is_none_or(|s| s > 0.0))
+        {
+            return bad(format!(
+                "odometer σ {} m/s must be positive, its interval {} s and scale-factor σ not negative",
+                o.sd_mps, o.interval_s
+            ));
+        }
+        if let Some(r) = &self.reduced_imu {
+            let n = &r.noise;
+            if !(n.rate_sd > 0.0
+                && n.rate_corr_s > 0.0
+                && n.vertical_accel_sd > 0.0
+                && n.vertical_accel_corr_s > 0.0)
+            {
+                return bad("pseudo-signal noise settings must be positive".into());
+            }
+        }
         if self.output_at_n > crate::interp::MAX_INTERP_N {
             return bad(format!(
                 "interpolation n {} is too large: at most {} (a {}-order polynomial)",
@@ -1042,7 +1103,7 @@ fn run_inner(
         .map(|o| {
             o.windows(t0, last_time)
                 .iter()
-                .map(|(s, l)| format!("{:.3}:{}", s.sow(), l))
+                .map(|w| w.to_string())
                 .collect::<Vec<_>>()
                 .join(",")
         })

@@ -17,6 +17,31 @@ pub const SECONDS_PER_WEEK: i64 = 604_800;
 /// Nanoseconds in one GPS week.
 pub const NS_PER_WEEK: i64 = SECONDS_PER_WEEK * NS_PER_S;
 
+/// A window of GPS time, such as a GNSS outage: its start and length.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct OutageWindow {
+    pub start: GpsTime,
+    pub duration_s: f64,
+}
+
+impl OutageWindow {
+    pub fn new(start: GpsTime, duration_s: f64) -> Self {
+        OutageWindow { start, duration_s }
+    }
+
+    /// The end of the window.
+    pub fn end(&self) -> GpsTime {
+        self.start.add_seconds(self.duration_s)
+    }
+}
+
+/// `sow:length`, the `--outages` syntax.
+impl fmt::Display for OutageWindow {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:.3}:{}", self.start.sow(), self.duration_s)
+    }
+}
+
 /// An instant of GPS time, as integer nanoseconds since the GPS epoch.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct GpsTime {
@@ -94,9 +119,9 @@ impl GpsTime {
     /// Writes `sow` with 9 decimals (exact nanoseconds) into `out`.
     pub fn write_sow(self, out: &mut Vec<u8>) {
         let ns = self.ns_of_week();
-        crate::io::text::push_u64(out, (ns / NS_PER_S) as u64);
+        crate::numfmt::push_u64(out, (ns / NS_PER_S) as u64);
         out.push(b'.');
-        crate::io::text::push_u64_padded(out, (ns % NS_PER_S) as u64, 9);
+        crate::numfmt::push_u64_padded(out, (ns % NS_PER_S) as u64, 9);
     }
 }
 

@@ -490,13 +490,12 @@ fn rate_study(a: RateStudyArgs) -> Result<()> {
     use navsync::io::config::KfGinsConfig;
     use navsync::pipeline::{FuseOptions, NhcSettings, OutageSchedule};
     anyhow::ensure!(!a.rates.is_empty(), "--rates is empty");
-    anyhow::ensure!(
-        a.outage_period > 0.0
-            && a.outage_len > 0.0
-            && a.outage_len < a.outage_period
-            && a.outage_first >= 0.0,
-        "outages need 0 < --outage-len < --outage-period and --outage-first >= 0"
-    );
+    let outages = OutageSchedule {
+        period_s: a.outage_period,
+        len_s: a.outage_len,
+        first_s: a.outage_first,
+    };
+    outages.validate().map_err(anyhow::Error::msg)?;
     let mut diag = Diagnostics::default();
     let cfg = KfGinsConfig::load(&a.config, &mut diag)?;
     if !diag.is_empty() {
@@ -516,11 +515,7 @@ fn rate_study(a: RateStudyArgs) -> Result<()> {
             Method::Average => DecimationMethod::Average,
             Method::Point => DecimationMethod::Point,
         },
-        outages: OutageSchedule {
-            period_s: a.outage_period,
-            len_s: a.outage_len,
-            first_s: a.outage_first,
-        },
+        outages,
         truth: a.truth.clone(),
         fuse: FuseOptions {
             nhc: a.nhc.then(NhcSettings::default),
