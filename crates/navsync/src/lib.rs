@@ -40,7 +40,6 @@ pub mod stats;
 mod testutil;
 pub mod time;
 pub mod timing;
-pub mod tracking;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
 pub use time::{GpsTime, OutageWindow};
