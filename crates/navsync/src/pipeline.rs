@@ -80,27 +80,7 @@ impl OutageSchedule {
     }
 }
 
-/// Non-holonomic constraint options as the CLI exposes them.
-#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
-pub struct NhcSettings {
-    /// IMU mounting angles in the vehicle (roll, pitch, yaw; deg).
-    pub mount_deg: [f64; 3],
-    /// Lever arm from the IMU to the constraint point (m, body FRD).
-    pub lever_m: [f64; 3],
-    pub sd_mps: f64,
-    pub interval_s: f64,
-}
-
-impl Default for NhcSettings {
-    fn default() -> Self {
-        NhcSettings {
-            mount_deg: [0.0; 3],
-            lever_m: [0.0; 3],
-            sd_mps: 0.1,
-            interval_s: 0.2,
-        }
-    }
-}
+pub use crate::reduced::NhcSettings;
 
 /// Options of a batch run beyond the KF-GINS configuration.
 #[derive(Clone, Debug, Serialize)]
