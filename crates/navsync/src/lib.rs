@@ -16,7 +16,6 @@ pub mod align;
 pub mod allan;
 pub mod array;
 pub mod attitude;
-pub mod chain;
 pub mod earth;
 pub mod error;
 pub mod eval;
@@ -27,7 +26,6 @@ pub mod ins;
 pub mod interp;
 pub mod io;
 // Number formatting without allocation (under time and io::text).
-pub mod montecarlo;
 mod numfmt;
 pub mod offset_search;
 pub mod pipeline;

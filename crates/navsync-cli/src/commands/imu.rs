@@ -486,9 +486,9 @@ fn is_round_rate(hz: f64) -> bool {
 }
 
 fn rate_study(a: RateStudyArgs) -> Result<()> {
-    use navsync::imu::rate_study::{RateStudyOptions, rate_study as study};
     use navsync::io::config::KfGinsConfig;
     use navsync::pipeline::{FuseOptions, NhcSettings, OutageSchedule};
+    use navsync_sim::rate_study::{RateStudyOptions, rate_study as study};
     anyhow::ensure!(!a.rates.is_empty(), "--rates is empty");
     let outages = OutageSchedule {
         period_s: a.outage_period,
