@@ -251,7 +251,7 @@ pub fn format_check(r: &QualityReport, show: usize) -> String {
             s,
             "{:<5} {:<13} {:<60} {:<26} {}",
             c.status.label(),
-            c.seed,
+            c.section,
             c.rule,
             c.limit,
             c.measured
