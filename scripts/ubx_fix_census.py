@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Counts the epochs with a 3D fix in receiver logs, independently of
-navsync's decoders (the reference column of the issue 17 table).
+navsync's decoders (the reference column of the census table).
 
 A UBX frame is B5 62, class, id, little-endian length, payload, Fletcher-8
 checksum (u-blox M8 protocol specification, UBX-13003221, "UBX frame

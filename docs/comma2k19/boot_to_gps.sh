@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # comma2k19 Example_1: the IMU's boot-clock → GPS-time relation from imu.csv
-# and gnss_ublox.csv alone (issue 6), checked against reference_pose.csv.
+# and gnss_ublox.csv alone, checked against reference_pose.csv.
 #
-# 1. Software sync of the GNSS stream (seed 001 §2.2, TICSync): every fix
+# 1. Software sync of the GNSS stream (Tang, Zhang & Niu 2022 §2.2, TICSync): every fix
 #    carries its time of validity (UTC + 18 s) and its boot time at
 #    receipt; latency is never negative, so GPS = boot + c with
 #    c ≥ max_k(valid_k − boot_k) = c0 (equality for the fastest message).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Averaging vs point decimation (seed 001 §1.3): an ADIS16465-class IMU
+# Averaging vs point decimation (Tang, Zhang & Niu 2022 §1.3): an ADIS16465-class IMU
 # sampling internally at 2 kHz with car vibration (road band 10–60 Hz plus
 # engine tones at 101.5 and 203 Hz), decimated to 200 Hz either way; the
 # same drive and the same sensor errors (each source has its own random

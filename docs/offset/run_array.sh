@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # An array of 4 simulated ADIS16465-class IMUs on one vehicle (same drive,
 # independent sensor errors: seeds 1–4), their time tags late by 0, 10, 15
-# and 20 ms (seed 004's case: each unit's data reach the logger late by
+# and 20 ms (the case of Wang, Guan & Ding 2019: each unit's data reach the logger late by
 # its own delay, all stamped on one grid), fused by `navsync array`.
 # Usage: docs/offset/run_array.sh [scenario]   (after cargo build --release)
 set -euo pipefail

@@ -7,7 +7,7 @@ issue's work). Conventions:
 - every stream is stamped with boot time at arrival; GPS time of week =
   boot + 357697.8495 s (the constant offset of reference_pose.csv);
 - IMU: rates to increments with the trapezoid rule over each interval
-  (seed 001: rate -> increment by trapezoid), FRD as recorded;
+  (Tang, Zhang & Niu 2022: rate -> increment by trapezoid), FRD as recorded;
 - GNSS: the fix's own time of validity (UTC ms + 18 s leap seconds -> GPS),
   lat/lon/alt (alt is ellipsoidal: it agrees with the reference to ~2 m,
   MSL would be ~32 m off here), standard deviations given on the command line;

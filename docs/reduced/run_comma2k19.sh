@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Full IMU vs reduced IMU (1g2a) + CAN speed + NHC on comma2k19 Example_1
-# (issue 8). Usage: docs/reduced/run_comma2k19.sh [OUT_DIR]  (repository root)
+# Usage: docs/reduced/run_comma2k19.sh [OUT_DIR]  (repository root)
 set -euo pipefail
 N=$(realpath "${NAVSYNC:-target/release/navsync}")
 S=${DATA:-$(realpath ../shared/data/comma2k19-example1)}

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reduced-IMU drift table on the simulated ADIS16465 drive (issue 8, seed 003).
+# Reduced-IMU drift table on the simulated ADIS16465 drive.
 # Usage: docs/reduced/run_sim_drive.sh [OUT_DIR]   (from the repository root)
 set -euo pipefail
 N=$(realpath "${NAVSYNC:-target/release/navsync}")

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduces the carrier-tracking figures of issue 8 (seed 003).
+# Reproduces the carrier-tracking figures (docs/tracking/README.md).
 # Usage: docs/tracking/run_figures.sh [OUT_DIR]   (from the repository root)
 set -euo pipefail
 N=${NAVSYNC:-target/release/navsync}
@@ -8,7 +8,7 @@ mkdir -p "$O"
 # Thermal jitter against Kaplan & Hegarty (static receiver, perfect oscillator).
 $N track --scenario static --sat-rate 0 --sat-accel 0 --oscillator ideal --order 2 --bandwidth 10 \
   --cn0 25:45:5 --duration 150 --csv "$O/thermal.csv" | tee "$O/thermal.txt"
-# Seed 003 eq 16: a 1 Hz/s aiding ramp in the aided 2nd-order 3 Hz loop.
+# The GPS Solutions paper's eq 16: a 1 Hz/s aiding ramp in the aided 2nd-order 3 Hz loop.
 $N track --scenario static --sat-rate 0 --sat-accel 0 --oscillator ideal --aiding ins --aiding-error ramp:1 \
   --order 2 --bandwidth 3 --cn0 60 --duration 20 --settle 5 | tee "$O/ramp.txt"
 # Thresholds: unaided 3rd order 15 Hz vs INS-aided 2nd order 3 Hz, land vehicle, T = 1 and 20 ms.

@@ -47,7 +47,9 @@ enum Command {
     Sync(commands::sync::Args),
     /// Time the navigation core on generated data (1 h of 200 Hz IMU).
     Bench(commands::bench::Args),
-    /// Fuse an IMU array with unknown relative time offsets (seed 004).
+    /// Fuse an IMU array with unknown relative time offsets (Wang, Guan & Ding,
+    /// "Research on time synchronization in a loosely coupled IMU-array
+    /// navigation system", 2019).
     Array(commands::array::Args),
     /// Simulate carrier tracking (unaided or INS-aided, fixed or adaptive
     /// bandwidth) against C/N0: jitter, bias, slips, threshold.

@@ -346,6 +346,7 @@ fn turns_reveal_the_gyro_misalignment_that_couples_yaw_rate_into_tilt() {
 }
 
 #[test]
+#[cfg(target_os = "linux")]
 fn live_refuses_bad_settings_and_survives_missing_devices() {
     let dir = temp_dir("live");
     let cfg = write_static_set(&dir, 2);

@@ -12,8 +12,9 @@ use navsync::fusion::TimeOffsetState;
 use navsync::ins::{ImuErrors, NavState};
 use navsync::io::config::KfGinsConfig;
 use navsync::io::riglog::{RigLogReader, RigRecord};
+use navsync::navigator::NavSink;
 use navsync::navigator::Navigator;
-use navsync::pipeline::{FuseOptions, NavSink, fusion_config};
+use navsync::pipeline::{FuseOptions, fusion_config};
 use navsync::timing::{SyncConfig, SyncMode};
 use navsync::{Error, GpsTime};
 
@@ -76,7 +77,7 @@ fn streamed_rig_records_navigate_like_the_batch_chain() {
             .unwrap();
     let scenario: navsync::sim::scenario::Scenario =
         serde_json::from_value(written["scenario"].clone()).unwrap();
-    let opts: FuseOptions = navsync::chain::ChainOptions::for_scenario(&scenario).fuse;
+    let opts: FuseOptions = navsync_sim::chain::ChainOptions::for_scenario(&scenario).fuse;
     assert_eq!(Some(opts.week), week);
     let mut reader = RigLogReader::open(&rig, &mut diag).unwrap();
     let sync = SyncConfig {

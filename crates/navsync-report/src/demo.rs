@@ -12,11 +12,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use navsync::Error;
-use navsync::chain::{ChainDirs, ChainOptions, outage_windows, run_chain, true_time_offset_s};
 use navsync::eval::EvalReport;
 use navsync::pipeline::KfGinsSink;
 use navsync::sim::Simulation;
 use navsync::sim::scenario::{Scenario, base_layer, set_path};
+use navsync_sim::chain::{ChainDirs, ChainOptions, outage_windows, run_chain, true_time_offset_s};
 use serde::Serialize;
 
 use crate::inputs::ReportInputs;
@@ -267,7 +267,7 @@ pub fn run_demo(
         d(&dirs.synced.join("gnss.txt")),
         outages
             .iter()
-            .map(|(s, l)| format!("{:.3}:{l}", s.sow()))
+            .map(|w| w.to_string())
             .collect::<Vec<_>>()
             .join(","),
         tau_true.unwrap_or(0.0),

@@ -451,9 +451,9 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     let x1 = ep.t.last().copied().unwrap_or(1.0).max(1e-3);
     let outage_spans: Vec<(f64, f64)> = outages
         .iter()
-        .map(|(s, l)| {
-            let a = rel_s(s.sow(), t0);
-            (a, a + l)
+        .map(|w| {
+            let a = rel_s(w.start.sow(), t0);
+            (a, a + w.duration_s)
         })
         .collect();
     let outage_shade = Shade {

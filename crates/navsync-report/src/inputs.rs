@@ -14,7 +14,7 @@ use navsync::earth::{Geodetic, ned_offset};
 use navsync::eval::{self, EvalReport};
 use navsync::io::kfgins::{GnssLayout, GnssReader, NavReader};
 use navsync::io::text::{LineReader, is_blank_or_comment, parse_f64, split_fields};
-use navsync::time::GpsTime;
+use navsync::time::OutageWindow;
 use navsync::timing::SyncReport;
 use navsync::{Diagnostics, Error};
 
@@ -44,7 +44,7 @@ pub struct ReportInputs {
     /// The true time offset (s), when known.
     pub time_offset_truth_s: Option<f64>,
     /// GNSS outage windows (sow, length s); empty: the summary's, if any.
-    pub outages: Vec<(GpsTime, f64)>,
+    pub outages: Vec<OutageWindow>,
     /// With a smoothed solution (`fuse --smooth`): the forward filter's
     /// solution and `std.txt`, shown beside it.
     pub forward_nav: Option<PathBuf>,
@@ -156,7 +156,7 @@ pub struct Epochs {
 pub fn score(
     truth: &Path,
     nav: &Path,
-    outages: &[(GpsTime, f64)],
+    outages: &[OutageWindow],
     diag: &mut Diagnostics,
 ) -> Result<(EvalReport, Epochs), Error> {
     let mut ep = Epochs::default();

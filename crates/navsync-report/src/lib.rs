@@ -12,6 +12,7 @@ pub mod inputs;
 pub mod plot;
 pub mod quality;
 mod sections;
+pub mod tracking;
 
 pub use html::{Report, build};
 pub use inputs::ReportInputs;

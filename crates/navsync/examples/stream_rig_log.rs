@@ -17,8 +17,9 @@ use navsync::fusion::TimeOffsetState;
 use navsync::ins::{ImuErrors, NavState};
 use navsync::io::config::KfGinsConfig;
 use navsync::io::riglog::{RigLogReader, RigRecord};
+use navsync::navigator::NavSink;
 use navsync::navigator::Navigator;
-use navsync::pipeline::{FuseOptions, NavSink, fusion_config};
+use navsync::pipeline::{FuseOptions, fusion_config};
 use navsync::timing::{SyncConfig, SyncMode};
 
 /// Prints one line per second of solution and counts the rest.

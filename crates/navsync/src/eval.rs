@@ -5,7 +5,7 @@
 //! slerp): position in NED metres, velocity in m/s, attitude as roll,
 //! pitch and yaw differences (yaw wrapped to ±180°). For each GNSS outage
 //! the maximum horizontal and 3D drift inside it are found, then their RMS
-//! over outages: the metric of the KF-GINS paper and of seed 001 §1.3.3
+//! over outages: the metric of the KF-GINS paper and of Tang, Zhang & Niu 2022 §1.3.3
 //! (Niu et al. 2010, "A proposed evaluation standard for the navigation
 //! results of MEMS INS/GPS integrated systems").
 
@@ -19,7 +19,7 @@ use crate::earth::{Geodetic, LocalEarth};
 use crate::error::{Diagnostics, Error};
 use crate::io::kfgins::{NavReader, NavRecord};
 use crate::stats::Moments;
-use crate::time::GpsTime;
+use crate::time::{GpsTime, OutageWindow};
 
 /// RMS, maximum absolute value and mean of one error component.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
@@ -176,23 +176,22 @@ pub fn epoch_error(
 #[derive(Clone, Debug, Default)]
 pub struct Evaluator {
     m: [Moments; 13],
-    outages: Vec<(GpsTime, f64, OutageDrift)>,
+    outages: Vec<(OutageWindow, OutageDrift)>,
     pub epochs_without_truth: usize,
 }
 
 impl Evaluator {
-    /// `outages`: (start, length s) windows in which drift is measured.
-    pub fn new(outages: &[(GpsTime, f64)]) -> Self {
+    /// `outages`: the windows in which drift is measured.
+    pub fn new(outages: &[OutageWindow]) -> Self {
         Evaluator {
             outages: outages
                 .iter()
-                .map(|&(s, l)| {
+                .map(|&w| {
                     (
-                        s,
-                        l,
+                        w,
                         OutageDrift {
-                            start_sow: s.sow(),
-                            len_s: l,
+                            start_sow: w.start.sow(),
+                            len_s: w.duration_s,
                             epochs: 0,
                             max_horizontal_m: 0.0,
                             max_3d_m: 0.0,
@@ -226,9 +225,9 @@ impl Evaluator {
         for (m, x) in self.m.iter_mut().zip(vals) {
             m.push(x);
         }
-        for (s, l, d) in &mut self.outages {
-            let rel = e.time.seconds_since(*s);
-            if (0.0..=*l).contains(&rel) {
+        for (w, d) in &mut self.outages {
+            let rel = e.time.seconds_since(w.start);
+            if (0.0..=w.duration_s).contains(&rel) {
                 d.epochs += 1;
                 d.max_horizontal_m = d.max_horizontal_m.max(h);
                 d.max_3d_m = d.max_3d_m.max(p.norm());
@@ -241,7 +240,7 @@ impl Evaluator {
         let drifts: Vec<OutageDrift> = self
             .outages
             .into_iter()
-            .map(|o| o.2)
+            .map(|o| o.1)
             .filter(|d| d.epochs > 0)
             .collect();
         let rms = |f: &dyn Fn(&OutageDrift) -> f64| {
@@ -276,7 +275,7 @@ impl Evaluator {
 }
 
 /// Parses `"sow:len,sow:len"` outage windows (week from `week`).
-pub fn parse_outages(text: &str, week: i64) -> Result<Vec<(GpsTime, f64)>, Error> {
+pub fn parse_outages(text: &str, week: i64) -> Result<Vec<OutageWindow>, Error> {
     let mut out = Vec::new();
     for part in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
         let (s, l) = part
@@ -295,7 +294,7 @@ pub fn parse_outages(text: &str, week: i64) -> Result<Vec<(GpsTime, f64)>, Error
                 "outage '{part}': expected 0 <= sow < 604800 and length > 0"
             )));
         }
-        out.push((GpsTime::from_week_sow(week, s), l));
+        out.push(OutageWindow::new(GpsTime::from_week_sow(week, s), l));
     }
     Ok(out)
 }
@@ -418,7 +417,7 @@ impl TruthScorer {
 pub fn eval_files(
     truth_path: &Path,
     nav_path: &Path,
-    outages: &[(GpsTime, f64)],
+    outages: &[OutageWindow],
     diag: &mut Diagnostics,
 ) -> Result<EvalReport, Error> {
     eval_files_with(truth_path, nav_path, outages, diag, &mut |_, _, _| {})
@@ -429,7 +428,7 @@ pub fn eval_files(
 pub fn eval_files_with(
     truth_path: &Path,
     nav_path: &Path,
-    outages: &[(GpsTime, f64)],
+    outages: &[OutageWindow],
     diag: &mut Diagnostics,
     each: &mut dyn FnMut(&NavRecord, &TruthState, &EpochError),
 ) -> Result<EvalReport, Error> {
@@ -446,12 +445,12 @@ pub fn eval_files_with(
             by_sow = rec.week == 0 || truth_week == Some(0);
             let week = rec.week;
             // Outage windows are given in sow; place them in the matching week.
-            let o: Vec<(GpsTime, f64)> = outages
+            let o: Vec<OutageWindow> = outages
                 .iter()
-                .map(|(s, l)| {
-                    (
-                        GpsTime::from_week_ns(if by_sow { 0 } else { week }, s.ns_of_week()),
-                        *l,
+                .map(|w| {
+                    OutageWindow::new(
+                        GpsTime::from_week_ns(if by_sow { 0 } else { week }, w.start.ns_of_week()),
+                        w.duration_s,
                     )
                 })
                 .collect();
@@ -507,7 +506,10 @@ mod tests {
     #[test]
     fn outage_drift_and_rms() {
         let s = GpsTime::from_week_sow(0, 100.0);
-        let mut ev = Evaluator::new(&[(s, 10.0), (s.add_seconds(100.0), 10.0)]);
+        let mut ev = Evaluator::new(&[
+            OutageWindow::new(s, 10.0),
+            OutageWindow::new(s.add_seconds(100.0), 10.0),
+        ]);
         for k in 0..300 {
             let t = GpsTime::from_week_sow(0, 90.0 + k as f64);
             let in1 = (100.0..=110.0).contains(&(90.0 + k as f64));
@@ -537,7 +539,7 @@ mod tests {
     fn outage_argument_parsing() {
         let o = parse_outages("100120.005:60, 100300:60", 2300).unwrap();
         assert_eq!(o.len(), 2);
-        assert_eq!(o[0].1, 60.0);
+        assert_eq!(o[0].duration_s, 60.0);
         assert!(parse_outages("100120", 0).is_err());
         assert!(parse_outages("1:-5", 0).is_err());
     }

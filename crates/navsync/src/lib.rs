@@ -19,7 +19,6 @@ pub mod align;
 pub mod allan;
 pub mod array;
 pub mod attitude;
-pub mod chain;
 pub mod earth;
 pub mod error;
 pub mod eval;
@@ -29,8 +28,9 @@ pub mod imu;
 pub mod ins;
 pub mod interp;
 pub mod io;
-pub mod montecarlo;
 pub mod navigator;
+// Number formatting without allocation (under time and io::text).
+mod numfmt;
 pub mod offset_search;
 pub mod pipeline;
 pub mod reduced;
@@ -42,7 +42,6 @@ pub mod stats;
 mod testutil;
 pub mod time;
 pub mod timing;
-pub mod tracking;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
-pub use time::GpsTime;
+pub use time::{GpsTime, OutageWindow};

@@ -20,7 +20,7 @@
 //! use navsync::fusion::FusionConfig;
 //! use navsync::ins::{ImuSample, NavState};
 //! use navsync::navigator::{Navigator, Step};
-//! use navsync::pipeline::NullSink;
+//! use navsync::navigator::NullSink;
 //! use navsync::sensor::ImuFigures;
 //! use navsync::GpsTime;
 //!
@@ -54,16 +54,67 @@ use std::collections::VecDeque;
 
 use crate::error::{Diagnostics, Error};
 use crate::filter::gnss::GnssFix;
+use crate::fusion::TimeOffsetState;
 use crate::fusion::{FixRecord, Fusion, FusionConfig, LatencyMode, NavOutput};
-use crate::ins::ImuSample;
+use crate::ins::{ImuErrors, ImuSample, NavState};
 use crate::interp::NavInterpolator;
 use crate::io::riglog::{RigHeader, RigRecord};
-use crate::pipeline::{FuseOptions, NavSink, OutageSchedule};
 use crate::reduced::ReducedImu;
 use crate::time::GpsTime;
+use crate::time::OutageSchedule;
 use crate::timing::engine::{SyncConfig, SyncEngine, SyncOutput};
 use crate::timing::imu::{IncrementBuilder, RateRule};
 use crate::timing::report::SyncReport;
+
+/// Receives the solution of a stream (a file writer, a plot, a socket).
+pub trait NavSink {
+    /// Every IMU epoch.
+    fn nav(&mut self, out: &NavState, imu: &ImuErrors) -> Result<(), Error>;
+    /// At the auxiliary interval: IMU errors, all state σ (SI) and the
+    /// time-offset estimate when it is a state.
+    fn aux(
+        &mut self,
+        time: GpsTime,
+        imu: &ImuErrors,
+        sd: &[f64],
+        offset: Option<TimeOffsetState>,
+    ) -> Result<(), Error>;
+    /// The solution interpolated at a requested epoch (`--output-at`).
+    fn nav_at(&mut self, _nav: &NavState) -> Result<(), Error> {
+        Ok(())
+    }
+    /// At the end of the run: every GNSS observation the filter weighed.
+    fn fix_records(&mut self, _records: &[FixRecord]) -> Result<(), Error> {
+        Ok(())
+    }
+    /// Right after [`Self::aux`]: the position-error covariance (m², NED),
+    /// for consistency tests (NEES).
+    fn position_covariance(
+        &mut self,
+        _time: GpsTime,
+        _p_ned_m2: &nalgebra::Matrix3<f64>,
+    ) -> Result<(), Error> {
+        Ok(())
+    }
+}
+
+/// A sink that keeps nothing (benchmarks, studies that only need a summary).
+pub struct NullSink;
+
+impl NavSink for NullSink {
+    fn nav(&mut self, _: &NavState, _: &ImuErrors) -> Result<(), Error> {
+        Ok(())
+    }
+    fn aux(
+        &mut self,
+        _: GpsTime,
+        _: &ImuErrors,
+        _: &[f64],
+        _: Option<TimeOffsetState>,
+    ) -> Result<(), Error> {
+        Ok(())
+    }
+}
 
 /// What one IMU sample produced.
 // Returned by value once per sample: boxing the solution would allocate at
@@ -164,23 +215,28 @@ impl Navigator {
         }
     }
 
-    /// A navigator set up as a batch run's options say (outages, reduced
-    /// IMU, auxiliary interval, `output_at` epochs read from their file,
-    /// GNSS-time output, and the fix lead of the latency mode).
-    pub fn from_options(cfg: FusionConfig, opts: &FuseOptions) -> Result<Self, Error> {
-        opts.validate()?;
-        let mut nav = Navigator::new(cfg);
-        nav.drop_fixes_before_start = true;
-        nav.outages = opts.outages;
-        nav.reduced_imu = opts.reduced_imu;
-        nav.output_gnss_time = opts.output_gnss_time;
-        nav.aux_ns = Some((opts.aux_interval_s * 1e9).round() as i64);
-        nav.fix_lead_ns = Some(fix_lead_ns(opts));
-        if let Some(p) = &opts.output_at {
-            let times = crate::io::kfgins::read_times(p, opts.week)?;
-            nav = nav.with_output_at(times, opts.output_at_n);
-        }
-        Ok(nav)
+    /// A batch run: fixes at or before the initial state's time are
+    /// outside the run (counted, not fused), and each fix is handed to the
+    /// filter once the IMU time + `lead_s` reaches its tag (offline, a lead
+    /// lets the filter and the time-offset search see fixes early; in a
+    /// real-time latency mode a negative lead delivers each at its arrival).
+    pub fn for_batch(mut self, lead_s: f64) -> Self {
+        self.drop_fixes_before_start = true;
+        self.fix_lead_ns = Some((lead_s * 1e9).round() as i64);
+        self
+    }
+
+    /// Reduced IMU: absent sensors replaced by pseudo-signals.
+    pub fn with_reduced_imu(mut self, reduced: Option<ReducedImu>) -> Self {
+        self.reduced_imu = reduced;
+        self
+    }
+
+    /// Stamp the solutions in GNSS time (IMU time + τ̂) instead of the IMU's
+    /// time base; they stay strictly increasing.
+    pub fn with_gnss_time_output(mut self, on: bool) -> Self {
+        self.output_gnss_time = on;
+        self
     }
 
     /// Auxiliary output ([`NavSink::aux`]: IMU errors, σ, time offset) at
@@ -459,31 +515,12 @@ pub struct StreamEnd {
     pub diagnostics: Diagnostics,
 }
 
-/// How far ahead of the IMU a fix is handed to the filter (ns): offline,
-/// fixes are queued ahead (the filter processes each at its corrected
-/// time, and the time-offset search needs them early); in a real-time mode
-/// each is delivered at its arrival, `gnss_latency_s` after its time tag.
-pub fn fix_lead_ns(opts: &FuseOptions) -> i64 {
-    if !matches!(opts.latency, LatencyMode::Offline) {
-        -((opts.gnss_latency_s * 1e9).round() as i64)
-    } else {
-        ((1.0
-            + opts
-                .time_offset
-                .map(|t| t.search_range_s.max(3.0 * t.sd_s))
-                .unwrap_or(0.0))
-            * 1e9)
-            .round() as i64
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::attitude::Euler;
     use crate::earth::{Geodetic, gravity};
     use crate::ins::NavState;
-    use crate::pipeline::NullSink;
     use crate::sensor::ImuFigures;
     use nalgebra::Vector3;
 

@@ -28,60 +28,8 @@ use crate::io::kfgins::{
 use crate::navigator::{Navigator, Step, StreamCounts};
 use crate::time::GpsTime;
 
-/// GNSS outages simulated by withholding fixes: windows of `len_s` every
-/// `period_s`, the first starting `first_s` after the first IMU epoch.
-#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
-pub struct OutageSchedule {
-    pub period_s: f64,
-    pub len_s: f64,
-    pub first_s: f64,
-}
-
-impl OutageSchedule {
-    /// True when `t` falls inside an outage that starts from `t0`.
-    pub fn contains(&self, t0: GpsTime, t: GpsTime) -> bool {
-        let rel = t.seconds_since(t0) - self.first_s;
-        if rel < 0.0 {
-            return false;
-        }
-        let k = (rel / self.period_s).floor();
-        rel - k * self.period_s < self.len_s
-    }
-
-    /// The outage windows `(start, length_s)` inside `[t0, t1]`.
-    pub fn windows(&self, t0: GpsTime, t1: GpsTime) -> Vec<(GpsTime, f64)> {
-        let mut out = Vec::new();
-        let mut s = self.first_s;
-        let span = t1.seconds_since(t0);
-        while s < span {
-            out.push((t0.add_seconds(s), self.len_s.min(span - s)));
-            s += self.period_s;
-        }
-        out
-    }
-}
-
-/// Non-holonomic constraint options as the CLI exposes them.
-#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
-pub struct NhcSettings {
-    /// IMU mounting angles in the vehicle (roll, pitch, yaw; deg).
-    pub mount_deg: [f64; 3],
-    /// Lever arm from the IMU to the constraint point (m, body FRD).
-    pub lever_m: [f64; 3],
-    pub sd_mps: f64,
-    pub interval_s: f64,
-}
-
-impl Default for NhcSettings {
-    fn default() -> Self {
-        NhcSettings {
-            mount_deg: [0.0; 3],
-            lever_m: [0.0; 3],
-            sd_mps: 0.1,
-            interval_s: 0.2,
-        }
-    }
-}
+pub use crate::reduced::NhcSettings;
+pub use crate::time::OutageSchedule;
 
 /// Options of a batch run beyond the KF-GINS configuration.
 #[derive(Clone, Debug, Serialize)]
@@ -214,6 +162,47 @@ impl FuseOptions {
     /// Checks the settings that the engine cannot take as they are.
     pub fn validate(&self) -> Result<(), Error> {
         let bad = |m: String| Err(Error::Invalid(m));
+        if let Some(o) = &self.outages {
+            o.validate().map_err(Error::Invalid)?;
+        }
+        if !(self.gnss_latency_s.is_finite() && self.gnss_latency_s >= 0.0) {
+            return bad(format!(
+                "GNSS latency {} s must be >= 0",
+                self.gnss_latency_s
+            ));
+        }
+        if self.gnss_latency_s > 0.0 && self.latency == LatencyMode::Offline {
+            return bad(
+                "a GNSS latency needs a real-time latency mode (naive, fixed, extrapolate or delayed)"
+                    .into(),
+            );
+        }
+        if let Some(t) = &self.time_offset
+            && !(t.sd_s.is_finite() && t.sd_s > 0.0 && t.init_s.is_finite())
+        {
+            return bad(format!(
+                "time-offset σ {} s must be positive (initial value {} s finite)",
+                t.sd_s, t.init_s
+            ));
+        }
+        if let Some(o) = &self.odometer
+            && !(o.sd_mps > 0.0 && o.interval_s >= 0.0 && o.scale_sd.is_none_or(|s| s > 0.0))
+        {
+            return bad(format!(
+                "odometer σ {} m/s must be positive, its interval {} s and scale-factor σ not negative",
+                o.sd_mps, o.interval_s
+            ));
+        }
+        if let Some(r) = &self.reduced_imu {
+            let n = &r.noise;
+            if !(n.rate_sd > 0.0
+                && n.rate_corr_s > 0.0
+                && n.vertical_accel_sd > 0.0
+                && n.vertical_accel_corr_s > 0.0)
+            {
+                return bad("pseudo-signal noise settings must be positive".into());
+            }
+        }
         if self.output_at_n > crate::interp::MAX_INTERP_N {
             return bad(format!(
                 "interpolation n {} is too large: at most {} (a {}-order polynomial)",
@@ -450,37 +439,7 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
     fc
 }
 
-/// Receives the solution of a batch run.
-pub trait NavSink {
-    /// Every IMU epoch.
-    fn nav(&mut self, out: &NavState, imu: &ImuErrors) -> Result<(), Error>;
-    /// At the auxiliary interval: IMU errors, all state σ (SI) and the
-    /// time-offset estimate when it is a state.
-    fn aux(
-        &mut self,
-        time: GpsTime,
-        imu: &ImuErrors,
-        sd: &[f64],
-        offset: Option<TimeOffsetState>,
-    ) -> Result<(), Error>;
-    /// The solution interpolated at a requested epoch (`--output-at`).
-    fn nav_at(&mut self, _nav: &NavState) -> Result<(), Error> {
-        Ok(())
-    }
-    /// At the end of the run: every GNSS observation the filter weighed.
-    fn fix_records(&mut self, _records: &[FixRecord]) -> Result<(), Error> {
-        Ok(())
-    }
-    /// Right after [`Self::aux`]: the position-error covariance (m², NED),
-    /// for consistency tests (NEES).
-    fn position_covariance(
-        &mut self,
-        _time: GpsTime,
-        _p_ned_m2: &nalgebra::Matrix3<f64>,
-    ) -> Result<(), Error> {
-        Ok(())
-    }
-}
+pub use crate::navigator::{NavSink, NullSink};
 
 /// States handed to the navigation writer thread at a time.
 const NAV_BATCH: usize = 4096;
@@ -679,24 +638,6 @@ impl NavSink for KfGinsSink {
     }
 }
 
-/// A sink that keeps nothing (benchmarks, studies that only need a summary).
-pub struct NullSink;
-
-impl NavSink for NullSink {
-    fn nav(&mut self, _: &NavState, _: &ImuErrors) -> Result<(), Error> {
-        Ok(())
-    }
-    fn aux(
-        &mut self,
-        _: GpsTime,
-        _: &ImuErrors,
-        _: &[f64],
-        _: Option<TimeOffsetState>,
-    ) -> Result<(), Error> {
-        Ok(())
-    }
-}
-
 const BATCH: usize = 4096;
 
 /// The GNSS file of a run, in the format the options name.
@@ -805,7 +746,7 @@ fn run_inner(
     let end = cfg
         .end_sow
         .map(|e| GpsTime::from_week_ns(opts.week, (e * 1e9).round() as i64));
-    let mut navigator = Navigator::from_options(fc, opts)?.with_end(end);
+    let mut navigator = batch_navigator(fc, opts)?.with_end(end);
     let smoothing = match (opts.smooth, smoothed_sink) {
         (Some(sm), Some(s)) => {
             let dir = opts
@@ -821,7 +762,7 @@ fn run_inner(
     };
     // Fixes are read from the file as far ahead of the IMU as the
     // navigator delivers them (it holds them until then).
-    let lead_ns = crate::navigator::fix_lead_ns(opts);
+    let lead_ns = (fix_lead_s(opts) * 1e9).round() as i64;
 
     let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
     let mut next_fix: Option<GnssFix> = gnss.next_fix(&mut diag)?;
@@ -959,7 +900,7 @@ fn run_inner(
         .map(|o| {
             o.windows(t0, last_time)
                 .iter()
-                .map(|(s, l)| format!("{:.3}:{}", s.sow(), l))
+                .map(|w| w.to_string())
                 .collect::<Vec<_>>()
                 .join(",")
         })
@@ -1015,6 +956,39 @@ fn run_inner(
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,
     })
+}
+
+/// The streaming navigator set up as a batch run's options say (outages,
+/// reduced IMU, auxiliary interval, `output_at` epochs read from their file,
+/// GNSS-time output, and the fix lead of the latency mode).
+pub fn batch_navigator(cfg: FusionConfig, opts: &FuseOptions) -> Result<Navigator, Error> {
+    opts.validate()?;
+    let mut nav = Navigator::new(cfg)
+        .for_batch(fix_lead_s(opts))
+        .with_outages(opts.outages)
+        .with_reduced_imu(opts.reduced_imu)
+        .with_gnss_time_output(opts.output_gnss_time)
+        .with_aux_interval(Some(opts.aux_interval_s));
+    if let Some(p) = &opts.output_at {
+        let times = crate::io::kfgins::read_times(p, opts.week)?;
+        nav = nav.with_output_at(times, opts.output_at_n);
+    }
+    Ok(nav)
+}
+
+/// How far ahead of the IMU a fix is handed to the filter (s): offline,
+/// fixes are queued ahead (the filter processes each at its corrected
+/// time, and the time-offset search needs them early); in a real-time mode
+/// each is delivered at its arrival, `gnss_latency_s` after its time tag.
+pub fn fix_lead_s(opts: &FuseOptions) -> f64 {
+    if !matches!(opts.latency, LatencyMode::Offline) {
+        -opts.gnss_latency_s
+    } else {
+        1.0 + opts
+            .time_offset
+            .map(|t| t.search_range_s.max(3.0 * t.sd_s))
+            .unwrap_or(0.0)
+    }
 }
 
 /// The smoother's backward pass, then the smoothed solution through `sink`

@@ -47,18 +47,15 @@
 //! ([`crate::fusion::OdometerOptions`], [`crate::filter::nhc`]).
 
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::str::FromStr;
 
 use nalgebra::Vector3;
 use serde::Serialize;
 
 use crate::earth::LocalEarth;
-use crate::error::{Diagnostics, Error};
 use crate::filter::{ImuNoise, InitialStd};
 use crate::ins::{ImuErrors, ImuSample, NavState};
-use crate::io::text::{LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, split_fields};
-use crate::time::{GpsTime, WeekTracker};
 
 /// Which inertial sensors exist.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
@@ -234,6 +231,28 @@ impl ReducedImu {
     }
 }
 
+/// Non-holonomic constraint options as the CLI exposes them.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
+pub struct NhcSettings {
+    /// IMU mounting angles in the vehicle (roll, pitch, yaw; deg).
+    pub mount_deg: [f64; 3],
+    /// Lever arm from the IMU to the constraint point (m, body FRD).
+    pub lever_m: [f64; 3],
+    pub sd_mps: f64,
+    pub interval_s: f64,
+}
+
+impl Default for NhcSettings {
+    fn default() -> Self {
+        NhcSettings {
+            mount_deg: [0.0; 3],
+            lever_m: [0.0; 3],
+            sd_mps: 0.1,
+            interval_s: 0.2,
+        }
+    }
+}
+
 /// Odometer (vehicle speed) input of a batch run.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct OdometerSettings {
@@ -271,7 +290,7 @@ impl OdometerSettings {
 /// the odometer or else of the NHC point.
 pub fn odometer_options(
     o: &OdometerSettings,
-    nhc: Option<&crate::pipeline::NhcSettings>,
+    nhc: Option<&NhcSettings>,
 ) -> crate::fusion::OdometerOptions {
     let n = nhc.copied().unwrap_or_default();
     let lever = o.lever_m.unwrap_or(n.lever_m);
@@ -287,232 +306,19 @@ pub fn odometer_options(
     }
 }
 
-/// Streams a speed file (`sow speed_mps`) and interpolates it at
-/// increasing times. Bad lines (too few fields, not numbers, times not
-/// increasing) are reported and skipped; a file without any speed is an
-/// error.
-pub struct SpeedStream {
-    lines: LineReader<std::fs::File>,
-    path: PathBuf,
-    weeks: WeekTracker,
-    prev: Option<(GpsTime, f64)>,
-    next: Option<(GpsTime, f64)>,
-    count: usize,
-    done: bool,
-    max_gap_ns: i64,
-}
-
-impl SpeedStream {
-    /// Opens `path`; times are placed in GPS week `week`.
-    pub fn open(path: &Path, week: i64, max_gap_s: f64) -> Result<Self, Error> {
-        Ok(SpeedStream {
-            lines: LineReader::open(path)?,
-            path: path.to_path_buf(),
-            weeks: WeekTracker::new(week),
-            prev: None,
-            next: None,
-            count: 0,
-            done: false,
-            max_gap_ns: (max_gap_s * 1e9).round() as i64,
-        })
-    }
-
-    /// Speeds read so far.
-    pub fn count(&self) -> usize {
-        self.count
-    }
-
-    fn read(&mut self, diag: &mut Diagnostics) -> Result<Option<(GpsTime, f64)>, Error> {
-        if self.done {
-            return Ok(None);
-        }
-        loop {
-            let Some((line, no)) = self.lines.next_line()? else {
-                self.done = true;
-                if self.count == 0 {
-                    return Err(Error::NoData {
-                        path: self.path.clone(),
-                        msg: "no speed records (expected lines of `sow speed_mps`)".into(),
-                    });
-                }
-                return Ok(None);
-            };
-            if is_blank_or_comment(line) {
-                continue;
-            }
-            let mut f: [&[u8]; 2] = [b""; 2];
-            let n = split_fields(line, &mut f);
-            if n < 2 {
-                diag.push(
-                    &self.path,
-                    no,
-                    format!("expected 2 fields (sow, speed_mps), found {n}; line skipped"),
-                );
-                continue;
-            }
-            let ns = match parse_seconds_ns(f[0]) {
-                Ok(v) => v,
-                Err(e) => {
-                    diag.push(&self.path, no, format!("field 1 (sow): {e}; line skipped"));
-                    continue;
-                }
-            };
-            let v = match parse_f64(f[1]) {
-                Ok(v) => v,
-                Err(e) => {
-                    diag.push(
-                        &self.path,
-                        no,
-                        format!("field 2 (speed_mps): {e}; line skipped"),
-                    );
-                    continue;
-                }
-            };
-            let t = self.weeks.peek(ns);
-            let last = self.next.or(self.prev).map(|x| x.0);
-            if last.is_some_and(|l| t <= l) {
-                diag.push(
-                    &self.path,
-                    no,
-                    format!("time {t} does not increase; line skipped"),
-                );
-                continue;
-            }
-            let t = self.weeks.resolve(ns);
-            self.count += 1;
-            return Ok(Some((t, v)));
-        }
-    }
-
-    /// The speed at `t` (m/s) by linear interpolation, or `None` outside
-    /// the file or in a gap longer than the limit. Calls must have
-    /// non-decreasing `t`.
-    pub fn at(&mut self, t: GpsTime, diag: &mut Diagnostics) -> Result<Option<f64>, Error> {
-        if self.next.is_none() && self.prev.is_none() {
-            self.next = self.read(diag)?;
-        }
-        while let Some(n) = self.next {
-            if n.0 >= t {
-                break;
-            }
-            self.prev = Some(n);
-            self.next = self.read(diag)?;
-        }
-        match (self.prev, self.next) {
-            (_, Some(n)) if n.0 == t => Ok(Some(n.1)),
-            (Some(p), Some(n)) if n.0 - p.0 <= self.max_gap_ns => {
-                let f = (t - p.0) as f64 / (n.0 - p.0) as f64;
-                Ok(Some(p.1 + f * (n.1 - p.1)))
-            }
-            _ => Ok(None),
-        }
-    }
-}
-
-/// Settings of a simulated odometer made from a truth trajectory.
-#[derive(Copy, Clone, Debug, PartialEq, Serialize)]
-pub struct SpeedSimOptions {
-    pub rate_hz: f64,
-    /// Scale error s: reported = (1 + s)·true + noise.
-    pub scale_error: f64,
-    pub noise_sd_mps: f64,
-    /// Output resolution (m/s); 0 keeps full precision.
-    pub resolution_mps: f64,
-    pub seed: u64,
-}
-
-impl Default for SpeedSimOptions {
-    fn default() -> Self {
-        SpeedSimOptions {
-            rate_hz: 20.0,
-            scale_error: 0.01,
-            noise_sd_mps: 0.05,
-            resolution_mps: 0.01,
-            seed: 1,
-        }
-    }
-}
-
-/// Writes a simulated speed file from a truth trajectory (11-column nav
-/// format): the forward body-frame speed (C_n^b v^n)_x of the trajectory
-/// (the IMU centre), interpolated at the output rate, times (1 + scale
-/// error), plus white noise, rounded to the resolution. Returns the number
-/// of lines written.
-pub fn simulate_speed_file(
-    truth: &Path,
-    out: &Path,
-    o: &SpeedSimOptions,
-    diag: &mut Diagnostics,
-) -> Result<usize, Error> {
-    use rand::RngExt;
-    use rand::SeedableRng;
-    use rand_distr::StandardNormal;
-    use std::io::Write;
-
-    let recs = crate::io::kfgins::NavReader::read_all(truth, diag)?;
-    let file = std::fs::File::create(out).map_err(|e| Error::io(out, e))?;
-    let mut w = std::io::BufWriter::new(file);
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(o.seed);
-    let forward = |r: &crate::io::kfgins::NavRecord| {
-        let att = crate::attitude::Euler::from_deg(r.att_deg[0], r.att_deg[1], r.att_deg[2]);
-        (crate::attitude::euler_to_dcm(&att).transpose() * Vector3::from(r.vel)).x
-    };
-    writeln!(
-        w,
-        "# simulated odometer from {}: rate {} Hz, scale error {}, noise {} m/s, resolution {} m/s, seed {}\n# sow speed_mps",
-        truth.display(),
-        o.rate_hz,
-        o.scale_error,
-        o.noise_sd_mps,
-        o.resolution_mps,
-        o.seed
-    )
-    .map_err(|e| Error::io(out, e))?;
-    let step_ns = (1e9 / o.rate_hz).round() as i64;
-    let Some(first) = recs.first() else {
-        return Err(Error::NoData {
-            path: truth.to_path_buf(),
-            msg: "no records".into(),
-        });
-    };
-    // Start on a whole multiple of the output period.
-    let mut t = GpsTime::from_ns((first.time.ns() + step_ns - 1) / step_ns * step_ns);
-    let mut i = 0;
-    let mut n = 0;
-    while i + 1 < recs.len() {
-        while i + 1 < recs.len() && recs[i + 1].time < t {
-            i += 1;
-        }
-        if i + 1 >= recs.len() {
-            break;
-        }
-        let (a, b) = (&recs[i], &recs[i + 1]);
-        let f = (t - a.time) as f64 / (b.time - a.time) as f64;
-        let v = forward(a) + f * (forward(b) - forward(a));
-        let noise: f64 = rng.sample(StandardNormal);
-        let mut m = (1.0 + o.scale_error) * v + o.noise_sd_mps * noise;
-        if o.resolution_mps > 0.0 {
-            m = (m / o.resolution_mps).round() * o.resolution_mps;
-        }
-        let mut line = Vec::with_capacity(40);
-        t.write_sow(&mut line);
-        write!(line, " {m:.4}").ok();
-        line.push(b'\n');
-        w.write_all(&line).map_err(|e| Error::io(out, e))?;
-        n += 1;
-        t = t + step_ns;
-    }
-    w.flush().map_err(|e| Error::io(out, e))?;
-    Ok(n)
-}
+// The speed file reader and the speed simulator live in io and sim.
+pub use crate::io::speed::SpeedStream;
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::attitude::Euler;
     use crate::earth::Geodetic;
+    use crate::error::{Diagnostics, Error};
     use crate::filter::{ImuNoise, InitialStd};
     use crate::ins::Mechanization;
+    use crate::sim::speed::{SpeedSimOptions, simulate_speed_file};
+    use crate::time::GpsTime;
 
     fn nav(att: Euler, vel: Vector3<f64>) -> NavState {
         NavState::new(

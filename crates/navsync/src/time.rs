@@ -17,6 +17,31 @@ pub const SECONDS_PER_WEEK: i64 = 604_800;
 /// Nanoseconds in one GPS week.
 pub const NS_PER_WEEK: i64 = SECONDS_PER_WEEK * NS_PER_S;
 
+/// A window of GPS time, such as a GNSS outage: its start and length.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct OutageWindow {
+    pub start: GpsTime,
+    pub duration_s: f64,
+}
+
+impl OutageWindow {
+    pub fn new(start: GpsTime, duration_s: f64) -> Self {
+        OutageWindow { start, duration_s }
+    }
+
+    /// The end of the window.
+    pub fn end(&self) -> GpsTime {
+        self.start.add_seconds(self.duration_s)
+    }
+}
+
+/// `sow:length`, the `--outages` syntax.
+impl fmt::Display for OutageWindow {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{:.3}:{}", self.start.sow(), self.duration_s)
+    }
+}
+
 /// An instant of GPS time, as integer nanoseconds since the GPS epoch.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct GpsTime {
@@ -94,9 +119,9 @@ impl GpsTime {
     /// Writes `sow` with 9 decimals (exact nanoseconds) into `out`.
     pub fn write_sow(self, out: &mut Vec<u8>) {
         let ns = self.ns_of_week();
-        crate::io::text::push_u64(out, (ns / NS_PER_S) as u64);
+        crate::numfmt::push_u64(out, (ns / NS_PER_S) as u64);
         out.push(b'.');
-        crate::io::text::push_u64_padded(out, (ns % NS_PER_S) as u64, 9);
+        crate::numfmt::push_u64_padded(out, (ns % NS_PER_S) as u64, 9);
     }
 }
 
@@ -162,6 +187,59 @@ impl WeekTracker {
             week += 1;
         }
         GpsTime::from_week_ns(week, ns_of_week)
+    }
+}
+
+/// GNSS outages simulated by withholding fixes: windows of `len_s` every
+/// `period_s`, the first starting `first_s` after the first IMU epoch.
+#[derive(Copy, Clone, Debug, PartialEq, serde::Serialize)]
+pub struct OutageSchedule {
+    pub period_s: f64,
+    pub len_s: f64,
+    pub first_s: f64,
+}
+
+impl OutageSchedule {
+    /// True when `t` falls inside an outage that starts from `t0`.
+    pub fn contains(&self, t0: GpsTime, t: GpsTime) -> bool {
+        let rel = t.seconds_since(t0) - self.first_s;
+        if rel < 0.0 {
+            return false;
+        }
+        let k = (rel / self.period_s).floor();
+        rel - k * self.period_s < self.len_s
+    }
+
+    /// Checks 0 < length < period and first ≥ 0.
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = self.period_s.is_finite()
+            && self.len_s > 0.0
+            && self.len_s < self.period_s
+            && self.first_s.is_finite()
+            && self.first_s >= 0.0;
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "outages need 0 < length ({} s) < period ({} s) and first start ({} s) >= 0",
+                self.len_s, self.period_s, self.first_s
+            ))
+        }
+    }
+
+    /// The outage windows inside `[t0, t1]`.
+    pub fn windows(&self, t0: GpsTime, t1: GpsTime) -> Vec<OutageWindow> {
+        let mut out = Vec::new();
+        let mut s = self.first_s;
+        let span = t1.seconds_since(t0);
+        while s < span {
+            out.push(OutageWindow::new(
+                t0.add_seconds(s),
+                self.len_s.min(span - s),
+            ));
+            s += self.period_s;
+        }
+        out
     }
 }
 

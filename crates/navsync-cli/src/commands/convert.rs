@@ -58,7 +58,7 @@ pub struct Args {
     /// Microseconds per ESF-MEAS time-tag tick (u-blox IMUs: 1 ms).
     #[arg(long, default_value_t = 1000.0)]
     pub esf_meas_tick_us: f64,
-    /// Report IMU intervals at least this long (seed 001: no 0.1 s gap).
+    /// Report IMU intervals at least this long (Tang, Zhang & Niu 2022: no 0.1 s gap).
     #[arg(long, default_value_t = 0.1)]
     pub gap_s: f64,
     /// Keep UBX 3D epochs whose gnssFixOK flag is 0 (outside the receiver's DOP/accuracy masks).

@@ -240,7 +240,9 @@ pub enum Latency {
     Naive,
     /// (a) Filter runs a fixed lag behind real time; output predicted forward.
     Fixed,
-    /// (b) Fix moved forward by the INS change over the latency (seed 002).
+    /// (b) Fix moved forward by the INS change over the latency (the patent "A
+    /// time synchronization method for a GPS/SINS integrated navigation
+    /// system").
     Extrapolate,
     /// (c) Delayed-state update: update in the past, propagate forward again.
     Delayed,
@@ -281,37 +283,21 @@ pub enum Gap {
 impl Args {
     pub fn options(&self) -> Result<FuseOptions> {
         let outages = match (self.outage_period, self.outage_len, self.outage_first) {
-            (Some(period_s), Some(len_s), Some(first_s)) => {
-                anyhow::ensure!(
-                    period_s > 0.0 && len_s > 0.0 && len_s < period_s && first_s >= 0.0,
-                    "outages need 0 < --outage-len < --outage-period and --outage-first >= 0"
-                );
-                Some(OutageSchedule {
-                    period_s,
-                    len_s,
-                    first_s,
-                })
-            }
+            // Values checked by FuseOptions::validate.
+            (Some(period_s), Some(len_s), Some(first_s)) => Some(OutageSchedule {
+                period_s,
+                len_s,
+                first_s,
+            }),
             (None, None, None) => None,
             _ => anyhow::bail!("--outage-period, --outage-len and --outage-first go together"),
         };
-        anyhow::ensure!(self.cov_step >= 0.0, "--cov-step must not be negative");
-        anyhow::ensure!(
-            self.gnss_latency >= 0.0
-                && (self.gnss_latency == 0.0 || self.latency_mode != Latency::Offline),
-            "--gnss-latency needs a real-time --latency-mode (naive, fixed, extrapolate or delayed)"
-        );
-        anyhow::ensure!(
-            self.time_offset_sd > 0.0,
-            "--time-offset-sd must be positive"
-        );
         let gnss_error = match (&self.gnss_gm_sd, self.gnss_gm_time) {
             (Some(sd), Some(tau)) => {
                 let m = GnssErrorModel {
                     gm_sd_m: parse_triplet(sd).map_err(|e| anyhow::anyhow!("--gnss-gm-sd: {e}"))?,
                     corr_time_s: tau,
                 };
-                m.validate().map_err(anyhow::Error::msg)?;
                 Some(m)
             }
             _ => None,
@@ -319,10 +305,6 @@ impl Args {
         let gnss_weighting = if self.no_gate {
             GnssWeighting::Off
         } else if let Some(prob) = self.gate_prob {
-            anyhow::ensure!(
-                prob > 0.0 && prob < 1.0,
-                "--gate-prob must be between 0 and 1"
-            );
             GnssWeighting::Gate { prob }
         } else {
             match self.gnss_weighting {
@@ -335,22 +317,12 @@ impl Args {
                         memory_s: self.robust_memory,
                         ..RobustWeighting::default()
                     };
-                    rw.validate().map_err(anyhow::Error::msg)?;
                     GnssWeighting::Robust(rw)
                 }
             }
         };
-        anyhow::ensure!(
-            self.odo_sd > 0.0 && self.odo_interval >= 0.0 && self.odo_scale_sd >= 0.0,
-            "--odo-sd must be positive, --odo-interval and --odo-scale-sd not negative"
-        );
-        anyhow::ensure!(
-            self.pseudo_rate_sd > 0.0
-                && self.pseudo_rate_corr > 0.0
-                && self.pseudo_accel_sd > 0.0
-                && self.pseudo_accel_corr > 0.0,
-            "pseudo-signal noise settings must be positive"
-        );
+        // Values are checked by FuseOptions::validate (the library's one
+        // check, for library callers too).
         Ok(FuseOptions {
             output_dir: self.output.clone(),
             outages,

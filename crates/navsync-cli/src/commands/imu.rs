@@ -28,14 +28,16 @@ pub struct Args {
 
 #[derive(clap::Subcommand)]
 pub enum Sub {
-    /// Check an IMU log against seed 001 §1.5: gaps, loss, bad data,
-    /// precision, filter, noise.
+    /// Check an IMU log against the acquisition criteria of Tang, Zhang &
+    /// Niu, "MEMS IMU raw data acquisition and time synchronization
+    /// pitfalls" (i2Nav, 2022) §1.5: gaps, loss, bad data, precision,
+    /// filter, noise.
     Check(CheckArgs),
     /// Convert rates (or increments) to KF-GINS increments, with
     /// averaging decimation.
     Convert(ConvertArgs),
     /// Decimate a KF-GINS configuration's IMU to several rates and compare
-    /// the GNSS-outage drift (seed 001 §1.3.3).
+    /// the GNSS-outage drift (Tang, Zhang & Niu 2022 §1.3.3).
     RateStudy(RateStudyArgs),
     /// Time `imu check` on generated data (default 1 h at 200 Hz).
     Bench(BenchArgs),
@@ -106,7 +108,7 @@ pub enum From_ {
 
 #[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Method {
-    /// Average rates / accumulate increments (seed 001 §1.3).
+    /// Average rates / accumulate increments (Tang, Zhang & Niu 2022 §1.3).
     Average,
     /// Keep one sample per window (aliases; for comparison only).
     Point,
@@ -237,15 +239,19 @@ pub fn format_check(r: &QualityReport, show: usize) -> String {
     );
     let _ = writeln!(
         s,
+        "criteria: Tang, Zhang & Niu, \"MEMS IMU raw data acquisition and time synchronization pitfalls\" (i2Nav, 2022)"
+    );
+    let _ = writeln!(
+        s,
         "{:<5} {:<13} {:<60} {:<26} measured",
-        "", "seed 001", "criterion", "limit"
+        "", "section", "criterion", "limit"
     );
     for c in &r.criteria {
         let _ = writeln!(
             s,
             "{:<5} {:<13} {:<60} {:<26} {}",
             c.status.label(),
-            c.seed,
+            c.section,
             c.rule,
             c.limit,
             c.measured
@@ -480,17 +486,16 @@ fn is_round_rate(hz: f64) -> bool {
 }
 
 fn rate_study(a: RateStudyArgs) -> Result<()> {
-    use navsync::imu::rate_study::{RateStudyOptions, rate_study as study};
     use navsync::io::config::KfGinsConfig;
     use navsync::pipeline::{FuseOptions, NhcSettings, OutageSchedule};
+    use navsync_sim::rate_study::{RateStudyOptions, rate_study as study};
     anyhow::ensure!(!a.rates.is_empty(), "--rates is empty");
-    anyhow::ensure!(
-        a.outage_period > 0.0
-            && a.outage_len > 0.0
-            && a.outage_len < a.outage_period
-            && a.outage_first >= 0.0,
-        "outages need 0 < --outage-len < --outage-period and --outage-first >= 0"
-    );
+    let outages = OutageSchedule {
+        period_s: a.outage_period,
+        len_s: a.outage_len,
+        first_s: a.outage_first,
+    };
+    outages.validate().map_err(anyhow::Error::msg)?;
     let mut diag = Diagnostics::default();
     let cfg = KfGinsConfig::load(&a.config, &mut diag)?;
     if !diag.is_empty() {
@@ -510,11 +515,7 @@ fn rate_study(a: RateStudyArgs) -> Result<()> {
             Method::Average => DecimationMethod::Average,
             Method::Point => DecimationMethod::Point,
         },
-        outages: OutageSchedule {
-            period_s: a.outage_period,
-            len_s: a.outage_len,
-            first_s: a.outage_first,
-        },
+        outages,
         truth: a.truth.clone(),
         fuse: FuseOptions {
             nhc: a.nhc.then(NhcSettings::default),

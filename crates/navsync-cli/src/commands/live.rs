@@ -1,23 +1,31 @@
 //! `navsync live`: serial GNSS + IMU and kernel PPS, synchronized and fused
-//! in real time (the work is in the `navsync-live` library).
+//! in real time (the work is in the `navsync-live` library, Linux only; on
+//! other systems the command says so and exits non-zero).
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result, bail};
-use navsync::Diagnostics;
-use navsync::fusion::NavOutput;
-use navsync::io::config::KfGinsConfig;
-use navsync::pipeline::{FuseOptions, fusion_config};
-use navsync_live::files::FileSink;
-use navsync_live::imu::ImuLineFormat;
-use navsync_live::live::{NavInfo, SourceId, stop_on_ctrl_c};
-use navsync_live::selftest::{self, SelftestConfig};
-use navsync_live::{LiveConfig, LiveSink, LiveStatus, PortConfig, PpsInput, status_line};
+use anyhow::Result;
+#[cfg(target_os = "linux")]
+use {
+    anyhow::{Context, bail},
+    navsync::Diagnostics,
+    navsync::fusion::NavOutput,
+    navsync::io::config::KfGinsConfig,
+    navsync::pipeline::{FuseOptions, fusion_config},
+    navsync_live::files::FileSink,
+    navsync_live::imu::ImuLineFormat,
+    navsync_live::live::{NavInfo, SourceId, stop_on_ctrl_c},
+    navsync_live::selftest::{self, SelftestConfig},
+    navsync_live::{LiveConfig, LiveSink, LiveStatus, PortConfig, PpsInput, status_line},
+    std::time::{Duration, Instant},
+};
 
+#[cfg(target_os = "linux")]
 use super::print_diagnostics;
 use super::sync::Osc;
 
+// Read only by the Linux implementation.
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
 #[derive(clap::Args)]
 pub struct Args {
     /// GNSS receiver serial port (UBX NAV-PVT or NMEA GGA+GST+RMC/ZDA).
@@ -43,7 +51,9 @@ pub struct Args {
     /// Nominal IMU rate (Hz) [default: the config's imudatarate].
     #[arg(long)]
     pub imu_rate: Option<f64>,
-    /// Known IMU output delay T_c (s), subtracted from its stamps (seed 000).
+    /// Known IMU output delay T_c (s), subtracted from its stamps (Liu et
+    /// al., "Data synchronization in IMU/GPS integrated measurement system
+    /// of vehicle motion parameters").
     #[arg(long, default_value_t = 0.0)]
     pub imu_output_delay: f64,
     /// Kernel PPS device (RFC 2783), e.g. /dev/pps0. Without it, the
@@ -95,6 +105,8 @@ pub struct Args {
     pub json: Option<PathBuf>,
 }
 
+// Read only by the Linux implementation.
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
 #[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Format {
     Rate,
@@ -103,6 +115,8 @@ pub enum Format {
     UbxEsf,
 }
 
+// Read only by the Linux implementation.
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
 #[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Gnss {
     Ubx,
@@ -111,12 +125,14 @@ pub enum Gnss {
 
 /// Prints the status and the solution at a limited rate; writes every
 /// epoch to navresult.nav with --output.
+#[cfg(target_os = "linux")]
 struct CliSink {
     file: Option<FileSink>,
     print_every: Option<Duration>,
     next_print: Instant,
 }
 
+#[cfg(target_os = "linux")]
 impl LiveSink for CliSink {
     fn nav(&mut self, out: &NavOutput, _info: &NavInfo) -> Result<(), navsync::Error> {
         if let Some(f) = self.file.as_mut() {
@@ -161,6 +177,16 @@ impl LiveSink for CliSink {
     }
 }
 
+/// `navsync live` needs Linux (termios serial ports, the RFC 2783 PPS API).
+#[cfg(not(target_os = "linux"))]
+pub fn run(_args: Args) -> Result<()> {
+    anyhow::bail!(
+        "navsync live works on Linux only (serial ports through termios, 1PPS through the kernel PPS API, RFC 2783); this build is for {}",
+        std::env::consts::OS
+    )
+}
+
+#[cfg(target_os = "linux")]
 pub fn run(args: Args) -> Result<()> {
     if args.selftest {
         return run_selftest(&args);
@@ -265,10 +291,12 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
+#[cfg(target_os = "linux")]
 fn us(v: Option<f64>) -> String {
     v.map(|x| format!("{x:.0}")).unwrap_or_else(|| "-".into())
 }
 
+#[cfg(target_os = "linux")]
 fn run_selftest(args: &Args) -> Result<()> {
     anyhow::ensure!(
         args.minutes > 0.0 && args.minutes <= 24.0 * 60.0,

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use navsync::montecarlo::{self, McOptions};
 use navsync::sim::scenario::{Scenario, base_layer, parse_override, set_path};
+use navsync_sim::montecarlo::{self, McOptions};
 use serde_json::json;
 
 #[derive(clap::Args)]

@@ -47,8 +47,8 @@ pub struct Args {
     /// Software sync: assumed latency of the fastest GNSS message (s).
     #[arg(long, default_value_t = 0.0)]
     pub gnss_min_latency: f64,
-    /// Rate → increment rule: trapezoid of consecutive samples (seed 001
-    /// §1.1, for instantaneous rates) or average (rate already averaged
+    /// Rate → increment rule: trapezoid of consecutive samples (Tang, Zhang
+    /// & Niu 2022 §1.1, for instantaneous rates) or average (rate already averaged
     /// over the interval, as an averaging/decimating IMU outputs)
     /// [default: the log header's `imu_rates`, else trapezoid].
     #[arg(long, value_enum)]

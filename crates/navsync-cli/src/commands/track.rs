@@ -7,15 +7,16 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail, ensure};
 use navsync::Diagnostics;
-use navsync::tracking::aiding::{AidingErrorConfig, AidingStats};
-use navsync::tracking::channel::BandwidthMode;
-use navsync::tracking::design::AdaptiveConfig;
-use navsync::tracking::discriminator::Discriminator;
-use navsync::tracking::dynamics::{LandVehicleOptions, SatelliteLos};
-use navsync::tracking::loop_filter::LoopOrder;
-use navsync::tracking::oscillator::AllanCoefficients;
-use navsync::tracking::scenario::{self, Scenario};
-use navsync::tracking::sim::{self, Threshold, TrackConfig, TrackResult};
+use navsync_report::tracking::{PhaseErrorPoint, phase_error_svg};
+use navsync_tracking::aiding::{AidingErrorConfig, AidingStats};
+use navsync_tracking::channel::BandwidthMode;
+use navsync_tracking::design::AdaptiveConfig;
+use navsync_tracking::discriminator::Discriminator;
+use navsync_tracking::dynamics::{LandVehicleOptions, SatelliteLos};
+use navsync_tracking::loop_filter::LoopOrder;
+use navsync_tracking::oscillator::AllanCoefficients;
+use navsync_tracking::scenario::{self, Scenario};
+use navsync_tracking::sim::{self, Threshold, TrackConfig, TrackResult};
 
 use super::print_diagnostics;
 
@@ -541,13 +542,18 @@ pub fn run(args: Args) -> Result<()> {
         println!("  wrote {}", p.display());
     }
     if let Some(p) = &args.svg {
-        plot(
-            p,
-            &label,
-            &results,
-            &best_fixed,
-            discriminator.threshold_deg(),
-        )?;
+        let points: Vec<PhaseErrorPoint> = results
+            .iter()
+            .zip(&best_fixed)
+            .map(|(r, b)| PhaseErrorPoint {
+                cn0_dbhz: r.cn0_dbhz,
+                measured_3sigma_deg: r.three_sigma_deg,
+                predicted_3sigma_deg: r.predicted.three_sigma_rad().to_degrees(),
+                rms_deg: r.rms_deg,
+                best_fixed_rms_deg: b.map(|(_, rms)| rms),
+            })
+            .collect();
+        phase_error_svg(p, &label, &points, discriminator.threshold_deg())?;
         println!("  wrote {}", p.display());
     }
     if let Some(p) = &args.json {
@@ -592,98 +598,6 @@ pub fn run(args: Args) -> Result<()> {
         std::fs::write(&v[1], s).with_context(|| format!("writing {}", v[1]))?;
         println!("  wrote {} (time series at {cn0} dB-Hz)", v[1]);
     }
-    Ok(())
-}
-
-/// One plotted quantity of a result.
-type Metric = Box<dyn Fn(&TrackResult) -> f64>;
-
-fn plot(
-    path: &PathBuf,
-    title: &str,
-    results: &[TrackResult],
-    best_fixed: &[Option<(f64, f64)>],
-    limit_deg: f64,
-) -> Result<()> {
-    use plotters::prelude::*;
-    let root = SVGBackend::new(path, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let x0 = results
-        .iter()
-        .map(|r| r.cn0_dbhz)
-        .fold(f64::INFINITY, f64::min);
-    let x1 = results
-        .iter()
-        .map(|r| r.cn0_dbhz)
-        .fold(f64::NEG_INFINITY, f64::max)
-        .max(x0 + 1.0);
-    let y1 = 2.0 * limit_deg;
-    let clip = |v: f64| if v.is_finite() { v.min(y1) } else { y1 };
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 16))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(55)
-        .build_cartesian_2d(x0..x1, 0.0..y1)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    chart
-        .configure_mesh()
-        .x_desc("C/N0 (dB-Hz)")
-        .y_desc("phase error (deg)")
-        .draw()
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let series: [(&str, RGBColor, Metric); 3] = [
-        ("measured 3σ+|bias|", RED, Box::new(|r| r.three_sigma_deg)),
-        (
-            "predicted 3σ+|bias|",
-            BLUE,
-            Box::new(|r| r.predicted.three_sigma_rad().to_degrees()),
-        ),
-        ("measured RMS", BLACK, Box::new(|r| r.rms_deg)),
-    ];
-    for (name, color, f) in series {
-        chart
-            .draw_series(LineSeries::new(
-                results.iter().map(|r| (r.cn0_dbhz, clip(f(r)))),
-                color.stroke_width(2),
-            ))
-            .map_err(|e| anyhow::anyhow!("{e}"))?
-            .label(name)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-    }
-    if best_fixed.iter().any(|b| b.is_some()) {
-        let green = RGBColor(0, 140, 0);
-        chart
-            .draw_series(LineSeries::new(
-                results
-                    .iter()
-                    .zip(best_fixed)
-                    .filter_map(|(r, b)| b.map(|(_, rms)| (r.cn0_dbhz, clip(rms)))),
-                green.stroke_width(2),
-            ))
-            .map_err(|e| anyhow::anyhow!("{e}"))?
-            .label("best fixed bandwidth RMS")
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], green.stroke_width(2))
-            });
-    }
-    chart
-        .draw_series(LineSeries::new(
-            [(x0, limit_deg), (x1, limit_deg)],
-            BLACK.mix(0.4),
-        ))
-        .map_err(|e| anyhow::anyhow!("{e}"))?
-        .label(format!("rule-of-thumb limit {limit_deg}°"))
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.4)));
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
 }
 

@@ -493,7 +493,7 @@ pub enum Parsed {
 /// after (they describe how the file was written, which does not change).
 #[inline]
 pub fn digits_wanted(line_no: usize) -> bool {
-    line_no <= 4096 || line_no % 8 == 0
+    line_no <= 4096 || line_no.is_multiple_of(8)
 }
 
 /// Parses one line (without its terminator); `want_digits` also counts the

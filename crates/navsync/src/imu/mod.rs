@@ -22,8 +22,8 @@
 //! - [`log`]: a raw reader for `kf-gins` and `rate-csv` logs that keeps
 //!   every record (bad ones reported with file and line).
 //! - [`quality`]: the streaming log analysis and the seed 001 §1.5 verdict.
-//! - [`rate_study`]: the lowest IMU rate that costs no accuracy, by
-//!   simulated GNSS outages (seed 001 §1.3.3).
+//! - The rate study (the lowest IMU rate that costs no accuracy, by
+//!   simulated GNSS outages, seed 001 §1.3.3) is in `navsync-sim`.
 //! - [`synthetic`]: deterministic test signals (tests and benchmarks).
 
 pub mod convert;
@@ -31,7 +31,6 @@ pub mod decimate;
 pub mod log;
 pub mod lowpass;
 pub mod quality;
-pub mod rate_study;
 pub mod synthetic;
 
 use nalgebra::Vector3;

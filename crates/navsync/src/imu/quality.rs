@@ -131,8 +131,9 @@ impl Status {
 /// One row of the verdict.
 #[derive(Clone, Debug, Serialize)]
 pub struct Criterion {
-    /// Seed 001 section, e.g. "§1.5-5".
-    pub seed: &'static str,
+    /// Section of Tang, Zhang & Niu 2022 (seed 001), e.g. "§1.5-5"; or
+    /// "noise" for the Allan-deviation rows.
+    pub section: &'static str,
     pub rule: String,
     pub status: Status,
     pub measured: String,
@@ -361,7 +362,7 @@ impl Reservoir {
     #[inline]
     fn push(&mut self, v: f64) {
         self.count += 1;
-        if self.count % self.stride != 0 {
+        if !self.count.is_multiple_of(self.stride) {
             return;
         }
         self.data.push(v);
@@ -991,7 +992,10 @@ impl QualityAnalyzer {
                         last.line,
                         if lost == 1 { "" } else { "s" },
                         if over {
-                            format!("; longer than {} s (seed 001 §1.5-5)", self.cfg.max_gap_s)
+                            format!(
+                                "; longer than {} s (Tang, Zhang & Niu 2022 §1.5-5)",
+                                self.cfg.max_gap_s
+                            )
                         } else {
                             String::new()
                         }
@@ -1650,7 +1654,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
     let log_rate = r.round_rate_hz.unwrap_or(r.true_rate_hz);
     // §1.1: data type.
     out.push(Criterion {
-        seed: "§1.1",
+        section: "§1.1",
         rule: "increments for navigation (rates converted by trapezoid)".into(),
         status: Status::Info,
         measured: if r.format == "kf-gins" {
@@ -1683,14 +1687,14 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
         ),
     };
     out.push(Criterion {
-        seed: "§1.2, §1.5-1",
+        section: "§1.2, §1.5-1",
         rule: "raw sampling rate >= 10-20x the dynamics (vehicle: 200 Hz)".into(),
         status,
         measured,
         limit: format!(">= {:.0} Hz", cfg.min_raw_rate_hz),
     });
     out.push(Criterion {
-        seed: "§1.3, §1.5-2",
+        section: "§1.3, §1.5-2",
         rule: "decimation by averaging/accumulation, not point sampling".into(),
         status: Status::Info,
         measured: "not visible in a log; `navsync imu convert --decimate N` averages".into(),
@@ -1741,7 +1745,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
         ),
     };
     out.push(Criterion {
-        seed: "§1.4, §1.5-3",
+        section: "§1.4, §1.5-3",
         rule: "no low-pass filter (or the widest; its delay compensated)".into(),
         status,
         measured,
@@ -1773,7 +1777,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
             .map(|(n, q, u)| format!("{n} {q:.3e} {u}"))
             .collect::<Vec<_>>();
         out.push(Criterion {
-            seed: "§1.5-4",
+            section: "§1.5-4",
             rule: "full precision kept (no truncation when written)".into(),
             status,
             measured: format!(
@@ -1791,7 +1795,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
     }
     // §1.5-5: continuity.
     out.push(Criterion {
-        seed: "§1.5-5",
+        section: "§1.5-5",
         rule: format!("no gap longer than {} s", cfg.max_gap_s),
         status: if r.counts.gaps_over_limit == 0 {
             Status::Pass
@@ -1805,7 +1809,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
         limit: format!("<= {} s", cfg.max_gap_s),
     });
     out.push(Criterion {
-        seed: "§1.5-5",
+        section: "§1.5-5",
         rule: "loss rate".into(),
         status: if r.loss_rate < cfg.max_loss_rate {
             Status::Pass
@@ -1822,7 +1826,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
     });
     let c = &r.counts;
     out.push(Criterion {
-        seed: "§1.5-5",
+        section: "§1.5-5",
         rule: "bad-data rate".into(),
         status: if r.bad_data_rate < cfg.max_bad_rate { Status::Pass } else { Status::Fail },
         measured: format!(
@@ -1842,7 +1846,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
     });
     let fail_if = |n: usize| if n == 0 { Status::Pass } else { Status::Fail };
     out.push(Criterion {
-        seed: "§1.5-5",
+        section: "§1.5-5",
         rule: "no duplicated or out-of-order records".into(),
         status: fail_if(c.duplicates + c.out_of_order + c.stale_records),
         measured: format!(
@@ -1852,7 +1856,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
         limit: "0".into(),
     });
     out.push(Criterion {
-        seed: "§1.5-5",
+        section: "§1.5-5",
         rule: "no saturated, stuck or spiking channel".into(),
         status: fail_if(c.saturation_events + c.stuck_segments + c.spikes),
         measured: format!(
@@ -1862,7 +1866,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
         limit: "0".into(),
     });
     out.push(Criterion {
-        seed: "§1.5-5",
+        section: "§1.5-5",
         rule: "stable acquisition interval (jitter)".into(),
         status: if r.intervals.jitter_rms_frac <= cfg.max_jitter_frac {
             Status::Pass
@@ -1882,7 +1886,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
         ),
     });
     out.push(Criterion {
-        seed: "§1.5-5",
+        section: "§1.5-5",
         rule: "true sampling rate".into(),
         status: Status::Info,
         measured: match r.round_rate_hz {
@@ -1922,7 +1926,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
                 })
                 .collect();
             out.push(Criterion {
-                seed: "noise",
+                section: "noise",
                 rule: "Allan deviation of the longest static segment".into(),
                 status: Status::Info,
                 measured: format!(
@@ -1937,7 +1941,7 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
             });
         }
         None => out.push(Criterion {
-            seed: "noise",
+            section: "noise",
             rule: "Allan deviation of the longest static segment".into(),
             status: Status::Info,
             measured: format!("no static segment of {} s or more", cfg.min_static_s),
@@ -2335,7 +2339,7 @@ mod tests {
         let lp = r
             .criteria
             .iter()
-            .find(|c| c.seed.starts_with("§1.4"))
+            .find(|c| c.section.starts_with("§1.4"))
             .unwrap();
         assert_eq!(lp.status, Status::Fail);
         assert!(lp.measured.contains("1.500 ms"), "{}", lp.measured);
@@ -2376,7 +2380,7 @@ mod tests {
         let gx = &r.channels[0];
         assert_eq!(gx.print_step, 1e-3);
         assert!(gx.rounding_to_noise > 0.1, "{}", gx.rounding_to_noise);
-        let row = r.criteria.iter().find(|c| c.seed == "§1.5-4").unwrap();
+        let row = r.criteria.iter().find(|c| c.section == "§1.5-4").unwrap();
         assert_eq!(row.status, Status::Fail);
         assert_eq!(
             quantization_step(&[

@@ -5,4 +5,5 @@ pub mod export;
 pub mod kfgins;
 pub mod riglog;
 pub mod rtklib;
+pub mod speed;
 pub mod text;

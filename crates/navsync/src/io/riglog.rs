@@ -338,11 +338,11 @@ impl<R: Read> RigLogReader<R> {
         &mut self,
         diag: &mut Diagnostics,
     ) -> Result<Option<(RigRecord, usize)>, Error> {
-        if let Some((line, no)) = self.pending.take() {
-            if let Some(r) = parse_record(&line, no, &self.path, self.counter_max, diag) {
-                self.records += 1;
-                return Ok(Some((r, no)));
-            }
+        if let Some((line, no)) = self.pending.take()
+            && let Some(r) = parse_record(&line, no, &self.path, self.counter_max, diag)
+        {
+            self.records += 1;
+            return Ok(Some((r, no)));
         }
         loop {
             let Some((line, no)) = self.lines.next_line()? else {

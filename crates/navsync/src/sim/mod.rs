@@ -15,6 +15,7 @@ pub mod rig;
 pub mod rng;
 pub mod run;
 pub mod scenario;
+pub mod speed;
 pub mod trajectory;
 pub mod truth;
 

@@ -17,6 +17,9 @@
 //! - [`channel`]: the receiver side of a tracking channel (streaming).
 //! - [`sim`]: the correlator-level simulator, C/N0 sweeps and thresholds.
 
+// Index loops are the clearest form for the small kernels here.
+#![allow(clippy::needless_range_loop)]
+
 pub mod aiding;
 pub mod channel;
 pub mod design;

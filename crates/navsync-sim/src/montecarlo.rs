@@ -19,14 +19,14 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::chain::{ChainDirs, ChainOptions, outage_windows, run_chain, true_time_offset_s};
-use crate::error::Error;
-use crate::eval::{EpochError, EvalReport, Evaluator, TruthScorer};
-use crate::fusion::TimeOffsetState;
-use crate::ins::{ImuErrors, NavState};
-use crate::pipeline::NavSink;
-use crate::sim::{Scenario, Simulation};
-use crate::stats::{chi2_quantile, quantile};
-use crate::time::GpsTime;
+use navsync::error::Error;
+use navsync::eval::{EpochError, EvalReport, Evaluator, TruthScorer};
+use navsync::fusion::TimeOffsetState;
+use navsync::ins::{ImuErrors, NavState};
+use navsync::pipeline::NavSink;
+use navsync::sim::{Scenario, Simulation};
+use navsync::stats::{chi2_quantile, quantile};
+use navsync::time::GpsTime;
 
 /// Settings of a Monte Carlo study.
 #[derive(Clone, Debug)]
@@ -219,7 +219,7 @@ pub struct McReport {
     pub per_run: Vec<RunFigures>,
 }
 
-/// Scores a run in memory: the truth comparison of [`crate::eval`] at every
+/// Scores a run in memory: the truth comparison of [`navsync::eval`] at every
 /// epoch, and NEES at the first auxiliary epoch of every step.
 struct McSink {
     /// Opened on the first epoch: the simulation stage writes the file.
@@ -308,7 +308,7 @@ fn run_one(base: &Scenario, seed: u64, opts: &McOptions) -> Result<RunFigures, E
     let dirs = ChainDirs::under(&root);
     let mut chain = ChainOptions::for_scenario(&scn);
     if opts.smooth {
-        chain.fuse.smooth = Some(crate::pipeline::SmoothOptions::default());
+        chain.fuse.smooth = Some(navsync::pipeline::SmoothOptions::default());
     }
     let tau_true = true_time_offset_s(&scn);
     let mut sink = McSink {
@@ -517,7 +517,7 @@ pub fn write_json(report: &McReport, dir: &Path) -> Result<PathBuf, Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::scenario::base_layer;
+    use navsync::sim::scenario::base_layer;
 
     #[test]
     fn nees_region_and_counts() {
@@ -543,7 +543,8 @@ mod tests {
     #[test]
     fn a_small_study_runs_the_whole_chain() {
         let mut layer = base_layer("demo").unwrap();
-        crate::sim::scenario::set_path(&mut layer, "duration_s", serde_json::json!(200.0)).unwrap();
+        navsync::sim::scenario::set_path(&mut layer, "duration_s", serde_json::json!(200.0))
+            .unwrap();
         let scn = Scenario::from_layer(layer).unwrap();
         let dir = std::env::temp_dir().join(format!("navsync-mc-test-{}", std::process::id()));
         let opts = McOptions {
@@ -570,7 +571,12 @@ mod tests {
         for x in &r.per_run {
             assert!(x.pos_horizontal_rms_m < 3.0, "{x:?}");
             assert!(x.sync_rms_us.unwrap() < 2.0, "{x:?}");
-            assert!(x.time_offset_error_s.unwrap().abs() < 0.02, "{x:?}");
+            // τ converged: over 50 such runs (seeds 1…50, 200 s) the filter's
+            // σ was 0.94–0.95 ms and the worst error 2.49 ms (2.6σ; NEES 1.08),
+            // so 4σ fails only a filter that did not converge (τ = 10 ms).
+            let sd = x.time_offset_sd_s.unwrap();
+            assert!(sd < 1.5e-3, "{x:?}");
+            assert!(x.time_offset_error_s.unwrap().abs() < 4.0 * sd, "{x:?}");
             // One NEES epoch per second of the run.
             assert!(
                 (195..=201).contains(&x.nees_pos.len()),

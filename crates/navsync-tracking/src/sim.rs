@@ -43,8 +43,8 @@ use super::dynamics::{DynamicsEnvelope, SatelliteLos, Trajectory};
 use super::loop_filter::LoopOrder;
 use super::oscillator::{AllanCoefficients, OscillatorNoise};
 use super::{CARRIER_CYCLES_PER_CA_CHIP, GPS_L1_HZ, SPEED_OF_LIGHT};
-use crate::error::Error;
-use crate::stats::Moments;
+use navsync::error::Error;
+use navsync::stats::Moments;
 
 /// Everything one simulated tracking run needs.
 #[derive(Clone, Debug, PartialEq, Serialize)]

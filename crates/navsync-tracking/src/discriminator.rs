@@ -171,7 +171,7 @@ fn variances_by_integration(rho: f64) -> [f64; 2] {
 /// The error function, through the regularised incomplete gamma function
 /// (erf x = P(½, x²)).
 fn erf(x: f64) -> f64 {
-    let v = crate::stats::gamma_p(0.5, x * x);
+    let v = navsync::stats::gamma_p(0.5, x * x);
     if x < 0.0 { -v } else { v }
 }
 

@@ -12,10 +12,10 @@ use super::dynamics::{
     GeodeticSample, LandVehicleOptions, LandVehicleProfile, SampledTrajectory, StaticTrajectory,
     Trajectory,
 };
-use crate::earth::Geodetic;
-use crate::error::{Diagnostics, Error};
-use crate::io::kfgins::NavReader;
-use crate::io::text::{LineReader, is_blank_or_comment, parse_f64, split_fields};
+use navsync::earth::Geodetic;
+use navsync::error::{Diagnostics, Error};
+use navsync::io::kfgins::NavReader;
+use navsync::io::text::{LineReader, is_blank_or_comment, parse_f64, split_fields};
 
 /// Where the receiver goes.
 #[derive(Clone, Debug, PartialEq)]

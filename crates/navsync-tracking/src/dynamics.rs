@@ -12,7 +12,7 @@ use rand::RngExt;
 use rand::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 
-use crate::earth::{Geodetic, c_ne, geodetic_to_ecef};
+use navsync::earth::{Geodetic, c_ne, geodetic_to_ecef};
 
 /// Standard gravity (m/s²), for jerk limits stated in g/s.
 pub const G0: f64 = 9.806_65;
@@ -600,7 +600,7 @@ mod tests {
         let samples: Vec<GeodeticSample> = (0..50)
             .map(|i| {
                 let t = i as f64 * 0.1;
-                let lon = (20.0 * t / crate::earth::A).to_degrees();
+                let lon = (20.0 * t / navsync::earth::A).to_degrees();
                 GeodeticSample {
                     t_s: 1000.0 + t,
                     pos: Geodetic::from_deg(0.0, lon, 0.0),

@@ -9,21 +9,21 @@
 //! withheld on the outage schedule (60 s every 180 s, the KF-GINS/i2Nav
 //! protocol), and every output epoch is scored against a truth file; the
 //! drift figure is the RMS over outages of the maximum horizontal error in
-//! each (Niu et al. 2010, as in [`crate::eval`]).
+//! each (Niu et al. 2010, as in [`navsync::eval`]).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::Serialize;
 
-use super::decimate::{DecRate, DecimationMethod, IncrementDecimator};
-use crate::error::{Diagnostics, Error};
-use crate::eval::{EpochError, Evaluator, TruthScorer};
-use crate::ins::{ImuErrors, NavState};
-use crate::io::config::KfGinsConfig;
-use crate::io::kfgins::{ImuReader, TextWriter, format_imu_line};
-use crate::pipeline::{self, FuseOptions, NavSink, OutageSchedule};
-use crate::time::GpsTime;
+use navsync::error::{Diagnostics, Error};
+use navsync::eval::{EpochError, Evaluator, TruthScorer};
+use navsync::imu::decimate::{DecRate, DecimationMethod, IncrementDecimator};
+use navsync::ins::{ImuErrors, NavState};
+use navsync::io::config::KfGinsConfig;
+use navsync::io::kfgins::{ImuReader, TextWriter, format_imu_line};
+use navsync::pipeline::{self, FuseOptions, NavSink, OutageSchedule};
+use navsync::time::GpsTime;
 
 /// What to study.
 #[derive(Clone, Debug)]
@@ -82,7 +82,7 @@ impl NavSink for EvalSink {
         _: GpsTime,
         _: &ImuErrors,
         _: &[f64],
-        _: Option<crate::fusion::TimeOffsetState>,
+        _: Option<navsync::fusion::TimeOffsetState>,
     ) -> Result<(), Error> {
         Ok(())
     }
@@ -104,7 +104,7 @@ pub fn decimate_file(
     let mut w = TextWriter::create(out)?;
     let mut buf = Vec::with_capacity(1 << 20);
     let mut n = 0;
-    let mut put = |s: crate::ins::ImuSample, buf: &mut Vec<u8>| {
+    let mut put = |s: navsync::ins::ImuSample, buf: &mut Vec<u8>| {
         format_imu_line(buf, &s);
         n += 1;
     };
@@ -215,9 +215,9 @@ pub fn rate_study(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::earth;
-    use crate::ins::ImuSample;
     use nalgebra::Vector3;
+    use navsync::earth;
+    use navsync::ins::ImuSample;
     use std::fmt::Write as _;
 
     /// A vehicle at rest, level, facing north: exact increments (Earth rate

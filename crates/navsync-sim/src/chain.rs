@@ -2,22 +2,22 @@
 //! simulate (`navsync simulate`) → synchronize the raw rig log (`navsync
 //! sync`) → fuse with the time-offset state (`navsync fuse
 //! --estimate-time-offset`). The demo and the Monte Carlo runs are loops
-//! over [`run_chain`]; scoring is [`crate::eval`]'s.
+//! over [`run_chain`]; scoring is [`navsync::eval`]'s.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::error::{Diagnostics, Error};
-use crate::fusion::{GnssErrorModel, TimeOffsetOptions};
-use crate::io::config::KfGinsConfig;
-use crate::pipeline::{self, FuseOptions, FuseSummary, NavSink};
-use crate::sim::imu::OutputKind;
-use crate::sim::rig::SyncMode as RigSync;
-use crate::sim::scenario::Scenario;
-use crate::sim::{SimReport, Simulation};
-use crate::time::GpsTime;
-use crate::timing::file::{SyncSummary, sync_file, write_kfgins_config};
-use crate::timing::{RateRule, SyncConfig, SyncMode};
+use navsync::error::{Diagnostics, Error};
+use navsync::fusion::{GnssErrorModel, TimeOffsetOptions};
+use navsync::io::config::KfGinsConfig;
+use navsync::pipeline::{self, FuseOptions, FuseSummary, NavSink};
+use navsync::sim::imu::OutputKind;
+use navsync::sim::rig::SyncMode as RigSync;
+use navsync::sim::scenario::Scenario;
+use navsync::sim::{SimReport, Simulation};
+use navsync::time::{GpsTime, OutageWindow};
+use navsync::timing::file::{SyncSummary, sync_file, write_kfgins_config};
+use navsync::timing::{RateRule, SyncConfig, SyncMode};
 
 /// Where each stage writes.
 #[derive(Clone, Debug)]
@@ -120,13 +120,13 @@ pub fn true_time_offset_s(scn: &Scenario) -> Option<f64> {
     }
 }
 
-/// The scenario's GNSS outages as (start, length s) windows.
-pub fn outage_windows(scn: &Scenario) -> Vec<(GpsTime, f64)> {
+/// The scenario's GNSS outages.
+pub fn outage_windows(scn: &Scenario) -> Vec<OutageWindow> {
     let start = GpsTime::from_week_sow(scn.gps_week, scn.start_sow);
     scn.gnss
         .outages
         .iter()
-        .map(|w| (start.add_seconds(w[0]), w[1]))
+        .map(|w| OutageWindow::new(start.add_seconds(w[0]), w[1]))
         .collect()
 }
 
@@ -214,8 +214,8 @@ pub fn run_chain(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::imu::Decimation;
-    use crate::sim::scenario::base_layer;
+    use navsync::sim::imu::Decimation;
+    use navsync::sim::scenario::base_layer;
 
     #[test]
     fn options_follow_the_rig() {
@@ -229,7 +229,7 @@ mod tests {
         assert_eq!(true_time_offset_s(&scn), Some(0.010));
         let w = outage_windows(&scn);
         assert_eq!(w.len(), 2);
-        assert_eq!(w[0].0.sow(), scn.start_sow + 240.0);
+        assert_eq!(w[0].start.sow(), scn.start_sow + 240.0);
         scn.imu.decimation = Decimation::Point;
         assert_eq!(
             ChainOptions::for_scenario(&scn).rate_rule,
