@@ -53,6 +53,7 @@ def drive_task(
     """One drive into ``output_dir``, atomically: built in a temporary
     sibling folder, then moved into place (replacing an earlier attempt's)."""
     t0 = time.perf_counter()
+    cpu0 = time.process_time()
     final = Path(output_dir)
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = final.parent / f".{final.name}.tmp-{uuid.uuid4().hex[:12]}"
@@ -78,6 +79,8 @@ def drive_task(
     row["output_dir"] = str(final)
     row["pid"] = os.getpid()
     row["task_wall_s"] = time.perf_counter() - t0
+    # CPU seconds of the worker process over the task (all its threads).
+    row["task_cpu_s"] = time.process_time() - cpu0
     return row
 
 
