@@ -31,6 +31,8 @@ from ._native import NavsyncError
 __all__ = [
     "NAV_COLUMNS",
     "FuseResult",
+    "GNSS_COLUMNS",
+    "IMU_COLUMNS",
     "NavsyncError",
     "SyncResult",
     "evaluate",
@@ -139,6 +141,34 @@ def simulate(
     )
 
 
+#: Columns of a KF-GINS IMU file: increments over each interval, body FRD.
+IMU_COLUMNS = (
+    "sow_s",
+    "dtheta_x_rad",
+    "dtheta_y_rad",
+    "dtheta_z_rad",
+    "dvel_x_mps",
+    "dvel_y_mps",
+    "dvel_z_mps",
+)
+
+#: Columns of a 7-column KF-GINS GNSS file (then, in 13-column files,
+#: velocities and their σ in the KF-GINS C++ order).
+GNSS_COLUMNS = ("sow_s", "lat_deg", "lon_deg", "h_m", "sd_n_m", "sd_e_m", "sd_d_m")
+GNSS_COLUMNS_13 = (
+    "sow_s", "lat_deg", "lon_deg", "h_m", "vn_mps", "ve_mps", "vd_mps",
+    "sd_n_m", "sd_e_m", "sd_d_m", "sd_vn_mps", "sd_ve_mps", "sd_vd_mps",
+)  # fmt: skip
+
+
+def _read_columns(path: Path, names: Tuple[str, ...]) -> pd.DataFrame:
+    df = pd.read_csv(path, sep=r"\s+", header=None, comment="#")
+    if df.shape[1] != len(names):
+        raise NavsyncError(f"{path}: expected {len(names)} columns, found {df.shape[1]}")
+    df.columns = list(names)
+    return df
+
+
 @dataclass
 class SyncResult:
     """What :func:`sync` produced."""
@@ -147,6 +177,20 @@ class SyncResult:
     report: Dict[str, Any]
     #: The output folder (``imu.txt``, ``gnss.txt``, ``imu_times.txt``, …).
     output_dir: Path
+
+    @property
+    def imu(self) -> pd.DataFrame:
+        """The synchronized IMU increments (:data:`IMU_COLUMNS`), GPS time."""
+        return _read_columns(self.output_dir / "imu.txt", IMU_COLUMNS)
+
+    @property
+    def gnss(self) -> pd.DataFrame:
+        """The GNSS fixes at their time of validity (:data:`GNSS_COLUMNS`)."""
+        p = self.output_dir / "gnss.txt"
+        with open(p) as f:
+            first = next((ln for ln in f if ln.strip() and not ln.startswith("#")), "")
+        names = GNSS_COLUMNS_13 if len(first.split()) == 13 else GNSS_COLUMNS
+        return _read_columns(p, names)
 
 
 def sync(

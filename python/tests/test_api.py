@@ -38,6 +38,10 @@ def test_simulate_fuse_evaluate_equal_the_cli(tmp_path, drives, cli):
     )
     assert s.report["mode"] == "hw"
     assert s.report["truth"]["rms_us"] < 5.0
+    imu, gnss = s.imu, s.gnss
+    assert list(imu.columns) == list(navsync.IMU_COLUMNS) and len(imu) > 90 * 190
+    assert imu["sow_s"].is_monotonic_increasing
+    assert list(gnss.columns)[:4] == ["sow_s", "lat_deg", "lon_deg", "h_m"] and len(gnss) > 80
     cfg = s.output_dir / "kf-gins.yaml"
     res = navsync.fuse(
         cfg,
