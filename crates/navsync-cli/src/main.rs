@@ -63,6 +63,9 @@ enum Command {
     /// Simulate → sync → fuse → eval over many seeds in parallel: accuracy
     /// percentiles and the filter's consistency (NEES).
     Montecarlo(commands::montecarlo::Args),
+    /// Many drives at once, one per task (sync → fuse → smooth → eval →
+    /// verdict): a folder per drive and a table with a row per drive.
+    Batch(commands::batch::Args),
     /// Live on Linux: GNSS and IMU serial ports + kernel PPS, synchronized
     /// and fused in real time (--selftest: measured on pseudo-terminals).
     Live(commands::live::Args),
@@ -87,6 +90,7 @@ fn main() {
         Command::Imu(a) => commands::imu::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Montecarlo(a) => commands::montecarlo::run(a),
+        Command::Batch(a) => commands::batch::run(a),
         Command::Live(a) => commands::live::run(a),
     };
     if let Err(e) = result {

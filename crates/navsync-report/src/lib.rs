@@ -7,6 +7,7 @@
 //! (`<script type="application/json" id="navsync-eval">`).
 
 pub mod demo;
+pub mod drive;
 pub mod html;
 pub mod inputs;
 pub mod plot;

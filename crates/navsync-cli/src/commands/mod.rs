@@ -1,4 +1,5 @@
 pub mod array;
+pub mod batch;
 pub mod bench;
 pub mod convert;
 pub mod demo;
