@@ -8,6 +8,7 @@
 //! at `sow`). Seed 001 §1.5 point 5: gaps of 0.1 s or more must be flagged.
 
 use nalgebra::Vector3;
+use navsync::imu::convert::{RateRule, rate_increment};
 use navsync::ins::ImuSample;
 use navsync::time::GpsTime;
 
@@ -74,6 +75,14 @@ impl RateToIncrement {
         }
         let dt = s.time.seconds_since(p.time);
         self.prev = Some(s);
+        let (dtheta, dvel) = rate_increment(
+            RateRule::Trapezoid,
+            &p.gyro_radps,
+            &p.accel_mps2,
+            &s.gyro_radps,
+            &s.accel_mps2,
+            dt,
+        );
         let issue = (dt >= self.gap_threshold_s).then_some(RateIssue::Gap {
             time: s.time,
             dt_s: dt,
@@ -81,8 +90,8 @@ impl RateToIncrement {
         (
             Some(ImuSample {
                 time: s.time,
-                dtheta: (p.gyro_radps + s.gyro_radps) * (0.5 * dt),
-                dvel: (p.accel_mps2 + s.accel_mps2) * (0.5 * dt),
+                dtheta,
+                dvel,
                 odo_speed: None,
             }),
             issue,

@@ -12,7 +12,7 @@ use navsync::imu::decimate::{InputKind, InputSample};
 use navsync::imu::log::{ImuLogFormat, ImuLogReader, Order, TimeOrder};
 use navsync::imu::quality::{self, QualityConfig, QualityReport, Status};
 use navsync::imu::{
-    Conditioner, ConditionerConfig, DecRate, DecimationMethod, LowPassFilter, RateKind, RateSample,
+    Conditioner, ConditionerConfig, DecRate, DecimationMethod, LowPassFilter, RateRule, RateSample,
 };
 use navsync::ins::ImuSample;
 use navsync::io::kfgins::{TextWriter, format_imu_line};
@@ -315,10 +315,10 @@ fn convert(a: ConvertArgs) -> Result<()> {
         .format()
         .ok_or_else(|| anyhow::anyhow!("{}: no IMU records", a.input.display()))?;
     let input = match (a.from, fmt) {
-        (Some(From_::Rate), _) => InputKind::Rate(RateKind::Instantaneous),
-        (Some(From_::RateAverage), _) => InputKind::Rate(RateKind::IntervalAverage),
+        (Some(From_::Rate), _) => InputKind::Rate(RateRule::Trapezoid),
+        (Some(From_::RateAverage), _) => InputKind::Rate(RateRule::Average),
         (Some(From_::Increment), _) => InputKind::Increment,
-        (None, ImuLogFormat::RateCsv) => InputKind::Rate(RateKind::Instantaneous),
+        (None, ImuLogFormat::RateCsv) => InputKind::Rate(RateRule::Trapezoid),
         (None, ImuLogFormat::KfGins) => InputKind::Increment,
     };
     anyhow::ensure!(

@@ -13,27 +13,51 @@
 //! A device that outputs rates already *averaged* over its output interval
 //! (an averaging/decimating filter such as the ADIS16465 `DEC_RATE` stage)
 //! gives the mean rate over `(t_{k−1}, t_k]`: its increment is ω̄_k·Δt
-//! ([`RateKind::IntervalAverage`]). Applying the trapezoid to such samples
+//! ([`RateRule::Average`]). Applying the trapezoid to such samples
 //! would average two adjacent windows and delay the data by half an output
 //! interval.
 
+use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::RateSample;
 use crate::ins::ImuSample;
 
-/// What a rate sample represents.
+/// How rate samples become increments over (t_{k−1}, t_k]: the one rule
+/// every rate path uses (files, rig logs, receivers, live).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
-pub enum RateKind {
-    /// The rate at the time stamp (a raw or point sample): trapezoid.
+#[serde(rename_all = "lowercase")]
+pub enum RateRule {
+    /// (ω_{k−1} + ω_k)/2 · Δt: for the rate at the time stamp (a raw or
+    /// point sample; seed 001 §1.1).
     #[default]
-    Instantaneous,
-    /// The mean rate over the interval that ends at the time stamp (an
-    /// averaged, decimated output): rectangle over that interval.
-    IntervalAverage,
+    Trapezoid,
+    /// ω_k · Δt: for rates that are already averages over the interval
+    /// (an IMU's averaging decimation filter, seed 001 §1.3.1).
+    Average,
 }
 
-/// Counters of a [`RateToIncrement`].
+/// The increments (Δθ, Δv) over an interval of `dt_s` that ends at the
+/// sample (ω, f), the previous sample being (ω_prev, f_prev), by `rule`
+/// (seed 001 §1.1 and §1.3.1).
+#[inline]
+pub fn rate_increment(
+    rule: RateRule,
+    gyro_prev: &Vector3<f64>,
+    accel_prev: &Vector3<f64>,
+    gyro: &Vector3<f64>,
+    accel: &Vector3<f64>,
+    dt_s: f64,
+) -> (Vector3<f64>, Vector3<f64>) {
+    match rule {
+        RateRule::Trapezoid => (
+            (gyro_prev + gyro) * (0.5 * dt_s),
+            (accel_prev + accel) * (0.5 * dt_s),
+        ),
+        RateRule::Average => (gyro * dt_s, accel * dt_s),
+    }
+}
+
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct ConvertStats {
     pub rates_in: usize,
@@ -49,7 +73,7 @@ pub struct ConvertStats {
 /// increment over the interval it closes.
 #[derive(Clone, Debug)]
 pub struct RateToIncrement {
-    kind: RateKind,
+    kind: RateRule,
     max_bridge_ns: Option<i64>,
     prev: Option<RateSample>,
     stats: ConvertStats,
@@ -59,7 +83,7 @@ impl RateToIncrement {
     /// A converter for rates of `kind`. Gaps of any length are bridged
     /// (the trapezoid over the gap) until [`Self::with_max_bridge`] says
     /// otherwise.
-    pub fn new(kind: RateKind) -> Self {
+    pub fn new(kind: RateRule) -> Self {
         RateToIncrement {
             kind,
             max_bridge_ns: None,
@@ -105,14 +129,7 @@ impl RateToIncrement {
             return None;
         }
         let dt = dt_ns as f64 * 1e-9;
-        let (dtheta, dvel) = match self.kind {
-            // Seed 001 §1.1: trapezoid of consecutive rates.
-            RateKind::Instantaneous => (
-                (p.gyro + s.gyro) * (0.5 * dt),
-                (p.accel + s.accel) * (0.5 * dt),
-            ),
-            RateKind::IntervalAverage => (s.gyro * dt, s.accel * dt),
-        };
+        let (dtheta, dvel) = rate_increment(self.kind, &p.gyro, &p.accel, &s.gyro, &s.accel, dt);
         self.prev = Some(*s);
         self.stats.increments_out += 1;
         Some(ImuSample {
@@ -140,7 +157,7 @@ mod tests {
 
     #[test]
     fn constant_rate_gives_rate_times_interval() {
-        let mut c = RateToIncrement::new(RateKind::Instantaneous);
+        let mut c = RateToIncrement::new(RateRule::Trapezoid);
         assert!(
             c.push(&rate(1.0, [0.1, -0.2, 0.3], [0.0, 0.0, -9.8]))
                 .is_none()
@@ -165,7 +182,7 @@ mod tests {
             0i64, 4_000_000, 10_500_000, 15_000_000, 30_100_000, 31_000_000,
         ];
         let tau = |k: usize| offsets_ns[k] as f64 * 1e-9;
-        let mut c = RateToIncrement::new(RateKind::Instantaneous);
+        let mut c = RateToIncrement::new(RateRule::Trapezoid);
         for k in 0..offsets_ns.len() {
             let w = a + b * tau(k);
             let s = RateSample {
@@ -195,7 +212,7 @@ mod tests {
 
     #[test]
     fn interval_average_uses_the_rectangle_over_its_own_interval() {
-        let mut c = RateToIncrement::new(RateKind::IntervalAverage);
+        let mut c = RateToIncrement::new(RateRule::Average);
         c.push(&rate(0.0, [1.0, 0.0, 0.0], [0.0; 3]));
         let inc = c.push(&rate(0.01, [3.0, 0.0, 0.0], [0.0; 3])).unwrap();
         assert!((inc.dtheta.x - 0.03).abs() < 1e-15);
@@ -203,7 +220,7 @@ mod tests {
 
     #[test]
     fn gaps_beyond_the_bridge_limit_restart_and_bad_times_are_ignored() {
-        let mut c = RateToIncrement::new(RateKind::Instantaneous).with_max_bridge(0.1);
+        let mut c = RateToIncrement::new(RateRule::Trapezoid).with_max_bridge(0.1);
         c.push(&rate(0.0, [1.0; 3], [0.0; 3]));
         assert!(c.push(&rate(0.005, [1.0; 3], [0.0; 3])).is_some());
         assert!(c.push(&rate(0.005, [1.0; 3], [0.0; 3])).is_none());

@@ -18,7 +18,7 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use super::convert::{RateKind, RateToIncrement};
+use super::convert::{RateRule, RateToIncrement};
 use super::{RateSample, period_ns};
 use crate::error::Error;
 use crate::ins::ImuSample;
@@ -389,7 +389,7 @@ impl IncrementDecimator {
 }
 
 /// Decimates a rate stream by averaging (or point sampling); the output
-/// rate sample is the mean over its window ([`RateKind::IntervalAverage`])
+/// rate sample is the mean over its window ([`RateRule::Average`])
 /// stamped at the window's last sample.
 #[derive(Clone, Debug)]
 pub struct RateDecimator {
@@ -487,7 +487,7 @@ pub enum InputKind {
     Increment,
     /// Angular rates and specific forces, converted by
     /// [`RateToIncrement`].
-    Rate(RateKind),
+    Rate(RateRule),
 }
 
 /// One sample of a log, as read.
@@ -575,7 +575,7 @@ impl Conditioner {
                 ),
             ),
             (InputKind::Rate(_), DecimationMethod::Point) => (
-                Some(bridge(RateToIncrement::new(RateKind::Instantaneous))),
+                Some(bridge(RateToIncrement::new(RateRule::Trapezoid))),
                 Some(RateDecimator::new(
                     cfg.dec,
                     DecimationMethod::Point,
@@ -706,7 +706,7 @@ mod tests {
     /// the ADIS16465 integrates internally).
     fn increments_of(w: &dyn Fn(f64) -> f64, rate_hz: f64, n: usize) -> Vec<ImuSample> {
         let dt_ns = period_ns(rate_hz);
-        let mut conv = RateToIncrement::new(RateKind::Instantaneous);
+        let mut conv = RateToIncrement::new(RateRule::Trapezoid);
         let mut out = Vec::new();
         for k in 0..=n {
             let t_ns = T0_NS + k as i64 * dt_ns;
@@ -950,7 +950,7 @@ mod tests {
     #[test]
     fn conditioner_converts_accumulates_and_compensates_delay() {
         let cfg = ConditionerConfig {
-            input: InputKind::Rate(RateKind::Instantaneous),
+            input: InputKind::Rate(RateRule::Trapezoid),
             dec: DecRate(1),
             input_rate_hz: Some(1000.0),
             align_to_grid: false,

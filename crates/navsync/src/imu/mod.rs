@@ -37,7 +37,7 @@ use nalgebra::Vector3;
 
 use crate::time::GpsTime;
 
-pub use convert::{RateKind, RateToIncrement};
+pub use convert::{RateRule, RateToIncrement};
 pub use decimate::{
     Conditioner, ConditionerConfig, DecRate, DecimationMethod, DecimatorStats, IncrementDecimator,
     RateDecimator,
@@ -47,7 +47,7 @@ pub use lowpass::{GroupDelay, LowPassFilter};
 pub use quality::{QualityAnalyzer, QualityConfig, QualityReport, Status, check_file};
 
 /// Angular rate and specific force at one instant (or averaged over the
-/// interval ending at `time`, see [`RateKind`]), body frame FRD.
+/// interval ending at `time`, see [`RateRule`]), body frame FRD.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct RateSample {
     pub time: GpsTime,

@@ -2314,9 +2314,9 @@ mod tests {
     fn increments_are_checked_like_rates() {
         // The same clean signal as KF-GINS increments: nothing raised, the
         // true rate found, and a declared filter fails §1.4 with its delay.
-        use crate::imu::convert::{RateKind, RateToIncrement};
+        use crate::imu::convert::{RateRule, RateToIncrement};
         let mut buf = Vec::new();
-        let mut conv = RateToIncrement::new(RateKind::Instantaneous);
+        let mut conv = RateToIncrement::new(RateRule::Trapezoid);
         let mut imu = SyntheticImu::new(RATE, 1_000 * 1_000_000_000, 40.0, 4);
         for _ in 0..12_000 {
             if let Some(inc) = conv.push(&imu.next_rate()) {

@@ -108,10 +108,10 @@ pub fn write_increment_log(
     static_s: f64,
     seed: u64,
 ) -> Result<usize, crate::error::Error> {
-    use super::convert::{RateKind, RateToIncrement};
+    use super::convert::{RateRule, RateToIncrement};
     use crate::io::kfgins::{TextWriter, format_imu_line};
     let mut imu = SyntheticImu::new(rate_hz, 100_000 * crate::time::NS_PER_S, static_s, seed);
-    let mut conv = RateToIncrement::new(RateKind::Instantaneous);
+    let mut conv = RateToIncrement::new(RateRule::Trapezoid);
     let mut out = TextWriter::create(path)?;
     let mut buf = Vec::with_capacity(1 << 20);
     let n = (duration_s * rate_hz).round() as usize;

@@ -278,17 +278,8 @@ pub struct IncrementBuilder {
     prev: Option<(GpsTime, [f64; 6])>,
 }
 
-/// How rate samples become increments over (t_{k−1}, t_k].
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum RateRule {
-    /// (ω_{k−1} + ω_k)/2 · Δt: for instantaneous rates (seed 001 §1.1).
-    #[default]
-    Trapezoid,
-    /// ω_k · Δt: for rates that are already averages over the interval
-    /// (an IMU's averaging decimation filter, seed 001 §1.3.1).
-    Average,
-}
+pub use crate::imu::convert::RateRule;
+use crate::imu::convert::rate_increment;
 
 impl RateRule {
     /// The rule a rig log's header asks for: its `imu_rates`, else
@@ -346,15 +337,19 @@ impl IncrementBuilder {
                     return None;
                 }
                 let dt = time.seconds_since(t0);
-                let rule = self.rule;
-                let m = |k: usize| match rule {
-                    RateRule::Trapezoid => 0.5 * (v0[k] + values[k]) * dt,
-                    RateRule::Average => values[k] * dt,
-                };
+                let v3 = |v: &[f64; 6], i: usize| Vector3::new(v[i], v[i + 1], v[i + 2]);
+                let (dtheta, dvel) = rate_increment(
+                    self.rule,
+                    &v3(&v0, 0),
+                    &v3(&v0, 3),
+                    &v3(values, 0),
+                    &v3(values, 3),
+                    dt,
+                );
                 Some(ImuSample {
                     time,
-                    dtheta: Vector3::new(m(0), m(1), m(2)),
-                    dvel: Vector3::new(m(3), m(4), m(5)),
+                    dtheta,
+                    dvel,
                     odo_speed: None,
                 })
             }
