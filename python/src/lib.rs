@@ -286,16 +286,6 @@ impl NavSink for RowSink {
         ]);
         Ok(())
     }
-
-    fn aux(
-        &mut self,
-        _: GpsTime,
-        _: &ImuErrors,
-        _: &[f64],
-        _: Option<TimeOffsetState>,
-    ) -> Result<(), navsync::Error> {
-        Ok(())
-    }
 }
 
 fn f64s_from_le(bytes: &[u8], cols: usize, what: &str) -> PyResult<Vec<f64>> {

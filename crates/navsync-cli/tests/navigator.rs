@@ -8,7 +8,6 @@ mod common;
 use common::{bin, run, temp_dir};
 use navsync::error::Diagnostics;
 use navsync::eval::{EpochError, TruthScorer};
-use navsync::fusion::TimeOffsetState;
 use navsync::ins::{ImuErrors, NavState};
 use navsync::io::config::KfGinsConfig;
 use navsync::io::riglog::{RigLogReader, RigRecord};
@@ -38,15 +37,6 @@ impl NavSink for Scoring {
             self.sum_h2 += pos_ned_m.x.powi(2) + pos_ned_m.y.powi(2);
             self.n += 1;
         }
-        Ok(())
-    }
-    fn aux(
-        &mut self,
-        _: GpsTime,
-        _: &ImuErrors,
-        _: &[f64],
-        _: Option<TimeOffsetState>,
-    ) -> Result<(), Error> {
         Ok(())
     }
 }

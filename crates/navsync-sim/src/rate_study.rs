@@ -76,16 +76,6 @@ impl NavSink for EvalSink {
         }
         Ok(())
     }
-
-    fn aux(
-        &mut self,
-        _: GpsTime,
-        _: &ImuErrors,
-        _: &[f64],
-        _: Option<navsync::fusion::TimeOffsetState>,
-    ) -> Result<(), Error> {
-        Ok(())
-    }
 }
 
 /// Writes the configuration's IMU decimated by `dec` to `out`; returns the

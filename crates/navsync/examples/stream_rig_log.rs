@@ -11,9 +11,7 @@
 
 use std::path::PathBuf;
 
-use navsync::GpsTime;
 use navsync::error::{Diagnostics, Error};
-use navsync::fusion::TimeOffsetState;
 use navsync::ins::{ImuErrors, NavState};
 use navsync::io::config::KfGinsConfig;
 use navsync::io::riglog::{RigLogReader, RigRecord};
@@ -45,16 +43,6 @@ impl NavSink for OncePerSecond {
                 e[2]
             );
         }
-        Ok(())
-    }
-
-    fn aux(
-        &mut self,
-        _time: GpsTime,
-        _imu: &ImuErrors,
-        _sd: &[f64],
-        _offset: Option<TimeOffsetState>,
-    ) -> Result<(), Error> {
         Ok(())
     }
 }

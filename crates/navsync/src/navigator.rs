@@ -74,11 +74,13 @@ pub trait NavSink {
     /// time-offset estimate when it is a state.
     fn aux(
         &mut self,
-        time: GpsTime,
-        imu: &ImuErrors,
-        sd: &[f64],
-        offset: Option<TimeOffsetState>,
-    ) -> Result<(), Error>;
+        _time: GpsTime,
+        _imu: &ImuErrors,
+        _sd: &[f64],
+        _offset: Option<TimeOffsetState>,
+    ) -> Result<(), Error> {
+        Ok(())
+    }
     /// The solution interpolated at a requested epoch (`--output-at`).
     fn nav_at(&mut self, _nav: &NavState) -> Result<(), Error> {
         Ok(())
@@ -103,15 +105,6 @@ pub struct NullSink;
 
 impl NavSink for NullSink {
     fn nav(&mut self, _: &NavState, _: &ImuErrors) -> Result<(), Error> {
-        Ok(())
-    }
-    fn aux(
-        &mut self,
-        _: GpsTime,
-        _: &ImuErrors,
-        _: &[f64],
-        _: Option<TimeOffsetState>,
-    ) -> Result<(), Error> {
         Ok(())
     }
 }

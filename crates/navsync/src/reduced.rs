@@ -691,15 +691,6 @@ mod tests {
                 self.0.push(*n);
                 Ok(())
             }
-            fn aux(
-                &mut self,
-                _: GpsTime,
-                _: &ImuErrors,
-                _: &[f64],
-                _: Option<crate::fusion::TimeOffsetState>,
-            ) -> Result<(), Error> {
-                Ok(())
-            }
         }
         let drift = |opts: &FuseOptions| -> (f64, Option<f64>) {
             let mut sink = Keep(Vec::new());
