@@ -11,7 +11,6 @@ use navsync::GpsTime;
 use navsync::earth::Geodetic;
 use navsync::filter::gnss::GnssFix;
 use navsync::fusion::TimeOffsetOptions;
-use navsync::fusion::TimeOffsetState;
 use navsync::ins::{ImuErrors, ImuSample, NavState};
 use navsync::io::config::KfGinsConfig;
 use navsync::navigator::{NavSink, Navigator, NullSink, Step};
