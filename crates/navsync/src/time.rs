@@ -43,6 +43,14 @@ impl fmt::Display for OutageWindow {
 }
 
 /// An instant of GPS time, as integer nanoseconds since the GPS epoch.
+///
+/// ```
+/// use navsync::GpsTime;
+/// let t = GpsTime::from_week_sow(2300, 100_000.005);
+/// assert_eq!((t.week(), t.sow()), (2300, 100_000.005));
+/// // Intervals are exact in nanoseconds, whatever the epoch.
+/// assert_eq!(t.add_seconds(0.005).seconds_since(t), 0.005);
+/// ```
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct GpsTime {
     ns: i64,
@@ -192,6 +200,19 @@ impl WeekTracker {
 
 /// GNSS outages simulated by withholding fixes: windows of `len_s` every
 /// `period_s`, the first starting `first_s` after the first IMU epoch.
+///
+/// ```
+/// use navsync::GpsTime;
+/// use navsync::time::OutageSchedule;
+/// // 60 s outages every 180 s, the first 120 s into the run.
+/// let o = OutageSchedule { period_s: 180.0, len_s: 60.0, first_s: 120.0 };
+/// let t0 = GpsTime::from_week_sow(2300, 0.0);
+/// assert!(!o.contains(t0, t0.add_seconds(119.9)));
+/// assert!(o.contains(t0, t0.add_seconds(150.0)));
+/// assert!(!o.contains(t0, t0.add_seconds(180.0)));
+/// assert!(o.contains(t0, t0.add_seconds(300.0)));
+/// assert_eq!(o.windows(t0, t0.add_seconds(600.0)).len(), 3);
+/// ```
 #[derive(Copy, Clone, Debug, PartialEq, serde::Serialize)]
 pub struct OutageSchedule {
     pub period_s: f64,

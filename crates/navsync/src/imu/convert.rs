@@ -40,6 +40,20 @@ pub enum RateRule {
 /// The increments (Δθ, Δv) over an interval of `dt_s` that ends at the
 /// sample (ω, f), the previous sample being (ω_prev, f_prev), by `rule`
 /// (seed 001 §1.1 and §1.3.1).
+///
+/// ```
+/// use nalgebra::Vector3;
+/// use navsync::imu::convert::{RateRule, rate_increment};
+/// // A rate rising linearly from 0.1 to 0.3 rad/s over 0.5 s turns by
+/// // exactly 0.1 rad: the trapezoid is exact for linear rates.
+/// let (w0, w1) = (Vector3::new(0.0, 0.0, 0.1), Vector3::new(0.0, 0.0, 0.3));
+/// let f = Vector3::new(0.0, 0.0, -9.8);
+/// let (dtheta, dvel) = rate_increment(RateRule::Trapezoid, &w0, &f, &w1, &f, 0.5);
+/// assert!((dtheta.z - 0.1).abs() < 1e-15 && (dvel.z + 4.9).abs() < 1e-12);
+/// // An interval average is the rate over its own interval.
+/// let (dtheta, _) = rate_increment(RateRule::Average, &w0, &f, &w1, &f, 0.5);
+/// assert!((dtheta.z - 0.15).abs() < 1e-15);
+/// ```
 #[inline]
 pub fn rate_increment(
     rule: RateRule,
