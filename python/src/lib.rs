@@ -148,16 +148,13 @@ fn fuse(
 ) -> PyResult<String> {
     let outages = match outages {
         Some((period_s, len_s, first_s)) => {
-            if !(period_s > 0.0 && len_s > 0.0 && len_s < period_s && first_s >= 0.0) {
-                return Err(PyValueError::new_err(
-                    "outages=(period_s, len_s, first_s) needs 0 < len_s < period_s and first_s >= 0",
-                ));
-            }
-            Some(OutageSchedule {
+            let o = OutageSchedule {
                 period_s,
                 len_s,
                 first_s,
-            })
+            };
+            o.validate().map_err(PyValueError::new_err)?;
+            Some(o)
         }
         None => None,
     };

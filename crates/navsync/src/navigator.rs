@@ -117,7 +117,8 @@ impl NavSink for NullSink {
 pub enum Step {
     /// The filter is not running yet (the first sample sets its clock).
     Starting,
-    /// The solution at this sample (already handed to the sink).
+    /// The solution at this sample, handed to the sink (unless GNSS-time
+    /// output left it out: [`StreamCounts::solutions_out_of_order`]).
     Solution(NavOutput),
     /// The sample lies after the configured end: nothing was done.
     Ended,
@@ -254,12 +255,17 @@ impl Navigator {
 
     /// Write the solution interpolated at these epochs as well
     /// ([`NavSink::nav_at`]) with (2n+1)-order Lagrange interpolation.
-    pub fn with_output_at(mut self, times: Vec<GpsTime>, n: usize) -> Self {
+    pub fn with_output_at(self, times: Vec<GpsTime>, n: usize) -> Self {
         let mut ip = NavInterpolator::new(n);
         for t in times {
             ip.request(t);
         }
-        self.interp = Some(ip);
+        self.with_interpolator(Some(ip))
+    }
+
+    /// As [`Self::with_output_at`], with the interpolator already built.
+    pub fn with_interpolator(mut self, interp: Option<NavInterpolator>) -> Self {
+        self.interp = interp;
         self
     }
 

@@ -876,7 +876,6 @@ fn run_inner(
     let last_time = last_epoch.unwrap_or(start);
     progress(1.0);
 
-    let at_skipped = opts.output_at.as_ref().map(|_| output_at_skipped);
     let gnss_skipped = diag.total;
     let imu_skipped = imu_diag.total;
     let mut all = imu_diag;
@@ -931,7 +930,7 @@ fn run_inner(
         time_offset_sd_s: fusion.time_offset().map(|o| o.sd_s),
         time_offset_coarse_s: fusion.coarse_offset().map(|o| o.offset_s),
         output_at_written: at_written,
-        output_at_skipped: at_skipped.unwrap_or(0),
+        output_at_skipped,
         stats: fusion.stats(),
         final_gyro_bias_deg_h: (imu.gyro_bias * deg_h).into(),
         final_accel_bias_mgal: (imu.accel_bias * 1e5).into(),
@@ -963,17 +962,13 @@ fn run_inner(
 /// GNSS-time output, and the fix lead of the latency mode).
 pub fn batch_navigator(cfg: FusionConfig, opts: &FuseOptions) -> Result<Navigator, Error> {
     opts.validate()?;
-    let mut nav = Navigator::new(cfg)
+    Ok(Navigator::new(cfg)
         .for_batch(fix_lead_s(opts))
         .with_outages(opts.outages)
         .with_reduced_imu(opts.reduced_imu)
         .with_gnss_time_output(opts.output_gnss_time)
-        .with_aux_interval(Some(opts.aux_interval_s));
-    if let Some(p) = &opts.output_at {
-        let times = crate::io::kfgins::read_times(p, opts.week)?;
-        nav = nav.with_output_at(times, opts.output_at_n);
-    }
-    Ok(nav)
+        .with_aux_interval(Some(opts.aux_interval_s))
+        .with_interpolator(output_at_interpolator(opts)?))
 }
 
 /// How far ahead of the IMU a fix is handed to the filter (s): offline,
