@@ -26,7 +26,7 @@ from typing import Any, Dict, List, Optional, Sequence, Union
 
 import pandas as pd
 
-from . import process_drive
+from . import process_drive, set_io_threads
 
 __all__ = ["drive_task", "output_names", "process"]
 
@@ -49,21 +49,28 @@ def drive_task(
     smooth: bool = True,
     estimate_time_offset: bool = True,
     html: bool = True,
+    single_core: bool = False,
 ) -> Dict[str, Any]:
     """One drive into ``output_dir``, atomically: built in a temporary
-    sibling folder, then moved into place (replacing an earlier attempt's)."""
+    sibling folder, then moved into place (replacing an earlier attempt's).
+    ``single_core``: file readers and writers run inline, so the task uses
+    one core (see :func:`navsync.set_io_threads`)."""
     t0 = time.perf_counter()
     cpu0 = time.process_time()
     final = Path(output_dir)
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = final.parent / f".{final.name}.tmp-{uuid.uuid4().hex[:12]}"
-    row = process_drive(
-        input_dir,
-        tmp,
-        smooth=smooth,
-        estimate_time_offset=estimate_time_offset,
-        html=html,
-    )
+    previous = set_io_threads(not single_core)
+    try:
+        row = process_drive(
+            input_dir,
+            tmp,
+            smooth=smooth,
+            estimate_time_offset=estimate_time_offset,
+            html=html,
+        )
+    finally:
+        set_io_threads(previous)
     if final.exists():
         shutil.rmtree(final)
     if tmp.exists():
@@ -93,6 +100,7 @@ def process(
     estimate_time_offset: bool = True,
     html: bool = True,
     retries: int = 2,
+    single_core: Optional[bool] = None,
 ) -> pd.DataFrame:
     """Processes every drive folder in ``paths`` on ``client``'s cluster.
 
@@ -105,12 +113,25 @@ def process(
     ``stamp_bound_max_us``, ``stamp_error_rms_us``), the estimated time
     offset (``time_offset_ms``), the report's ``verdict``, ``wall_s`` and
     ``output_dir``. A failing drive is a row with its error.
+
+    ``single_core`` (default: ``True`` on a cluster, ``False`` without one):
+    each task runs its file readers and writers inline and so uses one
+    core, as the cluster's scheduler counts a worker thread; with
+    ``False`` a task takes about 1.3 cores, which is faster alone but
+    oversubscribes workers that already fill the machine.
     """
     root = Path(os.fspath(output_root)).resolve()
     root.mkdir(parents=True, exist_ok=True)
     inputs = [os.path.abspath(os.fspath(p)) for p in paths]
     outs = [str(root / n) for n in output_names(paths)]
-    kw = dict(smooth=smooth, estimate_time_offset=estimate_time_offset, html=html)
+    if single_core is None:
+        single_core = client is not None
+    kw = dict(
+        smooth=smooth,
+        estimate_time_offset=estimate_time_offset,
+        html=html,
+        single_core=single_core,
+    )
     if client is None:
         rows = [drive_task(i, o, **kw) for i, o in zip(inputs, outs)]
     else:

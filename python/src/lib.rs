@@ -48,6 +48,19 @@ fn version() -> &'static str {
 }
 
 /// Simulates a drive into `output_dir`; returns the simulator's report (JSON).
+/// Whether file readers and writers of later runs in this process get their
+/// own threads (the default) or run inline: one run, one core.
+#[pyfunction]
+fn set_io_threads(enabled: bool) {
+    navsync::stage::set_io_threads(enabled);
+}
+
+/// The current choice of [`set_io_threads`].
+#[pyfunction]
+fn io_threads() -> bool {
+    navsync::stage::io_threads()
+}
+
 #[pyfunction]
 #[pyo3(signature = (output_dir, scenario="demo", seed=None, duration_s=None, imu_grade=None, overrides=Vec::new()))]
 fn simulate(
@@ -418,6 +431,8 @@ impl NativeNavigator {
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NavsyncError", m.py().get_type::<NavsyncError>())?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
+    m.add_function(wrap_pyfunction!(set_io_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(io_threads, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(sync, m)?)?;
     m.add_function(wrap_pyfunction!(fuse, m)?)?;

@@ -110,6 +110,21 @@ def test_process_drive_row(tmp_path, drives):
     assert again["pos_horizontal_rms_m"] == row["pos_horizontal_rms_m"]
 
 
+def test_io_threads_switch_keeps_the_results(tmp_path, drives):
+    # Readers and writers inline (a fleet task on one core) or threaded:
+    # the same files.
+    previous = navsync.set_io_threads(False)
+    try:
+        inline = navsync.process_drive(drives[2], tmp_path / "inline", html=False)
+        assert navsync.set_io_threads(True) is False
+        threaded = navsync.process_drive(drives[2], tmp_path / "threaded", html=False)
+    finally:
+        navsync.set_io_threads(previous)
+    assert inline["ok"] and threaded["ok"]
+    for f in ("synced/imu.txt", "fused/navresult.nav", "fused/forward/navresult.nav", "fused/std.txt"):
+        assert (tmp_path / "inline" / f).read_bytes() == (tmp_path / "threaded" / f).read_bytes(), f
+
+
 def test_gil_is_released(drives, tmp_path):
     # A Python thread keeps running while a drive is processed.
     ticks = []

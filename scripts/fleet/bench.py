@@ -5,13 +5,16 @@
    IMU at 200 Hz, 1PPS + drifting counter, 1 Hz RTK, two 30 s outages)
    through ``navsync.fleet.process`` on a Dask LocalCluster of 1 and of 2
    worker processes (1 thread each): wall time, drives per minute,
-   speed-up, peak memory per worker;
+   speed-up, peak memory per worker; once with single-core tasks (the
+   fleet's default: each drive's readers and writers inline) and once with
+   threaded tasks (about 1.3 cores per drive);
 2. the per-drive cost of the Python layer: the same M drives through
    ``navsync batch --jobs 1`` (the CLI), ``process_drive`` in this
    process, and the 1-worker cluster.
 
     target/venv/bin/python scripts/fleet/bench.py [--drives 200] [--duration 600]
         [--overhead-drives 20] [--work target/fleet-bench] [--cli target/release/navsync]
+        [--tasks single,threaded]
 
 Needs the package installed (pip install ./python) and the CLI built
 (cargo build --release). Writes WORK/bench.json. The drives take about
@@ -56,7 +59,7 @@ def loadavg() -> float:
     return os.getloadavg()[0]
 
 
-def run_cluster(drives, workers: int, out: Path) -> dict:
+def run_cluster(drives, workers: int, out: Path, single_core: bool = True) -> dict:
     from distributed import Client, LocalCluster
 
     with LocalCluster(
@@ -66,13 +69,14 @@ def run_cluster(drives, workers: int, out: Path) -> dict:
         base = client.run(peak_rss_mb)
         load0 = loadavg()
         t0 = time.perf_counter()
-        df = fleet.process(drives, client, out, html=False)
+        df = fleet.process(drives, client, out, html=False, single_core=single_core)
         wall = time.perf_counter() - t0
         peaks = client.run(peak_rss_mb)
     shutil.rmtree(out, ignore_errors=True)
     assert df["ok"].all(), df[~df["ok"]][["drive", "error"]]
     return {
         "workers": workers,
+        "single_core_tasks": single_core,
         "drives": len(df),
         "wall_s": wall,
         "drives_per_min": 60 * len(df) / wall,
@@ -95,6 +99,12 @@ def main() -> None:
     ap.add_argument("--work", type=Path, default=REPO / "target" / "fleet-bench")
     ap.add_argument("--cli", type=Path, default=REPO / "target" / "release" / "navsync")
     ap.add_argument("--skip", default="", help="comma list of: w1,w2,overhead")
+    ap.add_argument(
+        "--tasks",
+        default="single,threaded",
+        help="comma list of: single (each task on one core: readers and writers inline, "
+        "the fleet default), threaded (readers and writers on threads of their own)",
+    )
     a = ap.parse_args()
     skip = set(filter(None, a.skip.split(",")))
     a.work.mkdir(parents=True, exist_ok=True)
@@ -115,15 +125,19 @@ def main() -> None:
         "navsync": navsync.version(),
         "drive_duration_s": a.duration,
     }
-    if "w1" not in skip:
-        res["one_worker"] = run_cluster(drives, 1, a.work / "out-1")
-        print("1 worker:", json.dumps(res["one_worker"]))
-    if "w2" not in skip:
-        res["two_workers"] = run_cluster(drives, 2, a.work / "out-2")
-        print("2 workers:", json.dumps(res["two_workers"]))
-    if "one_worker" in res and "two_workers" in res:
-        res["speedup"] = res["one_worker"]["wall_s"] / res["two_workers"]["wall_s"]
-        print(f"speed-up 2 vs 1 workers: {res['speedup']:.2f}")
+    for mode in filter(None, a.tasks.split(",")):
+        single = {"single": True, "threaded": False}[mode]
+        r: dict = {}
+        if "w1" not in skip:
+            r["one_worker"] = run_cluster(drives, 1, a.work / "out-1", single)
+            print(f"{mode}, 1 worker:", json.dumps(r["one_worker"]))
+        if "w2" not in skip:
+            r["two_workers"] = run_cluster(drives, 2, a.work / "out-2", single)
+            print(f"{mode}, 2 workers:", json.dumps(r["two_workers"]))
+        if "one_worker" in r and "two_workers" in r:
+            r["speedup"] = r["one_worker"]["wall_s"] / r["two_workers"]["wall_s"]
+            print(f"{mode} tasks: speed-up 2 vs 1 workers: {r['speedup']:.2f}")
+        res[f"{mode}_tasks"] = r
     if "overhead" not in skip:
         sub = drives[: a.overhead_drives]
         m = len(sub)

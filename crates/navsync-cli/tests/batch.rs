@@ -88,3 +88,44 @@ fn batch_runs_every_drive_and_reports_failures_as_rows() {
     assert_eq!(e["pos_horizontal_m"]["rms"].as_f64(), Some(h));
     assert!(out.join("a/fused/forward/navresult.nav").is_file());
 }
+
+/// Readers and writers inline (one drive, one core, as `--jobs N` and the
+/// fleet run them) or on their own threads: the same files, byte for byte.
+#[test]
+fn inline_and_threaded_io_write_the_same_files() {
+    let dir = temp_dir("inline");
+    let drive = dir.join("d");
+    simulate(&drive, "3");
+    for threads in ["1", "0"] {
+        let (ok, _, err) = run(bin().env("NAVSYNC_IO_THREADS", threads).args([
+            "batch",
+            drive.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--no-html",
+            "--output",
+            dir.join(format!("out-{threads}")).to_str().unwrap(),
+        ]));
+        assert!(ok, "{err}");
+    }
+    let mut compared = 0;
+    for sub in ["synced", "fused", "fused/forward"] {
+        let a = dir.join("out-1/d").join(sub);
+        for entry in std::fs::read_dir(&a).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_str().unwrap().to_string();
+            // summary.json holds the run's wall time.
+            if path.is_dir() || name == "summary.json" {
+                continue;
+            }
+            let b = dir.join("out-0/d").join(sub).join(&name);
+            assert!(
+                std::fs::read(&path).unwrap() == std::fs::read(&b).unwrap(),
+                "{sub}/{name} differs"
+            );
+            compared += 1;
+        }
+    }
+    // imu.txt, gnss.txt, imu_times.txt, navresult.nav, std.txt, ... of both runs.
+    assert!(compared >= 8, "{compared} files compared");
+}

@@ -37,6 +37,7 @@ pub mod reduced;
 pub mod sensor;
 pub mod sim;
 pub mod smoother;
+pub mod stage;
 pub mod stats;
 #[cfg(test)]
 mod testutil;

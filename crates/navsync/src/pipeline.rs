@@ -4,7 +4,6 @@
 //! third, holding only a few blocks of each file in memory.
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
 use std::time::Instant;
 
 use nalgebra::Vector3;
@@ -26,6 +25,7 @@ use crate::io::kfgins::{
     format_std_line,
 };
 use crate::navigator::{Navigator, Step, StreamCounts};
+use crate::stage::{Consumer, Drain, Producer, Source};
 use crate::time::GpsTime;
 
 pub use crate::reduced::NhcSettings;
@@ -449,8 +449,7 @@ const NAV_BATCH: usize = 4096;
 pub struct KfGinsSink {
     week: i64,
     batch: Vec<NavState>,
-    tx: Option<mpsc::SyncSender<Vec<NavState>>>,
-    writer: Option<std::thread::JoinHandle<Result<(), Error>>>,
+    writer: Option<Drain<NavLines>>,
     imu_err: TextWriter,
     std: TextWriter,
     offset: Option<TextWriter>,
@@ -463,25 +462,19 @@ impl KfGinsSink {
     /// Creates the three files in `dir` (created if missing).
     pub fn create(dir: &Path, week: i64) -> Result<Self, Error> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        let mut nav = TextWriter::create(&dir.join("navresult.nav"))?;
-        // The writer thread converts attitudes to Euler angles, formats and
+        // The writer stage converts attitudes to Euler angles, formats and
         // writes: the fusion thread only hands over batches of states.
-        let (tx, rx) = mpsc::sync_channel::<Vec<NavState>>(8);
-        let writer = std::thread::spawn(move || {
-            let mut text = Vec::with_capacity(NAV_BATCH * 160);
-            for batch in rx {
-                text.clear();
-                for s in &batch {
-                    format_nav_line(&mut text, week, s.time, &s.pos, &s.vel, &s.euler().to_deg());
-                }
-                nav.write(&text)?;
-            }
-            nav.finish()
-        });
+        let writer = Drain::start(
+            NavLines {
+                nav: TextWriter::create(&dir.join("navresult.nav"))?,
+                week,
+                text: Vec::with_capacity(NAV_BATCH * 160),
+            },
+            "nav-writer",
+        )?;
         Ok(KfGinsSink {
             week,
             batch: Vec::with_capacity(NAV_BATCH),
-            tx: Some(tx),
             writer: Some(writer),
             imu_err: TextWriter::create(&dir.join("imu_err.txt"))?,
             std: TextWriter::create(&dir.join("std.txt"))?,
@@ -497,20 +490,20 @@ impl KfGinsSink {
             return Ok(());
         }
         let block = std::mem::replace(&mut self.batch, Vec::with_capacity(NAV_BATCH));
-        if let Some(tx) = &self.tx
-            && tx.send(block).is_err()
-        {
-            return self.join();
+        match self.writer.as_mut().map(|w| w.send(block)) {
+            Some(Ok(true)) | None => Ok(()),
+            // A stopped writer thread: its error.
+            Some(Ok(false)) => self.join(),
+            Some(Err(e)) => {
+                self.writer = None;
+                Err(e)
+            }
         }
-        Ok(())
     }
 
     fn join(&mut self) -> Result<(), Error> {
-        self.tx = None;
         match self.writer.take() {
-            Some(h) => h
-                .join()
-                .unwrap_or_else(|_| Err(Error::Invalid("navigation writer thread failed".into()))),
+            Some(w) => w.finish(),
             None => Ok(()),
         }
     }
@@ -534,6 +527,35 @@ impl KfGinsSink {
         }
         imu_err.finish()?;
         std.finish()
+    }
+}
+
+/// `navresult.nav` as a writer stage.
+struct NavLines {
+    nav: TextWriter,
+    week: i64,
+    text: Vec<u8>,
+}
+
+impl Consumer for NavLines {
+    type Item = NavState;
+    type Output = ();
+    fn consume(&mut self, batch: Vec<NavState>) -> Result<(), Error> {
+        self.text.clear();
+        for s in &batch {
+            format_nav_line(
+                &mut self.text,
+                self.week,
+                s.time,
+                &s.pos,
+                &s.vel,
+                &s.euler().to_deg(),
+            );
+        }
+        self.nav.write(&self.text)
+    }
+    fn finish(self) -> Result<(), Error> {
+        self.nav.finish()
     }
 }
 
@@ -639,6 +661,31 @@ impl NavSink for KfGinsSink {
 }
 
 const BATCH: usize = 4096;
+
+/// The IMU file of a run as a reader stage.
+struct ImuBatches {
+    reader: ImuReader,
+    diag: Diagnostics,
+}
+
+impl Producer for ImuBatches {
+    type Item = ImuSample;
+    /// Records read and the notes on skipped lines.
+    type Output = (usize, Diagnostics);
+    fn next_batch(&mut self) -> Result<Option<Vec<ImuSample>>, Error> {
+        let mut batch = Vec::with_capacity(BATCH);
+        while batch.len() < BATCH {
+            match self.reader.next_sample(&mut self.diag)? {
+                Some(s) => batch.push(s),
+                None => break,
+            }
+        }
+        Ok((!batch.is_empty()).then_some(batch))
+    }
+    fn finish(self) -> Result<(usize, Diagnostics), Error> {
+        Ok((self.reader.count(), self.diag))
+    }
+}
 
 /// The GNSS file of a run, in the format the options name.
 enum GnssInput {
@@ -775,36 +822,28 @@ fn run_inner(
         None => None,
     };
 
-    // IMU reader thread: batches of parsed samples.
-    let imu_path = cfg.imu_path.clone();
-    let week = opts.week;
-    let (tx, rx) = mpsc::sync_channel::<Vec<ImuSample>>(8);
-    let reader = std::thread::spawn(move || -> Result<(usize, Diagnostics), Error> {
-        let mut d = Diagnostics::with_cap(1000);
-        let mut r = ImuReader::open(&imu_path, week)?;
-        let mut batch = Vec::with_capacity(BATCH);
-        while let Some(s) = r.next_sample(&mut d)? {
-            batch.push(s);
-            if batch.len() == BATCH
-                && tx
-                    .send(std::mem::replace(&mut batch, Vec::with_capacity(BATCH)))
-                    .is_err()
-            {
-                return Ok((r.count(), d));
-            }
-        }
-        if !batch.is_empty() {
-            let _ = tx.send(batch);
-        }
-        Ok((r.count(), d))
-    });
+    // IMU reader stage: batches of parsed samples.
+    let mut imu_batches = Source::start(
+        ImuBatches {
+            reader: ImuReader::open(&cfg.imu_path, opts.week)?,
+            diag: Diagnostics::with_cap(1000),
+        },
+        "imu-reader",
+    )?;
 
     let mut fixes_read = usize::from(next_fix.is_some());
     let span = end.map(|e| e.seconds_since(start)).unwrap_or(f64::NAN);
     let mut last_progress = Instant::now();
     let mut result: Result<(), Error> = Ok(());
-
-    'outer: for batch in rx.iter() {
+    'outer: loop {
+        let batch = match imu_batches.next_batch() {
+            Ok(Some(b)) => b,
+            Ok(None) => break,
+            Err(e) => {
+                result = Err(e);
+                break;
+            }
+        };
         for s in &batch {
             while let Some(fix) = next_fix
                 && fix.time <= s.time + lead_ns
@@ -838,11 +877,9 @@ fn run_inner(
             progress(frac);
         }
     }
-    drop(rx);
-    let (imu_count, imu_diag) = reader
-        .join()
-        .unwrap_or_else(|_| Err(Error::Invalid("IMU reader thread failed".into())))?;
+    let read = imu_batches.finish();
     result?;
+    let (imu_count, imu_diag) = read?;
     // Count the remaining fixes (and their bad lines) for the summary.
     while next_fix.is_some() {
         next_fix = gnss.next_fix(&mut diag)?;

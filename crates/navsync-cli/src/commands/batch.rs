@@ -20,7 +20,9 @@ pub struct Args {
     /// Output root: one folder per drive below it, and batch.csv, batch.json.
     #[arg(long, default_value = "navsync-batch")]
     pub output: PathBuf,
-    /// Drives processed at once [default: the number of cores].
+    /// Drives processed at once [default: the number of cores]. With more
+    /// than one, each drive runs on one core (its file reading and writing
+    /// inline rather than on threads of their own).
     #[arg(long)]
     pub jobs: Option<usize>,
     /// Forward filter only (no smoothing).
@@ -71,6 +73,12 @@ pub fn run(a: Args) -> Result<()> {
         html: !a.no_html,
     };
     let names = output_names(&a.drives);
+    // Several drives at once fill the cores: each drive then runs its file
+    // readers and writers inline (one drive, one core) instead of adding
+    // threads that compete with the other drives.
+    if jobs > 1 && a.drives.len() > 1 {
+        navsync::stage::set_io_threads(false);
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs)
         .build()

@@ -1,11 +1,11 @@
 //! A rig log file to GPS-time-stamped KF-GINS files: the batch loop over
 //! [`SyncEngine`] behind `navsync sync`, the demo and the Monte Carlo runs.
 //!
-//! The reader and the writer run on their own threads; memory stays
-//! bounded by the channel depth.
+//! The reader and the writer are stages ([`crate::stage`]): on their own
+//! threads, or inline in a fleet's single-core tasks; memory stays bounded
+//! by the batch size and the channel depth.
 
 use std::path::Path;
-use std::sync::mpsc;
 
 use super::report::{SyncReport, TruthAccumulator, TruthTimes, format_week_sow};
 use super::{IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncOutput};
@@ -13,6 +13,7 @@ use crate::error::{Diagnostics, Error};
 use crate::ins::ImuSample;
 use crate::io::kfgins::{TextWriter, format_gnss_line};
 use crate::io::riglog::{RigLogReader, RigRecord};
+use crate::stage::{Consumer, Drain, Producer, Source};
 
 /// What a synchronization run produced.
 pub struct SyncSummary {
@@ -25,8 +26,91 @@ pub struct SyncSummary {
 /// Batches passed between the reader, engine and writer threads.
 const BATCH: usize = 8192;
 
-fn thread_failed(what: &str) -> Error {
-    Error::Invalid(format!("the {what} thread panicked"))
+/// The rig log as a reader stage.
+struct RigBatches {
+    reader: RigLogReader<std::fs::File>,
+    diag: Diagnostics,
+}
+
+impl Producer for RigBatches {
+    type Item = (RigRecord, usize);
+    /// Reading notes and the number of records.
+    type Output = (Diagnostics, usize);
+    fn next_batch(&mut self) -> Result<Option<Vec<(RigRecord, usize)>>, Error> {
+        let mut batch = Vec::with_capacity(BATCH);
+        while batch.len() < BATCH {
+            match self.reader.next_record(&mut self.diag)? {
+                Some(r) => batch.push(r),
+                None => break,
+            }
+        }
+        Ok((!batch.is_empty()).then_some(batch))
+    }
+    fn finish(self) -> Result<(Diagnostics, usize), Error> {
+        Ok((self.diag, self.reader.records()))
+    }
+}
+
+/// `imu.txt`, `gnss.txt` and `imu_times.txt` (and the comparison with true
+/// stamps) as a writer stage.
+struct SyncFiles {
+    imu_w: TextWriter,
+    gnss_w: TextWriter,
+    times_w: TextWriter,
+    truth: Option<(TruthTimes, TruthAccumulator)>,
+    inc: IncrementBuilder,
+    buf_imu: Vec<u8>,
+    buf_times: Vec<u8>,
+    buf_gnss: Vec<u8>,
+    truth_short: bool,
+}
+
+impl Consumer for SyncFiles {
+    type Item = SyncOutput;
+    /// The stamp errors against the truth, and whether the truth ran out.
+    type Output = (Option<TruthAccumulator>, bool);
+    fn consume(&mut self, batch: Vec<SyncOutput>) -> Result<(), Error> {
+        for o in batch {
+            match o {
+                SyncOutput::Imu(s) => {
+                    if s.flags.unstamped {
+                        self.buf_times.extend_from_slice(b"-1 nan\n");
+                    } else {
+                        format_week_sow(&mut self.buf_times, s.time);
+                    }
+                    if let Some((tt, acc)) = &mut self.truth {
+                        match tt.next_time()? {
+                            Some(true_t) => {
+                                if !s.flags.unstamped && !s.flags.duplicate {
+                                    acc.push(s.time, true_t, s.bound_s, s.flags.holdover)
+                                }
+                            }
+                            None => self.truth_short = true,
+                        }
+                    }
+                    if let Some(sample) = self.inc.push(s.time, &s.values, &s.flags) {
+                        push_imu_line(&mut self.buf_imu, &sample);
+                    }
+                }
+                SyncOutput::Gnss(g) => {
+                    format_gnss_line(&mut self.buf_gnss, &g.fix());
+                }
+            }
+        }
+        self.imu_w.write(&self.buf_imu)?;
+        self.times_w.write(&self.buf_times)?;
+        self.gnss_w.write(&self.buf_gnss)?;
+        self.buf_imu.clear();
+        self.buf_times.clear();
+        self.buf_gnss.clear();
+        Ok(())
+    }
+    fn finish(self) -> Result<(Option<TruthAccumulator>, bool), Error> {
+        self.imu_w.finish()?;
+        self.gnss_w.finish()?;
+        self.times_w.finish()?;
+        Ok((self.truth.map(|(_, acc)| acc), self.truth_short))
+    }
 }
 
 /// Reads `rig`, synchronizes it, and writes `imu.txt`, `gnss.txt`,
@@ -43,130 +127,97 @@ pub fn sync_file(
 ) -> Result<SyncSummary, Error> {
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let mut read_diag = Diagnostics::default();
-    let mut reader = RigLogReader::open(rig, &mut read_diag)?;
+    let reader = RigLogReader::open(rig, &mut read_diag)?;
     let header = reader.header().clone();
     let kind = header.imu_kind;
     let rule = rule.unwrap_or_else(|| RateRule::for_header(&header));
+    let truth_path = truth;
 
-    // Reader thread: parsed records in batches.
-    let (rec_tx, rec_rx) = mpsc::sync_channel::<Vec<(RigRecord, usize)>>(8);
-    let reader_handle = std::thread::Builder::new()
-        .name("rig-reader".into())
-        .spawn(move || -> Result<(Diagnostics, usize), Error> {
-            let mut diag = read_diag;
-            let mut batch = Vec::with_capacity(BATCH);
-            while let Some(r) = reader.next_record(&mut diag)? {
-                batch.push(r);
-                if batch.len() == BATCH {
-                    let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH));
-                    if rec_tx.send(full).is_err() {
-                        break;
-                    }
-                }
-            }
-            if !batch.is_empty() {
-                let _ = rec_tx.send(batch);
-            }
-            Ok((diag, reader.records()))
-        })
-        .map_err(|e| Error::io(rig, e))?;
+    // Reader stage: parsed records in batches.
+    let mut records_in = Source::start(
+        RigBatches {
+            reader,
+            diag: read_diag,
+        },
+        "rig-reader",
+    )?;
 
-    // Writer thread: formatting and files.
-    let (out_tx, out_rx) = mpsc::sync_channel::<Vec<SyncOutput>>(8);
-    let dir = out_dir.to_path_buf();
-    let truth_path = truth.map(Path::to_path_buf);
-    let writer_handle = std::thread::Builder::new()
-        .name("sync-writer".into())
-        .spawn(move || -> Result<(Option<TruthAccumulator>, bool), Error> {
-            let mut imu_w = TextWriter::create(&dir.join("imu.txt"))?;
-            let mut gnss_w = TextWriter::create(&dir.join("gnss.txt"))?;
-            let mut times_w = TextWriter::create(&dir.join("imu_times.txt"))?;
-            let mut truth = match &truth_path {
-                Some(p) => Some((TruthTimes::open(p)?, TruthAccumulator::default())),
-                None => None,
-            };
-            let mut inc = IncrementBuilder::with_rule(kind, rule);
-            let mut buf_imu = Vec::with_capacity(1 << 20);
-            let mut buf_times = Vec::with_capacity(1 << 18);
-            let mut buf_gnss = Vec::with_capacity(1 << 12);
-            let mut truth_short = false;
-            for batch in out_rx {
-                for o in batch {
-                    match o {
-                        SyncOutput::Imu(s) => {
-                            if s.flags.unstamped {
-                                buf_times.extend_from_slice(b"-1 nan\n");
-                            } else {
-                                format_week_sow(&mut buf_times, s.time);
-                            }
-                            if let Some((tt, acc)) = &mut truth {
-                                match tt.next_time()? {
-                                    Some(true_t) => {
-                                        if !s.flags.unstamped && !s.flags.duplicate {
-                                            acc.push(s.time, true_t, s.bound_s, s.flags.holdover)
-                                        }
-                                    }
-                                    None => truth_short = true,
-                                }
-                            }
-                            if let Some(sample) = inc.push(s.time, &s.values, &s.flags) {
-                                push_imu_line(&mut buf_imu, &sample);
-                            }
-                        }
-                        SyncOutput::Gnss(g) => {
-                            format_gnss_line(&mut buf_gnss, &g.fix());
-                        }
-                    }
-                }
-                imu_w.write(&buf_imu)?;
-                times_w.write(&buf_times)?;
-                gnss_w.write(&buf_gnss)?;
-                buf_imu.clear();
-                buf_times.clear();
-                buf_gnss.clear();
-            }
-            imu_w.finish()?;
-            gnss_w.finish()?;
-            times_w.finish()?;
-            Ok((truth.map(|(_, acc)| acc), truth_short))
-        })
-        .map_err(|e| Error::io(out_dir, e))?;
+    // Writer stage: increments, formatting and files.
+    let truth = match truth {
+        Some(p) => Some((TruthTimes::open(p)?, TruthAccumulator::default())),
+        None => None,
+    };
+    let mut files_out = Drain::start(
+        SyncFiles {
+            imu_w: TextWriter::create(&out_dir.join("imu.txt"))?,
+            gnss_w: TextWriter::create(&out_dir.join("gnss.txt"))?,
+            times_w: TextWriter::create(&out_dir.join("imu_times.txt"))?,
+            truth,
+            inc: IncrementBuilder::with_rule(kind, rule),
+            buf_imu: Vec::with_capacity(1 << 20),
+            buf_times: Vec::with_capacity(1 << 18),
+            buf_gnss: Vec::with_capacity(1 << 12),
+            truth_short: false,
+        },
+        "sync-writer",
+    )?;
 
     let mut engine = SyncEngine::new(&header, cfg);
     let mut out = Vec::with_capacity(BATCH * 2);
-    let mut send_err = false;
-    for batch in rec_rx {
+    let mut writer_open = true;
+    let mut failure: Option<Error> = None;
+    loop {
+        let batch = match records_in.next_batch() {
+            Ok(Some(b)) => b,
+            Ok(None) => break,
+            Err(e) => {
+                failure = Some(e);
+                break;
+            }
+        };
         for (rec, line) in batch {
             engine.push_into(rec, line, &mut out);
         }
         if out.len() >= BATCH {
             let full = std::mem::replace(&mut out, Vec::with_capacity(BATCH * 2));
-            if out_tx.send(full).is_err() {
-                send_err = true;
-                break;
+            match files_out.send(full) {
+                Ok(true) => {}
+                Ok(false) => {
+                    writer_open = false;
+                    break;
+                }
+                Err(e) => {
+                    failure = Some(e);
+                    break;
+                }
             }
         }
     }
-    let (mut read_diag, records) = reader_handle
-        .join()
-        .map_err(|_| thread_failed("rig reader"))??;
+    let read = records_in.finish();
+    if let Some(e) = failure {
+        let _ = files_out.finish();
+        return Err(e);
+    }
+    let (mut read_diag, records) = match read {
+        Ok(v) => v,
+        Err(e) => {
+            let _ = files_out.finish();
+            return Err(e);
+        }
+    };
     let (rest, mut report) = match engine.finish() {
         Ok(v) => v,
         Err(e) => {
-            drop(out_tx);
-            let _ = writer_handle.join();
+            let _ = files_out.finish();
             return Err(e);
         }
     };
     out.extend(rest);
-    if !send_err {
-        let _ = out_tx.send(out);
+    if writer_open {
+        files_out.send(out)?;
     }
-    drop(out_tx);
-    let (acc, truth_short) = writer_handle
-        .join()
-        .map_err(|_| thread_failed("sync writer"))??;
-    if truth_short && let Some(p) = truth {
+    let (acc, truth_short) = files_out.finish()?;
+    if truth_short && let Some(p) = truth_path {
         read_diag.push(
             p,
             0,

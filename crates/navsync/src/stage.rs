@@ -1,0 +1,280 @@
+//! Pipelined or inline I/O stages.
+//!
+//! File readers and writers of a run (`sync`'s rig-log reader and file
+//! writer, `fuse`'s IMU reader and navigation writer) are stages that pass
+//! batches to and from the computing thread. On a free machine each stage
+//! runs on its own thread, so parsing and formatting overlap the filter: a
+//! drive then takes about 1.3 cores. Where every core already runs a task
+//! (a fleet's workers, `navsync batch --jobs N`), the extra threads only
+//! compete with the other tasks, and the stages run inline on the caller's
+//! thread instead: one task, one core, as a cluster scheduler counts it.
+//! The same switch exists for numerical libraries (`OMP_NUM_THREADS=1`,
+//! which Dask sets in its workers).
+//!
+//! The choice is process-wide: [`set_io_threads`], or the environment
+//! variable `NAVSYNC_IO_THREADS=0` read at the first use. Results are the
+//! same either way; only the wall time and the cores used differ.
+
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::mpsc;
+use std::thread::JoinHandle;
+
+use crate::error::Error;
+
+/// 0: not decided yet (read the environment), 1: threads, 2: inline.
+static IO_THREADS: AtomicU8 = AtomicU8::new(0);
+
+/// Runs the I/O stages of later runs in this process on their own threads
+/// (`true`, the default) or inline on the caller's thread (`false`).
+pub fn set_io_threads(enabled: bool) {
+    IO_THREADS.store(if enabled { 1 } else { 2 }, Ordering::Relaxed);
+}
+
+/// Whether I/O stages get their own threads: [`set_io_threads`]'s choice,
+/// else `NAVSYNC_IO_THREADS` (`0`, `false`, `no`, `off` mean inline), else
+/// yes.
+pub fn io_threads() -> bool {
+    match IO_THREADS.load(Ordering::Relaxed) {
+        1 => true,
+        2 => false,
+        _ => {
+            let on = std::env::var("NAVSYNC_IO_THREADS").map_or(true, |v| {
+                !matches!(
+                    v.trim().to_ascii_lowercase().as_str(),
+                    "0" | "false" | "no" | "off"
+                )
+            });
+            set_io_threads(on);
+            on
+        }
+    }
+}
+
+/// A source of batches (a file reader).
+pub(crate) trait Producer: Send + 'static {
+    type Item: Send + 'static;
+    /// What the reader reports when it is done (counts, notes).
+    type Output: Send + 'static;
+    /// The next batch; `None` at the end.
+    fn next_batch(&mut self) -> Result<Option<Vec<Self::Item>>, Error>;
+    fn finish(self) -> Result<Self::Output, Error>;
+}
+
+/// A sink of batches (a file writer).
+pub(crate) trait Consumer: Send + 'static {
+    type Item: Send + 'static;
+    type Output: Send + 'static;
+    fn consume(&mut self, batch: Vec<Self::Item>) -> Result<(), Error>;
+    fn finish(self) -> Result<Self::Output, Error>;
+}
+
+fn failed(name: &str) -> Error {
+    Error::Invalid(format!("the {name} thread panicked"))
+}
+
+/// Batches channelled between a stage thread and the caller.
+const DEPTH: usize = 8;
+
+/// A producer, on its own thread or inline.
+pub(crate) enum Source<P: Producer> {
+    Threaded {
+        rx: mpsc::Receiver<Vec<P::Item>>,
+        handle: JoinHandle<Result<P::Output, Error>>,
+        name: &'static str,
+    },
+    Inline(P),
+}
+
+impl<P: Producer> Source<P> {
+    /// Starts `producer` as [`io_threads`] says.
+    pub fn start(producer: P, name: &'static str) -> Result<Self, Error> {
+        Self::new(producer, name, io_threads())
+    }
+
+    /// Starts `producer` on its own thread (`threaded`) or inline.
+    pub fn new(mut producer: P, name: &'static str, threaded: bool) -> Result<Self, Error> {
+        if !threaded {
+            return Ok(Source::Inline(producer));
+        }
+        let (tx, rx) = mpsc::sync_channel::<Vec<P::Item>>(DEPTH);
+        let handle = std::thread::Builder::new()
+            .name(name.into())
+            .spawn(move || {
+                while let Some(batch) = producer.next_batch()? {
+                    if tx.send(batch).is_err() {
+                        break;
+                    }
+                }
+                producer.finish()
+            })
+            .map_err(|e| Error::Invalid(format!("cannot start the {name} thread: {e}")))?;
+        Ok(Source::Threaded { rx, handle, name })
+    }
+
+    /// The next batch. A threaded producer's error comes from
+    /// [`Source::finish`] (the batch stream just ends).
+    pub fn next_batch(&mut self) -> Result<Option<Vec<P::Item>>, Error> {
+        match self {
+            Source::Threaded { rx, .. } => Ok(rx.recv().ok()),
+            Source::Inline(p) => p.next_batch(),
+        }
+    }
+
+    /// Stops reading (whatever is left is not read) and returns the
+    /// producer's output or its error.
+    pub fn finish(self) -> Result<P::Output, Error> {
+        match self {
+            Source::Threaded { rx, handle, name } => {
+                drop(rx);
+                handle.join().map_err(|_| failed(name))?
+            }
+            Source::Inline(p) => p.finish(),
+        }
+    }
+}
+
+/// A consumer, on its own thread or inline.
+pub(crate) enum Drain<C: Consumer> {
+    Threaded {
+        tx: Option<mpsc::SyncSender<Vec<C::Item>>>,
+        handle: JoinHandle<Result<C::Output, Error>>,
+        name: &'static str,
+    },
+    Inline(C),
+}
+
+impl<C: Consumer> Drain<C> {
+    /// Starts `consumer` as [`io_threads`] says.
+    pub fn start(consumer: C, name: &'static str) -> Result<Self, Error> {
+        Self::new(consumer, name, io_threads())
+    }
+
+    /// Starts `consumer` on its own thread (`threaded`) or inline.
+    pub fn new(mut consumer: C, name: &'static str, threaded: bool) -> Result<Self, Error> {
+        if !threaded {
+            return Ok(Drain::Inline(consumer));
+        }
+        let (tx, rx) = mpsc::sync_channel::<Vec<C::Item>>(DEPTH);
+        let handle = std::thread::Builder::new()
+            .name(name.into())
+            .spawn(move || {
+                for batch in rx {
+                    consumer.consume(batch)?;
+                }
+                consumer.finish()
+            })
+            .map_err(|e| Error::Invalid(format!("cannot start the {name} thread: {e}")))?;
+        Ok(Drain::Threaded {
+            tx: Some(tx),
+            handle,
+            name,
+        })
+    }
+
+    /// Hands over a batch. `Ok(false)`: a threaded consumer has stopped
+    /// (its error comes from [`Drain::finish`]).
+    pub fn send(&mut self, batch: Vec<C::Item>) -> Result<bool, Error> {
+        match self {
+            Drain::Threaded { tx, .. } => Ok(tx.as_ref().is_some_and(|t| t.send(batch).is_ok())),
+            Drain::Inline(c) => c.consume(batch).map(|()| true),
+        }
+    }
+
+    /// Waits for everything sent to be consumed; the consumer's output.
+    pub fn finish(self) -> Result<C::Output, Error> {
+        match self {
+            Drain::Threaded {
+                mut tx,
+                handle,
+                name,
+            } => {
+                tx.take();
+                handle.join().map_err(|_| failed(name))?
+            }
+            Drain::Inline(c) => c.finish(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Count {
+        next: u32,
+        end: u32,
+        fail_at: Option<u32>,
+    }
+    impl Producer for Count {
+        type Item = u32;
+        type Output = u32;
+        fn next_batch(&mut self) -> Result<Option<Vec<u32>>, Error> {
+            if self.fail_at == Some(self.next) {
+                return Err(Error::Invalid("bad record".into()));
+            }
+            if self.next >= self.end {
+                return Ok(None);
+            }
+            let b: Vec<u32> = (self.next..(self.next + 3).min(self.end)).collect();
+            self.next += b.len() as u32;
+            Ok(Some(b))
+        }
+        fn finish(self) -> Result<u32, Error> {
+            Ok(self.next)
+        }
+    }
+    struct Sum(u64);
+    impl Consumer for Sum {
+        type Item = u32;
+        type Output = u64;
+        fn consume(&mut self, batch: Vec<u32>) -> Result<(), Error> {
+            self.0 += batch.iter().map(|&v| v as u64).sum::<u64>();
+            Ok(())
+        }
+        fn finish(self) -> Result<u64, Error> {
+            Ok(self.0)
+        }
+    }
+
+    fn run(threads: bool, fail_at: Option<u32>) -> Result<(u32, u64), Error> {
+        // Both modes chosen directly: the process-wide switch is left alone
+        // (tests run in parallel).
+        let p = Count {
+            next: 0,
+            end: 100,
+            fail_at,
+        };
+        let mut src = Source::new(p, "test reader", threads)?;
+        let mut drain = Drain::new(Sum(0), "test writer", threads)?;
+        let mut read_err = None;
+        loop {
+            match src.next_batch() {
+                Ok(Some(b)) => {
+                    drain.send(b)?;
+                }
+                Ok(None) => break,
+                Err(e) => {
+                    read_err = Some(e);
+                    break;
+                }
+            }
+        }
+        let n = src.finish();
+        if let Some(e) = read_err {
+            return Err(e);
+        }
+        Ok((n?, drain.finish()?))
+    }
+
+    #[test]
+    fn threaded_and_inline_stages_deliver_the_same_batches() {
+        assert_eq!(run(true, None).unwrap(), (100, 4950));
+        assert_eq!(run(false, None).unwrap(), (100, 4950));
+    }
+
+    #[test]
+    fn a_producer_error_reaches_the_caller_in_both_modes() {
+        assert!(run(true, Some(30)).is_err());
+        assert!(run(false, Some(30)).is_err());
+    }
+}
