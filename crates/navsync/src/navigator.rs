@@ -52,6 +52,8 @@
 
 use std::collections::VecDeque;
 
+use nalgebra::Matrix3;
+
 use crate::error::{Diagnostics, Error};
 use crate::filter::gnss::GnssFix;
 use crate::fusion::TimeOffsetState;
@@ -172,15 +174,112 @@ pub struct Navigator {
     outages: Option<OutageSchedule>,
     reduced_imu: Option<ReducedImu>,
     nominal_dt_s: f64,
+    output: SolutionOutput,
+    counts: StreamCounts,
+    rig: Option<RigFrontEnd>,
+}
+
+/// How solutions reach a sink: stamped in GNSS time on request (kept
+/// strictly increasing), interpolated at requested epochs, and the
+/// auxiliary lines at their interval. The forward stream and the smoother's
+/// output pass write through the same one.
+pub(crate) struct SolutionOutput {
     output_gnss_time: bool,
     /// Interval of the auxiliary output (ns); `None`: none.
     aux_ns: Option<i64>,
     next_aux: Option<GpsTime>,
     interp: Option<NavInterpolator>,
-    counts: StreamCounts,
     /// Time of the last solution handed to the sink.
     last_written: Option<GpsTime>,
-    rig: Option<RigFrontEnd>,
+    /// Interpolated epochs written.
+    pub at_written: usize,
+    /// Solutions left out of the GNSS-time output (τ̂ stepped back).
+    pub out_of_order: usize,
+}
+
+impl SolutionOutput {
+    pub fn new(
+        output_gnss_time: bool,
+        aux_interval_s: Option<f64>,
+        interp: Option<NavInterpolator>,
+    ) -> Self {
+        SolutionOutput {
+            output_gnss_time,
+            aux_ns: aux_interval_s.map(|s| (s * 1e9).round() as i64),
+            next_aux: None,
+            interp,
+            last_written: None,
+            at_written: 0,
+            out_of_order: 0,
+        }
+    }
+
+    /// The first epoch: the auxiliary schedule counts from it.
+    pub fn start(&mut self, t: GpsTime) {
+        self.next_aux = self.aux_ns.map(|_| t);
+    }
+
+    /// One solution at IMU time `nav.time` with the time offset `offset`.
+    /// `aux` gives all state σ, the position covariance and the time
+    /// offset with its σ when an auxiliary line is due (the filter
+    /// propagates its covariance for them). `false`: left out (GNSS time
+    /// stepped back).
+    pub fn write(
+        &mut self,
+        nav: &NavState,
+        imu: &ImuErrors,
+        offset: Option<TimeOffsetState>,
+        sink: &mut dyn NavSink,
+        aux: impl FnOnce() -> (Vec<f64>, Matrix3<f64>, Option<TimeOffsetState>),
+    ) -> Result<bool, Error> {
+        // Solutions are on the IMU's time base; on request, move them to
+        // GNSS time with the offset estimate (GNSS time = IMU time + τ̂).
+        let mut nav_out = *nav;
+        if self.output_gnss_time
+            && let Some(o) = offset
+        {
+            nav_out.time = nav_out.time.add_seconds(o.offset_s);
+            // A step of τ̂ larger than the sample interval would send the
+            // output back in time: such solutions are left out, so the
+            // written solution stays strictly increasing.
+            if self.last_written.is_some_and(|t| nav_out.time <= t) {
+                self.out_of_order += 1;
+                return Ok(false);
+            }
+        }
+        self.last_written = Some(nav_out.time);
+        sink.nav(&nav_out, imu)?;
+        if let Some(ip) = self.interp.as_mut() {
+            for at in ip.push(&nav_out) {
+                self.at_written += 1;
+                sink.nav_at(&at)?;
+            }
+        }
+        if let Some(na) = self.next_aux
+            && nav.time >= na
+        {
+            let (sd, p_pos, offset) = aux();
+            sink.aux(nav.time, imu, &sd, offset)?;
+            sink.position_covariance(nav.time, &p_pos)?;
+            self.next_aux = Some(match self.aux_ns {
+                Some(ns) if ns > 0 => na + ns,
+                _ => nav.time,
+            });
+        }
+        Ok(true)
+    }
+
+    /// The end of the stream: the interpolator's pending epochs are
+    /// dropped; returns how many requested epochs were not written.
+    pub fn finish(&mut self) -> usize {
+        match self.interp.as_mut() {
+            Some(ip) => {
+                ip.finish();
+                ip.skipped
+            }
+            None => 0,
+        }
+    }
 }
 
 impl Navigator {
@@ -199,12 +298,8 @@ impl Navigator {
             outages: None,
             reduced_imu: None,
             nominal_dt_s,
-            output_gnss_time: false,
-            aux_ns: Some(100_000_000),
-            next_aux: None,
-            interp: None,
+            output: SolutionOutput::new(false, Some(0.1), None),
             counts: StreamCounts::default(),
-            last_written: None,
             rig: None,
         }
     }
@@ -229,14 +324,14 @@ impl Navigator {
     /// Stamp the solutions in GNSS time (IMU time + τ̂) instead of the IMU's
     /// time base; they stay strictly increasing.
     pub fn with_gnss_time_output(mut self, on: bool) -> Self {
-        self.output_gnss_time = on;
+        self.output.output_gnss_time = on;
         self
     }
 
     /// Auxiliary output ([`NavSink::aux`]: IMU errors, σ, time offset) at
     /// this interval (s; 0 at every epoch), or none.
     pub fn with_aux_interval(mut self, interval_s: Option<f64>) -> Self {
-        self.aux_ns = interval_s.map(|s| (s * 1e9).round() as i64);
+        self.output.aux_ns = interval_s.map(|s| (s * 1e9).round() as i64);
         self
     }
 
@@ -265,7 +360,7 @@ impl Navigator {
 
     /// As [`Self::with_output_at`], with the interpolator already built.
     pub fn with_interpolator(mut self, interp: Option<NavInterpolator>) -> Self {
-        self.interp = interp;
+        self.output.interp = interp;
         self
     }
 
@@ -375,45 +470,19 @@ impl Navigator {
         let Some(out) = self.fusion.push_imu(&s)? else {
             if self.counts.first_epoch.is_none() && s.time >= self.start {
                 self.counts.first_epoch = Some(s.time);
-                self.next_aux = self.aux_ns.map(|_| s.time);
+                self.output.start(s.time);
             }
             return Ok(Step::Starting);
         };
         self.counts.last_epoch = Some(out.nav.time);
-        // Solutions are on the IMU's time base; on request, move them to
-        // GNSS time with the offset estimate (GNSS time = IMU time + τ̂).
-        let mut nav_out = out.nav;
-        if self.output_gnss_time
-            && let Some(o) = self.fusion.time_offset()
-        {
-            nav_out.time = nav_out.time.add_seconds(o.offset_s);
-            // A step of τ̂ larger than the sample interval would send the
-            // output back in time: such solutions are left out, so the
-            // written solution stays strictly increasing.
-            if self.last_written.is_some_and(|t| nav_out.time <= t) {
-                self.counts.solutions_out_of_order += 1;
-                return Ok(Step::Solution(out));
-            }
-        }
-        self.last_written = Some(nav_out.time);
-        sink.nav(&nav_out, &out.imu)?;
-        if let Some(ip) = self.interp.as_mut() {
-            for at in ip.push(&nav_out) {
-                self.counts.output_at_written += 1;
-                sink.nav_at(&at)?;
-            }
-        }
-        if let Some(na) = self.next_aux
-            && out.nav.time >= na
-        {
-            let sd = self.fusion.std_devs();
-            sink.aux(out.nav.time, &out.imu, &sd, self.fusion.time_offset())?;
-            sink.position_covariance(out.nav.time, &self.fusion.position_covariance())?;
-            self.next_aux = Some(match self.aux_ns {
-                Some(ns) if ns > 0 => na + ns,
-                _ => out.nav.time,
-            });
-        }
+        let fusion = &mut self.fusion;
+        let offset = fusion.time_offset();
+        self.output.write(&out.nav, &out.imu, offset, sink, || {
+            let sd = fusion.std_devs();
+            (sd, fusion.position_covariance(), fusion.time_offset())
+        })?;
+        self.counts.output_at_written = self.output.at_written;
+        self.counts.solutions_out_of_order = self.output.out_of_order;
         Ok(Step::Solution(out))
     }
 
@@ -480,10 +549,7 @@ impl Navigator {
             self.consume_synced(&mut out, &mut increments, sink)?;
             sync_report = Some(report);
         }
-        if let Some(ip) = self.interp.as_mut() {
-            ip.finish();
-            self.counts.output_at_skipped = ip.skipped;
-        }
+        self.counts.output_at_skipped = self.output.finish();
         diagnostics.extend(self.fusion.take_diagnostics());
         if self.counts.solutions_out_of_order > 0 {
             diagnostics.note(format!(

@@ -24,7 +24,7 @@ use crate::io::kfgins::{
     GnssLayout, GnssReader, ImuReader, TextWriter, format_imu_err_line, format_nav_line,
     format_std_line,
 };
-use crate::navigator::{Navigator, Step, StreamCounts};
+use crate::navigator::{Navigator, SolutionOutput, Step, StreamCounts};
 use crate::stage::{Consumer, Drain, Producer, Source};
 use crate::time::GpsTime;
 
@@ -1038,10 +1038,16 @@ fn write_smoothed(
     let tau_index = fusion.state_layout().index_of("time_offset");
     let mut smoothed = fusion.smooth()?;
     let backward_s = started.elapsed().as_secs_f64() - forward_s;
-    let mut interp = output_at_interpolator(opts)?;
-    let aux_ns = (opts.aux_interval_s * 1e9).round() as i64;
-    // The forward run's auxiliary epochs: from the start sample on.
-    let mut next_aux: Option<GpsTime> = t0;
+    // The forward run's output rules (GNSS time, output-at epochs, the
+    // auxiliary interval from the start sample on).
+    let mut output = SolutionOutput::new(
+        opts.output_gnss_time,
+        Some(opts.aux_interval_s),
+        output_at_interpolator(opts)?,
+    );
+    if let Some(t) = t0 {
+        output.start(t);
+    }
     let mut start_offset: Option<(f64, f64)> = None;
     smoothed.for_each(|ep| {
         let offset = tau_index.map(|i| TimeOffsetState {
@@ -1052,33 +1058,12 @@ fn write_smoothed(
         if start_offset.is_none() {
             start_offset = offset.map(|o| (o.offset_s, o.sd_s));
         }
-        let mut nav_out = ep.nav;
-        if opts.output_gnss_time
-            && let Some(o) = offset
-        {
-            nav_out.time = nav_out.time.add_seconds(o.offset_s);
-        }
-        sink.nav(&nav_out, &ep.imu)?;
-        if let Some(ip) = interp.as_mut() {
-            for at in ip.push(&nav_out) {
-                sink.nav_at(&at)?;
-            }
-        }
-        let t = ep.nav.time;
-        if next_aux.is_none_or(|na| t >= na) {
-            sink.aux(t, &ep.imu, &ep.sd, offset)?;
-            sink.position_covariance(t, &ep.p_pos)?;
-            next_aux = Some(if aux_ns > 0 {
-                next_aux.unwrap_or(t) + aux_ns
-            } else {
-                t
-            });
-        }
+        output.write(&ep.nav, &ep.imu, offset, sink, || {
+            (ep.sd.clone(), ep.p_pos, offset)
+        })?;
         Ok(())
     })?;
-    if let Some(ip) = interp.as_mut() {
-        ip.finish();
-    }
+    output.finish();
     Ok(SmootherSummary {
         nodes: smoothed.node_count(),
         regularised_nodes: smoothed.failures,
