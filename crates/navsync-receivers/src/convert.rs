@@ -30,6 +30,7 @@ use nalgebra::Vector3;
 use navsync::error::{Diagnostics, Error};
 use navsync::filter::gnss::GnssFix;
 use navsync::io::kfgins::{TextWriter, format_gnss_line, format_imu_line};
+use navsync::io::riglog::write as rig_write;
 use navsync::io::text::{
     LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, split_fields,
 };
@@ -523,8 +524,7 @@ impl StreamConverter {
                             s.pps_without_qerr += 1;
                             p.time
                         };
-                        self.rig
-                            .extend_from_slice(format!("pps,{}\n", edge.ns()).as_bytes());
+                        rig_write::pps(&mut self.rig, edge.ns() as u64);
                         s.pps += 1;
                     }
                 }
@@ -534,15 +534,18 @@ impl StreamConverter {
                         diag.push(file, 0, format!("byte {offset}: {p}"));
                     }
                     for e in &out.edges {
-                        let rising = (e.edge == Edge::Rising) as u8;
-                        let mut line =
-                            format!("mark,{},{},", e.time.ns(), e.time.week().max(0)).into_bytes();
-                        e.time.write_sow(&mut line);
-                        line.extend_from_slice(
-                            format!(",{},{},{},{}\n", e.channel, rising, e.count, e.acc_ns)
-                                .as_bytes(),
+                        let rising = u64::from(e.edge == Edge::Rising);
+                        rig_write::mark(
+                            &mut self.rig,
+                            e.time.ns() as u64,
+                            e.time,
+                            &[
+                                u64::from(e.channel),
+                                rising,
+                                u64::from(e.count),
+                                u64::from(e.acc_ns),
+                            ],
                         );
-                        self.rig.extend_from_slice(&line);
                     }
                     s.mark_edges += out.edges.len();
                     s.strobes += out.strobes.len();

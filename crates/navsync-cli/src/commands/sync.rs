@@ -387,18 +387,19 @@ fn bench(args: &Args) -> Result<()> {
 /// Writes a hardware-sync rig log: 1 MHz 32-bit counter (+20 ppm), PPS,
 /// 1 Hz GNSS 80 ms late, a 200 Hz IMU (−300 ppm) with small varying rates.
 fn write_bench_log(path: &Path, hours: f64) -> Result<u64> {
-    use navsync::io::text::{push_fixed, push_u64};
+    use navsync::io::riglog::{ImuKind, RigGnss, RigHeader, write};
+    use navsync::time::GpsTime;
     let mut w = TextWriter::create(path)?;
     let mut buf = Vec::with_capacity(1 << 20);
-    buf.extend_from_slice(
-        b"# rig-log v1\n# counter_hz: 1000000\n# counter_bits: 32\n# imu: rate\n# imu_rate_hz: 200\n",
-    );
+    let mut header = RigHeader::new(1e6, 32, ImuKind::Rate);
+    header.imu_rate_hz = Some(200.0);
+    buf.extend_from_slice(header.to_text().as_bytes());
     let dur = hours * 3600.0;
     let f = 1e6 * (1.0 + 20e-6);
     let c0 = 4_000_000_000.0f64;
     let counter = |t: f64| -> u64 { ((c0 + t * f).floor() as u64) & 0xFFFF_FFFF };
     let imu_dt = 1.0 / (200.0 * (1.0 - 300e-6));
-    let (week, sow0) = (2300u64, 100_000u64);
+    let (week, sow0) = (2300i64, 100_000.0f64);
     let mut k = 0u64;
     let mut next_pps = 1.0;
     let mut next_gnss = 1.08;
@@ -410,25 +411,24 @@ fn write_bench_log(path: &Path, hours: f64) -> Result<u64> {
         // events in time order
         while next_pps <= t_imu || next_gnss <= t_imu {
             if next_pps <= next_gnss {
-                buf.extend_from_slice(b"pps,");
-                push_u64(&mut buf, counter(next_pps));
-                buf.push(b'\n');
+                write::pps(&mut buf, counter(next_pps));
                 next_pps += 1.0;
             } else {
-                let s = (next_gnss - 0.08).round() as u64;
-                buf.extend_from_slice(b"gnss,");
-                push_u64(&mut buf, counter(next_gnss));
-                buf.push(b',');
-                push_u64(&mut buf, week);
-                buf.push(b',');
-                push_u64(&mut buf, sow0 + s);
-                buf.extend_from_slice(b".000,30.444784635,114.471867431,22.1037,0.02,0.02,0.03\n");
+                let s = (next_gnss - 0.08f64).round();
+                let fix = RigGnss {
+                    counter: counter(next_gnss),
+                    time: GpsTime::from_week_sow(week, sow0 + s),
+                    lat_deg: 30.444784635,
+                    lon_deg: 114.471867431,
+                    h_m: 22.1037,
+                    sd_m: [0.02, 0.02, 0.03],
+                };
+                write::gnss(&mut buf, &fix);
                 next_gnss += 1.0;
             }
         }
-        buf.extend_from_slice(b"imu,");
-        push_u64(&mut buf, counter(t_imu));
         let ph = t_imu * 0.7;
+        // Values to 1e-10, as a logger prints them.
         let vals = [
             1e-3 * ph.sin(),
             -2e-3 * ph.cos(),
@@ -436,12 +436,9 @@ fn write_bench_log(path: &Path, hours: f64) -> Result<u64> {
             0.1 * ph.cos(),
             0.05,
             -9.7935 + 0.01 * ph.sin(),
-        ];
-        for v in vals {
-            buf.push(b',');
-            push_fixed(&mut buf, v, 10);
-        }
-        buf.push(b'\n');
+        ]
+        .map(|v| (v * 1e10).round() / 1e10);
+        write::imu(&mut buf, counter(t_imu), &vals);
         k += 1;
         if buf.len() > (1 << 20) - 256 {
             w.write(&buf)?;
