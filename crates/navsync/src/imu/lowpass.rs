@@ -95,6 +95,16 @@ pub struct GroupDelay {
     pub curve: Vec<DelayPoint>,
 }
 
+/// The triangular (Bartlett) window of `taps` taps, unnormalised:
+/// w_k = min(k + 1, taps − k), k = 0 … taps − 1. It is two moving averages
+/// of ⌈taps/2⌉ and ⌊taps/2⌋ + 1 taps in series: an odd count 2n − 1 is two
+/// n-tap averages (the FIR stage of many MEMS IMUs, e.g. the ADIS16465's
+/// FILT_CTRL), an even count has a flat top of two taps. The simulator's
+/// IMU filters and [`LowPassFilter::bartlett`] both use it.
+pub fn triangular_weights(taps: usize) -> Vec<f64> {
+    (0..taps).map(|k| (k + 1).min(taps - k) as f64).collect()
+}
+
 impl LowPassFilter {
     /// An FIR filter from its taps.
     pub fn fir(name: &str, taps: Vec<f64>, sample_rate_hz: f64) -> Result<Self, Error> {
@@ -156,16 +166,24 @@ impl LowPassFilter {
         if n == 0 {
             return Err(Error::Invalid("Bartlett filter needs n >= 1".into()));
         }
-        let box_ = vec![1.0 / n as f64; n];
-        let mut taps = vec![0.0; 2 * n - 1];
-        for i in 0..n {
-            for j in 0..n {
-                taps[i + j] += box_[i] * box_[j];
-            }
+        let mut f = Self::triangular(2 * n - 1, sample_rate_hz)?;
+        f.name = format!("Bartlett (2 x {n}-tap average)");
+        Ok(f)
+    }
+
+    /// The triangular window of `taps` taps ([`triangular_weights`]),
+    /// normalised to unit DC gain.
+    pub fn triangular(taps: usize, sample_rate_hz: f64) -> Result<Self, Error> {
+        if taps == 0 {
+            return Err(Error::Invalid(
+                "triangular filter needs at least 1 tap".into(),
+            ));
         }
+        let w = triangular_weights(taps);
+        let sum: f64 = w.iter().sum();
         Self::fir(
-            &format!("Bartlett (2 x {n}-tap average)"),
-            taps,
+            &format!("triangular ({taps} taps)"),
+            w.iter().map(|x| x / sum).collect(),
             sample_rate_hz,
         )
     }
@@ -444,6 +462,27 @@ impl FilterRunner {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn triangular_window_is_two_moving_averages_in_series() {
+        // ⌈N/2⌉- and (⌊N/2⌋+1)-tap boxes convolved: odd and even counts.
+        for taps in 1..12usize {
+            let (p, q) = (taps.div_ceil(2), taps / 2 + 1);
+            let mut conv = vec![0.0; p + q - 1];
+            for i in 0..p {
+                for j in 0..q {
+                    conv[i + j] += 1.0;
+                }
+            }
+            assert_eq!(triangular_weights(taps), conv, "{taps} taps");
+        }
+        assert_eq!(triangular_weights(4), vec![1.0, 2.0, 2.0, 1.0]);
+        // Bartlett(n) is the (2n − 1)-tap window at unit DC gain.
+        let b = LowPassFilter::bartlett(3, 100.0).unwrap();
+        let w: Vec<f64> = [1.0, 2.0, 3.0, 2.0, 1.0].iter().map(|x| x / 9.0).collect();
+        assert_eq!(b.b, w);
+        assert!(LowPassFilter::triangular(0, 100.0).is_err());
+    }
 
     #[test]
     fn symmetric_fir_delays_half_its_length_at_every_frequency() {
