@@ -125,3 +125,37 @@ impl<'a, T> IntoIterator for &'a DelayBuffer<T> {
         self.items.iter()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, PartialEq)]
+    struct Item(GpsTime, u8);
+
+    impl Timed for Item {
+        fn time(&self) -> GpsTime {
+            self.0
+        }
+    }
+
+    #[test]
+    fn insert_keeps_time_order_and_arrival_order_within_a_time() {
+        let t0 = GpsTime::default();
+        let t = |s: f64| t0.add_seconds(s);
+        let mut b = DelayBuffer::default();
+        b.insert(Item(t(2.0), 0));
+        b.insert(Item(t(1.0), 1));
+        b.insert(Item(t(2.0), 2));
+        b.insert(Item(t(1.5), 3));
+        let order: Vec<u8> = b.iter().map(|x| x.1).collect();
+        assert_eq!(order, [1, 3, 0, 2]);
+        assert!(b.contains_time(t(1.5)));
+        assert_eq!(b.count_through(t(1.5)), 2);
+        b.drop_through(t(1.5));
+        assert_eq!(b.front(), Some(&Item(t(2.0), 0)));
+        b.drop_while(|x| x.1 == 0);
+        assert_eq!(b.len(), 1);
+        assert_eq!(b[0], Item(t(2.0), 2));
+    }
+}

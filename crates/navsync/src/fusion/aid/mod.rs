@@ -77,9 +77,14 @@ impl AidSources {
     pub(super) fn new(cfg: &FusionConfig) -> Self {
         AidSources {
             gnss: GnssSource::new(cfg),
-            nhc: NhcSource::default(),
+            nhc: NhcSource {
+                next_due: cfg.init_nav.time,
+            },
             standstill: StandstillSource::new(cfg.standstill),
-            odometer: OdometerSource::default(),
+            odometer: OdometerSource {
+                next_due: cfg.init_nav.time,
+                speed_mps: None,
+            },
         }
     }
 
