@@ -212,8 +212,7 @@ impl Core {
     /// Number of accepted corrections so far (any change of the state by
     /// the filter).
     fn corrections(&self) -> usize {
-        let s = &self.stats;
-        s.gnss_fixes_used + s.gnss_velocity_used + s.nhc_updates + s.odometer_updates
+        self.aid.corrections()
     }
 
     /// Processing time of a fix: its tag corrected by the offset estimate.
@@ -401,13 +400,9 @@ impl Core {
         if self.aid.standstill.detector.is_some() {
             let speed = self.nav.vel.x.hypot(self.nav.vel.y);
             let f_n = self.nav.q_nb * (inc.dvel / dt);
-            if let Some(still_s) =
-                self.aid
-                    .standstill
-                    .detect(&f_n, &self.last_w_ib, &self.imu.gyro_bias, dt, speed)
-            {
-                self.stats.standstill_s += still_s;
-            }
+            self.aid
+                .standstill
+                .detect(&f_n, &self.last_w_ib, &self.imu.gyro_bias, dt, speed);
         }
         let step = self.mech.step(&mut self.nav, &inc);
         self.filter.accumulate(&step);
@@ -566,6 +561,7 @@ impl Fusion {
 
     pub fn stats(&self) -> FusionStats {
         let mut s = self.core.stats.clone();
+        self.core.aid.counters(&mut s);
         s.delayed_state_replays = self.replays;
         s
     }

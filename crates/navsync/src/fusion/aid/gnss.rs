@@ -167,6 +167,21 @@ pub(in crate::fusion) struct GnssSource {
     /// The last fix used (time, fix position, solution position), to spot
     /// repeated ones.
     pub(in crate::fusion) last_fix: Option<(GpsTime, Geodetic, Geodetic)>,
+    pub(in crate::fusion) counts: GnssCounts,
+}
+
+/// What became of the fixes this source weighed.
+#[derive(Clone, Copy, Default)]
+pub(in crate::fusion) struct GnssCounts {
+    pub(in crate::fusion) fixes_used: usize,
+    fixes_rejected: usize,
+    fixes_downweighted: usize,
+    fixes_accepted_consistent: usize,
+    pub(in crate::fusion) velocity_used: usize,
+    velocity_rejected: usize,
+    velocity_downweighted: usize,
+    gate_reopened: usize,
+    stale: usize,
 }
 
 impl GnssSource {
@@ -206,6 +221,19 @@ impl AidSource for GnssSource {
             }
         }
         Ok(())
+    }
+
+    fn counters(&self, stats: &mut FusionStats) {
+        let c = &self.counts;
+        stats.gnss_fixes_used = c.fixes_used;
+        stats.gnss_fixes_rejected = c.fixes_rejected;
+        stats.gnss_fixes_downweighted = c.fixes_downweighted;
+        stats.gnss_fixes_accepted_consistent = c.fixes_accepted_consistent;
+        stats.gnss_velocity_used = c.velocity_used;
+        stats.gnss_velocity_rejected = c.velocity_rejected;
+        stats.gnss_velocity_downweighted = c.velocity_downweighted;
+        stats.gate_reopened = c.gate_reopened;
+        stats.gnss_fixes_stale = c.stale;
     }
 }
 
@@ -265,7 +293,7 @@ impl GnssSource {
     /// A fix whose position repeats the previous fix's to the last bit
     /// while the solution moved more than 1 m: a receiver repeating a stale
     /// output. Reported and skipped.
-    fn is_stale(&self, core: &mut Core, fix: &GnssFix) -> bool {
+    fn is_stale(&mut self, core: &mut Core, fix: &GnssFix) -> bool {
         let Some((_, prev_pos, prev_nav)) = self.last_fix else {
             return false;
         };
@@ -283,7 +311,7 @@ impl GnssSource {
         if moved <= 1.0 {
             return false;
         }
-        core.stats.gnss_fixes_stale += 1;
+        self.counts.stale += 1;
         core.notes.push(format!(
             "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.1} m: a stale receiver output; ignored",
             fix.time
@@ -331,12 +359,12 @@ impl GnssSource {
                     ));
                     core.filter.inflate(factor);
                     core.apply(&obs, None, &frozen)?;
-                    core.stats.gnss_fixes_accepted_consistent += 1;
+                    self.counts.fixes_accepted_consistent += 1;
                     self.last_drift_accept = Some(fix.time);
                 }
                 None => {
                     self.consecutive_rejects += 1;
-                    core.stats.gnss_fixes_rejected += 1;
+                    self.counts.fixes_rejected += 1;
                     core.notes.push(format!(
                         "GNSS fix at {} rejected by the innovation gate (innovation {:.3} m, NIS {:.1} > {:.1})",
                         fix.time,
@@ -363,21 +391,21 @@ impl GnssSource {
         }
         self.last_rejected = None;
         if gate.is_none() && self.gate.is_some() {
-            core.stats.gate_reopened += 1;
+            self.counts.gate_reopened += 1;
             core.notes.push(format!(
                 "GNSS fix at {} accepted without gating after {} consecutive rejections",
                 fix.time, self.consecutive_rejects
             ));
         }
         self.consecutive_rejects = 0;
-        core.stats.gnss_fixes_used += 1;
+        self.counts.fixes_used += 1;
         if core.cfg.use_gnss_velocity
             && let Some(obs) = Self::velocity_obs(core, fix)
         {
             if core.apply(&obs, self.gate, &frozen)?.accepted {
-                core.stats.gnss_velocity_used += 1;
+                self.counts.velocity_used += 1;
             } else {
-                core.stats.gnss_velocity_rejected += 1;
+                self.counts.velocity_rejected += 1;
                 core.notes.push(format!(
                     "GNSS velocity at {} rejected by the innovation gate",
                     fix.time
@@ -399,26 +427,26 @@ impl GnssSource {
         let status = self.robust_apply(core, obs, 0, fix.time, rw, &frozen)?;
         match status {
             FixStatus::Rejected => {
-                core.stats.gnss_fixes_rejected += 1;
+                self.counts.fixes_rejected += 1;
                 return Ok(());
             }
-            FixStatus::DownWeighted => core.stats.gnss_fixes_downweighted += 1,
-            FixStatus::DriftAccepted => core.stats.gnss_fixes_accepted_consistent += 1,
+            FixStatus::DownWeighted => self.counts.fixes_downweighted += 1,
+            FixStatus::DriftAccepted => self.counts.fixes_accepted_consistent += 1,
             FixStatus::Used => {}
         }
-        core.stats.gnss_fixes_used += 1;
+        self.counts.fixes_used += 1;
         if core.cfg.use_gnss_velocity
             && let Some(obs) = Self::velocity_obs(core, fix)
         {
             match self.robust_apply(core, obs, 1, fix.time, rw, &frozen)? {
                 FixStatus::Rejected => {
-                    core.stats.gnss_velocity_rejected += 1;
+                    self.counts.velocity_rejected += 1;
                     return Ok(());
                 }
-                FixStatus::DownWeighted => core.stats.gnss_velocity_downweighted += 1,
+                FixStatus::DownWeighted => self.counts.velocity_downweighted += 1,
                 _ => {}
             }
-            core.stats.gnss_velocity_used += 1;
+            self.counts.velocity_used += 1;
         }
         Ok(())
     }

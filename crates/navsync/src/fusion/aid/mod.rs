@@ -51,8 +51,7 @@ use zupt::StandstillSource;
 ///
 /// The model is the source's `observation` (z, H, R at the current
 /// state); the control logic decides whether a measurement is due and
-/// fuses it through [`Core::apply`], counting the outcome in
-/// [`FusionStats`]. A source reads and corrects the filter core, never
+/// fuses it through [`Core::apply`], counting the outcome. A source reads and corrects the filter core, never
 /// another source (the sources are out of the core while they run).
 pub(super) trait AidSource {
     /// Whether a measurement is due at the current epoch (configuration,
@@ -62,6 +61,9 @@ pub(super) trait AidSource {
     /// Fuses what is due: builds the observation, gates it, handles its
     /// faults and counts.
     fn fuse(&mut self, core: &mut Core) -> Result<(), Error>;
+
+    /// Writes the source's diagnostics counters into `stats`.
+    fn counters(&self, stats: &mut FusionStats);
 }
 
 /// The aid sources of a filter core, with their control state.
@@ -79,11 +81,13 @@ impl AidSources {
             gnss: GnssSource::new(cfg),
             nhc: NhcSource {
                 next_due: cfg.init_nav.time,
+                updates: 0,
             },
             standstill: StandstillSource::new(cfg.standstill),
             odometer: OdometerSource {
                 next_due: cfg.init_nav.time,
                 speed_mps: None,
+                updates: 0,
             },
         }
     }
@@ -107,6 +111,20 @@ impl AidSources {
             &mut self.standstill,
             &mut self.odometer,
         ]
+    }
+
+    /// The statistics with every source's counters written in.
+    pub(super) fn counters(&self, stats: &mut FusionStats) {
+        for source in self.all_ref() {
+            source.counters(stats);
+        }
+    }
+
+    /// Number of corrections by the sources so far (used GNSS positions
+    /// and velocities, NHC and odometer updates).
+    pub(super) fn corrections(&self) -> usize {
+        let g = &self.gnss.counts;
+        g.fixes_used + g.velocity_used + self.nhc.updates + self.odometer.updates
     }
 
     /// Fuses every source's measurements that are due at the epoch (a

@@ -10,6 +10,8 @@ use super::*;
 pub(in crate::fusion) struct NhcSource {
     /// When the next constraint is due.
     pub(in crate::fusion) next_due: GpsTime,
+    /// Constraints accepted.
+    pub(in crate::fusion) updates: usize,
 }
 
 impl NhcSource {
@@ -32,8 +34,12 @@ impl AidSource for NhcSource {
         let obs = Self::observation(core, &nhc);
         let frozen: Vec<usize> = core.tau_index.into_iter().collect();
         if core.apply(&obs, None, &frozen)?.accepted {
-            core.stats.nhc_updates += 1;
+            self.updates += 1;
         }
         Ok(())
+    }
+
+    fn counters(&self, stats: &mut FusionStats) {
+        stats.nhc_updates = self.updates;
     }
 }

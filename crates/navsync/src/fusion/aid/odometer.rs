@@ -12,6 +12,8 @@ pub(in crate::fusion) struct OdometerSource {
     pub(in crate::fusion) next_due: GpsTime,
     /// The latest speed (m/s) not yet used.
     pub(in crate::fusion) speed_mps: Option<f64>,
+    /// Speed updates accepted.
+    pub(in crate::fusion) updates: usize,
 }
 
 impl OdometerSource {
@@ -43,8 +45,12 @@ impl AidSource for OdometerSource {
         let obs = Self::observation(core, &odo, speed);
         let frozen: Vec<usize> = core.tau_index.into_iter().collect();
         if core.apply(&obs, None, &frozen)?.accepted {
-            core.stats.odometer_updates += 1;
+            self.updates += 1;
         }
         Ok(())
+    }
+
+    fn counters(&self, stats: &mut FusionStats) {
+        stats.odometer_updates = self.updates;
     }
 }

@@ -13,19 +13,23 @@ use super::*;
 pub(in crate::fusion) struct StandstillSource {
     pub(in crate::fusion) detector: Option<StandstillDetector>,
     window: Option<StillWindow>,
+    /// ZUPT and ZARU updates accepted.
+    zupt_updates: usize,
+    zaru_updates: usize,
+    /// Time found still (s).
+    still_s: f64,
 }
 
 impl StandstillSource {
     pub(in crate::fusion) fn new(opts: Option<StandstillOptions>) -> Self {
         StandstillSource {
             detector: opts.map(StandstillDetector::new),
-            window: None,
+            ..Default::default()
         }
     }
 
     /// Feeds one mechanized step (specific force in n, compensated rate,
-    /// over `dt` s) to the detector; returns the window's length (s) when
-    /// it found the vehicle still.
+    /// over `dt` s) to the detector.
     pub(in crate::fusion) fn detect(
         &mut self,
         f_n: &Vector3<f64>,
@@ -33,19 +37,18 @@ impl StandstillSource {
         gyro_bias: &Vector3<f64>,
         dt: f64,
         speed_mps: f64,
-    ) -> Option<f64> {
-        let d = self.detector.as_mut()?;
+    ) {
+        let Some(d) = self.detector.as_mut() else {
+            return;
+        };
         let window_s = d.options().window_s;
         match d.push(f_n, w_ib, gyro_bias, dt, speed_mps) {
             Some(Some(w)) => {
                 self.window = Some(w);
-                Some(window_s)
+                self.still_s += window_s;
             }
-            Some(None) => {
-                self.window = None;
-                None
-            }
-            None => None,
+            Some(None) => self.window = None,
+            None => {}
         }
     }
 
@@ -70,12 +73,18 @@ impl AidSource for StandstillSource {
         let frozen: Vec<usize> = core.tau_index.into_iter().collect();
         let obs = standstill::zupt(&core.nav, opts.zupt_sd_mps, n);
         if core.apply(&obs, None, &frozen)?.accepted {
-            core.stats.zupt_updates += 1;
+            self.zupt_updates += 1;
         }
         let obs = standstill::zaru(&core.nav, &core.imu.gyro_bias, &w, opts.zaru_floor_rad_s, n);
         if core.apply(&obs, None, &frozen)?.accepted {
-            core.stats.zaru_updates += 1;
+            self.zaru_updates += 1;
         }
         Ok(())
+    }
+
+    fn counters(&self, stats: &mut FusionStats) {
+        stats.zupt_updates = self.zupt_updates;
+        stats.zaru_updates = self.zaru_updates;
+        stats.standstill_s = self.still_s;
     }
 }
