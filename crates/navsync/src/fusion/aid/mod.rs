@@ -49,10 +49,12 @@ use zupt::StandstillSource;
 
 /// One aid source: control logic and measurement model.
 ///
-/// The model is the source's `observation` (z, H, R at the current
-/// state); the control logic decides whether a measurement is due and
-/// fuses it through [`Core::apply`], counting the outcome. A source reads and corrects the filter core, never
-/// another source (the sources are out of the core while they run).
+/// The model (z, H, R at the current state, from the rows of
+/// [`crate::filter`]) is built in the source's file; the control logic
+/// decides whether a measurement is due and fuses it through
+/// [`Core::apply`], counting the outcome. A source reads and corrects the
+/// filter core, never another source (the sources are out of the core
+/// while they run).
 pub(super) trait AidSource {
     /// Whether a measurement is due at the current epoch (configuration,
     /// schedule, pending input).
@@ -99,12 +101,12 @@ impl AidSources {
     }
 
     /// Every source, in the order they are fused at an epoch.
-    fn all_ref(&self) -> [&dyn AidSource; 4] {
+    fn all(&self) -> [&dyn AidSource; 4] {
         [&self.gnss, &self.nhc, &self.standstill, &self.odometer]
     }
 
     /// Every source, mutable, in the same order.
-    fn all(&mut self) -> [&mut dyn AidSource; 4] {
+    fn all_mut(&mut self) -> [&mut dyn AidSource; 4] {
         [
             &mut self.gnss,
             &mut self.nhc,
@@ -115,7 +117,7 @@ impl AidSources {
 
     /// The statistics with every source's counters written in.
     pub(super) fn counters(&self, stats: &mut FusionStats) {
-        for source in self.all_ref() {
+        for source in self.all() {
             source.counters(stats);
         }
     }
@@ -130,7 +132,7 @@ impl AidSources {
     /// Fuses every source's measurements that are due at the epoch (a
     /// fusion can make a later source due or not: each is asked in turn).
     fn fuse_due(&mut self, core: &mut Core) -> Result<(), Error> {
-        for source in self.all() {
+        for source in self.all_mut() {
             if source.due(core) {
                 source.fuse(core)?;
             }
@@ -143,7 +145,7 @@ impl Core {
     /// Fuses the aid sources that are due at the epoch (most epochs have
     /// none: then the sources stay in place).
     pub(super) fn fuse_due(&mut self) -> Result<(), Error> {
-        if !self.aid.all_ref().iter().any(|s| s.due(self)) {
+        if !self.aid.all().iter().any(|s| s.due(self)) {
             return Ok(());
         }
         self.with_sources(|aid, core| aid.fuse_due(core))
