@@ -1,6 +1,18 @@
-//! Real-time latency modes: the fixed-lag output predictor, the INS
-//! extrapolation of late fixes (seed 002 step 5) and the delayed-state
-//! update with its state history.
+//! Real-time latency modes, as policies over the delayed-measurement
+//! buffer ([`DelayBuffer`], `aid/buffer.rs`):
+//!
+//! | mode | fix on arrival | IMU sample |
+//! |---|---|---|
+//! | offline | into the core's buffer, fused at its processing time | fused at once |
+//! | naive | fused now, stamped now | fused at once |
+//! | fixed lag | into the core's buffer | buffered; the core runs `lag_s` behind, the output is predicted through the buffer (PX4 EKF2's delayed horizon and output predictor) |
+//! | extrapolate | moved by the INS change since its time (seed 002 step 5), fused now | fused; the solution kept 5 s for that |
+//! | delayed state | past the solution: the stored core before it is restored, the fix inserted, the buffered samples re-run | fused; core every 50 ms and samples kept `max_latency_s` |
+//!
+//! Each buffer is a [`DelayBuffer`] keyed by GPS time. The delayed-state
+//! log of received fixes (`applied`) stays apart from the core's buffer:
+//! a restored core brings back its buffer as of its time, and the fixes
+//! received since are queued into it again from the log.
 
 use super::*;
 
@@ -38,6 +50,22 @@ pub(super) struct HistoryEntry {
     pub(super) pos: Geodetic,
     pub(super) vel: Vector3<f64>,
 }
+
+impl Timed for HistoryEntry {
+    fn time(&self) -> GpsTime {
+        self.time
+    }
+}
+
+impl Timed for Core {
+    /// A stored core is keyed by its solution time.
+    fn time(&self) -> GpsTime {
+        self.nav.time
+    }
+}
+
+/// How long the extrapolation mode keeps the solution (s).
+const HISTORY_S: f64 = 5.0;
 
 impl Fusion {
     /// (a) The filter consumes samples `lag_s` behind; the output is its
@@ -125,6 +153,20 @@ impl Fusion {
         self.core.gnss_update(&moved)
     }
 
+    /// Keeps the solution for [`Self::extrapolated_update`].
+    pub(super) fn record_history(&mut self, o: &NavOutput) {
+        self.history.push_back(HistoryEntry {
+            time: o.nav.time,
+            pos: o.nav.pos,
+            vel: o.nav.vel,
+        });
+        let oldest = o.nav.time.add_seconds(-HISTORY_S);
+        while self.history.len() > 2 && self.history[1].time <= oldest {
+            self.history.pop_front();
+        }
+    }
+
+    /// The solution at `t`, interpolated in the history.
     pub(super) fn history_at(&self, t: GpsTime) -> Option<HistoryEntry> {
         let h = &self.history;
         let n = h.len();
@@ -134,7 +176,7 @@ impl Fusion {
         if t >= h[n - 1].time {
             return Some(h[n - 1]);
         }
-        let i = h.partition_point(|e| e.time <= t).clamp(1, n - 1);
+        let i = h.count_through(t).clamp(1, n - 1);
         let (a, b) = (h[i - 1], h[i]);
         let u = (t - a.time) as f64 / (b.time - a.time) as f64;
         Some(HistoryEntry {
@@ -146,6 +188,31 @@ impl Fusion {
             ),
             vel: a.vel + (b.vel - a.vel) * u,
         })
+    }
+
+    /// (c) The core runs on the samples as they come; the samples and
+    /// stored cores a fix up to `max_latency_s` old can need are kept.
+    pub(super) fn push_imu_delayed_state(
+        &mut self,
+        sample: &ImuSample,
+        max_latency_s: f64,
+    ) -> Result<Option<NavOutput>, Error> {
+        let out = self.core.push_imu(sample)?;
+        if out.is_some() {
+            self.imu_buffer.push_back(*sample);
+            self.maybe_snapshot();
+            let oldest = sample.time.add_seconds(-max_latency_s);
+            while self.snapshots.len() > 1 && self.snapshots[1].nav.time <= oldest {
+                self.snapshots.pop_front();
+            }
+            let keep_from = self
+                .snapshots
+                .front()
+                .map(|s| s.nav.time)
+                .unwrap_or(sample.time);
+            self.imu_buffer.drop_through(keep_from);
+        }
+        Ok(out)
     }
 
     /// Stores the filter state every [`SNAPSHOT_INTERVAL_NS`] (a delayed fix
@@ -184,20 +251,15 @@ impl Fusion {
         // Fixes already applied after the snapshot must be applied again.
         let t_snap = core.nav.time;
         for f in &self.applied {
-            if core.proc_time(f) > t_snap && !core.pending.iter().any(|p| p.time == f.time) {
+            if core.proc_time(f) > t_snap && !core.pending.contains_time(f.time) {
                 core.queue(*f);
             }
         }
         core.queue(fix);
         self.applied.push_back(fix);
         let oldest = self.snapshots[0].nav.time;
-        while self
-            .applied
-            .front()
-            .is_some_and(|f| self.core.proc_time(f) < oldest)
-        {
-            self.applied.pop_front();
-        }
+        let current = &self.core;
+        self.applied.drop_while(|f| current.proc_time(f) < oldest);
         self.snapshots.truncate(k + 1);
         let replay: Vec<ImuSample> = self
             .imu_buffer

@@ -24,14 +24,12 @@
 //!   the [`LatencyMode`]s.
 //!
 //! Files: this one holds the engine ([`Fusion`]) and its filter core
-//! (mechanization, gaps, covariance propagation, feedback); each aid source
-//! has its own file with its model and control logic: `aid_gnss.rs` (GNSS
-//! position and velocity, gating, robust weighting), `aid_vehicle.rs`
-//! (non-holonomic constraint, odometer, standstill), `aid_time_offset.rs`
-//! (the time-offset state); `latency.rs` the real-time latency modes;
-//! `config.rs` the settings and statistics.
+//! (mechanization, gaps, covariance propagation); `aid/` the aid sources,
+//! one file each behind one trait, their common update path and the
+//! delayed-measurement buffer (the design of PX4 EKF2's `aid_sources/`,
+//! see `aid/mod.rs`); `latency.rs` the real-time latency modes, policies
+//! over that buffer; `config.rs` the settings and statistics.
 
-use std::collections::VecDeque;
 use std::sync::Arc;
 
 use nalgebra::{Matrix3, Vector3};
@@ -40,7 +38,7 @@ use serde::Serialize;
 use crate::earth::{Geodetic, LocalEarth};
 use crate::error::{Diagnostics, Error};
 use crate::filter::dense::{self, Mat};
-use crate::filter::gnss::{self, GnssFix};
+use crate::filter::gnss::GnssFix;
 use crate::filter::nhc::VehicleConstraint;
 use crate::filter::standstill::{self, StandstillDetector, StandstillOptions, StillWindow};
 use crate::filter::{
@@ -53,17 +51,16 @@ use crate::smoother::{NodeNominal, Recorder, Smoothed};
 use crate::stats::chi2_quantile;
 use crate::time::GpsTime;
 
-mod aid_gnss;
-mod aid_time_offset;
-mod aid_vehicle;
+mod aid;
 mod config;
 mod latency;
 #[cfg(test)]
 mod tests;
 
-pub use aid_gnss::MAX_GNSS_SD_M;
-use aid_gnss::{RejectedFix, ResidualMemo, invalid_fix};
-use aid_time_offset::Kinematics;
+pub use aid::gnss::MAX_GNSS_SD_M;
+use aid::gnss::invalid_fix;
+use aid::time_offset::Kinematics;
+use aid::{AidSources, DelayBuffer, Timed};
 pub use config::*;
 use latency::{HistoryEntry, Predictor};
 
@@ -79,34 +76,17 @@ struct Core {
     started: bool,
     last_time: GpsTime,
     nominal_dt: f64,
-    gate: Option<f64>,
-    consecutive_rejects: usize,
-    /// The last fix rejected by the gate in the current run of rejections.
-    last_rejected: Option<RejectedFix>,
-    /// When a fix over the gate was last accepted as INS drift.
-    last_drift_accept: Option<GpsTime>,
-    /// Robust weighting: the run of fixes rejected on every axis.
-    rejected_run: Vec<RejectedFix>,
-    /// Robust weighting: the inverse-gamma posterior (α, β) of the noise
-    /// scale of each axis of position and velocity, and when it was set.
-    noise_scale: [([(f64, f64); 3], GpsTime); 2],
-    /// Robust weighting: the last fix's posterior residual, per slot.
-    last_residual: [Option<ResidualMemo>; 2],
-    /// The last fix used (time and position), to spot repeated ones.
-    last_fix: Option<(GpsTime, Geodetic, Geodetic)>,
+    /// The aid sources and their control state.
+    aid: AidSources,
     /// Per-observation records since the wrapper last drained them.
     fix_log: Vec<FixRecord>,
-    pending: VecDeque<GnssFix>,
+    /// The delayed-measurement buffer: fixes waiting for the solution to
+    /// reach their processing time.
+    pending: DelayBuffer<GnssFix>,
     last_w_ib: Vector3<f64>,
-    /// Standstill detection, and the still window awaiting its updates.
-    still_detector: Option<StandstillDetector>,
-    still_window: Option<StillWindow>,
     /// The initial heading is unknown (σ > 90°): yaw is never updated.
     heading_unknown: bool,
     kin: Kinematics,
-    next_nhc: GpsTime,
-    next_odo: GpsTime,
-    pending_speed: Option<f64>,
     odo_scale: f64,
     odo_scale_index: Option<usize>,
     tau: f64,
@@ -176,12 +156,6 @@ impl Core {
             p.set_block3(idx::ATT, idx::BA, &p_att_ba);
             p.set_block3(idx::BA, idx::ATT, &p_att_ba.transpose());
         }
-        let gate = match cfg.gnss_weighting {
-            GnssWeighting::Gate { prob } if prob > 0.0 && prob < 1.0 => {
-                Some(chi2_quantile(prob, 3.0))
-            }
-            _ => None,
-        };
         let record_steps = cfg.time_offset.is_some_and(|t| t.search_range_s > 0.0);
         Core {
             nav: cfg.init_nav,
@@ -191,33 +165,12 @@ impl Core {
             started: false,
             last_time: cfg.init_nav.time,
             nominal_dt: 1.0 / cfg.imu_rate_hz,
-            gate,
-            consecutive_rejects: 0,
-            last_rejected: None,
-            last_drift_accept: None,
-            rejected_run: Vec::new(),
-            noise_scale: [(
-                [(0.0, 0.0); 3].map(|_| {
-                    let p = match cfg.gnss_weighting {
-                        GnssWeighting::Robust(rw) => 0.5 * rw.prior_fixes,
-                        _ => 1.0,
-                    };
-                    (p, p)
-                }),
-                cfg.init_nav.time,
-            ); 2],
-            last_residual: [None; 2],
-            last_fix: None,
+            aid: AidSources::new(&cfg),
             fix_log: Vec::new(),
-            pending: VecDeque::new(),
+            pending: DelayBuffer::default(),
             last_w_ib: Vector3::zeros(),
-            still_detector: cfg.standstill.map(StandstillDetector::new),
-            still_window: None,
             heading_unknown: cfg.init_std.att.z > std::f64::consts::FRAC_PI_2,
             kin: Kinematics::default(),
-            next_nhc: cfg.init_nav.time,
-            next_odo: cfg.init_nav.time,
-            pending_speed: None,
             odo_scale: 0.0,
             odo_scale_index,
             tau,
@@ -259,8 +212,7 @@ impl Core {
     /// Number of accepted corrections so far (any change of the state by
     /// the filter).
     fn corrections(&self) -> usize {
-        let s = &self.stats;
-        s.gnss_fixes_used + s.gnss_velocity_used + s.nhc_updates + s.odometer_updates
+        self.aid.corrections()
     }
 
     /// Processing time of a fix: its tag corrected by the offset estimate.
@@ -273,8 +225,12 @@ impl Core {
     }
 
     fn queue(&mut self, fix: GnssFix) {
-        if self.pending.iter().any(|p| p.time == fix.time)
-            || self.last_fix.is_some_and(|(t, _, _)| t == fix.time)
+        if self.pending.contains_time(fix.time)
+            || self
+                .aid
+                .gnss
+                .last_fix
+                .is_some_and(|(t, _, _)| t == fix.time)
         {
             self.stats.gnss_fixes_duplicate += 1;
             self.notes.push(format!(
@@ -297,8 +253,7 @@ impl Core {
             ));
             return;
         }
-        let pos = self.pending.partition_point(|f| f.time <= fix.time);
-        self.pending.insert(pos, fix);
+        self.pending.insert(fix);
     }
 
     fn push_imu(&mut self, sample: &ImuSample) -> Result<Option<NavOutput>, Error> {
@@ -323,8 +278,7 @@ impl Core {
             }
             self.nav.time = sample.time;
             self.last_time = sample.time;
-            self.next_nhc = sample.time;
-            self.next_odo = sample.time;
+            self.aid.start(sample.time);
             let first = self
                 .imu
                 .compensate(&sample.dtheta, &sample.dvel, self.nominal_dt);
@@ -351,10 +305,11 @@ impl Core {
             self.handle_gap(dt, &mut dtheta, &mut dvel);
         }
         if let Some(speed) = sample.odo_speed {
-            self.pending_speed = Some(speed);
+            self.aid.odometer.speed_mps = Some(speed);
         }
 
-        // Split the interval at every GNSS fix inside it.
+        // Split the interval at every GNSS fix inside it (the buffer's
+        // measurements are fused at their own time).
         let mut start = self.last_time;
         while let Some(fix) = self.pending.front().copied() {
             let tp = self.proc_time(&fix);
@@ -388,13 +343,7 @@ impl Core {
         self.last_time = sample.time;
         self.stats.imu_samples += 1;
 
-        while let Some(fix) = self.pending.front().copied()
-            && self.proc_time(&fix) <= sample.time
-        {
-            self.pending.pop_front();
-            self.gnss_update(&fix)?;
-        }
-        self.vehicle_updates()?;
+        self.fuse_due()?;
         if self.filter.pending_dt() >= self.cfg.cov_step_s {
             self.propagate();
             self.stats.covariance_propagations += 1;
@@ -427,9 +376,7 @@ impl Core {
             *dvel *= ratio;
         }
         self.mech.reset_history();
-        if let Some(d) = self.still_detector.as_mut() {
-            d.reset();
-        }
+        self.aid.standstill.reset();
         self.notes.push(format!(
             "IMU data gap of {:.4} s ({:.1} nominal periods) ending at {}: {}",
             dt,
@@ -450,18 +397,12 @@ impl Core {
         }
         let inc: Increment = self.imu.compensate(dtheta, dvel, dt);
         self.last_w_ib = inc.dtheta / dt;
-        if let Some(d) = self.still_detector.as_mut() {
+        if self.aid.standstill.detector.is_some() {
             let speed = self.nav.vel.x.hypot(self.nav.vel.y);
-            let window_s = d.options().window_s;
             let f_n = self.nav.q_nb * (inc.dvel / dt);
-            match d.push(&f_n, &self.last_w_ib, &self.imu.gyro_bias, dt, speed) {
-                Some(Some(w)) => {
-                    self.still_window = Some(w);
-                    self.stats.standstill_s += window_s;
-                }
-                Some(None) => self.still_window = None,
-                None => {}
-            }
+            self.aid
+                .standstill
+                .detect(&f_n, &self.last_w_ib, &self.imu.gyro_bias, dt, speed);
         }
         let step = self.mech.step(&mut self.nav, &inc);
         self.filter.accumulate(&step);
@@ -471,48 +412,6 @@ impl Core {
             self.steps.push((t, step.dv_n, dt, lever_n));
         }
     }
-
-    fn apply(
-        &mut self,
-        obs: &Observation,
-        gate: Option<f64>,
-        frozen: &[usize],
-    ) -> Result<UpdateOutcome, Error> {
-        self.propagate();
-        // An unknown heading (σ beyond 90°: a vehicle that never moved) is
-        // held: a small-angle error model linearised at a wrong heading
-        // would let the lever arm or gyrocompassing terms "observe" it.
-        let held_yaw;
-        let frozen = if self.heading_unknown {
-            held_yaw = [frozen, &[crate::filter::idx::ATT + 2]].concat();
-            &held_yaw[..]
-        } else {
-            frozen
-        };
-        let outcome = self
-            .filter
-            .update_with_frozen(obs, gate, frozen, self.nav.time)?;
-        if outcome.accepted {
-            feedback(
-                &outcome.dx,
-                self.filter.layout(),
-                &mut self.nav,
-                &mut self.imu,
-            );
-            if let Some(i) = self.odo_scale_index {
-                self.odo_scale -= outcome.dx[i];
-            }
-            if let Some(i) = self.tau_index {
-                self.tau -= outcome.dx[i];
-            }
-            if let Some(i) = self.gnss_bias_index {
-                for k in 0..3 {
-                    self.gnss_bias[k] -= outcome.dx[i + k];
-                }
-            }
-        }
-        Ok(outcome)
-    }
 }
 
 /// The streaming engine.
@@ -520,12 +419,17 @@ pub struct Fusion {
     core: Core,
     search: Option<CoarseOffsetSearch>,
     search_reported: bool,
-    // Real-time latency handling.
-    history: VecDeque<HistoryEntry>,
-    snapshots: VecDeque<Core>,
-    imu_buffer: VecDeque<ImuSample>,
-    /// Fixes inserted in the delayed-state window (re-queued on a restore).
-    applied: VecDeque<GnssFix>,
+    // Real-time latency handling (`latency.rs`).
+    /// Extrapolation: the recent solutions.
+    history: DelayBuffer<HistoryEntry>,
+    /// Delayed state: the stored filter cores.
+    snapshots: DelayBuffer<Core>,
+    /// Fixed lag and delayed state: the IMU samples after the filter's
+    /// horizon.
+    imu_buffer: DelayBuffer<ImuSample>,
+    /// Delayed state: the fixes received within the stored window, in
+    /// arrival order (re-queued on a restore).
+    applied: DelayBuffer<GnssFix>,
     predictor: Option<Predictor>,
     replays: usize,
     now: GpsTime,
@@ -547,10 +451,10 @@ impl Fusion {
             core: Core::new(Arc::new(cfg)),
             search,
             search_reported: false,
-            history: VecDeque::new(),
-            snapshots: VecDeque::new(),
-            imu_buffer: VecDeque::new(),
-            applied: VecDeque::new(),
+            history: DelayBuffer::default(),
+            snapshots: DelayBuffer::default(),
+            imu_buffer: DelayBuffer::default(),
+            applied: DelayBuffer::default(),
             predictor: None,
             replays: 0,
             now,
@@ -657,6 +561,7 @@ impl Fusion {
 
     pub fn stats(&self) -> FusionStats {
         let mut s = self.core.stats.clone();
+        self.core.aid.counters(&mut s);
         s.delayed_state_replays = self.replays;
         s
     }
@@ -709,7 +614,7 @@ impl Fusion {
 
     /// Sets the odometer speed (m/s) used at the next odometer update.
     pub fn push_speed(&mut self, speed_mps: f64) {
-        self.core.pending_speed = Some(speed_mps);
+        self.core.aid.odometer.speed_mps = Some(speed_mps);
     }
 
     fn drain_notes(&mut self) {
@@ -779,42 +684,17 @@ impl Fusion {
         let out = match self.cfg().latency {
             LatencyMode::FixedLag { lag_s } => self.push_imu_lagged(sample, lag_s)?,
             LatencyMode::DelayedState { max_latency_s } => {
+                self.push_imu_delayed_state(sample, max_latency_s)?
+            }
+            LatencyMode::Extrapolate => {
                 let out = self.core.push_imu(sample)?;
-                if out.is_some() {
-                    self.imu_buffer.push_back(*sample);
-                    self.maybe_snapshot();
-                    // Keep the states (and samples after them) that a fix up
-                    // to `max_latency_s` old can need.
-                    let oldest = sample.time.add_seconds(-max_latency_s);
-                    while self.snapshots.len() > 1 && self.snapshots[1].nav.time <= oldest {
-                        self.snapshots.pop_front();
-                    }
-                    let keep_from = self
-                        .snapshots
-                        .front()
-                        .map(|s| s.nav.time)
-                        .unwrap_or(sample.time);
-                    while self.imu_buffer.front().is_some_and(|s| s.time <= keep_from) {
-                        self.imu_buffer.pop_front();
-                    }
+                if let Some(o) = &out {
+                    self.record_history(o);
                 }
                 out
             }
-            _ => self.core.push_imu(sample)?,
+            LatencyMode::Offline | LatencyMode::Naive => self.core.push_imu(sample)?,
         };
-        if let Some(o) = &out
-            && self.cfg().latency == LatencyMode::Extrapolate
-        {
-            self.history.push_back(HistoryEntry {
-                time: o.nav.time,
-                pos: o.nav.pos,
-                vel: o.nav.vel,
-            });
-            let oldest = o.nav.time.add_seconds(-5.0);
-            while self.history.len() > 2 && self.history[1].time <= oldest {
-                self.history.pop_front();
-            }
-        }
         self.feed_search();
         self.drain_notes();
         self.store_nodes()?;

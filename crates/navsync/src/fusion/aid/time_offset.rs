@@ -1,22 +1,25 @@
-//! Aid source: the IMU–GNSS time offset τ as a filter state (seed 004
-//! eqs 11–16): the kinematics that make it observable, holding it while it
-//! is not, and the coarse search's re-initialisation.
+//! The IMU–GNSS time offset τ as a filter state (Wang, Guan & Ding 2019:
+//! seed 004 eqs 11–16): its columns in the GNSS rows, the kinematics that
+//! make it observable, holding it while it is not, and the coarse search's
+//! re-initialisation. τ has no measurement of its own (it is observed
+//! through the GNSS rows), so this file controls a state, not an
+//! [`super::AidSource`].
 
 use super::*;
 
 /// Exponential-moving-average kinematics of the solution, used to decide
 /// whether the time offset is observable and for the velocity row −a.
 #[derive(Copy, Clone, Debug, Default)]
-pub(super) struct Kinematics {
-    pub(super) acc: Vector3<f64>,
-    pub(super) acc_slow: Vector3<f64>,
+pub(in crate::fusion) struct Kinematics {
+    pub(in crate::fusion) acc: Vector3<f64>,
+    pub(in crate::fusion) acc_slow: Vector3<f64>,
 }
 
 impl Kinematics {
-    pub(super) const TAU_FAST_S: f64 = 0.05;
-    pub(super) const TAU_SLOW_S: f64 = 1.0;
+    pub(in crate::fusion) const TAU_FAST_S: f64 = 0.05;
+    pub(in crate::fusion) const TAU_SLOW_S: f64 = 1.0;
 
-    pub(super) fn push(&mut self, step: &StepInfo) {
+    pub(in crate::fusion) fn push(&mut self, step: &StepInfo) {
         if step.dt <= 0.0 {
             return;
         }
@@ -29,16 +32,39 @@ impl Kinematics {
 }
 
 impl Core {
+    /// The position row's τ column: ∂z/∂δτ = −v of the antenna (seed 004
+    /// eq 15).
+    pub(in crate::fusion) fn offset_column_position(&self, obs: &mut Observation) {
+        if let Some(i) = self.tau_index {
+            let lever = self.cfg.antenna_lever_b;
+            let c = self.nav.c_nb();
+            let w_nb = crate::ins::omega_nb_b(&self.nav, &self.last_w_ib);
+            let v_ant = self.nav.vel + c * w_nb.cross(&lever);
+            for r in 0..3 {
+                obs.h.set(r, i, -v_ant[r]);
+            }
+        }
+    }
+
+    /// The velocity row's τ column: ∂z/∂δτ = −a (seed 004 eqs 11–16).
+    pub(in crate::fusion) fn offset_column_velocity(&self, obs: &mut Observation) {
+        if let Some(i) = self.tau_index {
+            for r in 0..3 {
+                obs.h.set(r, i, -self.kin.acc[r]);
+            }
+        }
+    }
+
     /// Whether the motion currently carries information on the time offset:
     /// the fix's along-track offset −v·δτ can only be told from a position
     /// error while the velocity changes (speed or direction).
-    pub(super) fn offset_observable(&self) -> bool {
+    pub(in crate::fusion) fn offset_observable(&self) -> bool {
         let speed = (self.nav.vel.x.powi(2) + self.nav.vel.y.powi(2)).sqrt();
         let acc_h = self.kin.acc_slow.norm();
         speed > 0.5 && acc_h > 0.1
     }
 
-    pub(super) fn frozen_states(&mut self) -> Vec<usize> {
+    pub(in crate::fusion) fn frozen_states(&mut self) -> Vec<usize> {
         match (self.tau_index, self.cfg.time_offset) {
             (Some(i), Some(to)) => {
                 self.tau_observable = self.offset_observable();
@@ -54,7 +80,7 @@ impl Core {
     }
 
     /// Re-initialises τ̂ from the coarse search when the filter disagrees.
-    pub(super) fn adopt_coarse(&mut self, est: &OffsetEstimate) -> Option<String> {
+    pub(in crate::fusion) fn adopt_coarse(&mut self, est: &OffsetEstimate) -> Option<String> {
         let i = self.tau_index?;
         let sd_f = self.filter.sd(i);
         let diff = self.tau - est.offset_s;

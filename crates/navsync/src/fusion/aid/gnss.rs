@@ -1,18 +1,22 @@
 //! Aid source: GNSS position and velocity fixes. The observation models
-//! (lever arm, time-offset columns), validity checks, the χ² gate with its
-//! reopening rule, robust (IGG-III / Huber) down-weighting and the drift
-//! acceptance after an outage.
+//! (antenna lever arm: KF-GINS algorithm document, `filter/gnss.rs`; the
+//! Gauss–Markov error states; τ's columns from `time_offset.rs`), validity
+//! checks, the χ² gate with its reopening rule, robust (IGG-III / Huber)
+//! down-weighting and the drift acceptance after an outage.
+//!
+//! Position and velocity are one source: a fix's velocity row is fused
+//! only after its position was used, with the same held states.
 
 use super::*;
 
 /// A GNSS position fix the gate rejected: its innovation and noise, and the
 /// NIS ratio (NIS / gate) of the first rejection of its run.
 #[derive(Clone)]
-pub(super) struct RejectedFix {
-    pub(super) time: GpsTime,
-    pub(super) z: Vec<f64>,
-    pub(super) r: Mat,
-    pub(super) first_ratio: f64,
+struct RejectedFix {
+    time: GpsTime,
+    z: Vec<f64>,
+    r: Mat,
+    first_ratio: f64,
 }
 
 /// Largest stated GNSS σ (m or m/s) taken at face value: beyond it a fix
@@ -21,7 +25,7 @@ pub const MAX_GNSS_SD_M: f64 = 1000.0;
 
 /// Why a fix cannot be used at all, if so: non-finite values, σ that are
 /// not positive, or σ beyond [`MAX_GNSS_SD_M`].
-pub(super) fn invalid_fix(fix: &GnssFix) -> Option<String> {
+pub(in crate::fusion) fn invalid_fix(fix: &GnssFix) -> Option<String> {
     let p = &fix.pos;
     if !(p.lat_rad.is_finite() && p.lon_rad.is_finite() && p.h_m.is_finite()) {
         return Some("its position is not a number".into());
@@ -65,26 +69,26 @@ pub(super) fn invalid_fix(fix: &GnssFix) -> Option<String> {
 
 /// Consecutive fixes further apart than this (s) are not differenced:
 /// the INS is then no longer a sharp relative reference.
-pub(super) const PAIR_MAX_GAP_S: f64 = 2.5;
+const PAIR_MAX_GAP_S: f64 = 2.5;
 
 /// A used fix's posterior residual (robust weighting), for the next
 /// fix's differenced innovation.
 #[derive(Copy, Clone, Debug)]
-pub(super) struct ResidualMemo {
-    pub(super) time: GpsTime,
+struct ResidualMemo {
+    time: GpsTime,
     /// z⁺ = predicted (after the update) − measured.
-    pub(super) residual: Vector3<f64>,
+    residual: Vector3<f64>,
     /// Diagonal of H P⁺ Hᵀ.
-    pub(super) hph_post: Vector3<f64>,
+    hph_post: Vector3<f64>,
     /// Diagonal of the stated R.
-    pub(super) r_stated: Vector3<f64>,
+    r_stated: Vector3<f64>,
 }
 /// A fix whose R grew by more than ×2 on some axis is reported as
 /// down-weighted.
-pub(super) const DOWN_WEIGHTED_BELOW: f64 = 0.5;
+const DOWN_WEIGHTED_BELOW: f64 = 0.5;
 
 /// zᵀ S⁻¹ z, or `None` when S is not positive definite.
-pub(super) fn nis_of(s: &Mat, z: &[f64]) -> Option<f64> {
+fn nis_of(s: &Mat, z: &[f64]) -> Option<f64> {
     let l = dense::cholesky(s)?;
     let mut x = z.to_vec();
     dense::cholesky_solve(&l, &mut x);
@@ -96,7 +100,7 @@ impl RejectedFix {
     /// Whether `obs` (innovation covariance `s`) agrees with this earlier
     /// fix: the difference of the innovations passes the χ² `threshold`
     /// with covariance S_k + R_{k−1}.
-    pub(super) fn agrees_with(&self, obs: &Observation, s: &Mat, threshold: f64) -> bool {
+    fn agrees_with(&self, obs: &Observation, s: &Mat, threshold: f64) -> bool {
         if self.z.len() != obs.z.len() {
             return false;
         }
@@ -112,7 +116,7 @@ impl RejectedFix {
 /// The covariance inflation that makes an innovation's size match its
 /// covariance, λ = (zᵀz − tr R) / tr(H P Hᵀ) (the moment estimate of an
 /// adaptive fading factor, Xia et al. 1994), within [1, MAX_INFLATION].
-pub(super) fn moment_inflation(obs: &Observation, s: &Mat) -> Option<f64> {
+fn moment_inflation(obs: &Observation, s: &Mat) -> Option<f64> {
     let m = obs.dim();
     let z2: f64 = obs.z.iter().map(|x| x * x).sum();
     let tr_r: f64 = (0..m).map(|i| obs.r.get(i, i)).sum();
@@ -122,101 +126,193 @@ pub(super) fn moment_inflation(obs: &Observation, s: &Mat) -> Option<f64> {
 }
 
 /// Fixes further apart than this (s) are not compared with each other.
-pub(super) const CONSISTENCY_MAX_GAP_S: f64 = 5.0;
+const CONSISTENCY_MAX_GAP_S: f64 = 5.0;
 /// A run of rejections that began with a NIS above this multiple of the
 /// gate (an innovation more than twice the gate's radius) started with a
 /// jump: a GNSS fault, never taken for INS drift.
-pub(super) const SMOOTH_START_RATIO: f64 = 4.0;
+const SMOOTH_START_RATIO: f64 = 4.0;
 /// At most one drift acceptance in this long (s): drift beyond the model is
 /// an episode (a hard turn with misaligned gyros); a disagreement that keeps
 /// coming back is systematic (late time tags, a wrong lever arm) and
 /// inflating P for it again and again would let biased fixes tear the
 /// attitude apart. Then the gate and its reopening rule stand.
-pub(super) const CONSISTENCY_COOLDOWN_S: f64 = 60.0;
+const CONSISTENCY_COOLDOWN_S: f64 = 60.0;
 /// Robust weighting: a run of this many rejected fixes that agree with
 /// each other is taken as INS drift however it began (a fault that stays
 /// consistent that long cannot be told from drift; KF-GINS would have
 /// followed it from the start).
-pub(super) const LONG_DRIFT_RUN: usize = 10;
+const LONG_DRIFT_RUN: usize = 10;
 /// Largest covariance inflation of one drift acceptance.
-pub(super) const MAX_INFLATION: f64 = 100.0;
+const MAX_INFLATION: f64 = 100.0;
 
-impl Core {
+/// Control state of the GNSS source: the gate and its run of
+/// rejections, the robust weighting's noise scales and residuals, the
+/// last fix used.
+#[derive(Clone, Default)]
+pub(in crate::fusion) struct GnssSource {
+    /// The χ² gate (3 degrees of freedom) when gating is on.
+    gate: Option<f64>,
+    consecutive_rejects: usize,
+    /// The last fix rejected by the gate in the current run of rejections.
+    last_rejected: Option<RejectedFix>,
+    /// When a fix over the gate was last accepted as INS drift.
+    last_drift_accept: Option<GpsTime>,
+    /// Robust weighting: the run of fixes rejected on every axis.
+    rejected_run: Vec<RejectedFix>,
+    /// Robust weighting: the inverse-gamma posterior (α, β) of the noise
+    /// scale of each axis of position and velocity, and when it was set.
+    noise_scale: [([(f64, f64); 3], GpsTime); 2],
+    /// Robust weighting: the last fix's posterior residual, per slot.
+    last_residual: [Option<ResidualMemo>; 2],
+    /// The last fix used (time, fix position, solution position), to spot
+    /// repeated ones.
+    pub(in crate::fusion) last_fix: Option<(GpsTime, Geodetic, Geodetic)>,
+    pub(in crate::fusion) counts: GnssCounts,
+}
+
+/// What became of the fixes this source weighed.
+#[derive(Clone, Copy, Default)]
+pub(in crate::fusion) struct GnssCounts {
+    pub(in crate::fusion) fixes_used: usize,
+    fixes_rejected: usize,
+    fixes_downweighted: usize,
+    fixes_accepted_consistent: usize,
+    pub(in crate::fusion) velocity_used: usize,
+    velocity_rejected: usize,
+    velocity_downweighted: usize,
+    gate_reopened: usize,
+    stale: usize,
+}
+
+impl GnssSource {
+    pub(in crate::fusion) fn new(cfg: &FusionConfig) -> Self {
+        let gate = match cfg.gnss_weighting {
+            GnssWeighting::Gate { prob } if prob > 0.0 && prob < 1.0 => {
+                Some(chi2_quantile(prob, 3.0))
+            }
+            _ => None,
+        };
+        let prior = match cfg.gnss_weighting {
+            GnssWeighting::Robust(rw) => 0.5 * rw.prior_fixes,
+            _ => 1.0,
+        };
+        GnssSource {
+            gate,
+            noise_scale: [([(prior, prior); 3], cfg.init_nav.time); 2],
+            ..Default::default()
+        }
+    }
+}
+
+impl AidSource for GnssSource {
+    /// A fix in the delayed buffer whose processing time the solution
+    /// reached.
+    fn due(&self, core: &Core) -> bool {
+        core.pending
+            .front()
+            .is_some_and(|f| core.proc_time(f) <= core.nav.time)
+    }
+
+    fn fuse(&mut self, core: &mut Core) -> Result<(), Error> {
+        // τ̂ moves with each fix: the processing time is taken anew.
+        while self.due(core) {
+            if let Some(fix) = core.pending.pop_front() {
+                self.fuse_fix(core, &fix)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn counters(&self, stats: &mut FusionStats) {
+        let c = &self.counts;
+        stats.gnss_fixes_used = c.fixes_used;
+        stats.gnss_fixes_rejected = c.fixes_rejected;
+        stats.gnss_fixes_downweighted = c.fixes_downweighted;
+        stats.gnss_fixes_accepted_consistent = c.fixes_accepted_consistent;
+        stats.gnss_velocity_used = c.velocity_used;
+        stats.gnss_velocity_rejected = c.velocity_rejected;
+        stats.gnss_velocity_downweighted = c.velocity_downweighted;
+        stats.gate_reopened = c.gate_reopened;
+        stats.gnss_fixes_stale = c.stale;
+    }
+}
+
+impl GnssSource {
     /// The position observation of a fix, with the time-offset column.
-    pub(super) fn position_obs(&self, fix: &GnssFix) -> Observation {
-        let lever = self.cfg.antenna_lever_b;
-        let mut obs = gnss::position(&self.nav, fix, &lever, self.filter.n());
-        if let (Some(i), Some(m)) = (self.gnss_bias_index, &self.cfg.gnss_error) {
+    fn position_obs(core: &Core, fix: &GnssFix) -> Observation {
+        let lever = core.cfg.antenna_lever_b;
+        let mut obs = crate::filter::gnss::position(&core.nav, fix, &lever, core.filter.n());
+        if let (Some(i), Some(m)) = (core.gnss_bias_index, &core.cfg.gnss_error) {
             // Predicted fix r̂_ant + b̂: z gains +b̂, ∂z/∂δb = I; R keeps the
             // white part of the stated σ.
             for k in 0..3 {
-                obs.z[k] += self.gnss_bias[k];
+                obs.z[k] += core.gnss_bias[k];
                 obs.h.set(k, i + k, 1.0);
                 let r = obs.r.get(k, k);
                 let gm2 = m.gm_sd_m[k] * m.gm_sd_m[k];
                 obs.r.set(k, k, (r - gm2).max(0.09 * r));
             }
         }
-        if let Some(i) = self.tau_index {
-            // ∂z/∂δτ = −v of the antenna (seed 004 eq 15).
-            let c = self.nav.c_nb();
-            let w_nb = crate::ins::omega_nb_b(&self.nav, &self.last_w_ib);
-            let v_ant = self.nav.vel + c * w_nb.cross(&lever);
-            for r in 0..3 {
-                obs.h.set(r, i, -v_ant[r]);
-            }
-        }
+        core.offset_column_position(&mut obs);
         obs
     }
 
     /// The velocity observation of a fix (when it has one), with the
     /// time-offset column.
-    pub(super) fn velocity_obs(&self, fix: &GnssFix) -> Option<Observation> {
-        let lever = self.cfg.antenna_lever_b;
-        let mut obs = gnss::velocity(&self.nav, fix, &lever, &self.last_w_ib, self.filter.n())?;
-        if let Some(i) = self.tau_index {
-            for r in 0..3 {
-                obs.h.set(r, i, -self.kin.acc[r]);
-            }
-        }
+    fn velocity_obs(core: &Core, fix: &GnssFix) -> Option<Observation> {
+        let lever = core.cfg.antenna_lever_b;
+        let mut obs = crate::filter::gnss::velocity(
+            &core.nav,
+            fix,
+            &lever,
+            &core.last_w_ib,
+            core.filter.n(),
+        )?;
+        core.offset_column_velocity(&mut obs);
         Some(obs)
     }
 
-    pub(super) fn gnss_update(&mut self, fix: &GnssFix) -> Result<(), Error> {
-        if self.is_stale(fix) {
+    /// Fuses one fix now (control: staleness, then the configured
+    /// weighting), and remembers it.
+    pub(in crate::fusion) fn fuse_fix(
+        &mut self,
+        core: &mut Core,
+        fix: &GnssFix,
+    ) -> Result<(), Error> {
+        if self.is_stale(core, fix) {
             return Ok(());
         }
-        match self.cfg.gnss_weighting {
-            GnssWeighting::Robust(rw) => self.robust_gnss_update(fix, &rw)?,
-            GnssWeighting::Off | GnssWeighting::Gate { .. } => self.gated_gnss_update(fix)?,
+        match core.cfg.gnss_weighting {
+            GnssWeighting::Robust(rw) => self.robust_gnss_update(core, fix, &rw)?,
+            GnssWeighting::Off | GnssWeighting::Gate { .. } => self.gated_gnss_update(core, fix)?,
         }
-        self.last_fix = Some((fix.time, fix.pos, self.nav.pos));
+        self.last_fix = Some((fix.time, fix.pos, core.nav.pos));
         Ok(())
     }
 
     /// A fix whose position repeats the previous fix's to the last bit
     /// while the solution moved more than 1 m: a receiver repeating a stale
     /// output. Reported and skipped.
-    pub(super) fn is_stale(&mut self, fix: &GnssFix) -> bool {
+    fn is_stale(&mut self, core: &mut Core, fix: &GnssFix) -> bool {
         let Some((_, prev_pos, prev_nav)) = self.last_fix else {
             return false;
         };
         if prev_pos != fix.pos {
             return false;
         }
-        let le = LocalEarth::new(&self.nav.pos, &self.nav.vel);
+        let le = LocalEarth::new(&core.nav.pos, &core.nav.vel);
         let moved = le
             .geodetic_delta_to_ned(
-                self.nav.pos.lat_rad - prev_nav.lat_rad,
-                self.nav.pos.lon_rad - prev_nav.lon_rad,
-                self.nav.pos.h_m - prev_nav.h_m,
+                core.nav.pos.lat_rad - prev_nav.lat_rad,
+                core.nav.pos.lon_rad - prev_nav.lon_rad,
+                core.nav.pos.h_m - prev_nav.h_m,
             )
             .norm();
         if moved <= 1.0 {
             return false;
         }
-        self.stats.gnss_fixes_stale += 1;
-        self.notes.push(format!(
+        self.counts.stale += 1;
+        core.notes.push(format!(
             "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.1} m: a stale receiver output; ignored",
             fix.time
         ));
@@ -224,15 +320,15 @@ impl Core {
     }
 
     /// The first round's rule: χ² gate, drift acceptance, reopening.
-    pub(super) fn gated_gnss_update(&mut self, fix: &GnssFix) -> Result<(), Error> {
-        let obs = self.position_obs(fix);
-        let frozen = self.frozen_states();
-        let gate = if self.consecutive_rejects >= self.cfg.max_consecutive_rejects {
+    fn gated_gnss_update(&mut self, core: &mut Core, fix: &GnssFix) -> Result<(), Error> {
+        let obs = Self::position_obs(core, fix);
+        let frozen = core.frozen_states();
+        let gate = if self.consecutive_rejects >= core.cfg.max_consecutive_rejects {
             None
         } else {
             self.gate
         };
-        let outcome = self.apply(&obs, gate, &frozen)?;
+        let outcome = core.apply(&obs, gate, &frozen)?;
         let mut record = FixRecord {
             time: fix.time,
             sow: fix.time.sow(),
@@ -246,7 +342,7 @@ impl Core {
         if !outcome.accepted
             && let Some(threshold) = gate
         {
-            let verdict = self.consistent_with_last_rejected(&obs, fix.time, threshold);
+            let verdict = self.consistent_with_last_rejected(core, &obs, fix.time, threshold);
             record.status = match verdict {
                 Some(_) => FixStatus::DriftAccepted,
                 None => {
@@ -254,22 +350,22 @@ impl Core {
                     FixStatus::Rejected
                 }
             };
-            self.fix_log.push(record);
+            core.fix_log.push(record);
             match verdict {
                 Some(factor) => {
-                    self.notes.push(format!(
+                    core.notes.push(format!(
                         "GNSS fix at {} over the gate (NIS {:.1} > {:.1}) accepted: it agrees with the previous rejected fix, so the INS drifted beyond its covariance; covariance inflated x{:.2}",
                         fix.time, outcome.nis, threshold, factor
                     ));
-                    self.filter.inflate(factor);
-                    self.apply(&obs, None, &frozen)?;
-                    self.stats.gnss_fixes_accepted_consistent += 1;
+                    core.filter.inflate(factor);
+                    core.apply(&obs, None, &frozen)?;
+                    self.counts.fixes_accepted_consistent += 1;
                     self.last_drift_accept = Some(fix.time);
                 }
                 None => {
                     self.consecutive_rejects += 1;
-                    self.stats.gnss_fixes_rejected += 1;
-                    self.notes.push(format!(
+                    self.counts.fixes_rejected += 1;
+                    core.notes.push(format!(
                         "GNSS fix at {} rejected by the innovation gate (innovation {:.3} m, NIS {:.1} > {:.1})",
                         fix.time,
                         Vector3::from_column_slice(&obs.z).norm(),
@@ -291,26 +387,26 @@ impl Core {
             }
         }
         if outcome.accepted {
-            self.fix_log.push(record);
+            core.fix_log.push(record);
         }
         self.last_rejected = None;
         if gate.is_none() && self.gate.is_some() {
-            self.stats.gate_reopened += 1;
-            self.notes.push(format!(
+            self.counts.gate_reopened += 1;
+            core.notes.push(format!(
                 "GNSS fix at {} accepted without gating after {} consecutive rejections",
                 fix.time, self.consecutive_rejects
             ));
         }
         self.consecutive_rejects = 0;
-        self.stats.gnss_fixes_used += 1;
-        if self.cfg.use_gnss_velocity
-            && let Some(obs) = self.velocity_obs(fix)
+        self.counts.fixes_used += 1;
+        if core.cfg.use_gnss_velocity
+            && let Some(obs) = Self::velocity_obs(core, fix)
         {
-            if self.apply(&obs, self.gate, &frozen)?.accepted {
-                self.stats.gnss_velocity_used += 1;
+            if core.apply(&obs, self.gate, &frozen)?.accepted {
+                self.counts.velocity_used += 1;
             } else {
-                self.stats.gnss_velocity_rejected += 1;
-                self.notes.push(format!(
+                self.counts.velocity_rejected += 1;
+                core.notes.push(format!(
                     "GNSS velocity at {} rejected by the innovation gate",
                     fix.time
                 ));
@@ -320,36 +416,37 @@ impl Core {
     }
 
     /// Robust GNSS update ([`RobustWeighting`]): position, then velocity.
-    pub(super) fn robust_gnss_update(
+    fn robust_gnss_update(
         &mut self,
+        core: &mut Core,
         fix: &GnssFix,
         rw: &RobustWeighting,
     ) -> Result<(), Error> {
-        let frozen = self.frozen_states();
-        let obs = self.position_obs(fix);
-        let status = self.robust_apply(obs, 0, fix.time, rw, &frozen)?;
+        let frozen = core.frozen_states();
+        let obs = Self::position_obs(core, fix);
+        let status = self.robust_apply(core, obs, 0, fix.time, rw, &frozen)?;
         match status {
             FixStatus::Rejected => {
-                self.stats.gnss_fixes_rejected += 1;
+                self.counts.fixes_rejected += 1;
                 return Ok(());
             }
-            FixStatus::DownWeighted => self.stats.gnss_fixes_downweighted += 1,
-            FixStatus::DriftAccepted => self.stats.gnss_fixes_accepted_consistent += 1,
+            FixStatus::DownWeighted => self.counts.fixes_downweighted += 1,
+            FixStatus::DriftAccepted => self.counts.fixes_accepted_consistent += 1,
             FixStatus::Used => {}
         }
-        self.stats.gnss_fixes_used += 1;
-        if self.cfg.use_gnss_velocity
-            && let Some(obs) = self.velocity_obs(fix)
+        self.counts.fixes_used += 1;
+        if core.cfg.use_gnss_velocity
+            && let Some(obs) = Self::velocity_obs(core, fix)
         {
-            match self.robust_apply(obs, 1, fix.time, rw, &frozen)? {
+            match self.robust_apply(core, obs, 1, fix.time, rw, &frozen)? {
                 FixStatus::Rejected => {
-                    self.stats.gnss_velocity_rejected += 1;
+                    self.counts.velocity_rejected += 1;
                     return Ok(());
                 }
-                FixStatus::DownWeighted => self.stats.gnss_velocity_downweighted += 1,
+                FixStatus::DownWeighted => self.counts.velocity_downweighted += 1,
                 _ => {}
             }
-            self.stats.gnss_velocity_used += 1;
+            self.counts.velocity_used += 1;
         }
         Ok(())
     }
@@ -374,18 +471,19 @@ impl Core {
     ///    ŝ = max(1, β/α): no fix is trusted more than it claims.
     /// 2. Gross errors: the IGG-III weight w_i of v_i = z_i/√(HPHᵀ + ŝR)_ii.
     /// 3. The update with R' = diag(ŝ_i R_i / w_i).
-    pub(super) fn robust_apply(
+    fn robust_apply(
         &mut self,
+        core: &mut Core,
         mut obs: Observation,
         slot: usize,
         time: GpsTime,
         rw: &RobustWeighting,
         frozen: &[usize],
     ) -> Result<FixStatus, Error> {
-        self.propagate();
+        core.propagate();
         let r_stated = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
         let sd = [0, 1, 2].map(|i| r_stated[i].sqrt());
-        let s_stated = self.filter.innovation_covariance(&obs);
+        let s_stated = core.filter.innovation_covariance(&obs);
         let nis = nis_of(&s_stated, &obs.z).unwrap_or(f64::INFINITY);
         let mut hph =
             Matrix3::from_fn(|r, c| s_stated.get(r, c)) - Matrix3::from_diagonal(&r_stated);
@@ -448,7 +546,7 @@ impl Core {
         let mut drift = false;
         if slot == 0 {
             if w.iter().any(|w| *w < 1.0) {
-                drift = self.robust_drift_check(&obs, &s_stated, time, rw)?;
+                drift = self.robust_drift_check(core, &obs, &s_stated, time, rw)?;
             } else {
                 self.rejected_run.clear();
             }
@@ -456,12 +554,12 @@ impl Core {
         if drift {
             record.status = FixStatus::DriftAccepted;
             w = [1.0; 3];
-            let s = self.filter.innovation_covariance(&obs);
+            let s = core.filter.innovation_covariance(&obs);
             hph = Matrix3::from_fn(|r, c| s.get(r, c)) - Matrix3::from_diagonal(&r_stated);
         } else if w.iter().all(|w| *w == 0.0) {
             record.status = FixStatus::Rejected;
-            self.fix_log.push(record);
-            self.notes.push(format!(
+            core.fix_log.push(record);
+            core.notes.push(format!(
                 "GNSS {kind} at {time} rejected by robust weighting (innovation {:.3}, NIS {:.1}; beyond {} σ)",
                 z.norm(),
                 nis,
@@ -486,7 +584,7 @@ impl Core {
         {
             record.status = FixStatus::DownWeighted;
         }
-        self.apply(&obs, None, frozen)?;
+        core.apply(&obs, None, frozen)?;
         // Posterior residual z⁺ = R' S⁻¹ z and H P⁺ Hᵀ = HPHᵀ S⁻¹ R'.
         let r_mat = Matrix3::from_diagonal(&r_eff);
         self.last_residual[slot] = (hph + r_mat).try_inverse().map(|s_inv| {
@@ -498,7 +596,7 @@ impl Core {
                 r_stated,
             }
         });
-        self.fix_log.push(record);
+        core.fix_log.push(record);
         Ok(record.status)
     }
 
@@ -512,8 +610,9 @@ impl Core {
     /// adaptive fading factor, Xia et al. 1994), capped at
     /// [`MAX_INFLATION`], at most once per [`CONSISTENCY_COOLDOWN_S`].
     /// Returns whether P was inflated.
-    pub(super) fn robust_drift_check(
+    fn robust_drift_check(
         &mut self,
+        core: &mut Core,
         obs: &Observation,
         s: &Mat,
         time: GpsTime,
@@ -550,11 +649,11 @@ impl Core {
         let Some(factor) = moment_inflation(obs, s) else {
             return Ok(false);
         };
-        self.notes.push(format!(
+        core.notes.push(format!(
             "GNSS fix at {time}: {} consecutive disagreeing fixes agree with each other, so the INS drifted beyond its covariance; covariance inflated x{factor:.2}",
             self.rejected_run.len()
         ));
-        self.filter.inflate(factor);
+        core.filter.inflate(factor);
         self.last_drift_accept = Some(time);
         self.rejected_run.clear();
         Ok(true)
@@ -572,8 +671,9 @@ impl Core {
     /// (λ = (zᵀz − tr R) / tr(H P Hᵀ), the moment estimate of an adaptive
     /// fading factor, Xia et al. 1994), at least 1, at most
     /// [`MAX_INFLATION`]; none within [`CONSISTENCY_COOLDOWN_S`] of the last.
-    pub(super) fn consistent_with_last_rejected(
+    fn consistent_with_last_rejected(
         &self,
+        core: &Core,
         obs: &Observation,
         time: GpsTime,
         threshold: f64,
@@ -590,7 +690,7 @@ impl Core {
         {
             return None;
         }
-        let s = self.filter.innovation_covariance(obs);
+        let s = core.filter.innovation_covariance(obs);
         if !prev.agrees_with(obs, &s, threshold) {
             return None;
         }
