@@ -33,7 +33,7 @@ pub struct OffsetEstimate {
 }
 
 /// Streaming coarse offset search.
-pub struct CoarseOffsetSearch {
+pub(crate) struct CoarseOffsetSearch {
     range_s: f64,
     grid: Vec<f64>,
     cost: Vec<f64>,

@@ -60,7 +60,7 @@ use crate::time::GpsTime;
 
 /// A temporary file of fixed-size records of `f64`, removed when dropped.
 /// Written once in order, then read in any order through a block cache.
-pub struct RecordFile {
+pub(crate) struct RecordFile {
     path: PathBuf,
     record_len: usize,
     writer: Option<BufWriter<File>>,
@@ -109,10 +109,6 @@ impl RecordFile {
     /// Number of records.
     pub fn len(&self) -> usize {
         self.len
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
     }
 
     /// Bytes on disk.
@@ -196,7 +192,7 @@ fn time_from_f64(v: f64) -> GpsTime {
 /// The forward filter's nominal values of the states that are not
 /// navigation states, after a node's corrections.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct NodeNominal {
+pub(crate) struct NodeNominal {
     pub imu: ImuErrors,
     /// Time offset τ̂ (s) and odometer scale, when they are states.
     pub time_offset_s: f64,
@@ -260,7 +256,7 @@ fn read_upper(v: &[f64], n: usize) -> Mat {
 }
 
 /// The forward run's nodes (on disk) and its IMU-rate solution (on disk).
-pub struct Recorder {
+pub(crate) struct Recorder {
     n: usize,
     nodes: RecordFile,
     tape: RecordFile,
@@ -390,7 +386,7 @@ impl Recorder {
 
 /// The smoothed error of a node's corrected nominal and its covariance.
 #[derive(Clone, Debug)]
-pub struct BackwardStep {
+pub(crate) struct BackwardStep {
     pub e: Vec<f64>,
     pub p: Mat,
 }
@@ -398,7 +394,7 @@ pub struct BackwardStep {
 /// One RTS step: node k's posterior covariance `p_plus`, node k+1 and its
 /// smoothed estimate. Returns node k's smoothed estimate, and false when
 /// P⁻ₖ₊₁ had to be regularised.
-pub fn rts_step(p_plus: &Mat, next: &SmootherNode, next_s: &BackwardStep) -> (BackwardStep, bool) {
+pub(crate) fn rts_step(p_plus: &Mat, next: &SmootherNode, next_s: &BackwardStep) -> (BackwardStep, bool) {
     let n = p_plus.rows;
     // M = Φ P⁺ ; Aᵀ = (P⁻)⁻¹ M, column by column.
     let mut m = Mat::zeros(0, 0);
