@@ -35,7 +35,6 @@ pub mod offset_search;
 pub mod pipeline;
 pub mod reduced;
 pub mod sensor;
-pub mod sim;
 pub mod smoother;
 pub mod stats;
 #[cfg(test)]
