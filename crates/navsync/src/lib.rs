@@ -41,6 +41,7 @@ pub mod stats;
 mod testutil;
 pub mod time;
 pub mod timing;
+pub mod types;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
 pub use time::{GpsTime, OutageWindow};
