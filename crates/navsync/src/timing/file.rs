@@ -10,9 +10,9 @@ use std::sync::mpsc;
 use super::report::{SyncReport, TruthAccumulator, TruthTimes, format_week_sow};
 use super::{IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncOutput};
 use crate::error::{Diagnostics, Error};
-use crate::ins::ImuSample;
 use crate::io::kfgins::{TextWriter, format_gnss_line};
 use crate::io::riglog::{RigLogReader, RigRecord};
+use crate::types::ImuSample;
 
 /// What a synchronization run produced.
 pub struct SyncSummary {
