@@ -17,11 +17,11 @@ use navsync::navigator::{NavSink, Navigator, NullSink, Step};
 use navsync::pipeline::{
     FuseOptions, OutageSchedule, SmoothOptions, batch_navigator, fusion_config,
 };
-use navsync::sim::Simulation;
-use navsync::sim::scenario::{Scenario, base_layer, parse_override, set_path};
 use navsync::timing::file::{sync_file, write_kfgins_config};
 use navsync::timing::{SyncConfig, SyncMode};
 use navsync_report::drive::{DriveOptions, process_drive};
+use navsync_sim::Simulation;
+use navsync_sim::scenario::{Scenario, base_layer, parse_override, set_path};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyValueError};
 use pyo3::prelude::*;

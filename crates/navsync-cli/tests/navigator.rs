@@ -65,7 +65,7 @@ fn streamed_rig_records_navigate_like_the_batch_chain() {
     let written: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("sim/scenario.json")).unwrap())
             .unwrap();
-    let scenario: navsync::sim::scenario::Scenario =
+    let scenario: navsync_sim::scenario::Scenario =
         serde_json::from_value(written["scenario"].clone()).unwrap();
     let opts: FuseOptions = navsync_sim::chain::ChainOptions::for_scenario(&scenario).fuse;
     assert_eq!(Some(opts.week), week);

@@ -20,11 +20,11 @@ use std::time::Duration;
 
 use navsync::earth::{Geodetic, gravity, omega_ie_n};
 use navsync::io::text::push_f64;
-use navsync::sim::rng;
 use navsync::time::{GpsTime, NS_PER_S};
 use navsync_receivers::gnsstime::{UtcTime, gps_to_unix_ns};
 use navsync_receivers::nmea::{Date, Gga, Gst, Rmc};
 use navsync_receivers::ubx::{EsfRaw, EsfRawBlock, NavPvt, encode_frame, esf_type};
+use navsync_sim::rng;
 
 use crate::hostclock;
 use crate::pps::PpsInjector;

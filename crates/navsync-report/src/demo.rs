@@ -14,9 +14,9 @@ use std::time::Instant;
 use navsync::Error;
 use navsync::eval::EvalReport;
 use navsync::pipeline::KfGinsSink;
-use navsync::sim::Simulation;
-use navsync::sim::scenario::{Scenario, base_layer, set_path};
+use navsync_sim::Simulation;
 use navsync_sim::chain::{ChainDirs, ChainOptions, outage_windows, run_chain, true_time_offset_s};
+use navsync_sim::scenario::{Scenario, base_layer, set_path};
 use serde::Serialize;
 
 use crate::inputs::ReportInputs;

@@ -7,14 +7,14 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::imu::OutputKind;
+use crate::rig::SyncMode as RigSync;
+use crate::scenario::Scenario;
+use crate::{SimReport, Simulation};
 use navsync::error::{Diagnostics, Error};
 use navsync::fusion::{GnssErrorModel, TimeOffsetOptions};
 use navsync::io::config::KfGinsConfig;
 use navsync::pipeline::{self, FuseOptions, FuseSummary, NavSink};
-use navsync::sim::imu::OutputKind;
-use navsync::sim::rig::SyncMode as RigSync;
-use navsync::sim::scenario::Scenario;
-use navsync::sim::{SimReport, Simulation};
 use navsync::time::{GpsTime, OutageWindow};
 use navsync::timing::file::{SyncSummary, sync_file, write_kfgins_config};
 use navsync::timing::{RateRule, SyncConfig, SyncMode};
@@ -214,8 +214,8 @@ pub fn run_chain(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use navsync::sim::imu::Decimation;
-    use navsync::sim::scenario::base_layer;
+    use crate::imu::Decimation;
+    use crate::scenario::base_layer;
 
     #[test]
     fn options_follow_the_rig() {

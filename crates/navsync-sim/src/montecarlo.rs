@@ -19,12 +19,12 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::chain::{ChainDirs, ChainOptions, outage_windows, run_chain, true_time_offset_s};
+use crate::{Scenario, Simulation};
 use navsync::error::Error;
 use navsync::eval::{EpochError, EvalReport, Evaluator, TruthScorer};
 use navsync::fusion::TimeOffsetState;
 use navsync::ins::{ImuErrors, NavState};
 use navsync::pipeline::NavSink;
-use navsync::sim::{Scenario, Simulation};
 use navsync::stats::{chi2_quantile, quantile};
 use navsync::time::GpsTime;
 
@@ -517,7 +517,7 @@ pub fn write_json(report: &McReport, dir: &Path) -> Result<PathBuf, Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use navsync::sim::scenario::base_layer;
+    use crate::scenario::base_layer;
 
     #[test]
     fn nees_region_and_counts() {
@@ -543,8 +543,7 @@ mod tests {
     #[test]
     fn a_small_study_runs_the_whole_chain() {
         let mut layer = base_layer("demo").unwrap();
-        navsync::sim::scenario::set_path(&mut layer, "duration_s", serde_json::json!(200.0))
-            .unwrap();
+        crate::scenario::set_path(&mut layer, "duration_s", serde_json::json!(200.0)).unwrap();
         let scn = Scenario::from_layer(layer).unwrap();
         let dir = std::env::temp_dir().join(format!("navsync-mc-test-{}", std::process::id()));
         let opts = McOptions {

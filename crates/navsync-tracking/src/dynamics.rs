@@ -5,7 +5,7 @@
 //! Implementations: [`StaticTrajectory`], [`LandVehicleProfile`] (a
 //! compact, smooth, seeded land-vehicle drive whose jerk stays below 1 g/s)
 //! and [`SampledTrajectory`] (any sampled position/velocity track, e.g. a
-//! navsync or KF-GINS navigation file or a `navsync::sim` trajectory).
+//! navsync or KF-GINS navigation file or a `navsync_sim` trajectory).
 
 use nalgebra::Vector3;
 use rand::RngExt;

@@ -237,7 +237,7 @@ fn solve(a: &mut [[f64; 5]; 5], b: &mut [f64; 5], m: usize) -> Option<[f64; 5]> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::rng;
+    use crate::testutil::rng;
 
     #[test]
     fn white_noise_has_slope_minus_half_and_its_density() {

@@ -11,75 +11,13 @@
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
-use crate::attitude::{Euler, euler_to_quat, quat_to_euler, rotvec_to_quat};
+use crate::attitude::rotvec_to_quat;
 use crate::earth::{Geodetic, LocalEarth};
-use crate::time::GpsTime;
 
-/// One IMU record: the increments over the interval that ends at `time`
-/// (FORMATS.md §1: "each row holds the increments over the interval that
-/// ends at `sow`").
-#[derive(Copy, Clone, Debug, PartialEq)]
-pub struct ImuSample {
-    /// End of the interval (GPS time).
-    pub time: GpsTime,
-    /// Angle increment in the body frame (rad).
-    pub dtheta: Vector3<f64>,
-    /// Velocity increment (integral of specific force) in the body frame (m/s).
-    pub dvel: Vector3<f64>,
-    /// Odometer speed (m/s) when the IMU file carries an 8th column.
-    pub odo_speed: Option<f64>,
-}
-
-/// The navigation state of the IMU centre.
-#[derive(Copy, Clone, Debug, PartialEq)]
-pub struct NavState {
-    pub time: GpsTime,
-    pub pos: Geodetic,
-    /// Ground velocity in NED (m/s).
-    pub vel: Vector3<f64>,
-    /// Attitude, body (FRD) to navigation (NED).
-    pub q_nb: UnitQuaternion<f64>,
-}
-
-impl NavState {
-    /// A state from position, velocity and ZYX Euler angles.
-    pub fn new(time: GpsTime, pos: Geodetic, vel: Vector3<f64>, att: &Euler) -> Self {
-        NavState {
-            time,
-            pos,
-            vel,
-            q_nb: euler_to_quat(att),
-        }
-    }
-
-    /// ZYX Euler angles of the attitude.
-    pub fn euler(&self) -> Euler {
-        quat_to_euler(&self.q_nb)
-    }
-
-    /// C_b^n.
-    pub fn c_nb(&self) -> Matrix3<f64> {
-        *self.q_nb.to_rotation_matrix().matrix()
-    }
-}
-
-/// IMU biases, scale factors and axis misalignments (SI: rad/s, m/s²,
-/// dimensionless, rad). Measurement model (KF-GINS algorithm doc, IMU
-/// error compensation, extended by the off-diagonal terms of the usual
-/// 12-parameter triad model, e.g. Groves 2013 §4.4.2):
-/// Δθ̃ = (I + diag(s_g) + M_g) Δθ + b_g Δt, likewise for Δv, with
-/// M = [[0, m₀, m₁], [m₂, 0, m₃], [m₄, m₅, 0]].
-#[derive(Copy, Clone, Debug, Default, PartialEq)]
-pub struct ImuErrors {
-    pub gyro_bias: Vector3<f64>,
-    pub accel_bias: Vector3<f64>,
-    pub gyro_scale: Vector3<f64>,
-    pub accel_scale: Vector3<f64>,
-    /// Off-diagonal terms m₀…m₅ of M_g (rad); zero unless estimated.
-    pub gyro_misalign: [f64; 6],
-    /// Off-diagonal terms of M_a (rad).
-    pub accel_misalign: [f64; 6],
-}
+// The IMU record, the navigation state and the IMU error parameters are
+// base-layer types (io and interp use them); the compensation of the
+// errors and the mechanization are here.
+pub use crate::types::{ImuErrors, ImuSample, NavState};
 
 /// M v for the off-diagonal matrix M of `m` (see [`ImuErrors`]).
 #[inline]

@@ -16,8 +16,8 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use crate::attitude::{quat_to_rotvec, rotvec_to_quat};
 use crate::earth::Geodetic;
-use crate::ins::NavState;
 use crate::time::GpsTime;
+use crate::types::NavState;
 
 /// Lagrange basis weights for interpolating at `t` from samples at `ts`
 /// (offsets in seconds; any spacing, all distinct).

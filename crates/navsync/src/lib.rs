@@ -35,7 +35,6 @@ pub mod offset_search;
 pub mod pipeline;
 pub mod reduced;
 pub mod sensor;
-pub mod sim;
 pub mod smoother;
 pub mod stage;
 pub mod stats;
@@ -43,6 +42,7 @@ pub mod stats;
 mod testutil;
 pub mod time;
 pub mod timing;
+pub mod types;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
 pub use time::{GpsTime, OutageWindow};

@@ -21,9 +21,9 @@ use crate::attitude::Euler;
 use crate::earth::Geodetic;
 use crate::error::Error;
 use crate::filter::{ImuNoise, InitialStd};
+use crate::imu::spec::{PRESET_BIAS_CORR_TIME_S, preset_triads};
 use crate::ins::ImuErrors;
 use crate::io::config::KfGinsConfig;
-use crate::sim::ImuSpec;
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
@@ -123,22 +123,23 @@ pub struct ImuFigures {
 }
 
 impl ImuFigures {
-    /// A preset's figures (the simulator's presets, `crate::sim::imu`).
+    /// A preset's figures (the datasheet figures of [`crate::imu::spec`],
+    /// which the simulator's presets use too).
     pub fn preset(name: &str) -> Option<ImuFigures> {
         if !PRESETS.contains(&name) {
             return None;
         }
-        let s = ImuSpec::preset(name)?;
+        let (gyro, accel) = preset_triads(name)?;
         Some(ImuFigures {
-            arw_deg_sqrt_h: s.gyro.arw_deg_sqrt_h,
-            vrw_mps_sqrt_h: s.accel.vrw_mps_sqrt_h,
-            gyro_bias_instability_deg_h: s.gyro.bias_instability_deg_h,
-            accel_bias_instability_mgal: s.accel.bias_instability_mgal,
-            gyro_turn_on_bias_deg_h: s.gyro.turn_on_bias_deg_h,
-            accel_turn_on_bias_mgal: s.accel.turn_on_bias_mgal,
-            gyro_scale_ppm: s.gyro.scale_ppm,
-            accel_scale_ppm: s.accel.scale_ppm,
-            bias_corr_time_s: s.gm_corr_time_s,
+            arw_deg_sqrt_h: gyro.arw_deg_sqrt_h,
+            vrw_mps_sqrt_h: accel.vrw_mps_sqrt_h,
+            gyro_bias_instability_deg_h: gyro.bias_instability_deg_h,
+            accel_bias_instability_mgal: accel.bias_instability_mgal,
+            gyro_turn_on_bias_deg_h: gyro.turn_on_bias_deg_h,
+            accel_turn_on_bias_mgal: accel.turn_on_bias_mgal,
+            gyro_scale_ppm: gyro.scale_ppm,
+            accel_scale_ppm: accel.scale_ppm,
+            bias_corr_time_s: PRESET_BIAS_CORR_TIME_S,
         })
     }
 

@@ -628,7 +628,7 @@ mod tests {
     /// the process model to 1e-9.
     #[test]
     fn closed_loop_rts_equals_batch_least_squares() {
-        use crate::sim::rng;
+        use crate::testutil::rng;
         let dt: f64 = 0.5;
         let q = 0.04; // acceleration PSD (m²/s³)
         let r = 0.25; // fix variance (m²)

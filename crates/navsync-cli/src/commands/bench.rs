@@ -24,8 +24,8 @@ use navsync::ins::{ImuErrors, NavState};
 use navsync::io::config::KfGinsConfig;
 use navsync::io::kfgins::{GnssLayout, GnssReader, ImuReader};
 use navsync::pipeline::{KfGinsSink, NavSink};
-use navsync::sim::Simulation;
-use navsync::sim::scenario::Scenario;
+use navsync_sim::Simulation;
+use navsync_sim::scenario::Scenario;
 use serde_json::json;
 
 /// KF-GINS (C++) on 1 h of 200 Hz IMU + 1 Hz GNSS, a figure measured

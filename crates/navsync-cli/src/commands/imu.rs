@@ -203,7 +203,11 @@ pub fn run(args: Args) -> Result<()> {
 
 fn check(a: CheckArgs) -> Result<()> {
     let started = Instant::now();
-    let lowpass = a.lowpass.as_deref().map(LowPassFilter::load).transpose()?;
+    let lowpass = a
+        .lowpass
+        .as_deref()
+        .map(|p| LowPassFilter::load_with(p, |t| toml::from_str(t)))
+        .transpose()?;
     let cfg = QualityConfig {
         nominal_rate_hz: a.rate,
         raw_rate_hz: a.raw_rate,
@@ -347,7 +351,11 @@ fn convert(a: ConvertArgs) -> Result<()> {
             regular.len() as f64 / regular.iter().sum::<f64>()
         }
     };
-    let lowpass = a.lowpass.as_deref().map(LowPassFilter::load).transpose()?;
+    let lowpass = a
+        .lowpass
+        .as_deref()
+        .map(|p| LowPassFilter::load_with(p, |t| toml::from_str(t)))
+        .transpose()?;
     let delay_s = lowpass
         .as_ref()
         .map(|f| f.delay_compensation_s())
@@ -591,8 +599,7 @@ fn bench(a: BenchArgs) -> Result<()> {
         None => std::env::temp_dir().join(format!("navsync-imu-bench-{}.txt", std::process::id())),
     };
     let t = Instant::now();
-    let n =
-        navsync::imu::synthetic::write_increment_log(&path, a.hours * 3600.0, a.rate, 300.0, 1)?;
+    let n = navsync_sim::synthetic::write_increment_log(&path, a.hours * 3600.0, a.rate, 300.0, 1)?;
     let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     println!(
         "generated {n} records ({:.1} h at {} Hz, {:.1} MB) in {:.2} s: {}",

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use navsync::sim::scenario::{Scenario, base_layer, parse_override, set_path};
 use navsync_sim::montecarlo::{self, McOptions};
+use navsync_sim::scenario::{Scenario, base_layer, parse_override, set_path};
 use serde_json::json;
 
 #[derive(clap::Args)]

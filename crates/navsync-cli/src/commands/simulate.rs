@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use navsync::sim::scenario::{Scenario, base_layer, parse_override, set_path};
-use navsync::sim::{SimReport, Simulation};
+use navsync_sim::scenario::{Scenario, base_layer, parse_override, set_path};
+use navsync_sim::{SimReport, Simulation};
 use serde_json::{Value, json};
 
 use crate::progress;

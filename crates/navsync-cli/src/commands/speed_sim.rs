@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use navsync::Diagnostics;
-use navsync::sim::speed::{SpeedSimOptions, simulate_speed_file};
+use navsync_sim::speed::{SpeedSimOptions, simulate_speed_file};
 
 use super::print_diagnostics;
 

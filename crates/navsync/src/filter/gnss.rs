@@ -9,23 +9,11 @@ use nalgebra::Vector3;
 
 use super::{Observation, idx};
 use crate::attitude::skew;
-use crate::earth::{Geodetic, LocalEarth};
+use crate::earth::LocalEarth;
 use crate::ins::NavState;
-use crate::time::GpsTime;
 
-/// A GNSS fix of the antenna: position (and optionally velocity) valid at
-/// `time`, with standard deviations in NED.
-#[derive(Copy, Clone, Debug, PartialEq)]
-pub struct GnssFix {
-    pub time: GpsTime,
-    pub pos: Geodetic,
-    /// Position standard deviations N, E, D (m).
-    pub pos_sd: Vector3<f64>,
-    /// NED velocity (m/s), when the receiver gave it.
-    pub vel: Option<Vector3<f64>>,
-    /// Velocity standard deviations N, E, D (m/s).
-    pub vel_sd: Option<Vector3<f64>>,
-}
+// The fix itself is a base-layer type (io reads and writes it).
+pub use crate::types::GnssFix;
 
 /// Antenna position observation for a state with `n` error states.
 pub fn position(nav: &NavState, fix: &GnssFix, lever_b: &Vector3<f64>, n: usize) -> Observation {

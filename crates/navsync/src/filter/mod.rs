@@ -35,6 +35,9 @@ use crate::ins::{ImuErrors, NavState, StepInfo};
 use crate::time::GpsTime;
 use dense::{Mat, RowPattern};
 
+// The IMU noise model and the initial σ are base-layer types (io reads them).
+pub use crate::types::{ImuNoise, InitialStd};
+
 /// Largest supported number of error states.
 pub const MAX_STATES: usize = 40;
 
@@ -133,40 +136,6 @@ impl StateLayout {
     pub fn index_of(&self, name: &str) -> Option<usize> {
         self.extras.iter().find(|e| e.name == name).map(|e| e.index)
     }
-}
-
-/// Continuous-time IMU noise model in SI units (KF-GINS doc §3.4, q(t)):
-/// white noise on rates (ARW, VRW) and first-order Gauss-Markov biases and
-/// scale factors with standard deviations `*_sd` and correlation time.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ImuNoise {
-    /// Angle random walk (rad/√s).
-    pub arw: Vector3<f64>,
-    /// Velocity random walk (m/s/√s).
-    pub vrw: Vector3<f64>,
-    /// Gyro bias instability σ (rad/s).
-    pub gyro_bias_sd: Vector3<f64>,
-    /// Accelerometer bias instability σ (m/s²).
-    pub accel_bias_sd: Vector3<f64>,
-    /// Gyro scale-factor σ (dimensionless).
-    pub gyro_scale_sd: Vector3<f64>,
-    /// Accelerometer scale-factor σ (dimensionless).
-    pub accel_scale_sd: Vector3<f64>,
-    /// Gauss-Markov correlation time (s).
-    pub corr_time_s: f64,
-}
-
-/// Initial standard deviations of the error state (SI units; attitude in
-/// rad about N, E, D).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InitialStd {
-    pub pos: Vector3<f64>,
-    pub vel: Vector3<f64>,
-    pub att: Vector3<f64>,
-    pub gyro_bias: Vector3<f64>,
-    pub accel_bias: Vector3<f64>,
-    pub gyro_scale: Vector3<f64>,
-    pub accel_scale: Vector3<f64>,
 }
 
 /// Sums over the mechanization steps since the last covariance propagation.

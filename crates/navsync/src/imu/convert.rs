@@ -21,7 +21,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::RateSample;
-use crate::ins::ImuSample;
+use crate::types::ImuSample;
 
 /// How rate samples become increments over (t_{k−1}, t_k]: the one rule
 /// every rate path uses (files, rig logs, receivers, live).

@@ -21,8 +21,8 @@ use serde::Serialize;
 use super::convert::{RateRule, RateToIncrement};
 use super::{RateSample, period_ns};
 use crate::error::Error;
-use crate::ins::ImuSample;
 use crate::time::GpsTime;
+use crate::types::ImuSample;
 
 /// The ADIS16465 decimation register: output rate = input rate /
 /// (DEC_RATE + 1) (seed 001 §1.3.1).

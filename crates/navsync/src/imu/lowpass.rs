@@ -252,10 +252,17 @@ impl LowPassFilter {
         Ok(f)
     }
 
-    /// Reads a TOML filter description (see [`LowPassSpec`]).
-    pub fn load(path: &Path) -> Result<Self, Error> {
+    /// Reads a filter description file (see [`LowPassSpec`]) with `parse`,
+    /// the parser of its format: the file form is TOML, and the core has no
+    /// TOML parser, so the reader of the file passes one (the CLI:
+    /// `LowPassFilter::load_with(path, |t| toml::from_str(t))`). Errors name the
+    /// file (and, through the parser's message, the line).
+    pub fn load_with<E: std::fmt::Display>(
+        path: &Path,
+        parse: impl FnOnce(&str) -> Result<LowPassSpec, E>,
+    ) -> Result<Self, Error> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let spec: LowPassSpec = toml::from_str(&text)
+        let spec: LowPassSpec = parse(&text)
             .map_err(|e| Error::config(path, format!("not a filter description: {e}")))?;
         Self::from_spec(&spec).map_err(|e| Error::config(path, e.to_string()))
     }

@@ -24,14 +24,15 @@
 //! - [`quality`]: the streaming log analysis and the seed 001 §1.5 verdict.
 //! - The rate study (the lowest IMU rate that costs no accuracy, by
 //!   simulated GNSS outages, seed 001 §1.3.3) is in `navsync-sim`.
-//! - [`synthetic`]: deterministic test signals (tests and benchmarks).
+//! - [`spec`]: datasheet figures of gyro and accelerometer triads and of
+//!   the named IMU presets (the sensor sheet's and the simulator's).
 
 pub mod convert;
 pub mod decimate;
 pub mod log;
 pub mod lowpass;
 pub mod quality;
-pub mod synthetic;
+pub mod spec;
 
 use nalgebra::Vector3;
 

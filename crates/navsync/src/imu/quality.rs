@@ -2100,7 +2100,7 @@ pub fn check_file(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::imu::synthetic::SyntheticImu;
+    use crate::testutil::SyntheticImu;
     use std::fmt::Write as _;
 
     const RATE: f64 = 200.0;

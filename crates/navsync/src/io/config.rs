@@ -14,8 +14,7 @@ use serde_json::Value;
 use crate::attitude::Euler;
 use crate::earth::Geodetic;
 use crate::error::{Diagnostics, Error};
-use crate::filter::{ImuNoise, InitialStd};
-use crate::ins::ImuErrors;
+use crate::types::{ImuErrors, ImuNoise, InitialStd};
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
 

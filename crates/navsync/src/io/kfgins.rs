@@ -20,9 +20,8 @@ use super::text::{
 };
 use crate::earth::Geodetic;
 use crate::error::{Diagnostics, Error};
-use crate::filter::gnss::GnssFix;
-use crate::ins::{ImuErrors, ImuSample};
 use crate::time::{GpsTime, WeekTracker};
+use crate::types::{GnssFix, ImuErrors, ImuSample};
 
 /// Reads a KF-GINS IMU file: `sow dθx dθy dθz dvx dvy dvz [odo_speed]`.
 pub struct ImuReader {

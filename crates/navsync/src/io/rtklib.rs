@@ -26,8 +26,8 @@ use super::text::{
 };
 use crate::earth::{Geodetic, c_ne, ecef_to_geodetic};
 use crate::error::{Diagnostics, Error};
-use crate::filter::gnss::GnssFix;
 use crate::time::{GpsTime, NS_PER_S, NS_PER_WEEK, WeekTracker};
+use crate::types::GnssFix;
 
 /// Which GNSS file format `fuse` reads (an explicit choice or the `.pos`
 /// extension, reported: never guessed from the numbers).

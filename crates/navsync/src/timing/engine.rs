@@ -108,8 +108,8 @@ pub struct StampedGnss {
 
 impl StampedGnss {
     /// The fix at its time of validity, for the filter or a KF-GINS file.
-    pub fn fix(&self) -> crate::filter::gnss::GnssFix {
-        crate::filter::gnss::GnssFix {
+    pub fn fix(&self) -> crate::types::GnssFix {
+        crate::types::GnssFix {
             time: self.time,
             pos: crate::earth::Geodetic::from_deg(self.lat_deg, self.lon_deg, self.h_m),
             pos_sd: nalgebra::Vector3::from(self.sd_m),

@@ -10,10 +10,10 @@ use std::path::Path;
 use super::report::{SyncReport, TruthAccumulator, TruthTimes, format_week_sow};
 use super::{IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncOutput};
 use crate::error::{Diagnostics, Error};
-use crate::ins::ImuSample;
 use crate::io::kfgins::{TextWriter, format_gnss_line};
 use crate::io::riglog::{RigLogReader, RigRecord};
 use crate::stage::{Consumer, Drain, Producer, Source};
+use crate::types::ImuSample;
 
 /// What a synchronization run produced.
 pub struct SyncSummary {

@@ -7,9 +7,9 @@ use std::collections::{BTreeMap, VecDeque};
 use nalgebra::Vector3;
 
 use super::fit::median;
-use crate::ins::ImuSample;
 use crate::io::riglog::ImuKind;
 use crate::time::{GpsTime, NS_PER_S};
+use crate::types::ImuSample;
 
 /// What the timing found about one IMU record.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]

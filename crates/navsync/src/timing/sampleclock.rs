@@ -578,7 +578,7 @@ impl<T: Clone> SampleClock<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::rng::{self, SimRng};
+    use crate::testutil::rng::{self, SimRng};
 
     /// Receive times of a 200 Hz IMU (+37 ppm) with latencies drawn by
     /// `lat`, FIFO, some samples lost; returns (true index, true time,

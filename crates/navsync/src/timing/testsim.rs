@@ -1,9 +1,10 @@
-//! A compact synthetic rig for the timing tests (to be replaced by
-//! `navsync::sim`): a local counter driven by true time with a frequency
-//! error, a temperature ramp and a frequency random walk, wrapping at its
-//! bit width; PPS edges with jitter, dropouts, displaced and spurious
-//! pulses; GNSS messages with latency and jitter; an IMU on its own clock
-//! with lost and duplicated samples; receive jitter for software sync.
+//! A compact synthetic rig for the timing tests (the full simulator is
+//! `navsync-sim`'s; this one keeps the core's tests free of it): a local
+//! counter driven by true time with a frequency error, a temperature ramp
+//! and a frequency random walk, wrapping at its bit width; PPS edges with
+//! jitter, dropouts, displaced and spurious pulses; GNSS messages with
+//! latency and jitter; an IMU on its own clock with lost and duplicated
+//! samples; receive jitter for software sync.
 //! Records come out in arrival order with the true time of each IMU record.
 
 use crate::io::riglog::{ImuKind, RigGnss, RigHeader, RigRecord};

@@ -2,7 +2,7 @@
 //! the exact IMU increments over any interval.
 //!
 //! The IMU senses (Groves 2013 eqs 5.38 and 5.53, in the NED frame, with
-//! the same Earth model as [`crate::ins::Mechanization`]):
+//! the same Earth model as [`navsync::ins::Mechanization`]):
 //!
 //! ω_ib^b = ω_nb^b + C_n^b (ω_ie^n + ω_en^n)
 //! f^b    = C_n^b (dv^n/dt + (2ω_ie^n + ω_en^n) × v^n − g^n),  g^n = [0, 0, γ(φ, h)]
@@ -24,9 +24,9 @@
 use nalgebra::Vector3;
 
 use super::trajectory::{Cursor, Kinematics, Trajectory};
-use crate::earth::{Geodetic, OMEGA_E, gravity, radii};
-use crate::ins::{ImuSample, NavState};
-use crate::time::GpsTime;
+use navsync::earth::{Geodetic, OMEGA_E, gravity, radii};
+use navsync::ins::{ImuSample, NavState};
+use navsync::time::GpsTime;
 
 /// Position-only Earth terms at a grid node.
 #[derive(Copy, Clone, Debug, Default)]
@@ -397,10 +397,10 @@ impl<'a> TruthGenerator<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::attitude::wrap_pi;
-    use crate::earth::{LocalEarth, ned_offset};
-    use crate::ins::{Increment, Mechanization};
-    use crate::sim::trajectory::{Segment, TrajectoryOptions, builtin_segments};
+    use crate::trajectory::{Segment, TrajectoryOptions, builtin_segments};
+    use navsync::attitude::wrap_pi;
+    use navsync::earth::{LocalEarth, ned_offset};
+    use navsync::ins::{Increment, Mechanization};
 
     fn origin() -> Geodetic {
         Geodetic::from_deg(30.4447873701, 114.4718632047, 20.9)
@@ -581,8 +581,8 @@ mod tests {
     /// that truth follows the reference to the fit's resolution.
     #[test]
     fn fitted_reference_drive_mechanizes_to_its_truth_and_follows_the_reference() {
-        use crate::io::kfgins::NavRecord;
-        use crate::sim::fitted::FittedMotion;
+        use crate::fitted::FittedMotion;
+        use navsync::io::kfgins::NavRecord;
         let source = drive(600.0);
         let mut g = TruthGenerator::new(&source, start());
         let round = |x: f64, d: i32| (x * 10f64.powi(d)).round() / 10f64.powi(d);

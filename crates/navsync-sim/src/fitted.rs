@@ -24,10 +24,10 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::attitude::{Euler, euler_to_dcm};
-use crate::earth::{Geodetic, radii};
-use crate::error::Error;
-use crate::io::kfgins::NavRecord;
+use navsync::attitude::{Euler, euler_to_dcm};
+use navsync::earth::{Geodetic, radii};
+use navsync::error::Error;
+use navsync::io::kfgins::NavRecord;
 
 /// Spline degree (quintic).
 const DEGREE: usize = 5;
@@ -367,7 +367,7 @@ pub fn euler_kinematics(euler: &[f64; 3], rate: &[f64; 3]) -> (Matrix3<f64>, Vec
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::time::GpsTime;
+    use navsync::time::GpsTime;
 
     fn record(t: f64, n: f64, e: f64, yaw_deg: f64, origin: &Geodetic, m: [f64; 2]) -> NavRecord {
         NavRecord {

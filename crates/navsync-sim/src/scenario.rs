@@ -16,7 +16,7 @@ use super::gnss::GnssSpec;
 use super::imu::{IMU_PRESETS, ImuSpec};
 use super::rig::RigSpec;
 use super::trajectory::{BUILTIN_SCENARIOS, Segment, VibrationSpec, builtin_segments};
-use crate::error::Error;
+use navsync::error::Error;
 
 /// Options of the written files.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -404,7 +404,7 @@ fn scenario_error(msg: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::imu::Decimation;
+    use crate::imu::Decimation;
 
     #[test]
     fn layers_apply_in_order() {
@@ -487,7 +487,7 @@ speed_mps = 10
         let scn = Scenario::from_layer(layer).unwrap();
         assert!(matches!(
             scn.rig.temperature,
-            crate::sim::clock::TemperatureSpec::Ramp { rate_c_per_min, .. } if rate_c_per_min == 1.0
+            crate::clock::TemperatureSpec::Ramp { rate_c_per_min, .. } if rate_c_per_min == 1.0
         ));
         // The same variant still merges field by field.
         let mut base = serde_json::json!({"model": "constant", "celsius": 25.0, "x": 1});
@@ -506,7 +506,7 @@ speed_mps = 10
         assert_eq!(scn.gnss.outages.len(), 2);
         assert!(matches!(
             scn.rig.temperature,
-            crate::sim::clock::TemperatureSpec::Exponential { .. }
+            crate::clock::TemperatureSpec::Exponential { .. }
         ));
         let err = Scenario::from_layer(base_layer("moon").unwrap()).unwrap_err();
         assert!(err.to_string().contains("demo"), "{err}");

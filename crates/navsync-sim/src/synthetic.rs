@@ -12,8 +12,8 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
 use rand_pcg::Pcg64;
 
-use super::{RateSample, period_ns};
-use crate::time::GpsTime;
+use navsync::imu::{RateSample, period_ns};
+use navsync::time::GpsTime;
 
 /// A synthetic IMU (see the module docs).
 #[derive(Clone, Debug)]
@@ -107,10 +107,10 @@ pub fn write_increment_log(
     rate_hz: f64,
     static_s: f64,
     seed: u64,
-) -> Result<usize, crate::error::Error> {
-    use super::convert::{RateRule, RateToIncrement};
-    use crate::io::kfgins::{TextWriter, format_imu_line};
-    let mut imu = SyntheticImu::new(rate_hz, 100_000 * crate::time::NS_PER_S, static_s, seed);
+) -> Result<usize, navsync::error::Error> {
+    use navsync::imu::convert::{RateRule, RateToIncrement};
+    use navsync::io::kfgins::{TextWriter, format_imu_line};
+    let mut imu = SyntheticImu::new(rate_hz, 100_000 * navsync::time::NS_PER_S, static_s, seed);
     let mut conv = RateToIncrement::new(RateRule::Trapezoid);
     let mut out = TextWriter::create(path)?;
     let mut buf = Vec::with_capacity(1 << 20);

@@ -6,8 +6,8 @@ use std::path::Path;
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::error::{Diagnostics, Error};
-use crate::time::GpsTime;
+use navsync::error::{Diagnostics, Error};
+use navsync::time::GpsTime;
 
 /// Settings of a simulated odometer made from a truth trajectory.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
@@ -49,13 +49,13 @@ pub fn simulate_speed_file(
     use rand_distr::StandardNormal;
     use std::io::Write;
 
-    let recs = crate::io::kfgins::NavReader::read_all(truth, diag)?;
+    let recs = navsync::io::kfgins::NavReader::read_all(truth, diag)?;
     let file = std::fs::File::create(out).map_err(|e| Error::io(out, e))?;
     let mut w = std::io::BufWriter::new(file);
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(o.seed);
-    let forward = |r: &crate::io::kfgins::NavRecord| {
-        let att = crate::attitude::Euler::from_deg(r.att_deg[0], r.att_deg[1], r.att_deg[2]);
-        (crate::attitude::euler_to_dcm(&att).transpose() * Vector3::from(r.vel)).x
+    let forward = |r: &navsync::io::kfgins::NavRecord| {
+        let att = navsync::attitude::Euler::from_deg(r.att_deg[0], r.att_deg[1], r.att_deg[2]);
+        (navsync::attitude::euler_to_dcm(&att).transpose() * Vector3::from(r.vel)).x
     };
     writeln!(
         w,
@@ -104,4 +104,44 @@ pub fn simulate_speed_file(
     }
     w.flush().map_err(|e| Error::io(out, e))?;
     Ok(n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use navsync::reduced::SpeedStream;
+
+    #[test]
+    fn simulated_speed_follows_the_truth_with_its_scale_error() {
+        let dir = std::env::temp_dir().join(format!("navsync-speedsim-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let truth = dir.join("truth.nav");
+        // Heading 90° (east) at 12 m/s, body forward = east.
+        let mut s = String::new();
+        for k in 0..=200 {
+            s.push_str(&format!(
+                "2300 {:.3} 30.0 114.0 10.0 0.0 12.0 0.0 0.0 0.0 90.0\n",
+                1000.0 + k as f64 * 0.01
+            ));
+        }
+        std::fs::write(&truth, s).unwrap();
+        let out = dir.join("speed.txt");
+        let o = SpeedSimOptions {
+            rate_hz: 10.0,
+            scale_error: 0.02,
+            noise_sd_mps: 0.0,
+            resolution_mps: 0.0,
+            seed: 1,
+        };
+        let mut d = Diagnostics::default();
+        let n = simulate_speed_file(&truth, &out, &o, &mut d).unwrap();
+        assert_eq!(n, 21, "1000.0 to 1002.0 s inclusive at 10 Hz");
+        let mut st = SpeedStream::open(&out, 2300, 0.5).unwrap();
+        let v = st
+            .at(GpsTime::from_week_sow(2300, 1001.0), &mut d)
+            .unwrap()
+            .unwrap();
+        assert!((v - 12.24).abs() < 1e-9, "{v}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }

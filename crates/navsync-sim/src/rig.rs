@@ -24,8 +24,8 @@ use serde::{Deserialize, Serialize};
 use super::clock::{CounterSpec, TemperatureSpec};
 use super::imu::OutputKind;
 use super::rng::{self, SimRng};
-use crate::filter::gnss::GnssFix;
-use crate::time::GpsTime;
+use navsync::filter::gnss::GnssFix;
+use navsync::time::GpsTime;
 
 /// How IMU samples are timed by the logger.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

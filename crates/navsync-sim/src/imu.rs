@@ -36,10 +36,9 @@ use serde::{Deserialize, Serialize};
 
 use super::clock::ImuClockSpec;
 use super::rng::{self, SimRng};
-use crate::ins::ImuErrors;
+pub use navsync::imu::spec::{AccelSpec, G0, GyroSpec};
+use navsync::ins::ImuErrors;
 
-/// Standard gravity (m/s² per g).
-pub const G0: f64 = 9.806_65;
 const DEG: f64 = PI / 180.0;
 const DEG_H: f64 = DEG / 3600.0;
 const MGAL: f64 = 1e-5;
@@ -203,70 +202,6 @@ impl Filter {
     }
 }
 
-/// Gyro triad errors in datasheet units (1σ values; 0 switches a term off).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct GyroSpec {
-    pub arw_deg_sqrt_h: f64,
-    pub bias_instability_deg_h: f64,
-    pub turn_on_bias_deg_h: f64,
-    pub scale_ppm: f64,
-    pub misalignment_deg: f64,
-    /// Saturation (deg/s), 0 = none.
-    pub range_deg_s: f64,
-    /// Quantization step of the rate output (deg/s), 0 = none.
-    pub rate_lsb_deg_s: f64,
-    /// Quantization step of the angle increment (deg), 0 = none.
-    pub delta_lsb_deg: f64,
-}
-
-impl Default for GyroSpec {
-    fn default() -> Self {
-        GyroSpec {
-            arw_deg_sqrt_h: 0.0,
-            bias_instability_deg_h: 0.0,
-            turn_on_bias_deg_h: 0.0,
-            scale_ppm: 0.0,
-            misalignment_deg: 0.0,
-            range_deg_s: 0.0,
-            rate_lsb_deg_s: 0.0,
-            delta_lsb_deg: 0.0,
-        }
-    }
-}
-
-/// Accelerometer triad errors in datasheet units.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct AccelSpec {
-    pub vrw_mps_sqrt_h: f64,
-    pub bias_instability_mgal: f64,
-    pub turn_on_bias_mgal: f64,
-    pub scale_ppm: f64,
-    pub misalignment_deg: f64,
-    /// Saturation (g), 0 = none.
-    pub range_g: f64,
-    /// Quantization step of the specific-force output (m/s²), 0 = none.
-    pub rate_lsb_mps2: f64,
-    /// Quantization step of the velocity increment (m/s), 0 = none.
-    pub delta_lsb_mps: f64,
-}
-
-impl Default for AccelSpec {
-    fn default() -> Self {
-        AccelSpec {
-            vrw_mps_sqrt_h: 0.0,
-            bias_instability_mgal: 0.0,
-            turn_on_bias_mgal: 0.0,
-            scale_ppm: 0.0,
-            misalignment_deg: 0.0,
-            range_g: 0.0,
-            rate_lsb_mps2: 0.0,
-            delta_lsb_mps: 0.0,
-        }
-    }
-}
-
 /// An IMU: its chain, its errors and its sample clock.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -302,7 +237,7 @@ impl Default for ImuSpec {
             filter: None,
             bias_drift: DriftModel::Flicker,
             flicker_band_s: [0.1, 20_000.0],
-            gm_corr_time_s: 3600.0,
+            gm_corr_time_s: navsync::imu::spec::PRESET_BIAS_CORR_TIME_S,
             gyro: GyroSpec::default(),
             accel: AccelSpec::default(),
             clock: ImuClockSpec::default(),
@@ -339,102 +274,24 @@ impl ImuSpec {
     ///   clock (200 Hz really 199.92 Hz);
     /// - `perfect`: no errors, exact increments.
     pub fn preset(name: &str) -> Option<ImuSpec> {
+        // The gyro and accelerometer figures are the datasheets' (the
+        // core's `navsync::imu::spec`, shared with the sensor sheet); the
+        // chain and the clock are the simulator's.
+        let (gyro, accel) = navsync::imu::spec::preset_triads(name)?;
         let base = ImuSpec {
             grade: name.to_string(),
+            gyro,
+            accel,
             ..ImuSpec::default()
         };
         Some(match name {
-            "nav" => ImuSpec {
-                gyro: GyroSpec {
-                    arw_deg_sqrt_h: 0.003,
-                    bias_instability_deg_h: 0.027,
-                    turn_on_bias_deg_h: 0.02,
-                    scale_ppm: 10.0,
-                    misalignment_deg: 0.002,
-                    range_deg_s: 400.0,
-                    ..Default::default()
-                },
-                accel: AccelSpec {
-                    vrw_mps_sqrt_h: 0.03,
-                    bias_instability_mgal: 15.0,
-                    turn_on_bias_mgal: 50.0,
-                    scale_ppm: 20.0,
-                    misalignment_deg: 0.002,
-                    range_g: 20.0,
-                    ..Default::default()
-                },
-                ..base
-            },
-            "tactical" => ImuSpec {
-                gyro: GyroSpec {
-                    arw_deg_sqrt_h: 0.125,
-                    bias_instability_deg_h: 1.0,
-                    turn_on_bias_deg_h: 3.0,
-                    scale_ppm: 150.0,
-                    misalignment_deg: 0.01,
-                    range_deg_s: 1000.0,
-                    ..Default::default()
-                },
-                accel: AccelSpec {
-                    vrw_mps_sqrt_h: 0.04,
-                    bias_instability_mgal: 50.0,
-                    turn_on_bias_mgal: 1000.0,
-                    scale_ppm: 300.0,
-                    misalignment_deg: 0.01,
-                    range_g: 50.0,
-                    ..Default::default()
-                },
-                ..base
-            },
             "adis16465" => ImuSpec {
                 output: OutputKind::Rate,
-                gyro: GyroSpec {
-                    arw_deg_sqrt_h: 0.15,
-                    bias_instability_deg_h: 2.0,
-                    turn_on_bias_deg_h: 10.0,
-                    scale_ppm: 500.0,
-                    misalignment_deg: 0.05,
-                    range_deg_s: 125.0,
-                    // 32-bit outputs: 0.00625°/s/2^16 and 360°/2^31.
-                    rate_lsb_deg_s: 0.00625 / 65536.0,
-                    delta_lsb_deg: 360.0 / 2_147_483_648.0,
-                },
-                accel: AccelSpec {
-                    vrw_mps_sqrt_h: 0.04,
-                    bias_instability_mgal: 3.6 * 0.980_665, // 3.6 µg
-                    turn_on_bias_mgal: 100.0,
-                    scale_ppm: 500.0,
-                    misalignment_deg: 0.05,
-                    range_g: 8.0,
-                    // 1.25 mg/2^16 and 100 m/s/2^31.
-                    rate_lsb_mps2: 1.25e-3 * G0 / 65536.0,
-                    delta_lsb_mps: 100.0 / 2_147_483_648.0,
-                },
                 ..base
             },
             "icm20602" => ImuSpec {
                 internal_rate_hz: 1000.0,
                 output: OutputKind::Rate,
-                gyro: GyroSpec {
-                    arw_deg_sqrt_h: 0.24,
-                    bias_instability_deg_h: 10.0,
-                    turn_on_bias_deg_h: 360.0,
-                    scale_ppm: 5000.0,
-                    misalignment_deg: 0.3,
-                    range_deg_s: 250.0,
-                    rate_lsb_deg_s: 1.0 / 131.0,
-                    ..Default::default()
-                },
-                accel: AccelSpec {
-                    vrw_mps_sqrt_h: 0.059,
-                    bias_instability_mgal: 100.0,
-                    turn_on_bias_mgal: 3000.0,
-                    scale_ppm: 5000.0,
-                    misalignment_deg: 0.3,
-                    range_g: 4.0,
-                    rate_lsb_mps2: G0 / 8192.0,
-                    ..Default::default()
-                },
                 clock: ImuClockSpec {
                     freq_error_ppm: -400.0,
                     temp_coeff_ppm_per_c: 1.0,
@@ -446,7 +303,7 @@ impl ImuSpec {
                 internal_rate_hz: 0.0,
                 ..base
             },
-            _ => return None,
+            _ => base,
         })
     }
 
@@ -1079,7 +936,7 @@ impl ImuSensor {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::allan::{FLICKER_FLOOR_FACTOR, fit_noise, overlapping_adev};
+    use navsync::allan::{FLICKER_FLOOR_FACTOR, fit_noise, overlapping_adev};
 
     /// Static input: Earth rate and gravity at 30° latitude, level, north.
     fn static_input() -> (Vector3<f64>, Vector3<f64>) {

@@ -14,9 +14,9 @@ use serde::{Deserialize, Serialize};
 
 use super::rng::{self, SimRng};
 use super::truth::{TruthGenerator, TruthPoint};
-use crate::earth::{Geodetic, LocalEarth};
-use crate::filter::gnss::GnssFix;
-use crate::time::GpsTime;
+use navsync::earth::{Geodetic, LocalEarth};
+use navsync::filter::gnss::GnssFix;
+use navsync::time::GpsTime;
 
 /// Solution type; sets the default noise.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -424,8 +424,8 @@ impl GnssSim<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::earth::ned_offset;
-    use crate::sim::trajectory::{Segment, Trajectory, TrajectoryOptions};
+    use crate::trajectory::{Segment, Trajectory, TrajectoryOptions};
+    use navsync::earth::ned_offset;
 
     fn traj(segs: &[Segment], heading_deg: f64) -> Trajectory {
         let opts = TrajectoryOptions {

@@ -27,9 +27,9 @@ use std::sync::Arc;
 
 use super::fitted::{FittedMotion, FittedState, euler_kinematics};
 use super::rng;
-use crate::attitude::{Euler, euler_to_quat, rotvec_to_quat, skew};
-use crate::earth::Geodetic;
-use crate::error::Error;
+use navsync::attitude::{Euler, euler_to_quat, rotvec_to_quat, skew};
+use navsync::earth::Geodetic;
+use navsync::error::Error;
 
 /// One transition shape over `[t0, t0 + dur]`, with τ = (t − t0)/dur.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -35,16 +35,16 @@ use super::rng::{self, SimRng};
 use super::scenario::Scenario;
 use super::trajectory::{Trajectory, TrajectoryOptions, Vibration};
 use super::truth::TruthGenerator;
-use crate::earth::{Geodetic, LocalEarth};
-use crate::error::{Diagnostics, Error};
-use crate::filter::gnss::GnssFix;
-use crate::ins::{ImuErrors, ImuSample, NavState};
-use crate::io::kfgins::{
+use navsync::earth::{Geodetic, LocalEarth};
+use navsync::error::{Diagnostics, Error};
+use navsync::filter::gnss::GnssFix;
+use navsync::ins::{ImuErrors, ImuSample, NavState};
+use navsync::io::kfgins::{
     GnssLayout, GnssReader, NavReader, format_gnss_line, format_imu_err_line, format_imu_line,
     format_nav_line,
 };
-use crate::io::text::{push_f64, push_fixed, push_u64};
-use crate::time::GpsTime;
+use navsync::io::text::{push_f64, push_fixed, push_u64};
+use navsync::time::GpsTime;
 
 /// At most this many entries per fault list in `scenario.json`.
 const MAX_LISTED: usize = 10_000;
@@ -640,7 +640,7 @@ impl Simulation {
             "imu_rate_hz": imu_spec.output_rate_hz,
             "models": {
                 "ellipsoid": "WGS-84",
-                "omega_e": crate::earth::OMEGA_E,
+                "omega_e": navsync::earth::OMEGA_E,
                 "gravity": "normal gravity (Somigliana, TR8350.2 eqs 4-1, 4-3) along the ellipsoid normal",
                 "imu_output": "increments = integrals of w_ib^b / f^b over (t_k-1, t_k]; internal chain: samples at internal_rate_hz on the IMU clock, errors, saturation, optional low-pass, DEC_RATE decimation",
                 "imu_error_model": "m = (I + diag(s) + M) x + b_turn_on + b_drift(t) + white; drift = flicker bank or Gauss-Markov",
