@@ -82,7 +82,9 @@ pub enum DriftModel {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum LowPassSpec {
-    /// Triangular (Bartlett) FIR of `taps` taps (ADIS16465 FILT_CTRL kind).
+    /// Triangular (Bartlett) FIR of `taps` taps (ADIS16465 FILT_CTRL kind):
+    /// `navsync::imu::lowpass::triangular_weights`, the window
+    /// `LowPassFilter::bartlett(n)` is for `taps` = 2n − 1.
     Bartlett { taps: usize },
     /// FIR with the given taps (normalised to unit DC gain).
     Fir { taps: Vec<f64> },
@@ -101,9 +103,8 @@ impl LowPassSpec {
                 if *taps == 0 {
                     return Err("bartlett filter needs at least 1 tap".into());
                 }
-                let n = *taps;
-                let b = (0..n).map(|k| (k + 1).min(n - k) as f64).collect();
-                (b, vec![1.0])
+                // The core's triangular window (two moving averages in series).
+                (navsync::imu::lowpass::triangular_weights(*taps), vec![1.0])
             }
             LowPassSpec::Fir { taps } => (taps.clone(), vec![1.0]),
             LowPassSpec::Iir { b, a } => (b.clone(), a.clone()),

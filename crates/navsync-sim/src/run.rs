@@ -43,7 +43,10 @@ use navsync::io::kfgins::{
     GnssLayout, GnssReader, NavReader, format_gnss_line, format_imu_err_line, format_imu_line,
     format_nav_line,
 };
-use navsync::io::text::{push_f64, push_fixed, push_u64};
+use navsync::io::riglog::{
+    ImuKind, ImuTiming, RateSampling, RigGnss, RigHeader, write as rig_write,
+};
+use navsync::io::text::push_u64;
 use navsync::time::GpsTime;
 
 /// At most this many entries per fault list in `scenario.json`.
@@ -318,41 +321,31 @@ impl Simulation {
             tx: Some(tx),
         };
         if rig_log {
-            let mut h = String::new();
-            h.push_str("# rig-log v1\n");
-            h.push_str(&format!("# counter_hz: {}\n", fmt_num(rig.counter.hz)));
-            h.push_str(&format!("# counter_bits: {}\n", rig.counter.bits));
-            h.push_str(&format!(
-                "# imu: {}\n",
+            let mut h = RigHeader::new(
+                rig.counter.hz,
+                rig.counter.bits,
                 match record_kind {
-                    OutputKind::Rate => "rate",
-                    OutputKind::Increment => "increment",
-                }
-            ));
-            h.push_str(&format!(
-                "# imu_rate_hz: {}\n",
-                fmt_num(imu_spec.output_rate_hz)
-            ));
-            let timing = match rig.sync {
-                SyncMode::Hw => "data-ready",
-                SyncMode::Serial => "frame-start",
-                SyncMode::Sw | SyncMode::Hybrid => "receive",
-            };
-            h.push_str(&format!("# imu_timing: {timing}\n"));
+                    OutputKind::Rate => ImuKind::Rate,
+                    OutputKind::Increment => ImuKind::Increment,
+                },
+            );
+            h.imu_rate_hz = Some(imu_spec.output_rate_hz);
+            h.imu_timing = Some(match rig.sync {
+                SyncMode::Hw => ImuTiming::DataReady,
+                SyncMode::Serial => ImuTiming::FrameStart,
+                SyncMode::Sw | SyncMode::Hybrid => ImuTiming::Receive,
+            });
             if record_kind == OutputKind::Rate {
-                h.push_str(if imu_spec.rates_are_interval_averages() {
-                    "# imu_rates: interval-average\n"
+                h.imu_rates = Some(if imu_spec.rates_are_interval_averages() {
+                    RateSampling::IntervalAverage
                 } else {
-                    "# imu_rates: instantaneous\n"
+                    RateSampling::Instantaneous
                 });
             }
             if rig.sync == SyncMode::Serial {
-                h.push_str(&format!(
-                    "# imu_output_delay_s: {}\n",
-                    fmt_num(rig.imu_link.output_delay_s)
-                ));
+                h.imu_output_delay_s = Some(rig.imu_link.output_delay_s);
             }
-            sink.push(Out::RigHeader(h));
+            sink.push(Out::RigHeader(h.to_text()));
         }
 
         // imu_err_truth at whole multiples of the interval.
@@ -1070,27 +1063,29 @@ fn write_files(rx: Receiver<Vec<Out>>, mut f: Files) -> Result<Vec<String>, Erro
                 }
                 Out::RigPps { counter } => {
                     if let Some(r) = &mut f.rig {
-                        r.buf.extend_from_slice(b"pps,");
-                        push_u64(&mut r.buf, counter);
-                        r.buf.push(b'\n');
+                        rig_write::pps(&mut r.buf, counter);
                         r.done_line()?;
                     }
                 }
                 Out::RigMark { counter, time } => {
                     if let Some(r) = &mut f.rig {
-                        r.buf.extend_from_slice(b"mark,");
-                        push_u64(&mut r.buf, counter);
-                        r.buf.push(b',');
-                        push_u64(&mut r.buf, time.week().max(0) as u64);
-                        r.buf.push(b',');
-                        time.write_sow(&mut r.buf);
-                        r.buf.push(b'\n');
+                        rig_write::mark(&mut r.buf, counter, time, &[]);
                         r.done_line()?;
                     }
                 }
                 Out::RigGnss { counter, fix } => {
                     if let Some(r) = &mut f.rig {
-                        format_rig_gnss(&mut r.buf, counter, &fix);
+                        rig_write::gnss(
+                            &mut r.buf,
+                            &RigGnss {
+                                counter,
+                                time: fix.time,
+                                lat_deg: fix.pos.lat_rad.to_degrees(),
+                                lon_deg: fix.pos.lon_rad.to_degrees(),
+                                h_m: fix.pos.h_m,
+                                sd_m: fix.pos_sd.into(),
+                            },
+                        );
                         r.done_line()?;
                     }
                 }
@@ -1103,13 +1098,7 @@ fn write_files(rx: Receiver<Vec<Out>>, mut f: Files) -> Result<Vec<String>, Erro
                     if let Some(r) = &mut f.rig {
                         let b = &mut r.buf;
                         let at = b.len();
-                        b.extend_from_slice(b"imu,");
-                        push_u64(b, counter);
-                        for v in vals {
-                            b.push(b',');
-                            push_f64(b, v);
-                        }
-                        b.push(b'\n');
+                        rig_write::imu(b, counter, &vals);
                         if copies > 1 {
                             let line = b[at..].to_vec();
                             b.extend_from_slice(&line);
@@ -1139,32 +1128,4 @@ fn write_files(rx: Receiver<Vec<Out>>, mut f: Files) -> Result<Vec<String>, Erro
         names.push(c.name());
     }
     Ok(names)
-}
-
-/// `gnss,<counter_rx>,<week>,<tow_s>,<lat_deg>,<lon_deg>,<h_m>,<sd_n>,<sd_e>,<sd_d>`
-/// (FORMATS.md §2), with the precision of the reference rig log.
-fn format_rig_gnss(buf: &mut Vec<u8>, counter: u64, fix: &GnssFix) {
-    buf.extend_from_slice(b"gnss,");
-    push_u64(buf, counter);
-    buf.push(b',');
-    push_u64(buf, fix.time.week().max(0) as u64);
-    buf.push(b',');
-    let ns = fix.time.ns_of_week();
-    if ns % 1_000_000 == 0 {
-        push_fixed(buf, ns as f64 * 1e-9, 3);
-    } else {
-        fix.time.write_sow(buf);
-    }
-    for (v, dec) in [
-        (fix.pos.lat_rad.to_degrees(), 11),
-        (fix.pos.lon_rad.to_degrees(), 11),
-        (fix.pos.h_m, 4),
-        (fix.pos_sd.x, 4),
-        (fix.pos_sd.y, 4),
-        (fix.pos_sd.z, 4),
-    ] {
-        buf.push(b',');
-        push_fixed(buf, v, dec);
-    }
-    buf.push(b'\n');
 }

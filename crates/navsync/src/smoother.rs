@@ -394,7 +394,11 @@ pub(crate) struct BackwardStep {
 /// One RTS step: node k's posterior covariance `p_plus`, node k+1 and its
 /// smoothed estimate. Returns node k's smoothed estimate, and false when
 /// P⁻ₖ₊₁ had to be regularised.
-pub(crate) fn rts_step(p_plus: &Mat, next: &SmootherNode, next_s: &BackwardStep) -> (BackwardStep, bool) {
+pub(crate) fn rts_step(
+    p_plus: &Mat,
+    next: &SmootherNode,
+    next_s: &BackwardStep,
+) -> (BackwardStep, bool) {
     let n = p_plus.rows;
     // M = Φ P⁺ ; Aᵀ = (P⁻)⁻¹ M, column by column.
     let mut m = Mat::zeros(0, 0);
