@@ -75,8 +75,8 @@ def set_io_threads(enabled: bool) -> bool:
     """Whether file readers and writers of later runs in this process get
     their own threads (``True``, the default: a drive then uses about 1.3
     cores) or run inline on the calling thread (``False``: one drive, one
-    core, which is what a cluster's scheduler assumes of a task). Results
-    are the same either way. Returns the previous setting. The environment
+    core, for a scheduler that pins a core per task). Results are the same
+    either way. Returns the previous setting. The environment
     variable ``NAVSYNC_IO_THREADS=0`` sets ``False`` for a whole process."""
     previous = _native.io_threads()
     _native.set_io_threads(bool(enabled))

@@ -4,12 +4,14 @@
 //! writer, `fuse`'s IMU reader and navigation writer) are stages that pass
 //! batches to and from the computing thread. On a free machine each stage
 //! runs on its own thread, so parsing and formatting overlap the filter: a
-//! drive then takes about 1.3 cores. Where every core already runs a task
-//! (a fleet's workers, `navsync batch --jobs N`), the extra threads only
-//! compete with the other tasks, and the stages run inline on the caller's
-//! thread instead: one task, one core, as a cluster scheduler counts it.
-//! The same switch exists for numerical libraries (`OMP_NUM_THREADS=1`,
-//! which Dask sets in its workers).
+//! drive then takes about 1.3 cores. A scheduler that pins one core per
+//! task (Ray's `num_cpus=1`, a one-core container) wants the stages inline
+//! on the caller's thread instead: one task, one core (`navsync batch
+//! --single-core`, the Python fleet's `single_core=True`). The same kind
+//! of switch exists for numerical libraries (`OMP_NUM_THREADS=1`). Measured
+//! on 2 cores with 2 drives at a time, the threads still gain about 5 %
+//! (reading and writing fill the other drive's waits), so they stay the
+//! default.
 //!
 //! The choice is process-wide: [`set_io_threads`], or the environment
 //! variable `NAVSYNC_IO_THREADS=0` read at the first use. Results are the
