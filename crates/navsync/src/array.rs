@@ -36,7 +36,7 @@ use crate::io::kfgins::{ImuReader, TextWriter, format_imu_line};
 /// (also negative) delay: `y[k] ≈ x[k − delay]`. Output lags input by the
 /// number of future samples the filter needs; samples outside the data are
 /// taken from the nearest edge.
-pub struct FractionalShifter {
+pub(crate) struct FractionalShifter {
     whole: i64,
     taps: Vec<f64>,
     // Inputs with their indices.
@@ -112,7 +112,7 @@ impl FractionalShifter {
 
 /// The IMU files of an array read in lockstep: one record of each per
 /// step, all on one sample grid (within 1 µs).
-pub struct Lockstep<'a> {
+pub(crate) struct Lockstep<'a> {
     paths: &'a [&'a Path],
     readers: Vec<ImuReader>,
 }

@@ -21,7 +21,7 @@ pub use crate::types::{ImuErrors, ImuSample, NavState};
 
 /// M v for the off-diagonal matrix M of `m` (see [`ImuErrors`]).
 #[inline]
-pub fn misalign_times(m: &[f64; 6], v: &Vector3<f64>) -> Vector3<f64> {
+pub(crate) fn misalign_times(m: &[f64; 6], v: &Vector3<f64>) -> Vector3<f64> {
     Vector3::new(
         m[0] * v.y + m[1] * v.z,
         m[2] * v.x + m[3] * v.z,

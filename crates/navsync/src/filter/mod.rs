@@ -159,7 +159,7 @@ pub struct Window {
 
 /// J(v) = ∂(M v)/∂m for the off-diagonal M of [`crate::ins::ImuErrors`].
 #[inline]
-pub fn misalign_jacobian(v: &Vector3<f64>) -> SMatrix<f64, 3, 6> {
+pub(crate) fn misalign_jacobian(v: &Vector3<f64>) -> SMatrix<f64, 3, 6> {
     let mut j = SMatrix::<f64, 3, 6>::zeros();
     j[(0, 0)] = v.y;
     j[(0, 1)] = v.z;

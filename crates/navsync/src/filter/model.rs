@@ -16,7 +16,7 @@ use crate::attitude::skew;
 use crate::earth::{LocalEarth, OMEGA_E};
 
 /// Position/velocity partials of the local Earth quantities.
-pub struct ErrorPartials {
+pub(crate) struct ErrorPartials {
     /// ∂ω_ie^n/∂δr.
     pub w_ie_r: Matrix3<f64>,
     /// ∂ω_en^n/∂δr.
@@ -32,7 +32,7 @@ pub struct ErrorPartials {
 
 /// Partials at a point with NED velocity `v` (KF-GINS doc §3.3, δω_ie^n,
 /// δω_en^n, δg_p^n; δh = −δr_D, δφ = δr_N/(R_M+h)).
-pub fn partials(le: &LocalEarth, v: &Vector3<f64>) -> ErrorPartials {
+pub(crate) fn partials(le: &LocalEarth, v: &Vector3<f64>) -> ErrorPartials {
     let (vn, ve, vd) = (v.x, v.y, v.z);
     let rm = le.rm_h;
     let rn = le.rn_h;

@@ -492,7 +492,7 @@ pub enum Parsed {
 /// Digit counts are gathered on the first 4096 lines and every 8th line
 /// after (they describe how the file was written, which does not change).
 #[inline]
-pub fn digits_wanted(line_no: usize) -> bool {
+pub(crate) fn digits_wanted(line_no: usize) -> bool {
     line_no <= 4096 || line_no.is_multiple_of(8)
 }
 
