@@ -25,7 +25,7 @@ use crate::io::kfgins::{
     format_std_line,
 };
 use crate::navigator::{Navigator, SolutionOutput, Step, StreamCounts};
-use crate::stage::{Consumer, Drain, Producer, Source};
+use crate::stage::{Consumer, Drain, Producer, Source, fill_batch};
 use crate::time::GpsTime;
 
 pub use crate::reduced::NhcSettings;
@@ -491,13 +491,11 @@ impl KfGinsSink {
         }
         let block = std::mem::replace(&mut self.batch, Vec::with_capacity(NAV_BATCH));
         match self.writer.as_mut().map(|w| w.send(block)) {
-            Some(Ok(true)) | None => Ok(()),
-            // A stopped writer thread: its error.
-            Some(Ok(false)) => self.join(),
             Some(Err(e)) => {
                 self.writer = None;
                 Err(e)
             }
+            _ => Ok(()),
         }
     }
 
@@ -673,14 +671,7 @@ impl Producer for ImuBatches {
     /// Records read and the notes on skipped lines.
     type Output = (usize, Diagnostics);
     fn next_batch(&mut self) -> Result<Option<Vec<ImuSample>>, Error> {
-        let mut batch = Vec::with_capacity(BATCH);
-        while batch.len() < BATCH {
-            match self.reader.next_sample(&mut self.diag)? {
-                Some(s) => batch.push(s),
-                None => break,
-            }
-        }
-        Ok((!batch.is_empty()).then_some(batch))
+        fill_batch(BATCH, || self.reader.next_sample(&mut self.diag))
     }
     fn finish(self) -> Result<(usize, Diagnostics), Error> {
         Ok((self.reader.count(), self.diag))

@@ -70,6 +70,22 @@ pub(crate) trait Consumer: Send + 'static {
     fn finish(self) -> Result<Self::Output, Error>;
 }
 
+/// Up to `cap` items from `next` (a reader's next record); `None` when the
+/// reader had nothing left: the `next_batch` of a file reader.
+pub(crate) fn fill_batch<T>(
+    cap: usize,
+    mut next: impl FnMut() -> Result<Option<T>, Error>,
+) -> Result<Option<Vec<T>>, Error> {
+    let mut batch = Vec::with_capacity(cap);
+    while batch.len() < cap {
+        match next()? {
+            Some(x) => batch.push(x),
+            None => break,
+        }
+    }
+    Ok((!batch.is_empty()).then_some(batch))
+}
+
 fn failed(name: &str) -> Error {
     Error::Invalid(format!("the {name} thread panicked"))
 }
@@ -139,7 +155,8 @@ impl<P: Producer> Source<P> {
 pub(crate) enum Drain<C: Consumer> {
     Threaded {
         tx: Option<mpsc::SyncSender<Vec<C::Item>>>,
-        handle: JoinHandle<Result<C::Output, Error>>,
+        /// `None` once a failed send has collected the thread's error.
+        handle: Option<JoinHandle<Result<C::Output, Error>>>,
         name: &'static str,
     },
     Inline(C),
@@ -168,17 +185,27 @@ impl<C: Consumer> Drain<C> {
             .map_err(|e| Error::Invalid(format!("cannot start the {name} thread: {e}")))?;
         Ok(Drain::Threaded {
             tx: Some(tx),
-            handle,
+            handle: Some(handle),
             name,
         })
     }
 
-    /// Hands over a batch. `Ok(false)`: a threaded consumer has stopped
-    /// (its error comes from [`Drain::finish`]).
-    pub fn send(&mut self, batch: Vec<C::Item>) -> Result<bool, Error> {
+    /// Hands over a batch. A consumer that failed returns its error here
+    /// (a threaded one: at the first send after it stopped).
+    pub fn send(&mut self, batch: Vec<C::Item>) -> Result<(), Error> {
         match self {
-            Drain::Threaded { tx, .. } => Ok(tx.as_ref().is_some_and(|t| t.send(batch).is_ok())),
-            Drain::Inline(c) => c.consume(batch).map(|()| true),
+            Drain::Threaded { tx, handle, name } => {
+                if tx.as_ref().is_some_and(|t| t.send(batch).is_ok()) {
+                    return Ok(());
+                }
+                tx.take();
+                match handle.take().map(|h| h.join()) {
+                    Some(Ok(Err(e))) => Err(e),
+                    Some(Err(_)) => Err(failed(name)),
+                    _ => Err(Error::Invalid(format!("the {name} thread has stopped"))),
+                }
+            }
+            Drain::Inline(c) => c.consume(batch),
         }
     }
 
@@ -191,7 +218,10 @@ impl<C: Consumer> Drain<C> {
                 name,
             } => {
                 tx.take();
-                handle.join().map_err(|_| failed(name))?
+                match handle {
+                    Some(h) => h.join().map_err(|_| failed(name))?,
+                    None => Err(Error::Invalid(format!("the {name} thread has stopped"))),
+                }
             }
             Drain::Inline(c) => c.finish(),
         }
@@ -251,9 +281,7 @@ mod tests {
         let mut read_err = None;
         loop {
             match src.next_batch() {
-                Ok(Some(b)) => {
-                    drain.send(b)?;
-                }
+                Ok(Some(b)) => drain.send(b)?,
                 Ok(None) => break,
                 Err(e) => {
                     read_err = Some(e);
@@ -278,5 +306,40 @@ mod tests {
     fn a_producer_error_reaches_the_caller_in_both_modes() {
         assert!(run(true, Some(30)).is_err());
         assert!(run(false, Some(30)).is_err());
+    }
+
+    struct FailsAtSecond(usize);
+    impl Consumer for FailsAtSecond {
+        type Item = u32;
+        type Output = ();
+        fn consume(&mut self, _: Vec<u32>) -> Result<(), Error> {
+            self.0 += 1;
+            if self.0 == 2 {
+                return Err(Error::Invalid("disk full".into()));
+            }
+            Ok(())
+        }
+        fn finish(self) -> Result<(), Error> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_consumer_error_reaches_the_caller_in_both_modes() {
+        for threads in [true, false] {
+            let mut drain = Drain::new(FailsAtSecond(0), "test writer", threads).unwrap();
+            let mut first_err = None;
+            for k in 0..50u32 {
+                if let Err(e) = drain.send(vec![k]) {
+                    first_err = Some(e);
+                    break;
+                }
+            }
+            let err = match first_err {
+                Some(e) => e,
+                None => drain.finish().unwrap_err(),
+            };
+            assert!(err.to_string().contains("disk full"), "{threads}: {err}");
+        }
     }
 }

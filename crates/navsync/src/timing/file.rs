@@ -12,7 +12,7 @@ use super::{IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncOutput};
 use crate::error::{Diagnostics, Error};
 use crate::io::kfgins::{TextWriter, format_gnss_line};
 use crate::io::riglog::{RigLogReader, RigRecord};
-use crate::stage::{Consumer, Drain, Producer, Source};
+use crate::stage::{Consumer, Drain, Producer, Source, fill_batch};
 use crate::types::ImuSample;
 
 /// What a synchronization run produced.
@@ -37,14 +37,7 @@ impl Producer for RigBatches {
     /// Reading notes and the number of records.
     type Output = (Diagnostics, usize);
     fn next_batch(&mut self) -> Result<Option<Vec<(RigRecord, usize)>>, Error> {
-        let mut batch = Vec::with_capacity(BATCH);
-        while batch.len() < BATCH {
-            match self.reader.next_record(&mut self.diag)? {
-                Some(r) => batch.push(r),
-                None => break,
-            }
-        }
-        Ok((!batch.is_empty()).then_some(batch))
+        fill_batch(BATCH, || self.reader.next_record(&mut self.diag))
     }
     fn finish(self) -> Result<(Diagnostics, usize), Error> {
         Ok((self.diag, self.reader.records()))
@@ -131,7 +124,6 @@ pub fn sync_file(
     let header = reader.header().clone();
     let kind = header.imu_kind;
     let rule = rule.unwrap_or_else(|| RateRule::for_header(&header));
-    let truth_path = truth;
 
     // Reader stage: parsed records in batches.
     let mut records_in = Source::start(
@@ -143,7 +135,7 @@ pub fn sync_file(
     )?;
 
     // Writer stage: increments, formatting and files.
-    let truth = match truth {
+    let truth_times = match truth {
         Some(p) => Some((TruthTimes::open(p)?, TruthAccumulator::default())),
         None => None,
     };
@@ -152,7 +144,7 @@ pub fn sync_file(
             imu_w: TextWriter::create(&out_dir.join("imu.txt"))?,
             gnss_w: TextWriter::create(&out_dir.join("gnss.txt"))?,
             times_w: TextWriter::create(&out_dir.join("imu_times.txt"))?,
-            truth,
+            truth: truth_times,
             inc: IncrementBuilder::with_rule(kind, rule),
             buf_imu: Vec::with_capacity(1 << 20),
             buf_times: Vec::with_capacity(1 << 18),
@@ -164,60 +156,37 @@ pub fn sync_file(
 
     let mut engine = SyncEngine::new(&header, cfg);
     let mut out = Vec::with_capacity(BATCH * 2);
-    let mut writer_open = true;
-    let mut failure: Option<Error> = None;
-    loop {
-        let batch = match records_in.next_batch() {
-            Ok(Some(b)) => b,
-            Ok(None) => break,
-            Err(e) => {
-                failure = Some(e);
-                break;
+    // Read, synchronize and hand over; the reader is always joined, and on
+    // any error the writer too before the error is returned.
+    let mut feed = || -> Result<(), Error> {
+        while let Some(batch) = records_in.next_batch()? {
+            for (rec, line) in batch {
+                engine.push_into(rec, line, &mut out);
             }
-        };
-        for (rec, line) in batch {
-            engine.push_into(rec, line, &mut out);
-        }
-        if out.len() >= BATCH {
-            let full = std::mem::replace(&mut out, Vec::with_capacity(BATCH * 2));
-            match files_out.send(full) {
-                Ok(true) => {}
-                Ok(false) => {
-                    writer_open = false;
-                    break;
-                }
-                Err(e) => {
-                    failure = Some(e);
-                    break;
-                }
+            if out.len() >= BATCH {
+                files_out.send(std::mem::replace(&mut out, Vec::with_capacity(BATCH * 2)))?;
             }
         }
-    }
+        Ok(())
+    };
+    let fed = feed();
     let read = records_in.finish();
-    if let Some(e) = failure {
-        let _ = files_out.finish();
-        return Err(e);
-    }
-    let (mut read_diag, records) = match read {
-        Ok(v) => v,
-        Err(e) => {
-            let _ = files_out.finish();
-            return Err(e);
-        }
-    };
-    let (rest, mut report) = match engine.finish() {
-        Ok(v) => v,
-        Err(e) => {
-            let _ = files_out.finish();
-            return Err(e);
-        }
-    };
-    out.extend(rest);
-    if writer_open {
+    let finished = fed.and_then(|()| {
+        let (read_diag, records) = read?;
+        let (rest, report) = engine.finish()?;
+        out.extend(rest);
         files_out.send(out)?;
-    }
+        Ok((read_diag, records, report))
+    });
+    let (mut read_diag, records, mut report) = match finished {
+        Ok(v) => v,
+        Err(e) => {
+            let _ = files_out.finish();
+            return Err(e);
+        }
+    };
     let (acc, truth_short) = files_out.finish()?;
-    if truth_short && let Some(p) = truth_path {
+    if truth_short && let Some(p) = truth {
         read_diag.push(
             p,
             0,
