@@ -899,6 +899,47 @@ mod tests {
         }
     }
 
+    /// An accelerometer triad misaligned by δm (f̃ = f + J(f)·m, the
+    /// filter's misalignment model) levels with the tilt error M·J(f)·(−m),
+    /// the coupling the filter's P starts with (fusion's levelling block):
+    /// the misalignment acts as a bias J(f)·m.
+    #[test]
+    fn levelling_tilt_error_includes_the_accelerometer_misalignment() {
+        let g = 9.8;
+        let m = nalgebra::SVector::<f64, 6>::new(0.004, -0.005, 0.003, 0.006, -0.002, 0.001);
+        for (roll, pitch, yaw) in [(0.0, 0.0, 0.0), (3.0, -2.0, 40.0), (-5.0, 4.0, -120.0)] {
+            let att = Euler::new(
+                f64::to_radians(roll),
+                f64::to_radians(pitch),
+                f64::to_radians(yaw),
+            );
+            let at = |a: &Euler| {
+                NavState::new(
+                    GpsTime::from_week_ns(2300, 0),
+                    Geodetic::default(),
+                    Vector3::zeros(),
+                    a,
+                )
+                .c_nb()
+            };
+            let c = at(&att);
+            let f = c.transpose() * Vector3::new(0.0, 0.0, -g);
+            let j = crate::filter::misalign_jacobian(&f);
+            let (r, p) = level(&(f + j * m));
+            let c_hat = at(&Euler::new(r, p, att.yaw_rad));
+            let x = Matrix3::identity() - c_hat * c.transpose();
+            let phi = Vector3::new(x[(2, 1)], x[(0, 2)], x[(1, 0)]);
+            let predicted = levelling_tilt_coupling(&c, g) * j * (-m);
+            for i in 0..2 {
+                assert!(
+                    (phi[i] - predicted[i]).abs() < 2e-5,
+                    "attitude ({roll}, {pitch}, {yaw}): φ {phi:?} vs M·J·δm {predicted:?}"
+                );
+            }
+            assert!(phi.xy().norm() > 2e-3);
+        }
+    }
+
     /// A static IMU tilted by known roll/pitch levels to them; then a
     /// vehicle driving north-east at 10 m/s (accelerating forward, so the
     /// reversing check can decide) gets heading 45°.

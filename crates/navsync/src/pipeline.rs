@@ -77,6 +77,12 @@ pub struct FuseOptions {
     /// Estimate the gyro and accelerometer axis misalignments with these
     /// initial σ (deg): 12 more states (see `FusionConfig`).
     pub misalignment_sd_deg: Option<[f64; 2]>,
+    /// The accelerometer axis misalignment from the datasheet (σ, deg;
+    /// cross-axis sensitivity in % × 0.573). When the run levels itself,
+    /// the levelled tilt carries it (`FusionConfig::
+    /// levelling_accel_misalignment_sd_rad`); with `misalignment_sd_deg`
+    /// the states' σ is used instead.
+    pub accel_misalignment_sd_deg: Option<f64>,
     /// The receiver's time-correlated position error as filter states.
     pub gnss_error: Option<GnssErrorModel>,
     /// Fixed-interval (RTS) smoothing of the whole run.
@@ -150,6 +156,7 @@ impl Default for FuseOptions {
             reduced_imu: None,
             odometer: None,
             misalignment_sd_deg: None,
+            accel_misalignment_sd_deg: None,
             gnss_error: None,
             smooth: None,
             align: None,
@@ -235,6 +242,13 @@ impl FuseOptions {
         }
         if let Some(m) = &self.gnss_error {
             m.validate().map_err(Error::Invalid)?;
+        }
+        if let Some(d) = self.accel_misalignment_sd_deg
+            && !(d.is_finite() && (0.0..=10.0).contains(&d))
+        {
+            return bad(format!(
+                "accelerometer misalignment σ {d}° must be within 0–10°"
+            ));
         }
         if let Some(a) = &self.align
             && !(a.min_speed_mps.is_finite()
@@ -768,10 +782,17 @@ fn run_inner(
         diag.note(a.note.clone());
         fc.init_nav = a.nav;
         fc.init_std.att = Vector3::from(a.att_sd_rad);
+        let misalign_sd_rad = opts.accel_misalignment_sd_deg.unwrap_or(0.0).to_radians();
         if let Some(m) = a.levelling_coupling {
             fc.init_std.att.x = a.tilt_noise_sd_rad;
             fc.init_std.att.y = a.tilt_noise_sd_rad;
             fc.levelling_coupling = Some(m);
+            fc.levelling_accel_misalignment_sd_rad = misalign_sd_rad;
+        } else {
+            // Levelled before the start (tilt carried by the gyros): the
+            // misaligned axes' tilt error, uncorrelated with the states.
+            fc.init_std.att.x = fc.init_std.att.x.hypot(misalign_sd_rad);
+            fc.init_std.att.y = fc.init_std.att.y.hypot(misalign_sd_rad);
         }
         fc.init_std.pos = Vector3::from(a.pos_sd_m);
         fc.init_std.vel = Vector3::from(a.vel_sd_mps);

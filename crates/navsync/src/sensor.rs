@@ -64,6 +64,10 @@ pub const IMU_KEYS: &[(&str, &str)] = &[
         "bias_corr_time_s",
         "correlation time of the bias instability (s)",
     ),
+    (
+        "accel_misalignment_deg",
+        "accelerometer axis misalignment σ (deg; cross-axis sensitivity 1 % ≈ 0.57°): levelling takes it for tilt; 0 if left out",
+    ),
 ];
 
 /// Top-level keys.
@@ -106,6 +110,7 @@ pub struct ImuSheet {
     pub gyro_scale_ppm: Option<f64>,
     pub accel_scale_ppm: Option<f64>,
     pub bias_corr_time_s: Option<f64>,
+    pub accel_misalignment_deg: Option<f64>,
 }
 
 /// The IMU's figures, all present (datasheet units).
@@ -120,6 +125,7 @@ pub struct ImuFigures {
     pub gyro_scale_ppm: f64,
     pub accel_scale_ppm: f64,
     pub bias_corr_time_s: f64,
+    pub accel_misalignment_deg: f64,
 }
 
 impl ImuFigures {
@@ -140,10 +146,11 @@ impl ImuFigures {
             gyro_scale_ppm: gyro.scale_ppm,
             accel_scale_ppm: accel.scale_ppm,
             bias_corr_time_s: PRESET_BIAS_CORR_TIME_S,
+            accel_misalignment_deg: accel.misalignment_deg,
         })
     }
 
-    fn as_pairs(&self) -> [(&'static str, f64); 9] {
+    fn as_pairs(&self) -> [(&'static str, f64); 10] {
         [
             ("arw_deg_sqrt_h", self.arw_deg_sqrt_h),
             ("vrw_mps_sqrt_h", self.vrw_mps_sqrt_h),
@@ -160,6 +167,7 @@ impl ImuFigures {
             ("gyro_scale_ppm", self.gyro_scale_ppm),
             ("accel_scale_ppm", self.accel_scale_ppm),
             ("bias_corr_time_s", self.bias_corr_time_s),
+            ("accel_misalignment_deg", self.accel_misalignment_deg),
         ]
     }
 
@@ -307,17 +315,20 @@ impl SensorSheet {
             i.gyro_scale_ppm,
             i.accel_scale_ppm,
             i.bias_corr_time_s,
+            i.accel_misalignment_deg,
         ];
         let base_vals = base.map(|b| b.as_pairs().map(|p| p.1));
-        let mut v = [0.0; 9];
+        let mut v = [0.0; 10];
         let mut missing = Vec::new();
-        for k in 0..9 {
+        for k in 0..10 {
             match (given[k], base_vals) {
                 (Some(x), _) => v[k] = x,
                 (None, Some(b)) => v[k] = b[k],
                 // The correlation time has a usual value; the others are
                 // the IMU's own.
                 (None, None) if k == 8 => v[k] = 3600.0,
+                // Axes taken as orthogonal.
+                (None, None) if k == 9 => v[k] = 0.0,
                 (None, None) => missing.push(IMU_KEYS[k + 2]),
             }
         }
@@ -348,6 +359,7 @@ impl SensorSheet {
             gyro_scale_ppm: v[6],
             accel_scale_ppm: v[7],
             bias_corr_time_s: v[8],
+            accel_misalignment_deg: v[9],
         };
         for (k, x) in f.as_pairs() {
             if !(x.is_finite() && x >= 0.0) {

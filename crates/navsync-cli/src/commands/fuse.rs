@@ -210,6 +210,13 @@ pub struct Args {
     /// ADIS16465's datasheet figure. Off by default (KF-GINS's 21 states).
     #[arg(long, value_parser = parse_sd_pair, value_name = "SD_DEG[,SD_DEG]")]
     pub misalignment: Option<[f64; 2]>,
+    /// The accelerometer axis misalignment from the datasheet (σ, deg; a
+    /// cross-axis sensitivity of 1 % is 0.57°), when the run levels itself
+    /// (no initatt, or --align): levelling takes the misaligned axes for
+    /// level, so the tilt's σ includes it. Not estimated (see
+    /// --misalignment). E.g. 0.3 for an ICM-20602, 0.05 for an ADIS16465.
+    #[arg(long, value_name = "SD_DEG")]
+    pub accel_misalignment: Option<f64>,
 }
 
 /// "a" or "a,b" (degrees, ≥ 0) into [a, a] or [a, b].
@@ -396,6 +403,7 @@ impl Args {
                     ..navsync::reduced::OdometerSettings::new(path)
                 }),
             misalignment_sd_deg: self.misalignment,
+            accel_misalignment_sd_deg: self.accel_misalignment,
             gnss_error,
             align: self.align.then_some(navsync::align::AlignOptions {
                 min_speed_mps: self.align_min_speed,

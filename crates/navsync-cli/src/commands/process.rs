@@ -500,6 +500,7 @@ pub fn run(a: Args) -> Result<()> {
         smooth: (!a.no_smooth).then_some(SmoothOptions::default()),
         // Zero-velocity and zero-angular-rate updates at stops.
         standstill: Some(navsync::filter::standstill::StandstillOptions::default()),
+        accel_misalignment_sd_deg: Some(fig.accel_misalignment_deg),
         ..FuseOptions::default()
     };
     opts.validate()?;

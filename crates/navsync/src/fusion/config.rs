@@ -300,6 +300,13 @@ pub struct FusionConfig {
     /// P_φφ += M Σ_b Mᵀ and P_φb = M Σ_b (Σ_b from `init_std.accel_bias`);
     /// `init_std.att` then holds only the tilt σ that is not the bias.
     pub levelling_coupling: Option<Matrix3<f64>>,
+    /// With `levelling_coupling`: σ (rad) of the accelerometer triad's axis
+    /// misalignment (the datasheet's cross-axis figure) when it is not
+    /// estimated. Levelling takes the misaligned axes for level, so the
+    /// tilt error gains M·J(f̄ᵇ)·δm_a, J the misalignment Jacobian of the
+    /// levelled specific force f̄ᵇ. With the misalignment states on, their
+    /// σ is used instead and P_φm is set as well.
+    pub levelling_accel_misalignment_sd_rad: f64,
     /// Detect standstills and apply zero-velocity and zero-angular-rate
     /// updates while stopped.
     pub standstill: Option<StandstillOptions>,
@@ -333,6 +340,7 @@ impl FusionConfig {
             misalignment_sd_rad: None,
             gnss_error: None,
             levelling_coupling: None,
+            levelling_accel_misalignment_sd_rad: 0.0,
             standstill: None,
         }
     }

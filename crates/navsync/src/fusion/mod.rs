@@ -144,6 +144,19 @@ impl Core {
         let mut filter = ErrorStateFilter::new(layout, cfg.noise, &cfg.init_std, &extra_var);
         if let Some(m) = cfg.levelling_coupling {
             use crate::filter::idx;
+            // Accelerometer axis misalignment enters the velocity error as
+            // −C·J(Δv)·δm_a beside the bias's −C·Δt·δb_a (filter/model.rs),
+            // so at levelling it is an apparent bias J(f̄ᵇ)·δm_a, with
+            // f̄ᵇ = C_bn (0, 0, −g) at rest.
+            let f_b =
+                cfg.init_nav.c_nb().transpose() * Vector3::new(0.0, 0.0, -crate::earth::GAMMA_E);
+            let j = crate::filter::misalign_jacobian(&f_b);
+            // The states (first accelerometer index, σ) when estimated.
+            let states = filter
+                .layout()
+                .misalign
+                .zip(cfg.misalignment_sd_rad)
+                .map(|(first, [_, sd])| (first + 6, sd));
             let sigma_b = Matrix3::from_diagonal(
                 &cfg.init_std
                     .accel_bias
@@ -155,6 +168,23 @@ impl Core {
             p.set_block3(idx::ATT, idx::ATT, &p_att);
             p.set_block3(idx::ATT, idx::BA, &p_att_ba);
             p.set_block3(idx::BA, idx::ATT, &p_att_ba.transpose());
+            // The tilt error gains M·J·δm_a: correlated with the
+            // misalignment states when estimated, else tilt noise only
+            // (tried: folding it into the bias states' σ did worse on the
+            // test-track table of docs/alignment.md).
+            let mj = m * j;
+            let sd = states.map_or(cfg.levelling_accel_misalignment_sd_rad, |(_, sd)| sd);
+            let p_att = p.block3(idx::ATT, idx::ATT) + mj * mj.transpose() * (sd * sd);
+            p.set_block3(idx::ATT, idx::ATT, &p_att);
+            if let Some((first, _)) = states {
+                for r in 0..3 {
+                    for c in 0..6 {
+                        let v = mj[(r, c)] * sd * sd;
+                        p.set(idx::ATT + r, first + c, v);
+                        p.set(first + c, idx::ATT + r, v);
+                    }
+                }
+            }
         }
         let record_steps = cfg.time_offset.is_some_and(|t| t.search_range_s > 0.0);
         Core {
