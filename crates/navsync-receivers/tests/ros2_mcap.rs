@@ -97,7 +97,11 @@ fn messages(s: &ConvertSummary) -> Vec<String> {
 
 #[test]
 fn known_rotation_and_fixes_round_trip() {
-    for (compression, name) in [(None, "plain"), (Some(mcap::Compression::Zstd), "zstd")] {
+    for (compression, name) in [
+        (None, "plain"),
+        (Some(mcap::Compression::Zstd), "zstd"),
+        (Some(mcap::Compression::Lz4), "lz4"),
+    ] {
         let bag = write_bag(&drive(4_000_000), compression);
         let (s, out) = run(&bag, name, &TopicChoice::default());
         let s = s.unwrap();
@@ -311,11 +315,19 @@ fn topic_choice_and_wrong_schemas_are_errors_that_say_why() {
 }
 
 #[test]
-fn compression_this_build_lacks_names_the_fix() {
-    let m =
-        navsync_receivers::ros2::mcap_error(&mcap::McapError::UnsupportedCompression("lz4".into()));
+fn unknown_chunk_compression_is_named() {
+    let mut bag = write_bag(&drive(0), Some(mcap::Compression::Zstd));
+    // Rename the chunks' compression in place (same length, records whole).
+    let at: Vec<usize> = (0..bag.len() - 3)
+        .filter(|&i| &bag[i..i + 4] == b"zstd")
+        .collect();
+    assert!(!at.is_empty());
+    for i in at {
+        bag[i..i + 4].copy_from_slice(b"brot");
+    }
+    let e = run(&bag, "unknown", &TopicChoice::default()).0.unwrap_err();
     assert!(
-        m.contains("lz4") && m.contains("mcap recover") && m.contains("ros2 bag convert"),
-        "{m}"
+        e.contains("bag.mcap") && e.contains("\"brot\"") && e.contains("lz4"),
+        "{e}"
     );
 }
