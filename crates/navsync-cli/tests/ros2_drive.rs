@@ -8,11 +8,10 @@ mod ros2_bag;
 
 use std::path::Path;
 
-use common::{bin, run, temp_dir};
+use common::{bin, horizontal_rms, json, run, temp_dir};
 use ros2_bag::{FIX, IMU, Msg, fix_msg, imu_msg, write_bag_chunked};
 
-/// GPS − UTC since 2017-01-01 (IERS Bulletin C); the simulated drive is in
-/// GPS week 2300 (February 2024).
+/// GPS − UTC since 2017-01-01 (GPS week 1930; IERS Bulletin C).
 const LEAP_S: i64 = 18;
 /// 1980-01-06T00:00:00Z, the GPS epoch, in Unix seconds.
 const GPS_EPOCH_UNIX_S: i64 = 315_964_800;
@@ -98,20 +97,6 @@ fn bag_of(sim: &Path, week: i64) -> Vec<u8> {
     write_bag_chunked(&msgs, Some(mcap::Compression::Zstd), 768 * 1024)
 }
 
-fn horizontal_rms(truth: &Path, nav: &Path, json: &Path) -> f64 {
-    let (ok, _, err) = run(bin()
-        .args(["eval", "--truth"])
-        .arg(truth)
-        .arg("--nav")
-        .arg(nav)
-        .arg("--json")
-        .arg(json));
-    assert!(ok, "{err}");
-    let e: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
-    e["pos_horizontal_m"]["rms"].as_f64().unwrap()
-}
-
 #[test]
 fn simulated_drive_as_a_ros2_bag_converts_and_fuses() {
     let dir = temp_dir("drive");
@@ -131,9 +116,10 @@ fn simulated_drive_as_a_ros2_bag_converts_and_fuses() {
         .args(["--imu-record", "rate", "--decimation", "point", "--output"])
         .arg(&sim));
     assert!(ok, "{err}");
-    let scenario: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(sim.join("scenario.json")).unwrap()).unwrap();
-    let week = scenario["gps_week"].as_i64().unwrap();
+    let week = json(&sim.join("scenario.json"))["gps_week"]
+        .as_i64()
+        .unwrap();
+    assert!(week >= 1930, "week {week}: GPS − UTC was not {LEAP_S} s");
     let bag = dir.join("drive.mcap");
     std::fs::write(&bag, bag_of(&sim, week)).unwrap();
 
@@ -144,8 +130,7 @@ fn simulated_drive_as_a_ros2_bag_converts_and_fuses() {
         .arg("--output")
         .arg(&conv));
     assert!(ok, "{out}{err}");
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(conv.join("summary.json")).unwrap()).unwrap();
+    let s = json(&conv.join("summary.json"));
     assert_eq!(s["diagnostics"]["total"], 0, "{s}");
     let fixes = data_lines(&sim.join("gnss.txt"));
     assert_eq!(s["gnss_fixes"].as_u64(), Some(fixes.len() as u64));
@@ -177,11 +162,7 @@ fn simulated_drive_as_a_ros2_bag_converts_and_fuses() {
             .arg("--output")
             .arg(&out));
         assert!(ok, "{text}{err}");
-        horizontal_rms(
-            &sim.join("truth.nav"),
-            &out.join("navresult.nav"),
-            &dir.join(format!("{name}.json")),
-        )
+        horizontal_rms(&sim.join("truth.nav"), &out.join("navresult.nav"), &out)
     };
     let rms = fuse_eval(&conv.join("kf-gins.yaml"), "bag");
     // Bound from the physics: at each 1 Hz fix the filter is held to the
