@@ -5,7 +5,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{bin, run, temp_dir};
+use common::{bin, horizontal_rms, json, run, temp_dir};
 
 /// Simulates a short drive (ADIS16465, test track: a standstill, then
 /// driving) and returns its folder.
@@ -49,26 +49,6 @@ fn sheet(dir: &Path) -> PathBuf {
     );
     std::fs::write(&p, text).unwrap();
     p
-}
-
-fn json(p: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
-}
-
-/// Horizontal RMS of `nav` against `truth` (`navsync eval --json`).
-fn horizontal_rms(truth: &Path, nav: &Path, dir: &Path) -> f64 {
-    let j = dir.join("eval.json");
-    let (ok, _, err) = run(bin().args([
-        "eval",
-        "--truth",
-        truth.to_str().unwrap(),
-        "--nav",
-        nav.to_str().unwrap(),
-        "--json",
-        j.to_str().unwrap(),
-    ]));
-    assert!(ok, "{err}");
-    json(&j)["pos_horizontal_m"]["rms"].as_f64().unwrap()
 }
 
 #[test]

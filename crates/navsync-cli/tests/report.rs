@@ -7,7 +7,7 @@ mod common;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use common::{bin, run, temp_dir};
+use common::{bin, json, run, temp_dir};
 use serde_json::Value;
 
 /// The metrics JSON a report page carries.
@@ -17,10 +17,6 @@ fn embedded_eval(html: &Path) -> Value {
     let start = text.find(tag).expect("metrics block") + tag.len();
     let end = start + text[start..].find("</script>").unwrap();
     serde_json::from_str(&text[start..end]).unwrap()
-}
-
-fn read_json(p: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
 }
 
 #[test]
@@ -63,11 +59,11 @@ fn the_demo_report_shows_what_eval_computes() {
         .args(["--outages", outages, "--json"])
         .arg(&eval_json));
     assert!(ok, "{err}");
-    let want = read_json(&eval_json);
+    let want = json(&eval_json);
     assert_eq!(want["outages"].as_array().unwrap().len(), 1);
     // The demo's page and its eval.json hold exactly eval's figures.
     assert_eq!(embedded_eval(&demo.join("report.html")), want);
-    assert_eq!(read_json(&demo.join("eval.json")), want);
+    assert_eq!(json(&demo.join("eval.json")), want);
 
     // `navsync report` on the files rebuilds the same figures.
     let page = dir.join("r.html");
@@ -279,7 +275,7 @@ fn a_report_without_truth_judges_the_run_from_its_own_statistics() {
         .arg(&out));
     assert!(ok, "{text}\n{err}");
     // The configured IMU model is in summary.json, in the YAML's units.
-    let summary = read_json(&out.join("summary.json"));
+    let summary = json(&out.join("summary.json"));
     let gbstd = summary["imu_model"]["gyro_bias_sd_deg_h"][0]
         .as_f64()
         .unwrap();

@@ -3,8 +3,7 @@
 //! by hand, on GPS time.
 //!
 //! - Container: MCAP (mcap.dev/spec), read with the `mcap` crate; chunks
-//!   may be uncompressed or zstd (the ROS 2 writer's default); lz4 chunks
-//!   are refused with the command that rewrites them.
+//!   may be uncompressed, zstd (the ROS 2 writer's default) or lz4.
 //! - Payloads: the ROS 2 `cdr` message encoding, i.e. OMG CDR as in
 //!   DDS-XTypes 1.3 §7.4.3 (XCDR1, "PLAIN_CDR"): a 4-byte encapsulation
 //!   header (representation identifier 0x0000 CDR_BE or 0x0001 CDR_LE,
@@ -359,9 +358,6 @@ pub fn read_bag(
         let m = match m {
             Ok(m) => m,
             Err(e) => {
-                if let mcap::McapError::UnsupportedCompression(_) = e {
-                    return Err(nodata(mcap_error(&e)));
-                }
                 if read == 0 {
                     return Err(nodata(mcap_error(&e)));
                 }
@@ -787,9 +783,8 @@ pub fn mcap_error(e: &mcap::McapError) -> String {
     use mcap::McapError as M;
     match e {
         M::UnsupportedCompression(c) => format!(
-            "chunks compressed with {c}, which this build does not read (it reads uncompressed and zstd chunks); \
-             rewrite the file first: `mcap recover IN.mcap -o OUT.mcap --compression zstd` \
-             or `ros2 bag convert` with an output of storage mcap"
+            "chunks compressed with \"{c}\", which MCAP does not define \
+             (chunks are uncompressed, zstd or lz4)"
         ),
         M::BadMagic => {
             "not an MCAP file (bad magic bytes); a ROS 2 bag folder holds .mcap or .db3 files: \

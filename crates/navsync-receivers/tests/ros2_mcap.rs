@@ -1,15 +1,17 @@
-//! ROS 2 bags (MCAP) through `convert`: bags written here with the `mcap`
-//! crate's writer and a CDR encoder of this file (independent of the
-//! decoder under test), holding a known IMU rotation and known fixes.
+//! ROS 2 bags (MCAP) through `convert`: bags written with the `mcap`
+//! crate's writer and the CDR encoder of `common/ros2_bag.rs` (independent
+//! of the decoder under test), holding a known IMU rotation and known fixes.
 
-use std::collections::BTreeMap;
-use std::io::Cursor;
+#[path = "common/ros2_bag.rs"]
+mod ros2_bag;
+
 use std::path::{Path, PathBuf};
 
 use navsync_receivers::convert::{
     ConvertOptions, ConvertSummary, InputFormat, convert_with_topics,
 };
 use navsync_receivers::ros2::TopicChoice;
+use ros2_bag::{FIX, IMU, Msg, TWIST, fix_msg, imu_msg, twist_msg, write_bag};
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("navsync-ros2-{}-{name}", std::process::id()));
@@ -18,140 +20,6 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-/// XCDR1 encoder (DDS-XTypes 1.3 §7.4.3): alignment counted from the end
-/// of the 4-byte encapsulation header.
-struct CdrOut {
-    buf: Vec<u8>,
-    le: bool,
-}
-
-impl CdrOut {
-    fn new(le: bool) -> Self {
-        CdrOut {
-            buf: vec![0, le as u8, 0, 0],
-            le,
-        }
-    }
-    fn align(&mut self, n: usize) {
-        while !(self.buf.len() - 4).is_multiple_of(n) {
-            self.buf.push(0);
-        }
-    }
-    fn put(&mut self, mut b: Vec<u8>) {
-        self.align(b.len());
-        if !self.le {
-            b.reverse();
-        }
-        self.buf.extend(b);
-    }
-    fn i32(&mut self, v: i32) {
-        self.put(v.to_le_bytes().to_vec());
-    }
-    fn u32(&mut self, v: u32) {
-        self.put(v.to_le_bytes().to_vec());
-    }
-    fn u16(&mut self, v: u16) {
-        self.put(v.to_le_bytes().to_vec());
-    }
-    fn u8(&mut self, v: u8) {
-        self.buf.push(v);
-    }
-    fn f64(&mut self, v: f64) {
-        self.put(v.to_le_bytes().to_vec());
-    }
-    fn f64s(&mut self, v: &[f64]) {
-        for x in v {
-            self.f64(*x);
-        }
-    }
-    fn string(&mut self, s: &str) {
-        self.u32(s.len() as u32 + 1);
-        self.buf.extend(s.as_bytes());
-        self.buf.push(0);
-    }
-    fn header(&mut self, stamp_ns: i64, frame: &str) {
-        self.i32((stamp_ns / 1_000_000_000) as i32);
-        self.u32((stamp_ns % 1_000_000_000) as u32);
-        self.string(frame);
-    }
-}
-
-fn imu_msg(le: bool, stamp_ns: i64, gyro: [f64; 3], acc: [f64; 3]) -> Vec<u8> {
-    let mut c = CdrOut::new(le);
-    c.header(stamp_ns, "imu_link");
-    c.f64s(&[0.0, 0.0, 0.0, 1.0]);
-    c.f64s(&[-1.0; 9]);
-    c.f64s(&gyro);
-    c.f64s(&[0.0; 9]);
-    c.f64s(&acc);
-    c.f64s(&[0.0; 9]);
-    c.buf
-}
-
-fn fix_msg(le: bool, stamp_ns: i64, status: i8, llh: [f64; 3], var_enu: [f64; 3]) -> Vec<u8> {
-    let mut c = CdrOut::new(le);
-    c.header(stamp_ns, "gps");
-    c.u8(status as u8);
-    c.u16(1);
-    c.f64s(&llh);
-    let mut cov = [0.0; 9];
-    cov[0] = var_enu[0];
-    cov[4] = var_enu[1];
-    cov[8] = var_enu[2];
-    c.f64s(&cov);
-    c.u8(2); // COVARIANCE_TYPE_DIAGONAL_KNOWN
-    c.buf
-}
-
-fn twist_msg(le: bool, stamp_ns: i64, v_enu: [f64; 3], var: f64) -> Vec<u8> {
-    let mut c = CdrOut::new(le);
-    c.header(stamp_ns, "gps");
-    c.f64s(&v_enu);
-    c.f64s(&[0.0; 3]);
-    let mut cov = [0.0; 36];
-    for k in 0..6 {
-        cov[k * 7] = var;
-    }
-    c.f64s(&cov);
-    c.buf
-}
-
-/// One message: topic, schema, stamp (log time = stamp + lag), payload.
-struct Msg {
-    topic: &'static str,
-    schema: &'static str,
-    log_ns: i64,
-    data: Vec<u8>,
-}
-
-fn write_bag(msgs: &[Msg], compression: Option<mcap::Compression>) -> Vec<u8> {
-    let mut w = mcap::WriteOptions::new()
-        .compression(compression)
-        .chunk_size(Some(4096))
-        .profile("ros2")
-        .create(Cursor::new(Vec::new()))
-        .unwrap();
-    let mut channels = BTreeMap::new();
-    for (seq, m) in msgs.iter().enumerate() {
-        let id = *channels.entry(m.topic).or_insert_with(|| {
-            let s = w.add_schema(m.schema, "ros2msg", b"").unwrap();
-            w.add_channel(s, m.topic, "cdr", &BTreeMap::new()).unwrap()
-        });
-        let h = mcap::records::MessageHeader {
-            channel_id: id,
-            sequence: seq as u32 + 1,
-            log_time: m.log_ns as u64,
-            publish_time: m.log_ns as u64,
-        };
-        w.write_to_known_channel(&h, &m.data).unwrap();
-    }
-    w.finish().unwrap();
-    w.into_inner().into_inner()
-}
-
-const IMU: &str = "sensor_msgs/msg/Imu";
-const FIX: &str = "sensor_msgs/msg/NavSatFix";
-const TWIST: &str = "geometry_msgs/msg/TwistWithCovarianceStamped";
 /// 2024-01-01T00:00:00Z (Monday): GPS week 2295, 86 400 s + 18 leap s.
 const T0_NS: i64 = 1_704_067_200 * 1_000_000_000;
 const SOW0: f64 = 86_418.0;
@@ -229,7 +97,11 @@ fn messages(s: &ConvertSummary) -> Vec<String> {
 
 #[test]
 fn known_rotation_and_fixes_round_trip() {
-    for (compression, name) in [(None, "plain"), (Some(mcap::Compression::Zstd), "zstd")] {
+    for (compression, name) in [
+        (None, "plain"),
+        (Some(mcap::Compression::Zstd), "zstd"),
+        (Some(mcap::Compression::Lz4), "lz4"),
+    ] {
         let bag = write_bag(&drive(4_000_000), compression);
         let (s, out) = run(&bag, name, &TopicChoice::default());
         let s = s.unwrap();
@@ -443,11 +315,19 @@ fn topic_choice_and_wrong_schemas_are_errors_that_say_why() {
 }
 
 #[test]
-fn compression_this_build_lacks_names_the_fix() {
-    let m =
-        navsync_receivers::ros2::mcap_error(&mcap::McapError::UnsupportedCompression("lz4".into()));
+fn unknown_chunk_compression_is_named() {
+    let mut bag = write_bag(&drive(0), Some(mcap::Compression::Zstd));
+    // Rename the chunks' compression in place (same length, records whole).
+    let at: Vec<usize> = (0..bag.len() - 3)
+        .filter(|&i| &bag[i..i + 4] == b"zstd")
+        .collect();
+    assert!(!at.is_empty());
+    for i in at {
+        bag[i..i + 4].copy_from_slice(b"brot");
+    }
+    let e = run(&bag, "unknown", &TopicChoice::default()).0.unwrap_err();
     assert!(
-        m.contains("lz4") && m.contains("mcap recover") && m.contains("ros2 bag convert"),
-        "{m}"
+        e.contains("bag.mcap") && e.contains("\"brot\"") && e.contains("lz4"),
+        "{e}"
     );
 }

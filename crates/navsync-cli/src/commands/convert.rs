@@ -21,7 +21,7 @@ pub enum From {
     RateCsv,
     /// comma2k19 gnss_ublox.csv (boot time, lat, lon, speed, UTC ms, alt, bearing).
     CommaGnss,
-    /// ROS 2 bag as .mcap (uncompressed or zstd chunks): sensor_msgs/Imu,
+    /// ROS 2 bag as .mcap (uncompressed, zstd or lz4 chunks): sensor_msgs/Imu,
     /// sensor_msgs/NavSatFix, geometry_msgs/TwistWithCovarianceStamped (CDR).
     Mcap,
 }

@@ -2,7 +2,7 @@
 //! crate and uses a part of them).
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The `navsync` binary under test.
@@ -30,4 +30,24 @@ pub fn run(cmd: &mut Command) -> (bool, String, String) {
         String::from_utf8_lossy(&out.stdout).into_owned(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
+}
+
+/// A JSON file's contents.
+pub fn json(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+/// Horizontal RMS of `nav` against `truth` (`navsync eval --json`, the
+/// JSON written as `dir/eval.json`).
+pub fn horizontal_rms(truth: &Path, nav: &Path, dir: &Path) -> f64 {
+    let j = dir.join("eval.json");
+    let (ok, _, err) = run(bin()
+        .args(["eval", "--truth"])
+        .arg(truth)
+        .arg("--nav")
+        .arg(nav)
+        .arg("--json")
+        .arg(&j));
+    assert!(ok, "{err}");
+    json(&j)["pos_horizontal_m"]["rms"].as_f64().unwrap()
 }
