@@ -1,6 +1,6 @@
 //! Fuzzes the ROS 2 bag reader (`navsync_receivers::ros2::read_bag`): raw
-//! bytes as an MCAP file, or a bag written with the `mcap` crate (plain or
-//! zstd chunks) whose `Imu`, `NavSatFix` and `TwistWithCovarianceStamped`
+//! bytes as an MCAP file, or a bag written with the `mcap` crate (plain,
+//! zstd or lz4 chunks) whose `Imu`, `NavSatFix` and `TwistWithCovarianceStamped`
 //! payloads are fuzzed CDR bodies behind a valid encapsulation header.
 //! Beyond "no panic": IMU samples and fixes come out finite, in strictly
 //! increasing time, with positive σ.
@@ -22,9 +22,9 @@ const SCHEMAS: [&str; 4] = [
 ];
 
 /// `rest` as (kind, length, payload) triples on four topics.
-fn bag(rest: &[u8], zstd: bool) -> Option<Vec<u8>> {
+fn bag(rest: &[u8], compression: Option<mcap::Compression>) -> Option<Vec<u8>> {
     let mut w = mcap::WriteOptions::new()
-        .compression(zstd.then_some(mcap::Compression::Zstd))
+        .compression(compression)
         .chunk_size(Some(512))
         .create(Cursor::new(Vec::new()))
         .ok()?;
@@ -69,7 +69,12 @@ fuzz_target!(|data: &[u8]| {
     let bytes = if mode & 1 == 0 {
         rest.to_vec()
     } else {
-        match bag(rest, mode & 2 != 0) {
+        let compression = match (mode >> 1) & 3 {
+            1 => Some(mcap::Compression::Zstd),
+            2 => Some(mcap::Compression::Lz4),
+            _ => None,
+        };
+        match bag(rest, compression) {
             Some(b) => b,
             None => return,
         }
