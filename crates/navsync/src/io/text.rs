@@ -26,6 +26,9 @@ pub struct LineReader<R> {
 
 const BLOCK: usize = 1 << 20;
 
+/// A line, its 1-based number, and whether it ended in `\n`.
+pub type EndedLine<'a> = (&'a [u8], usize, bool);
+
 impl LineReader<File> {
     /// Opens `path`; a missing file is an error naming it.
     pub fn open(path: &Path) -> Result<Self, Error> {
@@ -75,7 +78,7 @@ impl<R: Read> LineReader<R> {
 
     /// As [`Self::next_line`], with whether the line ended in `\n` (false
     /// only for a last line cut short).
-    pub fn next_line_ended(&mut self) -> Result<Option<(&[u8], usize, bool)>, Error> {
+    pub fn next_line_ended(&mut self) -> Result<Option<EndedLine<'_>>, Error> {
         Ok(self
             .advance()?
             .map(|(a, b)| (&self.buf[a..b], self.line_no, self.terminated)))
