@@ -6,7 +6,9 @@
 //! returned one at a time in file order. A record that is bad on its own
 //! (unknown type, wrong field count, a field that is not a number, a
 //! counter that does not fit the counter's width) is reported with file and
-//! line into [`Diagnostics`] and skipped: nothing else is lost.
+//! line into [`Diagnostics`] and skipped: nothing else is lost. So is a last
+//! line without newline (a logger killed mid-write): it may parse and still
+//! be cut short.
 
 use std::fs::File;
 use std::io::Read;
