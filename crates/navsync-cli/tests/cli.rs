@@ -754,9 +754,11 @@ fn hybrid_sync_recovers_sample_instants_and_implausible_logs_fail_loudly() {
     // The same log forced into hardware mode: receive times taken for
     // captures give losses, duplicates and irregular intervals by the
     // thousand: loud, non-zero, no imu.txt left behind.
-    let (ok, _, err) = sync(&sim, "hw", &["--mode", "hw"]);
+    let (ok, out, err) = sync(&sim, "hw", &["--mode", "hw"]);
     assert!(!ok, "{err}");
     assert!(err.contains("IMPLAUSIBLE"), "{err}");
+    // Files withdrawn are not announced as written.
+    assert!(!out.contains("wrote"), "{out}");
     assert!(err.contains("--mode hybrid"), "{err}");
     assert!(!sim.join("hw/imu.txt").exists());
     assert!(
@@ -766,8 +768,8 @@ fn hybrid_sync_recovers_sample_instants_and_implausible_logs_fail_loudly() {
             .is_empty()
     );
     // --force writes them anyway.
-    let (ok, _, err) = sync(&sim, "hw_forced", &["--mode", "hw", "--force"]);
-    assert!(ok, "{err}");
+    let (ok, out, err) = sync(&sim, "hw_forced", &["--mode", "hw", "--force"]);
+    assert!(ok && out.contains("wrote"), "{out}\n{err}");
     assert!(err.contains("IMPLAUSIBLE"), "{err}");
     assert!(sim.join("hw_forced/imu.txt").exists());
 

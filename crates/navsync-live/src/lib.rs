@@ -12,6 +12,8 @@
 //! - [`gnss`]: receiver bytes → fixes with their receive time.
 //! - [`live`]: the loop (threads, bounded channel, reopen, status).
 //! - [`files`]: the solution as KF-GINS files.
+//! - [`record`]: `--record`: the received records as a rig log, the
+//!   receiver's raw bytes.
 //! - [`replay`], [`selftest`]: PTYs fed at real rate; the measurement.
 //!
 //! Kept out of `navsync` and `navsync-receivers` so that their users need
@@ -24,6 +26,7 @@ pub mod imu;
 pub mod latency;
 pub mod live;
 pub mod pps;
+pub mod record;
 pub mod replay;
 pub mod selftest;
 pub mod serial;

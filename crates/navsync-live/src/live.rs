@@ -53,6 +53,7 @@ use crate::hostclock::{self, COUNTER_HZ};
 use crate::imu::{ArrivalTimer, ImuLineFormat, LineSplitter};
 use crate::latency::LatencyHistogram;
 use crate::pps::{KernelPps, PpsEdge, PpsSource};
+use crate::record::{RecordCounts, Recorder};
 use crate::serial::SerialPort;
 
 /// Records waiting between the source threads and the engine (≈ 20 s of a
@@ -109,6 +110,10 @@ pub struct LiveConfig {
     pub max_unstamped_s: f64,
     /// Stop after this long (None: until `stop` is set).
     pub duration: Option<Duration>,
+    /// Record every received record here as a rig log ([`crate::record`]).
+    pub record: Option<PathBuf>,
+    /// Record the receiver's raw bytes here.
+    pub record_gnss: Option<PathBuf>,
 }
 
 impl LiveConfig {
@@ -136,6 +141,8 @@ impl LiveConfig {
             status_interval: Duration::from_secs(1),
             max_unstamped_s: 60.0,
             duration: None,
+            record: None,
+            record_gnss: None,
         }
     }
 }
@@ -169,6 +176,8 @@ enum Input {
         values: [f64; 6],
     },
     Gnss(ReceivedFix),
+    /// Bytes read from the receiver's port (only when they are recorded).
+    GnssRaw(Vec<u8>),
     Pps(PpsEdge),
     /// An IMU line that is not a sample.
     BadImuLine(String),
@@ -261,6 +270,8 @@ pub struct LiveReport {
     pub sync_error: Option<String>,
     pub notes_total: u64,
     pub first_notes: Vec<String>,
+    /// What `--record` and `--record-gnss` wrote.
+    pub recorded: Option<RecordCounts>,
 }
 
 /// Receives the solution and the status.
@@ -504,6 +515,7 @@ fn spawn_gnss(
     let esf = cfg.esf_tick_s;
     let period_ns = 1e9 / cfg.imu_rate_hz;
     let rate = cfg.imu_rate_hz;
+    let keep_raw = cfg.record_gnss.is_some();
     std::thread::Builder::new()
         .name("live-gnss".into())
         .spawn(move || {
@@ -522,8 +534,8 @@ fn spawn_gnss(
                 stop,
                 retry,
                 |bytes, stamp, tx| {
+                    let mut ok = !keep_raw || tx.send(Input::GnssRaw(bytes.to_vec())).is_ok();
                     dec.borrow_mut().push(bytes, stamp, &mut out);
-                    let mut ok = true;
                     let (t, tag0) = &mut *timer.borrow_mut();
                     for e in out.imu.drain(..) {
                         let t0 = *tag0.get_or_insert(e.sensor_ns);
@@ -685,6 +697,42 @@ struct Core {
     t0: u64,
     notes_total: u64,
     first_notes: Vec<String>,
+    recorder: Option<Recorder>,
+    /// IMU samples come from ESF messages (recorded at their tag's stamp).
+    esf: bool,
+}
+
+/// The header of a `--record` rig log: the host counter, and what its
+/// `imu` counters are.
+pub fn record_header(cfg: &LiveConfig) -> RigHeader {
+    let mut h = RigHeader::new(COUNTER_HZ, 64, imu_kind(cfg));
+    h.imu_rate_hz = Some(cfg.imu_rate_hz);
+    // Lines: their arrival (hybrid sync finds the sample clock again). ESF:
+    // the sensor's time tags put on the host counter, sample instants up
+    // to the fastest message delay, as live stamps them.
+    h.imu_timing = Some(if cfg.esf_tick_s.is_some() {
+        ImuTiming::DataReady
+    } else {
+        ImuTiming::Receive
+    });
+    h.imu_output_delay_s = Some(cfg.imu_output_delay_s);
+    h
+}
+
+fn record_comments(cfg: &LiveConfig) -> Vec<&'static str> {
+    let mut c = vec![
+        "recorded by navsync live, counter = the host's CLOCK_MONOTONIC_RAW in ns",
+        "gnss counters are the arrival of the fix's last byte",
+    ];
+    c.push(if cfg.esf_tick_s.is_some() {
+        "imu counters are the ESF time tags mapped to the host counter by the arrival envelope"
+    } else {
+        "imu counters are the arrival of each line (lines of one read share it)"
+    });
+    if matches!(cfg.pps, PpsInput::None) {
+        c.push("no 1PPS input");
+    }
+    c
 }
 
 impl Core {
@@ -741,6 +789,14 @@ impl Core {
             t0: hostclock::now_ns(),
             notes_total: 0,
             first_notes: Vec::new(),
+            recorder: None,
+            esf: cfg.esf_tick_s.is_some(),
+        }
+    }
+
+    fn record(&mut self, r: RigRecord) {
+        if let Some(rec) = self.recorder.as_mut() {
+            rec.record(r);
         }
     }
 
@@ -957,11 +1013,23 @@ pub fn run(cfg: LiveConfig, stop: &AtomicBool, sink: &mut dyn LiveSink) -> io::R
             format!("IMU rate {} Hz is not positive", cfg.imu_rate_hz),
         ));
     }
+    let recorder = if cfg.record.is_some() || cfg.record_gnss.is_some() {
+        let comments = record_comments(&cfg);
+        Some(Recorder::create(
+            cfg.record.as_deref(),
+            cfg.record_gnss.as_deref(),
+            &record_header(&cfg),
+            &comments,
+        )?)
+    } else {
+        None
+    };
     let started = Instant::now();
     let cpu0 = hostclock::cpu_seconds();
     let (tx, rx) = mpsc::sync_channel::<Input>(CHANNEL_DEPTH);
     let halt = Arc::new(AtomicBool::new(false));
     let mut core = Core::new(&cfg);
+    core.recorder = recorder;
     let retry = cfg.reopen_interval;
     let has_pps = !matches!(cfg.pps, PpsInput::None);
     let mut handles = vec![spawn_gnss(&cfg, tx.clone(), halt.clone())?];
@@ -990,7 +1058,11 @@ pub fn run(cfg: LiveConfig, stop: &AtomicBool, sink: &mut dyn LiveSink) -> io::R
     for h in handles {
         let _ = h.join();
     }
+    // What the engine took in is written even when the run failed.
+    let fin = core.recorder.as_mut().map(|r| r.finish());
     result?;
+    fin.transpose()?;
+    let recorded = core.recorder.as_ref().map(|r| r.counts.clone());
     let duration_s = started.elapsed().as_secs_f64();
     let cpu_s = hostclock::cpu_seconds() - cpu0;
     let Core {
@@ -1017,6 +1089,7 @@ pub fn run(cfg: LiveConfig, stop: &AtomicBool, sink: &mut dyn LiveSink) -> io::R
         sync_error,
         notes_total,
         first_notes,
+        recorded,
     })
 }
 
@@ -1050,6 +1123,10 @@ fn engine_loop(
                 core.counts.imu_lines += 1;
                 core.arrivals.push_back((core.imu_seq, arrival_ns));
                 core.imu_seq += 1;
+                core.record(RigRecord::Imu {
+                    counter: if core.esf { sample_ns } else { arrival_ns },
+                    values,
+                });
                 let rec = RigRecord::Imu {
                     counter: sample_ns,
                     values,
@@ -1074,14 +1151,21 @@ fn engine_loop(
                     h_m: f.fix.pos.h_m,
                     sd_m: [f.fix.pos_sd.x, f.fix.pos_sd.y, f.fix.pos_sd.z],
                 });
+                core.record(rec);
                 core.push(rec, sink).map_err(to_io)?;
+            }
+            Ok(Input::GnssRaw(bytes)) => {
+                if let Some(r) = core.recorder.as_mut() {
+                    r.raw_gnss(&bytes);
+                }
             }
             Ok(Input::Pps(e)) => {
                 pps_up = true;
                 core.counts.pps_edges += 1;
                 core.counts.pps_missed += e.missed;
-                core.push(RigRecord::Pps { counter: e.host_ns }, sink)
-                    .map_err(to_io)?;
+                let rec = RigRecord::Pps { counter: e.host_ns };
+                core.record(rec);
+                core.push(rec, sink).map_err(to_io)?;
             }
             Ok(Input::Note { source, msg, up }) => {
                 if let Some(u) = up {
@@ -1115,6 +1199,9 @@ fn engine_loop(
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => break,
+        }
+        if let Some(r) = core.recorder.as_mut() {
+            r.tick(hostclock::now_ns())?;
         }
         if Instant::now() >= next_status {
             next_status += status_every;

@@ -34,6 +34,10 @@ pub struct SelftestConfig {
     pub verbose: bool,
     /// Also write the solution as KF-GINS files here.
     pub output: Option<std::path::PathBuf>,
+    /// `--record`: the received records as a rig log.
+    pub record: Option<std::path::PathBuf>,
+    /// `--record-gnss`: the receiver's raw bytes.
+    pub record_gnss: Option<std::path::PathBuf>,
 }
 
 impl SelftestConfig {
@@ -48,6 +52,8 @@ impl SelftestConfig {
             fusion: None,
             verbose: false,
             output: None,
+            record: None,
+            record_gnss: None,
         }
     }
 }
@@ -196,6 +202,16 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
     let fusion = cfg.fusion.clone().unwrap_or_else(|| builtin_fusion(r));
     let (inj, src) = pps::injected();
     let replay = Replay::start(r.clone(), dir, inj, 0.5)?;
+    if cfg.verbose {
+        // What an outside observer needs to know what was sent when.
+        println!(
+            "replay: GPS {} {:.3} at host counter {} ns (CLOCK_MONOTONIC_RAW), GPS {} ppm fast",
+            r.start.week(),
+            r.start.sow(),
+            replay.clock.host0,
+            r.host_ppm
+        );
+    }
     let baud = 921600;
     let imu_port = PortConfig {
         path: replay.imu_port.clone(),
@@ -215,6 +231,8 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
     }
     lc.imu_rate_hz = r.imu_rate_hz;
     lc.reopen_interval = Duration::from_millis(200);
+    lc.record = cfg.record.clone();
+    lc.record_gnss = cfg.record_gnss.clone();
     // Until the writer's last line has been read.
     lc.duration = Some(Duration::from_secs_f64(r.duration_s + 0.8));
     let mut m = Measure {

@@ -69,7 +69,8 @@ pub struct Args {
     #[arg(long, required_unless_present = "selftest")]
     pub config: Option<PathBuf>,
     /// Write DIR/navresult.nav (KF-GINS, every IMU epoch), imu_err.txt and
-    /// std.txt (once a second) and live_report.json.
+    /// std.txt (once a second) and live_report.json (the self-test: the
+    /// first three).
     #[arg(long)]
     pub output: Option<PathBuf>,
     /// Without --output: solution lines printed per second.
@@ -81,6 +82,15 @@ pub struct Args {
     /// Stop after this many seconds (default: Ctrl-C).
     #[arg(long)]
     pub duration: Option<f64>,
+    /// Record every IMU line, GNSS fix and PPS edge received, on the host
+    /// counter, as a rig log for `navsync sync` (written to the OS every
+    /// 0.25 s; an existing file is refused).
+    #[arg(long, value_name = "RIG.csv")]
+    pub record: Option<PathBuf>,
+    /// Record the receiver's bytes as read from its port (raw.ubx,
+    /// raw.nmea) for `navsync convert`.
+    #[arg(long, value_name = "FILE")]
+    pub record_gnss: Option<PathBuf>,
     /// Measure the live loop on pseudo-terminals at real rate (200 Hz IMU,
     /// 10 Hz GNSS, injected PPS with a gap): lost samples, latency, CPU.
     #[arg(long)]
@@ -250,6 +260,8 @@ pub fn run(args: Args) -> Result<()> {
         anyhow::ensure!(d > 0.0, "--duration must be positive");
         cfg.duration = Some(Duration::from_secs_f64(d));
     }
+    cfg.record = args.record.clone();
+    cfg.record_gnss = args.record_gnss.clone();
     if let Some(dir) = &args.output {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -279,6 +291,7 @@ pub fn run(args: Args) -> Result<()> {
         us(report.latency.max_us),
         report.cpu_percent
     );
+    print_recorded(&report.recorded, &args);
     if let Some(dir) = &args.output {
         let p = dir.join("live_report.json");
         std::fs::write(&p, serde_json::to_string_pretty(&report)?)
@@ -289,6 +302,33 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(target_os = "linux")]
+fn print_recorded(r: &Option<navsync_live::record::RecordCounts>, args: &Args) {
+    let Some(r) = r else { return };
+    if let Some(p) = &args.record {
+        println!(
+            "  recorded {} imu, {} gnss, {} pps records to {} ({} bytes{})",
+            r.imu,
+            r.gnss,
+            r.pps,
+            p.display(),
+            r.rig_bytes,
+            if r.late > 0 {
+                format!("; {} came late, after later records", r.late)
+            } else {
+                String::new()
+            }
+        );
+    }
+    if let Some(p) = &args.record_gnss {
+        println!(
+            "  recorded {} receiver bytes to {}",
+            r.raw_gnss_bytes,
+            p.display()
+        );
+    }
 }
 
 #[cfg(target_os = "linux")]
@@ -310,6 +350,12 @@ fn run_selftest(args: &Args) -> Result<()> {
     };
     cfg.replay.imu_esf = args.selftest_esf;
     cfg.verbose = true;
+    cfg.record = args.record.clone();
+    cfg.record_gnss = args.record_gnss.clone();
+    cfg.output = args.output.clone();
+    if let Some(d) = &args.output {
+        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    }
     let dir = std::env::temp_dir().join(format!("navsync-live-selftest-{}", std::process::id()));
     println!(
         "navsync live --selftest: {:.1} min on PTYs in {} (200 Hz IMU, 10 Hz GNSS, PPS removed at {} s for {} s)",
@@ -373,6 +419,7 @@ fn run_selftest(args: &Args) -> Result<()> {
         r.max_pos_error_m,
         r.replay_max_late_ms
     );
+    print_recorded(&r.live.recorded, args);
     if let Some(p) = &args.json {
         std::fs::write(p, serde_json::to_string_pretty(&r)?)
             .with_context(|| format!("writing {}", p.display()))?;

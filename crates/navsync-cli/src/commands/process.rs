@@ -191,7 +191,8 @@ fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
     };
     let t0 = std::time::Instant::now();
     let s = sync_file(rig, &dir, cfg, None, None)?;
-    super::sync::print_summary(&s.report, t0.elapsed().as_secs_f64(), &dir);
+    super::sync::print_summary(&s.report, t0.elapsed().as_secs_f64());
+    super::sync::print_wrote(&dir);
     if !s.read_diag.is_empty() {
         eprintln!("{} lines skipped while reading:", s.read_diag.total);
         print_diagnostics(&s.read_diag, 5);

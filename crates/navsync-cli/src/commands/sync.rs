@@ -138,7 +138,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(tpl) = &args.kfgins_template {
         write_kfgins_config(tpl, out_dir, &summary.report)?;
     }
-    print_summary(&summary.report, wall, out_dir);
+    print_summary(&summary.report, wall);
     if !summary.read_diag.is_empty() {
         eprintln!("{} lines skipped while reading:", summary.read_diag.total);
         print_diagnostics(&summary.read_diag, 10);
@@ -148,7 +148,9 @@ pub fn run(args: Args) -> Result<()> {
         print_diagnostics(&summary.report.diagnostics, 10);
     }
     let bad = &summary.report.implausible;
-    if !bad.is_empty() {
+    if bad.is_empty() {
+        print_wrote(out_dir);
+    } else {
         eprintln!();
         eprintln!(
             "navsync sync: IMPLAUSIBLE LOG {}: the stamps are not to be trusted",
@@ -169,6 +171,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         if args.force {
             eprintln!("  --force: outputs written anyway");
+            print_wrote(out_dir);
         } else {
             // No silent garbage: the time-stamped files are withdrawn; the
             // report stays for diagnosis.
@@ -191,7 +194,7 @@ pub fn run(args: Args) -> Result<()> {
 
 use navsync::timing::report::Implausible;
 
-pub fn print_summary(r: &SyncReport, wall: f64, out_dir: &Path) {
+pub fn print_summary(r: &SyncReport, wall: f64) {
     let mode = if r.causal {
         "causal"
     } else {
@@ -314,6 +317,10 @@ pub fn print_summary(r: &SyncReport, wall: f64, out_dir: &Path) {
             );
         }
     }
+}
+
+/// The files `sync` leaves (printed once they are known to stay).
+pub fn print_wrote(out_dir: &Path) {
     println!(
         "  wrote {}/imu.txt, gnss.txt, imu_times.txt, sync_report.json",
         out_dir.display()

@@ -6,7 +6,9 @@
 //! returned one at a time in file order. A record that is bad on its own
 //! (unknown type, wrong field count, a field that is not a number, a
 //! counter that does not fit the counter's width) is reported with file and
-//! line into [`Diagnostics`] and skipped: nothing else is lost.
+//! line into [`Diagnostics`] and skipped: nothing else is lost. So is a last
+//! line without newline (a logger killed mid-write): it may parse and still
+//! be cut short.
 
 use std::fs::File;
 use std::io::Read;
@@ -292,8 +294,9 @@ pub struct RigLogReader<R> {
     lines: LineReader<R>,
     path: PathBuf,
     header: RigHeader,
-    /// First record line, read while scanning the header.
-    pending: Option<(Vec<u8>, usize)>,
+    /// First record line, read while scanning the header, and whether it
+    /// ended in a newline.
+    pending: Option<(Vec<u8>, usize, bool)>,
     records: usize,
     counter_max: u64,
 }
@@ -327,7 +330,7 @@ impl<R: Read> RigLogReader<R> {
                 continue;
             }
             let Some(comment) = t.strip_prefix('#') else {
-                pending = Some((line.to_vec(), no));
+                pending = Some((line.to_vec(), no, lines.last_line_terminated()));
                 break;
             };
             let c = comment.trim();
@@ -510,18 +513,25 @@ impl<R: Read> RigLogReader<R> {
         &mut self,
         diag: &mut Diagnostics,
     ) -> Result<Option<(RigRecord, usize)>, Error> {
-        if let Some((line, no)) = self.pending.take()
-            && let Some(r) = parse_record(&line, no, &self.path, self.counter_max, diag)
-        {
-            self.records += 1;
-            return Ok(Some((r, no)));
+        if let Some((line, no, terminated)) = self.pending.take() {
+            if !terminated {
+                torn_line(&line, no, &self.path, diag);
+            } else if let Some(r) = parse_record(&line, no, &self.path, self.counter_max, diag) {
+                self.records += 1;
+                return Ok(Some((r, no)));
+            }
         }
         loop {
-            let Some((line, no)) = self.lines.next_line()? else {
+            let Some((line, no, ended)) = self.lines.next_line_ended()? else {
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
                 continue;
+            }
+            if !ended {
+                // It may parse and still be wrong ("pps,12" of "pps,1234").
+                torn_line(line, no, &self.path, diag);
+                return Ok(None);
             }
             let rec = parse_record(line, no, &self.path, self.counter_max, diag);
             if let Some(r) = rec {
@@ -710,6 +720,21 @@ fn gps_time_fields(
     }
 }
 
+/// Reports the file's last line when it has no newline: a log cut while
+/// the line was written (a logger killed, power lost). Even when it parses,
+/// its last field may be cut short, so it is skipped.
+fn torn_line(line: &[u8], no: usize, path: &Path, diag: &mut Diagnostics) {
+    let shown = String::from_utf8_lossy(&line[..line.len().min(48)]);
+    let more = if line.len() > 48 { "…" } else { "" };
+    diag.push(
+        path,
+        no,
+        format!(
+            "last line '{shown}{more}' has no end of line: the log was cut while it was written; expected a whole record ending in a newline; line skipped (the records before it are kept)"
+        ),
+    );
+}
+
 /// Parses one record line; reports and returns `None` when it is bad.
 fn parse_record(
     line: &[u8],
@@ -835,6 +860,29 @@ mod tests {
             Ok(v)
         });
         (r, diag)
+    }
+
+    #[test]
+    fn a_torn_last_line_is_skipped_with_its_line_and_the_rest_kept() {
+        let head = "# rig-log v1\n# counter_hz: 1000000000\n# counter_bits: 64\n# imu: rate\n";
+        // Cut inside a counter: "pps,12" would parse, and be wrong.
+        for cut in ["pps,12", "imu,5000,0.1,0.2,0.3,0.4,0.5,9.8", "gnss,7,2400"] {
+            let text = format!("{head}pps,1000\nimu,2000,0,0,0,0,0,-9.8\n{cut}");
+            let (r, d) = read(&text);
+            assert_eq!(r.unwrap().len(), 2, "{cut}");
+            assert_eq!(d.items.len(), 1, "{:?}", d.items);
+            let m = &d.items[0].message;
+            assert_eq!(d.items[0].line, 7);
+            assert!(m.contains("no end of line") && m.contains(cut), "{m}");
+        }
+        // The only record, torn.
+        let (r, d) = read(&format!("{head}pps,1"));
+        assert!(r.unwrap().is_empty());
+        assert_eq!(d.items[0].line, 5);
+        // A whole last line is kept.
+        let (r, d) = read(&format!("{head}pps,1000\npps,2000\n"));
+        assert_eq!(r.unwrap().len(), 2);
+        assert!(d.is_empty());
     }
 
     #[test]

@@ -20,9 +20,14 @@ pub struct LineReader<R> {
     end: usize,
     eof: bool,
     line_no: usize,
+    /// Whether the line last returned ended in `\n`.
+    terminated: bool,
 }
 
 const BLOCK: usize = 1 << 20;
+
+/// A line, its 1-based number, and whether it ended in `\n`.
+pub type EndedLine<'a> = (&'a [u8], usize, bool);
 
 impl LineReader<File> {
     /// Opens `path`; a missing file is an error naming it.
@@ -43,6 +48,7 @@ impl<R: Read> LineReader<R> {
             end: 0,
             eof: false,
             line_no: 0,
+            terminated: true,
         }
     }
 
@@ -56,9 +62,30 @@ impl<R: Read> LineReader<R> {
         self.line_no
     }
 
+    /// False when the line last returned is the file's last and has no
+    /// `\n`: a writer cut off mid-line (a logger killed) leaves one.
+    pub fn last_line_terminated(&self) -> bool {
+        self.terminated
+    }
+
     /// The next line without its terminator (`\n` or `\r\n`) and its
     /// 1-based number, or `None` at the end of the file.
     pub fn next_line(&mut self) -> Result<Option<(&[u8], usize)>, Error> {
+        Ok(self
+            .advance()?
+            .map(|(a, b)| (&self.buf[a..b], self.line_no)))
+    }
+
+    /// As [`Self::next_line`], with whether the line ended in `\n` (false
+    /// only for a last line cut short).
+    pub fn next_line_ended(&mut self) -> Result<Option<EndedLine<'_>>, Error> {
+        Ok(self
+            .advance()?
+            .map(|(a, b)| (&self.buf[a..b], self.line_no, self.terminated)))
+    }
+
+    /// Moves to the next line; its byte range in `buf`.
+    fn advance(&mut self) -> Result<Option<(usize, usize)>, Error> {
         loop {
             if let Some(pos) = memchr_newline(&self.buf[self.start..self.end]) {
                 let line_start = self.start;
@@ -68,7 +95,8 @@ impl<R: Read> LineReader<R> {
                     line_end -= 1;
                 }
                 self.line_no += 1;
-                return Ok(Some((&self.buf[line_start..line_end], self.line_no)));
+                self.terminated = true;
+                return Ok(Some((line_start, line_end)));
             }
             if self.eof {
                 if self.start < self.end {
@@ -79,7 +107,8 @@ impl<R: Read> LineReader<R> {
                         line_end -= 1;
                     }
                     self.line_no += 1;
-                    return Ok(Some((&self.buf[line_start..line_end], self.line_no)));
+                    self.terminated = false;
+                    return Ok(Some((line_start, line_end)));
                 }
                 return Ok(None);
             }
