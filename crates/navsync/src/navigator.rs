@@ -64,6 +64,7 @@ use crate::io::riglog::{RigHeader, RigRecord};
 use crate::reduced::ReducedImu;
 use crate::time::GpsTime;
 use crate::time::OutageSchedule;
+use crate::time::seconds_to_ns;
 use crate::timing::engine::{SyncConfig, SyncEngine, SyncOutput};
 use crate::timing::imu::{IncrementBuilder, RateRule};
 use crate::timing::report::SyncReport;
@@ -175,6 +176,8 @@ pub struct Navigator {
     reduced_imu: Option<ReducedImu>,
     nominal_dt_s: f64,
     output: SolutionOutput,
+    /// The navigator's own counts (the output's are read from `output`:
+    /// see [`Self::counts`]).
     counts: StreamCounts,
     rig: Option<RigFrontEnd>,
 }
@@ -205,7 +208,7 @@ impl SolutionOutput {
     ) -> Self {
         SolutionOutput {
             output_gnss_time,
-            aux_ns: aux_interval_s.map(|s| (s * 1e9).round() as i64),
+            aux_ns: aux_interval_s.map(seconds_to_ns),
             next_aux: None,
             interp,
             last_written: None,
@@ -311,7 +314,7 @@ impl Navigator {
     /// real-time latency mode a negative lead delivers each at its arrival).
     pub fn for_batch(mut self, lead_s: f64) -> Self {
         self.drop_fixes_before_start = true;
-        self.fix_lead_ns = Some((lead_s * 1e9).round() as i64);
+        self.fix_lead_ns = Some(seconds_to_ns(lead_s));
         self
     }
 
@@ -331,7 +334,7 @@ impl Navigator {
     /// Auxiliary output ([`NavSink::aux`]: IMU errors, σ, time offset) at
     /// this interval (s; 0 at every epoch), or none.
     pub fn with_aux_interval(mut self, interval_s: Option<f64>) -> Self {
-        self.output.aux_ns = interval_s.map(|s| (s * 1e9).round() as i64);
+        self.output.aux_ns = interval_s.map(seconds_to_ns);
         self
     }
 
@@ -401,9 +404,14 @@ impl Navigator {
         self.fusion
     }
 
-    /// What the stream counted so far.
-    pub fn counts(&self) -> &StreamCounts {
-        &self.counts
+    /// What the stream counted so far (the output's counters are read
+    /// from the output itself).
+    pub fn counts(&self) -> StreamCounts {
+        StreamCounts {
+            output_at_written: self.output.at_written,
+            solutions_out_of_order: self.output.out_of_order,
+            ..self.counts.clone()
+        }
     }
 
     /// Fixes waiting for the IMU to reach them.
@@ -481,8 +489,6 @@ impl Navigator {
             let sd = fusion.std_devs();
             (sd, fusion.position_covariance(), fusion.time_offset())
         })?;
-        self.counts.output_at_written = self.output.at_written;
-        self.counts.solutions_out_of_order = self.output.out_of_order;
         Ok(Step::Solution(out))
     }
 
@@ -551,16 +557,16 @@ impl Navigator {
         }
         self.counts.output_at_skipped = self.output.finish();
         diagnostics.extend(self.fusion.take_diagnostics());
-        if self.counts.solutions_out_of_order > 0 {
+        if self.output.out_of_order > 0 {
             diagnostics.note(format!(
                 "{} solutions left out of the GNSS-time output: the time-offset estimate stepped back by more than a sample interval",
-                self.counts.solutions_out_of_order
+                self.output.out_of_order
             ));
         }
         let fix_records = self.fusion.take_fix_log();
         sink.fix_records(&fix_records)?;
         Ok(StreamEnd {
-            counts: self.counts.clone(),
+            counts: self.counts(),
             fix_records,
             sync_report,
             diagnostics,

@@ -406,7 +406,7 @@ impl WeightingReport {
 
 /// Builds the engine configuration from a KF-GINS configuration.
 pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
-    let start = GpsTime::from_week_ns(opts.week, (cfg.start_sow * 1e9).round() as i64);
+    let start = GpsTime::from_week_ns(opts.week, crate::time::seconds_to_ns(cfg.start_sow));
     let nav = NavState::new(start, cfg.init_pos, cfg.init_vel, &cfg.init_att);
     let mut fc = FusionConfig::new(nav, cfg.init_std, cfg.noise, cfg.imu_rate_hz);
     fc.init_imu = cfg.init_imu;
@@ -783,7 +783,7 @@ fn run_inner(
     let start = fc.init_nav.time;
     let end = cfg
         .end_sow
-        .map(|e| GpsTime::from_week_ns(opts.week, (e * 1e9).round() as i64));
+        .map(|e| GpsTime::from_week_ns(opts.week, crate::time::seconds_to_ns(e)));
     let mut navigator = batch_navigator(fc, opts)?.with_end(end);
     let smoothing = match (opts.smooth, smoothed_sink) {
         (Some(sm), Some(s)) => {
@@ -800,7 +800,7 @@ fn run_inner(
     };
     // Fixes are read from the file as far ahead of the IMU as the
     // navigator delivers them (it holds them until then).
-    let lead_ns = (fix_lead_s(opts) * 1e9).round() as i64;
+    let lead_ns = crate::time::seconds_to_ns(fix_lead_s(opts));
 
     let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
     let mut next_fix: Option<GnssFix> = gnss.next_fix(&mut diag)?;

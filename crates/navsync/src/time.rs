@@ -17,6 +17,11 @@ pub const SECONDS_PER_WEEK: i64 = 604_800;
 /// Nanoseconds in one GPS week.
 pub const NS_PER_WEEK: i64 = SECONDS_PER_WEEK * NS_PER_S;
 
+/// Seconds to whole nanoseconds (rounded to the nearest ns).
+pub(crate) fn seconds_to_ns(seconds: f64) -> i64 {
+    (seconds * 1e9).round() as i64
+}
+
 /// A window of GPS time, such as a GNSS outage: its start and length.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct OutageWindow {
@@ -80,13 +85,13 @@ impl GpsTime {
 
     /// From a week number and seconds of week. Rounded to the nearest ns.
     pub fn from_week_sow(week: i64, sow_s: f64) -> Self {
-        Self::from_week_ns(week, (sow_s * 1e9).round() as i64)
+        Self::from_week_ns(week, seconds_to_ns(sow_s))
     }
 
     /// From seconds since the GPS epoch (rounded to the nearest ns).
     pub fn from_seconds(seconds: f64) -> Self {
         GpsTime {
-            ns: (seconds * 1e9).round() as i64,
+            ns: seconds_to_ns(seconds),
         }
     }
 
@@ -120,7 +125,7 @@ impl GpsTime {
     /// This instant shifted by `seconds` (rounded to the nearest ns).
     pub fn add_seconds(self, seconds: f64) -> GpsTime {
         GpsTime {
-            ns: self.ns + (seconds * 1e9).round() as i64,
+            ns: self.ns + seconds_to_ns(seconds),
         }
     }
 

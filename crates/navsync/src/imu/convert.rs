@@ -111,7 +111,7 @@ impl RateToIncrement {
     /// for the gap, so it stays a gap downstream). Seed 001 §1.5 point 5
     /// calls any gap over 0.1 s a fault.
     pub fn with_max_bridge(mut self, seconds: f64) -> Self {
-        self.max_bridge_ns = Some((seconds * 1e9).round() as i64);
+        self.max_bridge_ns = Some(crate::time::seconds_to_ns(seconds));
         self
     }
 

@@ -597,7 +597,7 @@ impl Conditioner {
             conv,
             rate_dec,
             inc_dec,
-            shift_ns: (cfg.delay_compensation_s * 1e9).round() as i64,
+            shift_ns: crate::time::seconds_to_ns(cfg.delay_compensation_s),
         }
     }
 

@@ -161,7 +161,7 @@ pub fn sd_at(sd: &[(GpsTime, SolutionSd)], t: GpsTime) -> Option<SolutionSd> {
 /// `every_s` = 1 the records on whole seconds, plus the very first one).
 /// `every_s` ≤ 0 keeps all.
 pub fn decimate(recs: &[NavRecord], every_s: f64) -> Vec<NavRecord> {
-    let bin_ns = (every_s * 1e9).round() as i64;
+    let bin_ns = crate::time::seconds_to_ns(every_s);
     if bin_ns <= 0 {
         return recs.to_vec();
     }

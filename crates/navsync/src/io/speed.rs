@@ -33,7 +33,7 @@ impl SpeedStream {
             next: None,
             count: 0,
             done: false,
-            max_gap_ns: (max_gap_s * 1e9).round() as i64,
+            max_gap_ns: crate::time::seconds_to_ns(max_gap_s),
         })
     }
 
