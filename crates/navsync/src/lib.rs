@@ -43,6 +43,8 @@ mod testutil;
 pub mod time;
 pub mod timing;
 pub mod types;
+// Enums written as words, one table both ways.
+mod words;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
 pub use time::{GpsTime, OutageWindow};

@@ -56,6 +56,7 @@ use serde::Serialize;
 use crate::earth::LocalEarth;
 use crate::filter::{ImuNoise, InitialStd};
 use crate::ins::{ImuErrors, ImuSample, NavState};
+use crate::words;
 
 /// Which inertial sensors exist.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
@@ -89,27 +90,28 @@ impl ImuConfig {
     }
 }
 
+impl ImuConfig {
+    /// The configurations' words, both ways (`FromStr` and `Display`).
+    const WORDS: [(ImuConfig, &'static str); 3] = [
+        (ImuConfig::Full, "full"),
+        (ImuConfig::OneGyroTwoAccels, "1g2a"),
+        (ImuConfig::OneGyroThreeAccels, "1g3a"),
+    ];
+}
+
 impl FromStr for ImuConfig {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "full" => Ok(ImuConfig::Full),
-            "1g2a" => Ok(ImuConfig::OneGyroTwoAccels),
-            "1g3a" => Ok(ImuConfig::OneGyroThreeAccels),
-            _ => Err(format!(
-                "unknown IMU configuration '{s}' (full, 1g2a, 1g3a)"
-            )),
-        }
+        words::from_word(&Self::WORDS, s).ok_or_else(|| {
+            let all: Vec<&str> = Self::WORDS.iter().map(|(_, w)| *w).collect();
+            format!("unknown IMU configuration '{s}' ({})", all.join(", "))
+        })
     }
 }
 
 impl fmt::Display for ImuConfig {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            ImuConfig::Full => "full",
-            ImuConfig::OneGyroTwoAccels => "1g2a",
-            ImuConfig::OneGyroThreeAccels => "1g3a",
-        })
+        f.write_str(words::word_of(&Self::WORDS, *self))
     }
 }
 

@@ -229,7 +229,7 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
             b'e' | b'E' => {
                 let _ = k;
                 let v = parse_f64(field)?;
-                return Ok((v * 1e9).round() as i64);
+                return Ok(crate::time::seconds_to_ns(v));
             }
             _ => {
                 return Err(format!(
@@ -260,6 +260,16 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
 }
 
 pub use crate::numfmt::{push_f64, push_fixed, push_u64, push_u64_padded};
+
+/// A number for a header or configuration line: integers without a
+/// decimal point, other values in their shortest round-trip form.
+pub fn plain_number(x: f64) -> String {
+    if x.fract() == 0.0 && x.abs() < 1e15 {
+        format!("{}", x as i64)
+    } else {
+        format!("{x}")
+    }
+}
 
 #[cfg(test)]
 mod tests {
