@@ -142,10 +142,10 @@ pub struct Alignment {
     pub time_sow: f64,
     #[serde(skip)]
     pub nav: NavState,
-    pub attitude_deg: [f64; 3],
+    pub(crate) attitude_deg: [f64; 3],
     /// σ of roll, pitch, yaw (rad).
     pub att_sd_rad: [f64; 3],
-    pub pos_sd_m: [f64; 3],
+    pub(crate) pos_sd_m: [f64; 3],
     pub vel_sd_mps: [f64; 3],
     pub method: AlignMethod,
     /// Length of the standstill used for levelling (s).
@@ -155,14 +155,14 @@ pub struct Alignment {
     /// The vehicle was reversing (heading turned by 180°).
     pub reversing: bool,
     /// Whether the reversing check had enough acceleration to decide.
-    pub reversing_checked: bool,
+    pub(crate) reversing_checked: bool,
     pub note: String,
     /// Levelled at the run's start (over a standstill the run starts at, or
     /// in motion): the tilt error is M·δb_a ([`levelling_tilt_coupling`]),
     /// and `tilt_noise_sd_rad` is the part of the tilt σ that is not the
     /// accelerometer bias.
     #[serde(skip)]
-    pub levelling_coupling: Option<Matrix3<f64>>,
+    pub(crate) levelling_coupling: Option<Matrix3<f64>>,
     #[serde(skip)]
     pub tilt_noise_sd_rad: f64,
 }
@@ -218,7 +218,7 @@ pub fn level(f_b: &Vector3<f64>) -> (f64, f64) {
 
 /// The streaming aligner.
 #[derive(Clone, Debug)]
-pub struct Aligner {
+pub(crate) struct Aligner {
     opts: AlignOptions,
     last_imu: Option<GpsTime>,
     /// IMU sums since the last GNSS fix, and over the current standstill.

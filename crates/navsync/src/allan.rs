@@ -14,7 +14,7 @@ pub struct AllanPoint {
     /// Cluster time τ = m·τ₀ (s).
     pub tau_s: f64,
     /// Overlapping Allan deviation at τ (units of the input).
-    pub adev: f64,
+    pub(crate) adev: f64,
     /// Independent (non-overlapping) clusters of length τ in the data,
     /// ⌊N/m⌋: a guide to the estimate's confidence (relative error ≈
     /// 1/√(2·(clusters − 1)) at worst).

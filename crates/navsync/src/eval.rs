@@ -55,13 +55,13 @@ pub struct EvalReport {
     pub epochs_compared: usize,
     pub epochs_without_truth: usize,
     pub pos_north_m: ErrorStats,
-    pub pos_east_m: ErrorStats,
-    pub pos_down_m: ErrorStats,
+    pub(crate) pos_east_m: ErrorStats,
+    pub(crate) pos_down_m: ErrorStats,
     pub pos_horizontal_m: ErrorStats,
     pub pos_3d_m: ErrorStats,
-    pub vel_north_mps: ErrorStats,
-    pub vel_east_mps: ErrorStats,
-    pub vel_down_mps: ErrorStats,
+    pub(crate) vel_north_mps: ErrorStats,
+    pub(crate) vel_east_mps: ErrorStats,
+    pub(crate) vel_down_mps: ErrorStats,
     pub vel_horizontal_mps: ErrorStats,
     pub vel_3d_mps: ErrorStats,
     pub roll_deg: ErrorStats,
@@ -72,7 +72,7 @@ pub struct EvalReport {
     pub outage_rms_max_horizontal_m: Option<f64>,
     pub outage_rms_max_3d_m: Option<f64>,
     pub outage_worst_horizontal_m: Option<f64>,
-    pub outage_worst_3d_m: Option<f64>,
+    pub(crate) outage_worst_3d_m: Option<f64>,
 }
 
 impl EvalReport {
@@ -148,7 +148,7 @@ pub fn interpolate(a: &TruthState, b: &TruthState, t: GpsTime) -> TruthState {
 }
 
 /// Errors of a solution state against a truth state at the same epoch.
-pub fn epoch_error(
+pub(crate) fn epoch_error(
     truth: &TruthState,
     pos: &Geodetic,
     vel: &Vector3<f64>,
@@ -302,7 +302,7 @@ pub fn parse_outages(text: &str, week: i64) -> Result<Vec<OutageWindow>, Error> 
 /// Streams a truth file and interpolates it at increasing epochs. Records
 /// are matched by seconds of week when either file has week 0 (KF-GINS
 /// writes week 0).
-pub struct TruthStream {
+pub(crate) struct TruthStream {
     reader: NavReader,
     prev: Option<TruthState>,
     next: Option<TruthState>,
@@ -387,7 +387,7 @@ impl TruthStream {
 /// view) against a truth file, matched by seconds of week.
 pub struct TruthScorer {
     truth: TruthStream,
-    pub without_truth: usize,
+    pub(crate) without_truth: usize,
     pub diag: Diagnostics,
 }
 

@@ -88,7 +88,7 @@ pub struct StepInfo {
     /// C_b^n at the start of the step.
     pub c_nb: Matrix3<f64>,
     /// Specific-force velocity increment in NED, Δv_f^n (m/s).
-    pub dv_f_n: Vector3<f64>,
+    pub(crate) dv_f_n: Vector3<f64>,
     /// Total velocity change over the step (specific force, gravity,
     /// Coriolis): the kinematic acceleration times Δt (m/s).
     pub dv_n: Vector3<f64>,
@@ -118,7 +118,7 @@ impl Mechanization {
 
     /// Forgets the history (after a data gap the two-sample terms would
     /// couple unrelated intervals).
-    pub fn reset_history(&mut self) {
+    pub(crate) fn reset_history(&mut self) {
         self.prev = None;
         self.prev_dv_total = None;
     }
@@ -197,7 +197,7 @@ impl Mechanization {
 
 /// ω_nb^b = ω_ib^b − C_n^b ω_in^n, the body rate relative to NED, from a
 /// compensated gyro rate (for lever-arm velocity terms).
-pub fn omega_nb_b(nav: &NavState, w_ib_b: &Vector3<f64>) -> Vector3<f64> {
+pub(crate) fn omega_nb_b(nav: &NavState, w_ib_b: &Vector3<f64>) -> Vector3<f64> {
     let le = LocalEarth::new(&nav.pos, &nav.vel);
     w_ib_b - nav.q_nb.inverse_transform_vector(&le.w_in())
 }

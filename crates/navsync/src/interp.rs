@@ -21,7 +21,7 @@ use crate::types::NavState;
 
 /// Lagrange basis weights for interpolating at `t` from samples at `ts`
 /// (offsets in seconds; any spacing, all distinct).
-pub fn lagrange_weights(ts: &[f64], t: f64, out: &mut [f64]) {
+pub(crate) fn lagrange_weights(ts: &[f64], t: f64, out: &mut [f64]) {
     for (i, w) in out.iter_mut().enumerate().take(ts.len()) {
         let mut p = 1.0;
         for (j, &tj) in ts.iter().enumerate() {
@@ -36,7 +36,7 @@ pub fn lagrange_weights(ts: &[f64], t: f64, out: &mut [f64]) {
 /// Largest n of the (2n+1)-order interpolation: beyond it Lagrange
 /// polynomials on equally spaced nodes oscillate (Runge's phenomenon) and
 /// the window outgrows any sensible buffer.
-pub const MAX_INTERP_N: usize = 8;
+pub(crate) const MAX_INTERP_N: usize = 8;
 
 /// Interpolates navigation states to requested epochs with (2n+1)-order
 /// Lagrange polynomials (seed 000 eq 1), streaming: push the solution at
@@ -46,7 +46,7 @@ pub const MAX_INTERP_N: usize = 8;
 /// Position and velocity components are interpolated directly; attitude
 /// through rotation vectors relative to the sample nearest the epoch (so
 /// no Euler-angle wrap can occur).
-pub struct NavInterpolator {
+pub(crate) struct NavInterpolator {
     n: usize,
     window: VecDeque<NavState>,
     requests: VecDeque<GpsTime>,
@@ -174,7 +174,8 @@ pub fn fractional_delay_taps(order: usize, delay_samples: f64) -> (i64, Vec<f64>
 }
 
 /// Frequency response of taps at normalized angular frequency ω (rad/sample).
-pub fn fir_response(taps: &[f64], omega: f64) -> (f64, f64) {
+#[cfg(test)]
+pub(crate) fn fir_response(taps: &[f64], omega: f64) -> (f64, f64) {
     let mut re = 0.0;
     let mut im = 0.0;
     for (m, &h) in taps.iter().enumerate() {
@@ -188,7 +189,8 @@ pub fn fir_response(taps: &[f64], omega: f64) -> (f64, f64) {
 /// `out[k] ≈ x(k − delay)`; samples that would need data outside `x` are
 /// taken from the nearest edge (the filter's transient is confined to
 /// `order` samples at each end).
-pub fn shift_sequence(x: &[f64], delay_samples: f64, order: usize) -> Vec<f64> {
+#[cfg(test)]
+pub(crate) fn shift_sequence(x: &[f64], delay_samples: f64, order: usize) -> Vec<f64> {
     let (whole, taps) = fractional_delay_taps(order, delay_samples);
     let len = x.len() as i64;
     (0..len)

@@ -195,7 +195,7 @@ pub(crate) struct SolutionOutput {
     /// Time of the last solution handed to the sink.
     last_written: Option<GpsTime>,
     /// Interpolated epochs written.
-    pub at_written: usize,
+    pub(crate) at_written: usize,
     /// Solutions left out of the GNSS-time output (τ̂ stepped back).
     pub out_of_order: usize,
 }
@@ -312,21 +312,21 @@ impl Navigator {
     /// filter once the IMU time + `lead_s` reaches its tag (offline, a lead
     /// lets the filter and the time-offset search see fixes early; in a
     /// real-time latency mode a negative lead delivers each at its arrival).
-    pub fn for_batch(mut self, lead_s: f64) -> Self {
+    pub(crate) fn for_batch(mut self, lead_s: f64) -> Self {
         self.drop_fixes_before_start = true;
         self.fix_lead_ns = Some(seconds_to_ns(lead_s));
         self
     }
 
     /// Reduced IMU: absent sensors replaced by pseudo-signals.
-    pub fn with_reduced_imu(mut self, reduced: Option<ReducedImu>) -> Self {
+    pub(crate) fn with_reduced_imu(mut self, reduced: Option<ReducedImu>) -> Self {
         self.reduced_imu = reduced;
         self
     }
 
     /// Stamp the solutions in GNSS time (IMU time + τ̂) instead of the IMU's
     /// time base; they stay strictly increasing.
-    pub fn with_gnss_time_output(mut self, on: bool) -> Self {
+    pub(crate) fn with_gnss_time_output(mut self, on: bool) -> Self {
         self.output.output_gnss_time = on;
         self
     }
@@ -339,14 +339,14 @@ impl Navigator {
     }
 
     /// Stop at this time: later IMU samples return [`Step::Ended`].
-    pub fn with_end(mut self, end: Option<GpsTime>) -> Self {
+    pub(crate) fn with_end(mut self, end: Option<GpsTime>) -> Self {
         self.end = end;
         self
     }
 
     /// Withhold the fixes inside these outage windows (counted from the
     /// first IMU epoch).
-    pub fn with_outages(mut self, outages: Option<OutageSchedule>) -> Self {
+    pub(crate) fn with_outages(mut self, outages: Option<OutageSchedule>) -> Self {
         self.outages = outages;
         self
     }
@@ -362,7 +362,7 @@ impl Navigator {
     }
 
     /// As [`Self::with_output_at`], with the interpolator already built.
-    pub fn with_interpolator(mut self, interp: Option<NavInterpolator>) -> Self {
+    pub(crate) fn with_interpolator(mut self, interp: Option<NavInterpolator>) -> Self {
         self.output.interp = interp;
         self
     }
@@ -400,7 +400,7 @@ impl Navigator {
     }
 
     /// The filter, after the stream.
-    pub fn into_fusion(self) -> Fusion {
+    pub(crate) fn into_fusion(self) -> Fusion {
         self.fusion
     }
 
@@ -415,7 +415,8 @@ impl Navigator {
     }
 
     /// Fixes waiting for the IMU to reach them.
-    pub fn pending_fixes(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn pending_fixes(&self) -> usize {
         self.pending.len()
     }
 

@@ -278,12 +278,12 @@ pub struct FuseSummary {
     pub start_sow: f64,
     pub end_sow: f64,
     pub duration_s: f64,
-    pub imu_records_read: usize,
-    pub imu_lines_skipped: usize,
-    pub gnss_fixes_read: usize,
-    pub gnss_lines_skipped: usize,
+    pub(crate) imu_records_read: usize,
+    pub(crate) imu_lines_skipped: usize,
+    pub(crate) gnss_fixes_read: usize,
+    pub(crate) gnss_lines_skipped: usize,
     pub gnss_fixes_withheld_by_outages: usize,
-    pub gnss_fixes_outside_run: usize,
+    pub(crate) gnss_fixes_outside_run: usize,
     /// Outage windows as `sow:len` (the `navsync eval --outages` argument).
     pub outages: String,
     /// Final time-offset estimate (GNSS tag − true validity time), when estimated.
@@ -295,10 +295,10 @@ pub struct FuseSummary {
     pub output_at_written: usize,
     pub output_at_skipped: usize,
     pub stats: FusionStats,
-    pub final_gyro_bias_deg_h: [f64; 3],
-    pub final_accel_bias_mgal: [f64; 3],
-    pub final_gyro_scale_ppm: [f64; 3],
-    pub final_accel_scale_ppm: [f64; 3],
+    pub(crate) final_gyro_bias_deg_h: [f64; 3],
+    pub(crate) final_accel_bias_mgal: [f64; 3],
+    pub(crate) final_gyro_scale_ppm: [f64; 3],
+    pub(crate) final_accel_scale_ppm: [f64; 3],
     /// Estimated odometer scale factor (when odometer updates ran).
     pub final_odometer_scale: Option<f64>,
     /// Estimated axis misalignments m₀…m₅ of the gyro and accelerometer
@@ -378,11 +378,11 @@ pub struct WeightedFix {
     pub sow: f64,
     pub kind: &'static str,
     pub nis: f64,
-    pub min_weight: f64,
+    pub(crate) min_weight: f64,
 }
 
 impl WeightingReport {
-    pub fn from_records(records: &[FixRecord]) -> Self {
+    pub(crate) fn from_records(records: &[FixRecord]) -> Self {
         let mut r = WeightingReport {
             observations: records.len(),
             ..WeightingReport::default()
@@ -1003,7 +1003,7 @@ pub fn batch_navigator(cfg: FusionConfig, opts: &FuseOptions) -> Result<Navigato
 /// fixes are queued ahead (the filter processes each at its corrected
 /// time, and the time-offset search needs them early); in a real-time mode
 /// each is delivered at its arrival, `gnss_latency_s` after its time tag.
-pub fn fix_lead_s(opts: &FuseOptions) -> f64 {
+pub(crate) fn fix_lead_s(opts: &FuseOptions) -> f64 {
     if !matches!(opts.latency, LatencyMode::Offline) {
         -opts.gnss_latency_s
     } else {

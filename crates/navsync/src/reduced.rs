@@ -82,7 +82,7 @@ impl ImuConfig {
     }
 
     /// Accelerometer axes present (x, y, z).
-    pub fn accels(self) -> [bool; 3] {
+    pub(crate) fn accels(self) -> [bool; 3] {
         match self {
             ImuConfig::OneGyroTwoAccels => [true, true, false],
             _ => [true; 3],
@@ -145,12 +145,12 @@ impl Default for PseudoSignalNoise {
 
 impl PseudoSignalNoise {
     /// Equivalent angle random walk of a pseudo gyro (rad/√s): σ√(2τ).
-    pub fn gyro_arw(&self) -> f64 {
+    pub(crate) fn gyro_arw(&self) -> f64 {
         self.rate_sd * (2.0 * self.rate_corr_s).sqrt()
     }
 
     /// Equivalent velocity random walk of a pseudo accelerometer (m/s/√s).
-    pub fn accel_vrw(&self) -> f64 {
+    pub(crate) fn accel_vrw(&self) -> f64 {
         self.vertical_accel_sd * (2.0 * self.vertical_accel_corr_s).sqrt()
     }
 }
@@ -177,7 +177,7 @@ impl ReducedImu {
 
     /// Replaces the noise model's entries of absent sensors with the
     /// pseudo-signal noise and pins their bias and scale-factor states.
-    pub fn adjust_noise(&self, noise: &mut ImuNoise, init: &mut InitialStd) {
+    pub(crate) fn adjust_noise(&self, noise: &mut ImuNoise, init: &mut InitialStd) {
         for (i, present) in self.config.gyros().into_iter().enumerate() {
             if !present {
                 noise.arw[i] = self.noise.gyro_arw();
@@ -290,7 +290,7 @@ impl OdometerSettings {
 /// frame (mounting angles) and NHC standard deviation from the NHC
 /// settings when given (zero mounting angles otherwise), the lever arm of
 /// the odometer or else of the NHC point.
-pub fn odometer_options(
+pub(crate) fn odometer_options(
     o: &OdometerSettings,
     nhc: Option<&NhcSettings>,
 ) -> crate::fusion::OdometerOptions {
@@ -623,7 +623,6 @@ mod tests {
             imu_path: dir.join("imu.txt"),
             gnss_path: dir.join("gnss.txt"),
             output_path: dir.clone(),
-            imu_columns: 7,
             imu_rate_hz: 100.0,
             start_sow: t0,
             end_sow: None,

@@ -31,7 +31,7 @@ const DEG: f64 = std::f64::consts::PI / 180.0;
 pub const PRESETS: &[&str] = &["adis16465", "icm20602", "tactical", "nav"];
 
 /// The IMU block keys and what each holds (for messages and the template).
-pub const IMU_KEYS: &[(&str, &str)] = &[
+pub(crate) const IMU_KEYS: &[(&str, &str)] = &[
     ("preset", "a named IMU whose figures fill the keys left out"),
     (
         "rate_hz",
@@ -66,29 +66,6 @@ pub const IMU_KEYS: &[(&str, &str)] = &[
     ),
 ];
 
-/// Top-level keys.
-pub const SHEET_KEYS: &[(&str, &str)] = &[
-    ("imu", "the IMU block (a preset or the datasheet figures)"),
-    (
-        "antenna_lever_m",
-        "[forward, right, down] from the IMU to the GNSS antenna, IMU axes (m)",
-    ),
-    (
-        "mount_deg",
-        "[roll, pitch, yaw] of the IMU in the vehicle (deg)",
-    ),
-    (
-        "nhc",
-        "apply the non-holonomic constraint of a land vehicle (true/false)",
-    ),
-    ("odometer", "an optional wheel/CAN speed input"),
-    ("time_offset", "optional IMU–GNSS time-offset estimation"),
-    (
-        "gnss_default_sd_m",
-        "[north, east, down] σ (m) for fixes that carry none",
-    ),
-];
-
 /// The IMU as the sheet gives it: every figure optional here, so that a
 /// preset can fill what is left out; [`SensorSheet::imu_figures`] says
 /// which is missing.
@@ -99,13 +76,13 @@ pub struct ImuSheet {
     pub rate_hz: Option<f64>,
     pub arw_deg_sqrt_h: Option<f64>,
     pub vrw_mps_sqrt_h: Option<f64>,
-    pub gyro_bias_instability_deg_h: Option<f64>,
-    pub accel_bias_instability_mgal: Option<f64>,
+    pub(crate) gyro_bias_instability_deg_h: Option<f64>,
+    pub(crate) accel_bias_instability_mgal: Option<f64>,
     pub gyro_turn_on_bias_deg_h: Option<f64>,
-    pub accel_turn_on_bias_mgal: Option<f64>,
+    pub(crate) accel_turn_on_bias_mgal: Option<f64>,
     pub gyro_scale_ppm: Option<f64>,
     pub accel_scale_ppm: Option<f64>,
-    pub bias_corr_time_s: Option<f64>,
+    pub(crate) bias_corr_time_s: Option<f64>,
 }
 
 /// The IMU's figures, all present (datasheet units).
@@ -113,13 +90,13 @@ pub struct ImuSheet {
 pub struct ImuFigures {
     pub arw_deg_sqrt_h: f64,
     pub vrw_mps_sqrt_h: f64,
-    pub gyro_bias_instability_deg_h: f64,
-    pub accel_bias_instability_mgal: f64,
+    pub(crate) gyro_bias_instability_deg_h: f64,
+    pub(crate) accel_bias_instability_mgal: f64,
     pub gyro_turn_on_bias_deg_h: f64,
-    pub accel_turn_on_bias_mgal: f64,
+    pub(crate) accel_turn_on_bias_mgal: f64,
     pub gyro_scale_ppm: f64,
     pub accel_scale_ppm: f64,
-    pub bias_corr_time_s: f64,
+    pub(crate) bias_corr_time_s: f64,
 }
 
 impl ImuFigures {
@@ -441,7 +418,6 @@ impl SensorSheet {
             imu_path: data.imu.clone(),
             gnss_path: data.gnss.clone(),
             output_path: data.output.clone(),
-            imu_columns: 7,
             imu_rate_hz,
             start_sow: data.start_sow,
             end_sow: None,

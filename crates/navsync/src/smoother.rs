@@ -196,7 +196,7 @@ pub(crate) struct NodeNominal {
     pub imu: ImuErrors,
     /// Time offset τ̂ (s) and odometer scale, when they are states.
     pub time_offset_s: f64,
-    pub odometer_scale: f64,
+    pub(crate) odometer_scale: f64,
 }
 
 const NOMINAL_LEN: usize = 26;
@@ -280,7 +280,11 @@ impl Recorder {
     }
 
     /// Stores one node with the nominal state after its corrections.
-    pub fn push_node(&mut self, node: &SmootherNode, nominal: &NodeNominal) -> Result<(), Error> {
+    pub(crate) fn push_node(
+        &mut self,
+        node: &SmootherNode,
+        nominal: &NodeNominal,
+    ) -> Result<(), Error> {
         let v = &mut self.scratch;
         v.clear();
         v.push(time_to_f64(node.time));
@@ -293,7 +297,7 @@ impl Recorder {
     }
 
     /// Stores the forward solution at one output epoch.
-    pub fn push_nav(&mut self, nav: &NavState) -> Result<(), Error> {
+    pub(crate) fn push_nav(&mut self, nav: &NavState) -> Result<(), Error> {
         let q = nav.q_nb.quaternion();
         self.tape.push(&[
             time_to_f64(nav.time),
@@ -310,7 +314,7 @@ impl Recorder {
         ])
     }
 
-    pub fn node_count(&self) -> usize {
+    pub(crate) fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
@@ -495,15 +499,14 @@ struct ResultNode {
 
 /// The smoothed solution at one epoch.
 #[derive(Clone, Debug)]
-pub struct SmoothedEpoch {
+pub(crate) struct SmoothedEpoch {
     pub nav: NavState,
     pub imu: ImuErrors,
     /// σ of every state (SI), interpolated between nodes.
     pub sd: Vec<f64>,
     /// Position-error covariance (m², NED).
-    pub p_pos: nalgebra::Matrix3<f64>,
+    pub(crate) p_pos: nalgebra::Matrix3<f64>,
     pub time_offset_s: f64,
-    pub odometer_scale: f64,
 }
 
 /// The backward pass's result: smoothed corrections at every node, and the
@@ -520,7 +523,7 @@ pub struct Smoothed {
 }
 
 impl Smoothed {
-    pub fn node_count(&self) -> usize {
+    pub(crate) fn node_count(&self) -> usize {
         self.count
     }
 
@@ -546,7 +549,7 @@ impl Smoothed {
 
     /// Calls `f` with the smoothed solution at every forward epoch, in
     /// time order.
-    pub fn for_each(
+    pub(crate) fn for_each(
         &mut self,
         mut f: impl FnMut(&SmoothedEpoch) -> Result<(), Error>,
     ) -> Result<(), Error> {
@@ -615,7 +618,6 @@ impl Smoothed {
                 sd: sd.clone(),
                 p_pos,
                 time_offset_s: a.nominal.time_offset_s - extra("time_offset"),
-                odometer_scale: a.nominal.odometer_scale - extra("odometer_scale"),
             })?;
         }
         Ok(())

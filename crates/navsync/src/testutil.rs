@@ -14,9 +14,9 @@ use crate::time::GpsTime;
 
 /// A level vehicle at rest turning about the down axis at `rate_rad_s`.
 #[derive(Clone, Copy, Debug)]
-pub struct TurningAtRest {
+pub(crate) struct TurningAtRest {
     pub pos: Geodetic,
-    pub yaw0_rad: f64,
+    pub(crate) yaw0_rad: f64,
     pub rate_rad_s: f64,
     pub t0: GpsTime,
 }

@@ -13,7 +13,7 @@ use std::ops::{Add, Sub};
 /// Nanoseconds in one second.
 pub const NS_PER_S: i64 = 1_000_000_000;
 /// Seconds in one GPS week.
-pub const SECONDS_PER_WEEK: i64 = 604_800;
+pub(crate) const SECONDS_PER_WEEK: i64 = 604_800;
 /// Nanoseconds in one GPS week.
 pub const NS_PER_WEEK: i64 = SECONDS_PER_WEEK * NS_PER_S;
 

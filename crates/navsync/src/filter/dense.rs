@@ -39,7 +39,7 @@ impl Mat {
     }
 
     #[inline]
-    pub fn add_at(&mut self, r: usize, c: usize, v: f64) {
+    pub(crate) fn add_at(&mut self, r: usize, c: usize, v: f64) {
         self.data[r * self.cols + c] += v;
     }
 
@@ -49,7 +49,7 @@ impl Mat {
     }
 
     #[inline]
-    pub fn row_mut(&mut self, r: usize) -> &mut [f64] {
+    pub(crate) fn row_mut(&mut self, r: usize) -> &mut [f64] {
         &mut self.data[r * self.cols..(r + 1) * self.cols]
     }
 
@@ -58,7 +58,7 @@ impl Mat {
     }
 
     /// Writes a 3×3 block with its top-left corner at (r, c).
-    pub fn set_block3(&mut self, r: usize, c: usize, b: &nalgebra::Matrix3<f64>) {
+    pub(crate) fn set_block3(&mut self, r: usize, c: usize, b: &nalgebra::Matrix3<f64>) {
         for i in 0..3 {
             for j in 0..3 {
                 self.set(r + i, c + j, b[(i, j)]);
@@ -67,12 +67,12 @@ impl Mat {
     }
 
     /// Reads the 3×3 block at (r, c).
-    pub fn block3(&self, r: usize, c: usize) -> nalgebra::Matrix3<f64> {
+    pub(crate) fn block3(&self, r: usize, c: usize) -> nalgebra::Matrix3<f64> {
         nalgebra::Matrix3::from_fn(|i, j| self.get(r + i, c + j))
     }
 
     /// Transpose into `out` (resized as needed).
-    pub fn transpose_into(&self, out: &mut Mat) {
+    pub(crate) fn transpose_into(&self, out: &mut Mat) {
         out.rows = self.cols;
         out.cols = self.rows;
         out.data.resize(self.data.len(), 0.0);
@@ -84,7 +84,7 @@ impl Mat {
     }
 
     /// Makes a square matrix exactly symmetric: (M + Mᵀ)/2.
-    pub fn symmetrize(&mut self) {
+    pub(crate) fn symmetrize(&mut self) {
         let n = self.rows;
         for i in 0..n {
             for j in (i + 1)..n {
@@ -99,7 +99,7 @@ impl Mat {
 /// The nonzero pattern of a matrix by rows: for each row, the columns that
 /// hold nonzeros.
 #[derive(Clone, Debug, Default)]
-pub struct RowPattern {
+pub(crate) struct RowPattern {
     pub starts: Vec<usize>,
     pub cols: Vec<usize>,
 }
@@ -124,15 +124,11 @@ impl RowPattern {
     pub fn row(&self, i: usize) -> &[usize] {
         &self.cols[self.starts[i]..self.starts[i + 1]]
     }
-
-    pub fn nnz(&self) -> usize {
-        self.cols.len()
-    }
 }
 
 /// `out = a · b` where `a` is given with its nonzero pattern (rows of `a`
 /// mostly zero) and `b` is dense. Inner loop runs along contiguous rows.
-pub fn sparse_mul(a: &Mat, pat: &RowPattern, b: &Mat, out: &mut Mat) {
+pub(crate) fn sparse_mul(a: &Mat, pat: &RowPattern, b: &Mat, out: &mut Mat) {
     debug_assert_eq!(a.cols, b.rows);
     out.rows = a.rows;
     out.cols = b.cols;
@@ -152,7 +148,7 @@ pub fn sparse_mul(a: &Mat, pat: &RowPattern, b: &Mat, out: &mut Mat) {
 }
 
 /// `out = a · bᵀ` where both are dense (`a`: r×k, `b`: c×k).
-pub fn mul_transpose(a: &Mat, b: &Mat, out: &mut Mat) {
+pub(crate) fn mul_transpose(a: &Mat, b: &Mat, out: &mut Mat) {
     debug_assert_eq!(a.cols, b.cols);
     out.rows = a.rows;
     out.cols = b.rows;
@@ -216,7 +212,7 @@ pub fn cholesky(m: &Mat) -> Option<Mat> {
 }
 
 /// Solves L Lᵀ x = b in place for one right-hand side.
-pub fn cholesky_solve(l: &Mat, b: &mut [f64]) {
+pub(crate) fn cholesky_solve(l: &Mat, b: &mut [f64]) {
     let n = l.rows;
     for i in 0..n {
         let mut s = b[i];
@@ -235,7 +231,7 @@ pub fn cholesky_solve(l: &Mat, b: &mut [f64]) {
 }
 
 /// Inverse of a symmetric positive-definite matrix from its Cholesky factor.
-pub fn cholesky_inverse(l: &Mat) -> Mat {
+pub(crate) fn cholesky_inverse(l: &Mat) -> Mat {
     let n = l.rows;
     let mut inv = Mat::zeros(n, n);
     let mut col = vec![0.0; n];

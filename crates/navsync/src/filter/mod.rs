@@ -39,19 +39,19 @@ use dense::{Mat, RowPattern};
 pub use crate::types::{ImuNoise, InitialStd};
 
 /// Largest supported number of error states.
-pub const MAX_STATES: usize = 40;
+pub(crate) const MAX_STATES: usize = 40;
 
 /// Indices of the 21 core error states.
 pub mod idx {
-    pub const POS: usize = 0;
-    pub const VEL: usize = 3;
+    pub(crate) const POS: usize = 0;
+    pub(crate) const VEL: usize = 3;
     pub const ATT: usize = 6;
-    pub const BG: usize = 9;
-    pub const BA: usize = 12;
-    pub const SG: usize = 15;
-    pub const SA: usize = 18;
+    pub(crate) const BG: usize = 9;
+    pub(crate) const BA: usize = 12;
+    pub(crate) const SG: usize = 15;
+    pub(crate) const SA: usize = 18;
     /// Number of core states.
-    pub const CORE: usize = 21;
+    pub(crate) const CORE: usize = 21;
 }
 
 /// An extra state appended after the 21 core states: a random walk with
@@ -113,7 +113,12 @@ impl StateLayout {
 
     /// Appends a first-order Gauss–Markov state with steady-state σ `sd`
     /// and correlation time `corr_time_s`, and returns its index.
-    pub fn add_gauss_markov(&mut self, name: &'static str, sd: f64, corr_time_s: f64) -> usize {
+    pub(crate) fn add_gauss_markov(
+        &mut self,
+        name: &'static str,
+        sd: f64,
+        corr_time_s: f64,
+    ) -> usize {
         let index = self.add(name, 2.0 * sd * sd / corr_time_s);
         if let Some(e) = self.extras.last_mut() {
             e.corr_time_s = Some(corr_time_s);
@@ -123,7 +128,7 @@ impl StateLayout {
 
     /// Appends the 12 axis-misalignment states (random constants) and
     /// returns the first index.
-    pub fn add_misalignment(&mut self) -> usize {
+    pub(crate) fn add_misalignment(&mut self) -> usize {
         let first = self.n();
         for name in MISALIGN_NAMES {
             self.add(name, 0.0);
@@ -133,7 +138,7 @@ impl StateLayout {
     }
 
     /// Index of the extra state called `name`.
-    pub fn index_of(&self, name: &str) -> Option<usize> {
+    pub(crate) fn index_of(&self, name: &str) -> Option<usize> {
         self.extras.iter().find(|e| e.name == name).map(|e| e.index)
     }
 }
@@ -144,17 +149,17 @@ pub struct Window {
     /// Total duration (s).
     pub dt: f64,
     /// Σ C_b^n Δt.
-    pub c_dt: Matrix3<f64>,
+    pub(crate) c_dt: Matrix3<f64>,
     /// Σ Δv_f^n: the specific force integrated in NED.
-    pub f_n_dt: Vector3<f64>,
+    pub(crate) f_n_dt: Vector3<f64>,
     /// Σ C_b^n diag(Δv^b).
-    pub c_diag_dv: Matrix3<f64>,
+    pub(crate) c_diag_dv: Matrix3<f64>,
     /// Σ C_b^n diag(Δθ^b).
-    pub c_diag_dth: Matrix3<f64>,
+    pub(crate) c_diag_dth: Matrix3<f64>,
     /// Σ C_b^n J(Δθ^b) and Σ C_b^n J(Δv^b), J(v) = ∂(M v)/∂m (3 × 6):
     /// only summed when misalignments are estimated.
-    pub c_j_dth: SMatrix<f64, 3, 6>,
-    pub c_j_dv: SMatrix<f64, 3, 6>,
+    pub(crate) c_j_dth: SMatrix<f64, 3, 6>,
+    pub(crate) c_j_dv: SMatrix<f64, 3, 6>,
 }
 
 /// J(v) = ∂(M v)/∂m for the off-diagonal M of [`crate::ins::ImuErrors`].
@@ -173,7 +178,7 @@ pub(crate) fn misalign_jacobian(v: &Vector3<f64>) -> SMatrix<f64, 3, 6> {
 impl Window {
     /// The misalignment sums of one step.
     #[inline]
-    pub fn add_misalign(&mut self, s: &StepInfo) {
+    pub(crate) fn add_misalign(&mut self, s: &StepInfo) {
         self.c_j_dth += s.c_nb * misalign_jacobian(&s.inc.dtheta);
         self.c_j_dv += s.c_nb * misalign_jacobian(&s.inc.dvel);
     }
@@ -215,14 +220,14 @@ impl Observation {
         }
     }
 
-    pub fn dim(&self) -> usize {
+    pub(crate) fn dim(&self) -> usize {
         self.z.len()
     }
 }
 
 /// The result of one measurement update.
 #[derive(Clone, Debug)]
-pub struct UpdateOutcome {
+pub(crate) struct UpdateOutcome {
     /// Normalised innovation squared zᵀ S⁻¹ z.
     pub nis: f64,
     /// False when the chi-square gate rejected the measurement.
@@ -235,7 +240,7 @@ pub struct UpdateOutcome {
 /// propagation window. The error-state mean is always zero between updates
 /// (closed-loop feedback), so only P is kept.
 #[derive(Clone, Debug)]
-pub struct ErrorStateFilter {
+pub(crate) struct ErrorStateFilter {
     layout: StateLayout,
     n: usize,
     p: Mat,
@@ -260,9 +265,9 @@ pub struct ErrorStateFilter {
 pub struct SmootherNode {
     pub time: GpsTime,
     /// Φ from the previous node to this one (identity for the first).
-    pub phi_in: Mat,
+    pub(crate) phi_in: Mat,
     /// P just before this node's corrections (equal to `p_plus` without).
-    pub p_minus: Mat,
+    pub(crate) p_minus: Mat,
     /// P after them.
     pub p_plus: Mat,
     /// Σ of the error states fed back at this node (closed loop: the
@@ -362,7 +367,7 @@ impl ErrorStateFilter {
 
     /// Starts recording [`SmootherNode`]s, at least one every `interval_s`,
     /// with a first node now.
-    pub fn record_nodes(&mut self, time: GpsTime, interval_s: f64) {
+    pub(crate) fn record_nodes(&mut self, time: GpsTime, interval_s: f64) {
         let mut track = NodeTrack {
             interval_s,
             phi_acc: Mat::identity(self.n),
@@ -375,7 +380,7 @@ impl ErrorStateFilter {
     }
 
     /// The nodes completed since the last call (empty unless recording).
-    pub fn take_nodes(&mut self) -> Vec<SmootherNode> {
+    pub(crate) fn take_nodes(&mut self) -> Vec<SmootherNode> {
         self.track
             .as_mut()
             .map(|t| std::mem::take(&mut t.closed))
@@ -384,7 +389,7 @@ impl ErrorStateFilter {
 
     /// Ends the recording: the node being built is completed, and a last
     /// node is placed at `time` (after propagating the pending window).
-    pub fn finish_nodes(&mut self, nav: &NavState) {
+    pub(crate) fn finish_nodes(&mut self, nav: &NavState) {
         self.propagate(nav);
         if let Some(t) = self.track.as_mut() {
             t.close_open(&self.p);
@@ -397,7 +402,7 @@ impl ErrorStateFilter {
     /// Records a change of the nominal state made outside a Kalman update
     /// (a re-initialisation), as the error state `dx` it removed, before
     /// the caller changes P (a no-op unless recording).
-    pub fn record_correction(&mut self, time: GpsTime, dx: &[f64]) {
+    pub(crate) fn record_correction(&mut self, time: GpsTime, dx: &[f64]) {
         if let Some(t) = self.track.as_mut() {
             for (a, b) in t.open_at(time, &self.p).iter_mut().zip(dx) {
                 *a += b;
@@ -420,7 +425,7 @@ impl ErrorStateFilter {
     }
 
     /// Mutable covariance, for models that reset or inflate states.
-    pub fn covariance_mut(&mut self) -> &mut Mat {
+    pub(crate) fn covariance_mut(&mut self) -> &mut Mat {
         &mut self.p
     }
 
@@ -430,7 +435,7 @@ impl ErrorStateFilter {
     }
 
     /// Seconds accumulated since the last propagation.
-    pub fn pending_dt(&self) -> f64 {
+    pub(crate) fn pending_dt(&self) -> f64 {
         self.window.dt
     }
 
@@ -582,7 +587,7 @@ impl ErrorStateFilter {
     }
 
     /// The innovation covariance S = H P Hᵀ + R of `obs` at the current P.
-    pub fn innovation_covariance(&self, obs: &Observation) -> Mat {
+    pub(crate) fn innovation_covariance(&self, obs: &Observation) -> Mat {
         self.innovation_parts(obs).2
     }
 
@@ -600,6 +605,7 @@ impl ErrorStateFilter {
     /// Kalman update with `obs` (Joseph form). With `gate = Some(t)` the
     /// measurement is rejected when its NIS exceeds `t`. Errors when the
     /// innovation covariance or the updated P is not positive definite.
+    #[cfg(test)]
     pub fn update(
         &mut self,
         obs: &Observation,
@@ -613,7 +619,7 @@ impl ErrorStateFilter {
     /// gain rows are zero, a Schmidt "consider" update); the Joseph form
     /// keeps P exact for this suboptimal gain, so those states keep their
     /// estimate and an honest covariance.
-    pub fn update_with_frozen(
+    pub(crate) fn update_with_frozen(
         &mut self,
         obs: &Observation,
         gate: Option<f64>,
@@ -710,7 +716,7 @@ impl ErrorStateFilter {
 
     /// Errors unless P is finite, symmetric by construction and positive
     /// definite (Cholesky succeeds after the tiniest relative jitter).
-    pub fn check_covariance(&self, time: GpsTime) -> Result<(), Error> {
+    pub(crate) fn check_covariance(&self, time: GpsTime) -> Result<(), Error> {
         let n = self.n;
         for i in 0..n {
             let d = self.p.get(i, i);

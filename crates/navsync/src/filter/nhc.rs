@@ -17,7 +17,7 @@ use crate::ins::NavState;
 pub struct VehicleConstraint {
     /// C_b^v from the IMU's mounting angles relative to the vehicle frame
     /// (forward-right-down): roll, pitch, yaw of the IMU in the vehicle.
-    pub c_bv: Matrix3<f64>,
+    pub(crate) c_bv: Matrix3<f64>,
     /// Lever arm from the IMU to the constraint point (e.g. the rear-axle
     /// centre), in the body frame (m).
     pub lever_b: Vector3<f64>,

@@ -264,11 +264,11 @@ pub struct FusionConfig {
     /// Initial navigation state; its `time` is the start: samples before it
     /// are skipped and the first sample at or after it starts the run.
     pub init_nav: NavState,
-    pub init_imu: ImuErrors,
+    pub(crate) init_imu: ImuErrors,
     pub init_std: InitialStd,
     pub noise: ImuNoise,
     /// GNSS antenna position in the body frame (m, FRD).
-    pub antenna_lever_b: Vector3<f64>,
+    pub(crate) antenna_lever_b: Vector3<f64>,
     /// Nominal IMU rate (Hz), for gap detection.
     pub imu_rate_hz: f64,
     /// A step longer than this many nominal periods is a gap.
@@ -292,14 +292,14 @@ pub struct FusionConfig {
     /// A MEMS IMU's ±0.05° couples a 10°/s turn into 30°/h of tilt rate,
     /// which the 21 KF-GINS states leave out (the filter is then
     /// overconfident in turns and outages).
-    pub misalignment_sd_rad: Option<[f64; 2]>,
+    pub(crate) misalignment_sd_rad: Option<[f64; 2]>,
     /// Time-correlated GNSS position error as filter states.
     pub gnss_error: Option<GnssErrorModel>,
     /// Started levelled over a standstill: the tilt error is M·δb_a
     /// ([`crate::align::levelling_tilt_coupling`]). P starts with
     /// P_φφ += M Σ_b Mᵀ and P_φb = M Σ_b (Σ_b from `init_std.accel_bias`);
     /// `init_std.att` then holds only the tilt σ that is not the bias.
-    pub levelling_coupling: Option<Matrix3<f64>>,
+    pub(crate) levelling_coupling: Option<Matrix3<f64>>,
     /// Detect standstills and apply zero-velocity and zero-angular-rate
     /// updates while stopped.
     pub standstill: Option<StandstillOptions>,
@@ -360,15 +360,15 @@ pub struct FusionStats {
     pub imu_samples: usize,
     pub gnss_fixes_used: usize,
     pub gnss_fixes_rejected: usize,
-    pub gnss_fixes_late: usize,
+    pub(crate) gnss_fixes_late: usize,
     pub gnss_velocity_used: usize,
-    pub gnss_velocity_rejected: usize,
-    pub gnss_split_intervals: usize,
-    pub gate_reopened: usize,
+    pub(crate) gnss_velocity_rejected: usize,
+    pub(crate) gnss_split_intervals: usize,
+    pub(crate) gate_reopened: usize,
     /// Fixes over the gate accepted because they agreed with the previous
     /// rejected fix (the INS had drifted beyond its covariance, which was
     /// inflated); see `Core::gnss_update`.
-    pub gnss_fixes_accepted_consistent: usize,
+    pub(crate) gnss_fixes_accepted_consistent: usize,
     /// Robust weighting: fixes used with an inflated R on some axis.
     pub gnss_fixes_downweighted: usize,
     pub gnss_velocity_downweighted: usize,
@@ -388,7 +388,7 @@ pub struct FusionStats {
     pub gaps: usize,
     pub gap_total_s: f64,
     pub max_gap_s: f64,
-    pub covariance_propagations: usize,
-    pub time_offset_held_updates: usize,
-    pub delayed_state_replays: usize,
+    pub(crate) covariance_propagations: usize,
+    pub(crate) time_offset_held_updates: usize,
+    pub(crate) delayed_state_replays: usize,
 }

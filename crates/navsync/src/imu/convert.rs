@@ -74,10 +74,10 @@ pub fn rate_increment(
 
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct ConvertStats {
-    pub rates_in: usize,
-    pub increments_out: usize,
+    pub(crate) rates_in: usize,
+    pub(crate) increments_out: usize,
     /// Samples whose time was not after the previous one (ignored).
-    pub rejected_time: usize,
+    pub(crate) rejected_time: usize,
     /// Gaps longer than the bridging limit: the conversion restarted there
     /// and the gap stays visible in the output.
     pub gaps_not_bridged: usize,

@@ -154,7 +154,7 @@ impl ImuLogReader {
 
     /// A reader fed by the caller through [`Self::sequence`] (lines parsed
     /// elsewhere, e.g. in parallel); `path` names the file in messages.
-    pub fn sequencer(path: &Path, format: Option<ImuLogFormat>) -> Self {
+    pub(crate) fn sequencer(path: &Path, format: Option<ImuLogFormat>) -> Self {
         ImuLogReader {
             lines: None,
             path: path.to_path_buf(),
@@ -407,7 +407,7 @@ impl ImuLogReader {
     /// At the end of a file fed through [`Self::sequence`]: decides the
     /// format if the file was shorter than the probe, and returns the
     /// records still queued.
-    pub fn finish_sequence(&mut self) -> Result<Vec<LogRecord>, Error> {
+    pub(crate) fn finish_sequence(&mut self) -> Result<Vec<LogRecord>, Error> {
         if self.format.is_none() {
             self.decide_format()?;
         }
@@ -617,7 +617,7 @@ pub struct TimeOrder {
 
 impl TimeOrder {
     /// Records behind the last accepted time that make a reset.
-    pub const RESET_RUN: usize = 16;
+    pub(crate) const RESET_RUN: usize = 16;
 
     pub fn check(&mut self, path: &Path, rec: &LogRecord) -> Result<Order, Error> {
         let Some(last) = self.last_ns else {

@@ -302,7 +302,7 @@ fn msl_or_h(p: &ExportPoint) -> f64 {
 /// the position σ in metres as extension elements (`sd_n_m`, `sd_e_m`,
 /// `sd_d_m` in [`GPX_EXTENSION_NS`]), allowed by `extensionsType`
 /// (`xsd:any namespace="##other"`).
-pub fn write_gpx(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
+pub(crate) fn write_gpx(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
     push_str(out, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
     push_str(out, "<gpx version=\"1.1\" creator=\"");
     push_xml_text(out, &meta.creator);
@@ -363,7 +363,7 @@ pub fn write_gpx(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
 /// `Placemark`s, each with its `TimeStamp` (UTC), a `description` with the
 /// σ for the viewer's balloon and the same values as `ExtendedData`.
 /// Altitudes are `absolute` (above sea level, §16.1 altitudeModeEnumType).
-pub fn write_kml(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
+pub(crate) fn write_kml(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
     push_str(
         out,
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<kml xmlns=\"http://www.opengis.net/kml/2.2\">\n<Document>\n<name>",
@@ -444,7 +444,7 @@ pub fn write_kml(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
 }
 
 /// Names of the 9 σ columns/properties, with units.
-pub const SD_NAMES: [&str; 9] = [
+pub(crate) const SD_NAMES: [&str; 9] = [
     "sd_n_m",
     "sd_e_m",
     "sd_d_m",
@@ -457,7 +457,7 @@ pub const SD_NAMES: [&str; 9] = [
 ];
 
 /// Names of the nav columns after week and sow, with units.
-pub const NAV_NAMES: [&str; 9] = [
+pub(crate) const NAV_NAMES: [&str; 9] = [
     "lat_deg",
     "lon_deg",
     "h_m",
@@ -538,7 +538,7 @@ pub fn write_csv(points: &[ExportPoint], out: &mut Vec<u8>) {
 /// track (`LineString`) and then one `Point` per epoch with the nav values
 /// and σ (null where unknown) as properties. Positions are `[lon, lat, h]`,
 /// h above the WGS 84 ellipsoid (§4), longitudes in [−180, 180).
-pub fn write_geojson(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
+pub(crate) fn write_geojson(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
     let push_pos = |out: &mut Vec<u8>, r: &NavRecord| {
         out.push(b'[');
         push_fixed(out, lon_180(r.lon_deg), 12);
@@ -609,7 +609,7 @@ pub fn write_geojson(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8
 /// C_e^{n0} C_n^e(p) C_b^n(p), so it stays consistent with the positions
 /// far from the origin. Timestamp: GPS seconds since 1980-01-06 (the
 /// seconds of week when the nav file's week is 0), to the nanosecond.
-pub fn write_tum(points: &[ExportPoint], out: &mut Vec<u8>) {
+pub(crate) fn write_tum(points: &[ExportPoint], out: &mut Vec<u8>) {
     let Some(first) = points.first() else {
         return;
     };

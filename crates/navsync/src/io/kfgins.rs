@@ -144,7 +144,7 @@ pub struct GnssReader {
     count: usize,
     /// Replace standard deviations below this (m or m/s) instead of skipping
     /// the fix; `None` skips fixes with a non-positive std.
-    pub sd_floor: Option<f64>,
+    pub(crate) sd_floor: Option<f64>,
 }
 
 impl GnssReader {
@@ -424,7 +424,7 @@ impl NavReader {
 /// separators, `#` comments). Epochs are placed in `week` when the file has
 /// none or when `week` is 0 (KF-GINS files carry no week). Epochs must
 /// increase; others are errors naming the line.
-pub fn read_times(path: &Path, week: i64) -> Result<Vec<GpsTime>, Error> {
+pub(crate) fn read_times(path: &Path, week: i64) -> Result<Vec<GpsTime>, Error> {
     let mut lines = LineReader::open(path)?;
     let mut out: Vec<GpsTime> = Vec::new();
     while let Some((line, line_no)) = lines.next_line()? {

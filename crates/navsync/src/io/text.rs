@@ -51,11 +51,6 @@ impl<R: Read> LineReader<R> {
         &self.path
     }
 
-    /// Number of the line last returned (1-based).
-    pub fn line_no(&self) -> usize {
-        self.line_no
-    }
-
     /// The next line without its terminator (`\n` or `\r\n`) and its
     /// 1-based number, or `None` at the end of the file.
     pub fn next_line(&mut self) -> Result<Option<(&[u8], usize)>, Error> {
@@ -140,7 +135,7 @@ pub fn split_fields<'a>(line: &'a [u8], out: &mut [&'a [u8]]) -> usize {
 /// Calls `f(start, end)` for each field of `line` (byte ranges), fields
 /// split at any mix of spaces, tabs, commas and carriage returns.
 #[inline]
-pub fn for_each_field(line: &[u8], mut f: impl FnMut(usize, usize)) {
+pub(crate) fn for_each_field(line: &[u8], mut f: impl FnMut(usize, usize)) {
     let mut i = 0;
     let n = line.len();
     while i < n {
@@ -259,7 +254,8 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
     Ok(if neg { -ns } else { ns })
 }
 
-pub use crate::numfmt::{push_f64, push_fixed, push_u64, push_u64_padded};
+pub use crate::numfmt::{push_f64, push_u64};
+pub(crate) use crate::numfmt::{push_fixed, push_u64_padded};
 
 /// A number for a header or configuration line: integers without a
 /// decimal point, other values in their shortest round-trip form.

@@ -24,7 +24,7 @@ pub struct ImuFlags {
     /// Stamped while the clock was in holdover.
     pub holdover: bool,
     /// Stamped before the clock first locked (extrapolated backwards).
-    pub before_lock: bool,
+    pub(crate) before_lock: bool,
     /// No usable counter (corrupt): no time, not integrated.
     pub unstamped: bool,
     /// Receive-time (hybrid) timing: the place of a loss next to this
@@ -44,7 +44,7 @@ pub struct ImuGap {
 /// Classifies IMU records by their counter spacing (hardware timing) or by
 /// their values (software timing, where receive jitter may exceed a period).
 #[derive(Clone, Debug)]
-pub struct ImuTracker {
+pub(crate) struct ImuTracker {
     period_ticks: Option<f64>,
     deltas: VecDeque<f64>,
     prev_counter: Option<u64>,
@@ -53,7 +53,7 @@ pub struct ImuTracker {
     pub duplicated: u64,
     pub irregular: u64,
     pub gaps: Vec<ImuGap>,
-    pub gaps_total: u64,
+    pub(crate) gaps_total: u64,
     since_update: u32,
 }
 
@@ -74,13 +74,8 @@ impl ImuTracker {
         }
     }
 
-    /// Current period estimate (counter ticks).
-    pub fn period_ticks(&self) -> Option<f64> {
-        self.period_ticks
-    }
-
     /// Hardware-timed record `seq` latched at unwrapped `counter`.
-    pub fn classify_hw(&mut self, seq: u64, counter: u64, values: &[f64; 6]) -> ImuFlags {
+    pub(crate) fn classify_hw(&mut self, seq: u64, counter: u64, values: &[f64; 6]) -> ImuFlags {
         let mut f = ImuFlags::default();
         let Some(prev) = self.prev_counter else {
             self.prev_counter = Some(counter);
@@ -146,7 +141,7 @@ impl ImuTracker {
 
     /// Software-timed record: duplicates by identical values; losses are
     /// decided by the software clock fit.
-    pub fn classify_sw(&mut self, values: &[f64; 6]) -> ImuFlags {
+    pub(crate) fn classify_sw(&mut self, values: &[f64; 6]) -> ImuFlags {
         let mut f = ImuFlags::default();
         if self.prev_values.as_ref() == Some(values) {
             f.duplicate = true;
@@ -158,7 +153,7 @@ impl ImuTracker {
     }
 
     /// Records a loss found by the software clock fit.
-    pub fn note_lost(&mut self, seq: u64, lost: u32) {
+    pub(crate) fn note_lost(&mut self, seq: u64, lost: u32) {
         self.lost += lost as u64;
         self.gaps_total += 1;
         if self.gaps.len() < 1000 {
@@ -170,7 +165,7 @@ impl ImuTracker {
 /// The IMU's true rate (a regression of stamps on sample index, lost
 /// samples counted) and the number of samples in each GPS second.
 #[derive(Clone, Debug, Default)]
-pub struct RateEstimator {
+pub(crate) struct RateEstimator {
     n: f64,
     mean_k: f64,
     mean_t: f64,
@@ -183,9 +178,9 @@ pub struct RateEstimator {
     current_count: u32,
     first_second: Option<i64>,
     /// Samples per GPS second → number of such seconds.
-    pub per_second: BTreeMap<u32, u64>,
+    pub(crate) per_second: BTreeMap<u32, u64>,
     /// Seconds whose count differs from the most common one (first 100).
-    pub odd_seconds: Vec<(i64, u32)>,
+    pub(crate) odd_seconds: Vec<(i64, u32)>,
 }
 
 impl RateEstimator {
@@ -263,7 +258,7 @@ impl RateEstimator {
     /// Rate from the least-squares slope of stamps on sample index (Hz):
     /// weights the middle of the run; differs from the mean rate when the
     /// IMU clock drifts.
-    pub fn rate_ls_hz(&self) -> Option<f64> {
+    pub(crate) fn rate_ls_hz(&self) -> Option<f64> {
         (self.n >= 3.0 && self.ckk > 0.0 && self.ckt > 0.0).then(|| self.ckk / self.ckt)
     }
 }
@@ -297,7 +292,7 @@ impl IncrementBuilder {
         Self::with_rule(kind, RateRule::Trapezoid)
     }
 
-    pub fn with_rule(kind: ImuKind, rule: RateRule) -> Self {
+    pub(crate) fn with_rule(kind: ImuKind, rule: RateRule) -> Self {
         IncrementBuilder {
             kind,
             rule,

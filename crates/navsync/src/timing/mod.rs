@@ -30,8 +30,8 @@ mod tests;
 #[cfg(test)]
 mod testsim;
 
-pub use clock::{ClockConfig, LockState, Oscillator};
-pub use engine::{StampedGnss, StampedImu, SyncConfig, SyncEngine, SyncMode, SyncOutput};
-pub use imu::{ImuFlags, IncrementBuilder, RateRule};
+pub use clock::{LockState, Oscillator};
+pub use engine::{SyncConfig, SyncEngine, SyncMode, SyncOutput};
+pub use imu::{IncrementBuilder, RateRule};
 pub use report::SyncReport;
 pub use swsync::SwConfig;

@@ -11,7 +11,7 @@ use super::imu::ImuGap;
 use crate::error::{Diagnostics, Error};
 use crate::io::riglog::ImuKind;
 use crate::io::text::{LineReader, is_blank_or_comment, parse_seconds_ns, split_fields};
-use crate::time::{GpsTime, NS_PER_S};
+use crate::time::GpsTime;
 
 /// A GPS time as week and seconds of week.
 #[derive(Copy, Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -72,13 +72,13 @@ pub struct RangeStats {
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CounterReport {
-    pub nominal_hz: f64,
+    pub(crate) nominal_hz: f64,
     pub bits: u32,
     pub wraps: u64,
     /// Records skipped because the counter went back (or jumped) without wrapping.
-    pub went_backwards_or_jumped: u64,
+    pub(crate) went_backwards_or_jumped: u64,
     /// Records slightly out of counter order (within tolerance).
-    pub reordered_records: u64,
+    pub(crate) reordered_records: u64,
     /// Confirmed counter restarts.
     pub resets: u64,
     /// Counter frequency error (ppm; positive = counter fast), over the
@@ -114,8 +114,8 @@ pub struct PpsReport {
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct OddSecond {
-    pub gps_second: i64,
+pub(crate) struct OddSecond {
+    pub(crate) gps_second: i64,
     pub samples: u32,
 }
 
@@ -127,7 +127,7 @@ pub struct ImuReport {
     /// The IMU's true mean rate from its stamps (Hz), lost samples counted.
     pub rate_hz: Option<f64>,
     /// Least-squares rate (stamps on sample index) (Hz).
-    pub rate_ls_hz: Option<f64>,
+    pub(crate) rate_ls_hz: Option<f64>,
     pub lost: u64,
     pub duplicated: u64,
     pub irregular_intervals: u64,
@@ -135,14 +135,14 @@ pub struct ImuReport {
     pub out_of_order: u64,
     /// Gaps (first 1000): record index after the gap, samples lost.
     pub gaps: Vec<ImuGap>,
-    pub gap_count: u64,
+    pub(crate) gap_count: u64,
     /// Samples counted in each full GPS second → how many seconds (seed 002).
     pub samples_per_gps_second: BTreeMap<String, u64>,
     /// Seconds whose count is off the most common one by more than one.
-    pub odd_seconds: Vec<OddSecond>,
+    pub(crate) odd_seconds: Vec<OddSecond>,
     /// T_c subtracted from every stamp (s).
     pub output_delay_s: f64,
-    pub timestamps_not_increasing: u64,
+    pub(crate) timestamps_not_increasing: u64,
     /// Robust spread (1.4826·MAD) of the intervals between the first
     /// ≤ 2000 `imu` counters (µs): about a tick for hardware captures,
     /// milliseconds for receive times.
@@ -163,14 +163,14 @@ pub struct HybridReport {
     /// Mean receive latency above the fastest one (ms).
     pub mean_latency_above_fastest_ms: f64,
     /// Points in the last envelope fit.
-    pub envelope_points: usize,
+    pub(crate) envelope_points: usize,
     /// Samples whose place next to a loss was not certain (may be one
     /// period off).
     pub ambiguous_samples: u64,
     /// Estimated 1σ of the stamps' varying error (µs), constant excluded.
     pub jitter_sd_us: f64,
     /// The constant subtracted as the fastest transport latency (s).
-    pub assumed_fastest_latency_s: f64,
+    pub(crate) assumed_fastest_latency_s: f64,
     pub unobservable: String,
 }
 
@@ -236,7 +236,7 @@ pub struct GnssReport {
     /// Latency from validity (the 1PPS edge for whole-second fixes) to the
     /// last byte (ms), seed 002.
     pub latency_ms: LatencyStats,
-    pub negative_latency: u64,
+    pub(crate) negative_latency: u64,
     /// The latencies (ms) in bins of 1 ms (or wider: at most 100 bins).
     #[serde(default)]
     pub latency_histogram_ms: Option<Histogram>,
@@ -254,15 +254,15 @@ pub struct RejectedPulse {
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SoftwareReport {
-    pub imu_envelope_mean_delay_ms: f64,
-    pub gnss_envelope_mean_delay_ms: f64,
+    pub(crate) imu_envelope_mean_delay_ms: f64,
+    pub(crate) gnss_envelope_mean_delay_ms: f64,
     pub host_clock_error_ppm: Option<f64>,
     /// Estimated standard deviation of the stamps' varying error (ms).
     pub jitter_sd_ms: f64,
-    pub assumed_fastest_gnss_latency_s: f64,
-    pub assumed_fastest_imu_latency_s: f64,
+    pub(crate) assumed_fastest_gnss_latency_s: f64,
+    pub(crate) assumed_fastest_imu_latency_s: f64,
     pub unobservable: String,
-    pub pps_records_ignored: u64,
+    pub(crate) pps_records_ignored: u64,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -326,7 +326,7 @@ pub struct SyncReport {
 
 /// Accumulates stamp errors against truth, in record order.
 #[derive(Clone, Debug, Default)]
-pub struct TruthAccumulator {
+pub(crate) struct TruthAccumulator {
     all: crate::stats::Moments,
     hold: crate::stats::Moments,
     within: u64,
@@ -379,7 +379,7 @@ impl TruthAccumulator {
 }
 
 /// Reads a truth file of `week sow` lines (one per `imu` record), streaming.
-pub struct TruthTimes {
+pub(crate) struct TruthTimes {
     lines: LineReader<std::fs::File>,
     path: std::path::PathBuf,
 }
@@ -394,7 +394,7 @@ impl TruthTimes {
 
     /// The next true time; `None` at the end. A bad line is an error (the
     /// file must align with the records).
-    pub fn next_time(&mut self) -> Result<Option<GpsTime>, Error> {
+    pub(crate) fn next_time(&mut self) -> Result<Option<GpsTime>, Error> {
         loop {
             let Some((line, no)) = self.lines.next_line()? else {
                 return Ok(None);
@@ -418,16 +418,11 @@ impl TruthTimes {
 }
 
 /// Formats `week sow` with nanoseconds (the imu_times.txt layout).
-pub fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
+pub(crate) fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
     crate::io::text::push_u64(out, t.week().max(0) as u64);
     out.push(b' ');
     t.write_sow(out);
     out.push(b'\n');
-}
-
-/// Whole GPS seconds of `t`.
-pub fn gps_second(t: GpsTime) -> i64 {
-    t.ns().div_euclid(NS_PER_S)
 }
 
 /// Share of records above which losses, duplicates or irregular
@@ -437,15 +432,15 @@ pub fn gps_second(t: GpsTime) -> i64 {
 pub const IMPLAUSIBLE_SHARE: f64 = 0.01;
 /// Relative difference of the measured IMU rate from the nominal one
 /// above which the rate is implausible (crystals are within 1e-4).
-pub const IMPLAUSIBLE_RATE: f64 = 0.01;
+pub(crate) const IMPLAUSIBLE_RATE: f64 = 0.01;
 /// Interval jitter of `imu` counters (µs) beyond which they cannot be
 /// hardware captures (a capture input is exact to a tick; an interrupt
 /// to tens of µs).
-pub const RECEIVE_JITTER_US: f64 = 100.0;
+pub(crate) const RECEIVE_JITTER_US: f64 = 100.0;
 
 impl SyncReport {
     /// The implausible figures of this report (see [`IMPLAUSIBLE_SHARE`]).
-    pub fn check_plausible(&self) -> Vec<Implausible> {
+    pub(crate) fn check_plausible(&self) -> Vec<Implausible> {
         let mut v = Vec::new();
         let i = &self.imu;
         let n = i.records.max(1) as f64;

@@ -34,7 +34,7 @@ use super::fit::EnvelopeFit;
 pub struct SampleClockConfig {
     /// Nominal sample period (s), e.g. from the header's `imu_rate_hz`;
     /// `None`: the median receive interval of the first samples.
-    pub nominal_period_s: Option<f64>,
+    pub(crate) nominal_period_s: Option<f64>,
     /// Window of the stamping envelope (s): centred on the sample, or
     /// ending at it in causal mode.
     pub window_s: f64,
@@ -76,7 +76,7 @@ pub struct Timed<T> {
     /// Posterior mean of the index minus `k` (ambiguous samples): the
     /// stamp is taken there, which halves the mean square error of a
     /// coin-flip placement (p²/4 instead of p²/2).
-    pub k_offset: f64,
+    pub(crate) k_offset: f64,
     /// False for records passed through (duplicates, unstamped).
     pub sample: bool,
 }
@@ -134,9 +134,9 @@ pub struct SampleClock<T> {
     pub gaps: u64,
     pub ambiguous: u64,
     /// Mean receive latency above the envelope of the last fit (s).
-    pub mean_excess_s: f64,
+    pub(crate) mean_excess_s: f64,
     /// Points of the last stamping fit.
-    pub fit_points: usize,
+    pub(crate) fit_points: usize,
     /// Period of the last stamping fit (s).
     pub period_s: Option<f64>,
 }
@@ -570,7 +570,7 @@ impl<T: Clone> SampleClock<T> {
     }
 
     /// Current period estimate (s).
-    pub fn current_period_s(&self) -> Option<f64> {
+    pub(crate) fn current_period_s(&self) -> Option<f64> {
         self.period_s.or(self.period())
     }
 }

@@ -11,7 +11,7 @@ use crate::io::riglog::{ImuKind, RigGnss, RigHeader, RigRecord};
 use crate::time::{GpsTime, NS_PER_S};
 
 /// Deterministic generator (SplitMix64 → uniform, Box–Muller → normal).
-pub struct Rng(u64);
+pub(crate) struct Rng(u64);
 
 impl Rng {
     pub fn new(seed: u64) -> Self {
@@ -49,37 +49,37 @@ pub struct Scenario {
     pub counter_hz: f64,
     pub counter_bits: u32,
     /// Counter value at t = 0 (ticks, may be fractional).
-    pub counter_start: f64,
+    pub(crate) counter_start: f64,
     pub freq_error_ppm: f64,
     /// Temperature ramp (°C/min) from t = ramp_start_s, and the counter's
     /// temperature coefficient (ppm/°C).
-    pub ramp_c_per_min: f64,
+    pub(crate) ramp_c_per_min: f64,
     pub ramp_start_s: f64,
-    pub tempco_ppm_per_c: f64,
+    pub(crate) tempco_ppm_per_c: f64,
     /// Fractional-frequency random walk: σ of the change over 1 s.
-    pub freq_rw_per_sqrt_s: f64,
+    pub(crate) freq_rw_per_sqrt_s: f64,
     pub pps: bool,
-    pub pps_jitter_s: f64,
+    pub(crate) pps_jitter_s: f64,
     /// (start, length) of PPS dropouts (s).
-    pub pps_dropouts: Vec<(f64, f64)>,
+    pub(crate) pps_dropouts: Vec<(f64, f64)>,
     pub displaced_fraction: f64,
-    pub spurious_fraction: f64,
+    pub(crate) spurious_fraction: f64,
     /// GNSS latency: uniform base in this range plus jitter.
     pub gnss_latency_s: (f64, f64),
     /// Uniform jitter added on top (s).
-    pub gnss_jitter_uniform_s: f64,
+    pub(crate) gnss_jitter_uniform_s: f64,
     /// Gaussian jitter σ added on top (clipped so latency ≥ 5 ms).
-    pub gnss_jitter_normal_s: f64,
+    pub(crate) gnss_jitter_normal_s: f64,
     pub imu_rate_hz: f64,
-    pub imu_ppm: f64,
+    pub(crate) imu_ppm: f64,
     pub imu_kind: ImuKind,
-    pub imu_lost_fraction: f64,
-    pub imu_dup_fraction: f64,
+    pub(crate) imu_lost_fraction: f64,
+    pub(crate) imu_dup_fraction: f64,
     /// Software sync: IMU output delay T_c and uniform receive jitter.
     pub imu_output_delay_s: f64,
-    pub receive_jitter_s: Option<(f64, f64)>,
+    pub(crate) receive_jitter_s: Option<(f64, f64)>,
     /// GPS second of t = 0.
-    pub start_second: i64,
+    pub(crate) start_second: i64,
 }
 
 impl Default for Scenario {
@@ -121,15 +121,15 @@ pub struct Truth {
     /// True GPS time of every `imu` record, in record order.
     pub imu_times: Vec<GpsTime>,
     /// Unwrapped-phase-free: (raw counter, true second) of good pulses.
-    pub good_pulses: Vec<(u64, i64)>,
+    pub(crate) good_pulses: Vec<(u64, i64)>,
     /// Raw counters of displaced or spurious pulses.
-    pub bad_pulses: Vec<u64>,
+    pub(crate) bad_pulses: Vec<u64>,
     pub imu_lost: u64,
-    pub imu_dup: u64,
+    pub(crate) imu_dup: u64,
 }
 
 /// A generated log.
-pub struct Generated {
+pub(crate) struct Generated {
     pub header: RigHeader,
     pub records: Vec<RigRecord>,
     pub truth: Truth,

@@ -27,7 +27,7 @@ pub enum Unwrapped {
 
 /// Unwraps a counter stream.
 #[derive(Clone, Debug)]
-pub struct Unwrapper {
+pub(crate) struct Unwrapper {
     bits: u32,
     reorder_ticks: u64,
     max_forward_ticks: u64,
@@ -78,11 +78,6 @@ impl Unwrapper {
                 d as i64
             }
         }
-    }
-
-    /// The latest unwrapped value.
-    pub fn latest(&self) -> Option<u64> {
-        self.started.then_some(self.last)
     }
 
     /// Unwraps one raw value.
