@@ -280,7 +280,7 @@ struct MotionWindow {
 }
 
 impl Aligner {
-    pub fn new(opts: AlignOptions) -> Self {
+    pub(crate) fn new(opts: AlignOptions) -> Self {
         Aligner {
             opts,
             last_imu: None,
@@ -303,7 +303,7 @@ impl Aligner {
         }
     }
 
-    pub fn push_imu(&mut self, s: &ImuSample) {
+    pub(crate) fn push_imu(&mut self, s: &ImuSample) {
         let dt = match self.last_imu {
             Some(t) if s.time > t => (s.time - t) as f64 * 1e-9,
             Some(_) => return,
@@ -402,7 +402,7 @@ impl Aligner {
 
     /// Pushes a GNSS fix (after the IMU samples up to its time); returns
     /// the alignment when this fix completes it.
-    pub fn push_gnss(&mut self, fix: &GnssFix) -> Option<Alignment> {
+    pub(crate) fn push_gnss(&mut self, fix: &GnssFix) -> Option<Alignment> {
         if self.done {
             return None;
         }
@@ -752,7 +752,7 @@ impl Aligner {
     /// At the end of the data without alignment: levelled from the last
     /// standstill with an unknown heading, at the first fix; `None` without
     /// any GNSS fix (position unknown).
-    pub fn finish(&mut self) -> Option<Alignment> {
+    pub(crate) fn finish(&mut self) -> Option<Alignment> {
         if self.done {
             return None;
         }

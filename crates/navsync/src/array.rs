@@ -47,7 +47,7 @@ pub(crate) struct FractionalShifter {
 }
 
 impl FractionalShifter {
-    pub fn new(order: usize, delay_samples: f64) -> Self {
+    pub(crate) fn new(order: usize, delay_samples: f64) -> Self {
         let (whole, taps) = fractional_delay_taps(order, delay_samples);
         FractionalShifter {
             whole,
@@ -81,7 +81,7 @@ impl FractionalShifter {
     }
 
     /// Adds input sample k (in order); returns outputs that became ready.
-    pub fn push(&mut self, x: [f64; 6], out: &mut Vec<[f64; 6]>) {
+    pub(crate) fn push(&mut self, x: [f64; 6], out: &mut Vec<[f64; 6]>) {
         if self.first.is_none() {
             self.first = Some(x);
         }
@@ -101,7 +101,7 @@ impl FractionalShifter {
     }
 
     /// Emits the outputs still pending at the end of the data.
-    pub fn finish(&mut self, out: &mut Vec<[f64; 6]>) {
+    pub(crate) fn finish(&mut self, out: &mut Vec<[f64; 6]>) {
         let last = self.received - 1;
         while self.emitted < self.received {
             out.push(self.output(self.emitted, last));
@@ -118,7 +118,7 @@ pub(crate) struct Lockstep<'a> {
 }
 
 impl<'a> Lockstep<'a> {
-    pub fn open(paths: &'a [&'a Path], week: i64) -> Result<Self, Error> {
+    pub(crate) fn open(paths: &'a [&'a Path], week: i64) -> Result<Self, Error> {
         let readers = paths
             .iter()
             .map(|p| ImuReader::open(p, week))
@@ -128,7 +128,7 @@ impl<'a> Lockstep<'a> {
 
     /// The next record of every file (`None` at the common end); errors
     /// when one file ends early or leaves the first file's grid.
-    pub fn next(&mut self, diag: &mut Diagnostics) -> Result<Option<Vec<ImuSample>>, Error> {
+    pub(crate) fn next(&mut self, diag: &mut Diagnostics) -> Result<Option<Vec<ImuSample>>, Error> {
         let mut samples = Vec::with_capacity(self.readers.len());
         let mut ended = Vec::new();
         for (i, r) in self.readers.iter_mut().enumerate() {

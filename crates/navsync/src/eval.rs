@@ -312,7 +312,7 @@ pub(crate) struct TruthStream {
 }
 
 impl TruthStream {
-    pub fn open(path: &Path) -> Result<Self, Error> {
+    pub(crate) fn open(path: &Path) -> Result<Self, Error> {
         Ok(TruthStream {
             reader: NavReader::open(path)?,
             prev: None,
@@ -333,7 +333,7 @@ impl TruthStream {
 
     /// The truth at `t`, or `None` when `t` is outside the truth's span or
     /// in a gap longer than `max_gap_s`. Calls must have increasing `t`.
-    pub fn at(
+    pub(crate) fn at(
         &mut self,
         t: GpsTime,
         by_sow: bool,
@@ -375,7 +375,7 @@ impl TruthStream {
     }
 
     /// Week of the first truth record (reads it if needed).
-    pub fn week(&mut self, diag: &mut Diagnostics) -> Result<Option<i64>, Error> {
+    pub(crate) fn week(&mut self, diag: &mut Diagnostics) -> Result<Option<i64>, Error> {
         if self.next.is_none() && self.prev.is_none() {
             self.next = self.fetch(diag)?;
         }

@@ -56,7 +56,7 @@ pub(crate) struct NavInterpolator {
 
 impl NavInterpolator {
     /// `n` = 0 linear, 1 cubic, 2 quintic, … (order 2n+1).
-    pub fn new(n: usize) -> Self {
+    pub(crate) fn new(n: usize) -> Self {
         NavInterpolator {
             n,
             window: VecDeque::with_capacity(2 * n + 3),
@@ -66,13 +66,13 @@ impl NavInterpolator {
     }
 
     /// Adds an epoch to interpolate at (must not decrease).
-    pub fn request(&mut self, t: GpsTime) {
+    pub(crate) fn request(&mut self, t: GpsTime) {
         self.requests.push_back(t);
     }
 
     /// Adds the solution at the next IMU epoch; returns the requested
     /// states that became computable.
-    pub fn push(&mut self, nav: &NavState) -> Vec<NavState> {
+    pub(crate) fn push(&mut self, nav: &NavState) -> Vec<NavState> {
         self.window.push_back(*nav);
         let need = 2 * self.n + 2;
         let mut out = Vec::new();
@@ -111,7 +111,7 @@ impl NavInterpolator {
     }
 
     /// Requests still pending at the end of the data are skipped.
-    pub fn finish(&mut self) {
+    pub(crate) fn finish(&mut self) {
         self.skipped += self.requests.len();
         self.requests.clear();
     }

@@ -201,7 +201,7 @@ pub(crate) struct SolutionOutput {
 }
 
 impl SolutionOutput {
-    pub fn new(
+    pub(crate) fn new(
         output_gnss_time: bool,
         aux_interval_s: Option<f64>,
         interp: Option<NavInterpolator>,
@@ -218,7 +218,7 @@ impl SolutionOutput {
     }
 
     /// The first epoch: the auxiliary schedule counts from it.
-    pub fn start(&mut self, t: GpsTime) {
+    pub(crate) fn start(&mut self, t: GpsTime) {
         self.next_aux = self.aux_ns.map(|_| t);
     }
 
@@ -227,7 +227,7 @@ impl SolutionOutput {
     /// offset with its σ when an auxiliary line is due (the filter
     /// propagates its covariance for them). `false`: left out (GNSS time
     /// stepped back).
-    pub fn write(
+    pub(crate) fn write(
         &mut self,
         nav: &NavState,
         imu: &ImuErrors,
@@ -274,7 +274,7 @@ impl SolutionOutput {
 
     /// The end of the stream: the interpolator's pending epochs are
     /// dropped; returns how many requested epochs were not written.
-    pub fn finish(&mut self) -> usize {
+    pub(crate) fn finish(&mut self) -> usize {
         match self.interp.as_mut() {
             Some(ip) => {
                 ip.finish();

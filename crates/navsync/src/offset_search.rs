@@ -52,7 +52,7 @@ pub(crate) struct CoarseOffsetSearch {
 impl CoarseOffsetSearch {
     /// Searches offsets in ±`range_s` with 1 ms steps; `v0` is the initial
     /// INS velocity (only its changes matter).
-    pub fn new(range_s: f64, v0: Vector3<f64>) -> Self {
+    pub(crate) fn new(range_s: f64, v0: Vector3<f64>) -> Self {
         // The grid extends 50 ms beyond the range so that an offset at the
         // range's end is still an interior minimum.
         let steps = ((range_s + 0.05) / 0.001).round() as i64;
@@ -73,7 +73,7 @@ impl CoarseOffsetSearch {
     }
 
     /// The estimate, once converged.
-    pub fn result(&self) -> Option<OffsetEstimate> {
+    pub(crate) fn result(&self) -> Option<OffsetEstimate> {
         self.result
     }
 

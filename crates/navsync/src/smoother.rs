@@ -78,7 +78,7 @@ static TEMP_COUNTER: AtomicUsize = AtomicUsize::new(0);
 
 impl RecordFile {
     /// A new, empty file of records of `record_len` values in `dir`.
-    pub fn create(dir: &Path, tag: &str, record_len: usize) -> Result<Self, Error> {
+    pub(crate) fn create(dir: &Path, tag: &str, record_len: usize) -> Result<Self, Error> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let nanos = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -107,17 +107,17 @@ impl RecordFile {
     }
 
     /// Number of records.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.len
     }
 
     /// Bytes on disk.
-    pub fn bytes(&self) -> u64 {
+    pub(crate) fn bytes(&self) -> u64 {
         (self.len * self.record_len * 8) as u64
     }
 
     /// Appends one record (`values.len()` must be the record length).
-    pub fn push(&mut self, values: &[f64]) -> Result<(), Error> {
+    pub(crate) fn push(&mut self, values: &[f64]) -> Result<(), Error> {
         debug_assert_eq!(values.len(), self.record_len);
         let w = self
             .writer
@@ -132,7 +132,7 @@ impl RecordFile {
     }
 
     /// Record `k` (the file is closed for writing on the first read).
-    pub fn get(&mut self, k: usize) -> Result<&[f64], Error> {
+    pub(crate) fn get(&mut self, k: usize) -> Result<&[f64], Error> {
         if k >= self.len {
             return Err(Error::Invalid(format!(
                 "record {k} of {} requested from {}",
@@ -268,7 +268,7 @@ const TAPE_LEN: usize = 11;
 
 impl Recorder {
     /// A recorder for `n` error states with its files in `dir`.
-    pub fn create(dir: &Path, n: usize) -> Result<Self, Error> {
+    pub(crate) fn create(dir: &Path, n: usize) -> Result<Self, Error> {
         let tri = n * (n + 1) / 2;
         Ok(Recorder {
             n,
@@ -319,7 +319,7 @@ impl Recorder {
     }
 
     /// Bytes of the temporary files.
-    pub fn bytes(&self) -> u64 {
+    pub(crate) fn bytes(&self) -> u64 {
         self.nodes.bytes() + self.tape.bytes()
     }
 
@@ -351,7 +351,7 @@ impl Recorder {
     }
 
     /// The backward pass over every node. The nodes' file is dropped.
-    pub fn smooth(mut self, layout: StateLayout) -> Result<Smoothed, Error> {
+    pub(crate) fn smooth(mut self, layout: StateLayout) -> Result<Smoothed, Error> {
         let n = self.n;
         let count = self.nodes.len();
         if count == 0 {

@@ -106,7 +106,7 @@ pub(crate) struct RowPattern {
 
 impl RowPattern {
     /// Scans `m` for nonzeros.
-    pub fn scan(m: &Mat, out: &mut RowPattern) {
+    pub(crate) fn scan(m: &Mat, out: &mut RowPattern) {
         out.starts.clear();
         out.cols.clear();
         for i in 0..m.rows {
@@ -121,7 +121,7 @@ impl RowPattern {
     }
 
     #[inline]
-    pub fn row(&self, i: usize) -> &[usize] {
+    pub(crate) fn row(&self, i: usize) -> &[usize] {
         &self.cols[self.starts[i]..self.starts[i + 1]]
     }
 }

@@ -324,7 +324,7 @@ impl ErrorStateFilter {
     /// A filter with diagonal initial covariance from `init_std`; extra
     /// states start with the variances in `extra_var` (same order as
     /// `layout.extras`).
-    pub fn new(
+    pub(crate) fn new(
         layout: StateLayout,
         noise: ImuNoise,
         init_std: &InitialStd,
@@ -410,17 +410,17 @@ impl ErrorStateFilter {
         }
     }
 
-    pub fn layout(&self) -> &StateLayout {
+    pub(crate) fn layout(&self) -> &StateLayout {
         &self.layout
     }
 
     /// Number of states.
-    pub fn n(&self) -> usize {
+    pub(crate) fn n(&self) -> usize {
         self.n
     }
 
     /// The covariance (valid after [`Self::propagate`]).
-    pub fn covariance(&self) -> &Mat {
+    pub(crate) fn covariance(&self) -> &Mat {
         &self.p
     }
 
@@ -430,7 +430,7 @@ impl ErrorStateFilter {
     }
 
     /// Standard deviation of state `i`.
-    pub fn sd(&self, i: usize) -> f64 {
+    pub(crate) fn sd(&self, i: usize) -> f64 {
         self.p.get(i, i).max(0.0).sqrt()
     }
 
@@ -441,7 +441,7 @@ impl ErrorStateFilter {
 
     /// Adds one mechanization step to the propagation window.
     #[inline]
-    pub fn accumulate(&mut self, step: &StepInfo) {
+    pub(crate) fn accumulate(&mut self, step: &StepInfo) {
         self.window.add(step);
         if self.layout.misalign.is_some() {
             self.window.add_misalign(step);
@@ -455,7 +455,7 @@ impl ErrorStateFilter {
     /// navigation errors couple to everything, every later state (IMU
     /// errors, extras) has diagonal dynamics. The products below use it:
     /// about 6k multiply-adds for 21 states instead of 2·21³.
-    pub fn propagate(&mut self, nav: &NavState) {
+    pub(crate) fn propagate(&mut self, nav: &NavState) {
         let w = self.window;
         if w.dt <= 0.0 {
             return;
@@ -594,7 +594,7 @@ impl ErrorStateFilter {
     /// Multiplies the whole covariance by `factor` ≥ 1 (a fading-memory
     /// step, Fagin 1964; Xia et al. 1994): the filter admits that its model
     /// left errors out.
-    pub fn inflate(&mut self, factor: f64) {
+    pub(crate) fn inflate(&mut self, factor: f64) {
         if factor.is_finite() && factor > 1.0 {
             for i in 0..self.n {
                 self.p.row_mut(i).iter_mut().for_each(|x| *x *= factor);
@@ -606,7 +606,7 @@ impl ErrorStateFilter {
     /// measurement is rejected when its NIS exceeds `t`. Errors when the
     /// innovation covariance or the updated P is not positive definite.
     #[cfg(test)]
-    pub fn update(
+    pub(crate) fn update(
         &mut self,
         obs: &Observation,
         gate: Option<f64>,

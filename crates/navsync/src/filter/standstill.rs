@@ -109,19 +109,19 @@ pub(crate) struct StandstillDetector {
 }
 
 impl StandstillDetector {
-    pub fn new(opts: StandstillOptions) -> Self {
+    pub(crate) fn new(opts: StandstillOptions) -> Self {
         StandstillDetector {
             opts,
             ..Default::default()
         }
     }
 
-    pub fn options(&self) -> &StandstillOptions {
+    pub(crate) fn options(&self) -> &StandstillOptions {
         &self.opts
     }
 
     /// Forgets the current window (after a data gap).
-    pub fn reset(&mut self) {
+    pub(crate) fn reset(&mut self) {
         *self = StandstillDetector::new(self.opts);
     }
 
@@ -130,7 +130,7 @@ impl StandstillDetector {
     /// that compensated it, and its length. Returns the
     /// window's verdict when this sample completes a window: `Some(None)`
     /// moving, `Some(Some(w))` still.
-    pub fn push(
+    pub(crate) fn push(
         &mut self,
         f_n: &Vector3<f64>,
         w_b: &Vector3<f64>,

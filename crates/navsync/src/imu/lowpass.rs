@@ -435,7 +435,7 @@ pub(crate) struct FilterRunner {
 #[cfg(test)]
 impl FilterRunner {
     /// Starts the filter in steady state at `x0` (no start-up transient).
-    pub fn prime(&mut self, x0: f64) {
+    pub(crate) fn prime(&mut self, x0: f64) {
         let gain = self.b.iter().sum::<f64>() / self.a.iter().sum::<f64>();
         let y0 = gain * x0;
         // DF-II transposed steady state: z_i = Σ_{k>i} (b_k x0 − a_k y0).
@@ -451,7 +451,7 @@ impl FilterRunner {
     }
 
     /// Filters one sample.
-    pub fn step(&mut self, x: f64) -> f64 {
+    pub(crate) fn step(&mut self, x: f64) -> f64 {
         let n = self.z.len();
         let b = |k: usize| self.b.get(k).copied().unwrap_or(0.0);
         let a = |k: usize| self.a.get(k).copied().unwrap_or(0.0);

@@ -272,7 +272,7 @@ pub(crate) struct PpsClock {
 }
 
 impl PpsClock {
-    pub fn new(cfg: ClockConfig) -> Self {
+    pub(crate) fn new(cfg: ClockConfig) -> Self {
         PpsClock {
             cfg,
             state: LockState::Acquiring,
@@ -298,7 +298,7 @@ impl PpsClock {
     }
 
     /// Current lock state (updated by [`Self::advance`]).
-    pub fn state(&self) -> LockState {
+    pub(crate) fn state(&self) -> LockState {
         self.state
     }
 
@@ -320,7 +320,7 @@ impl PpsClock {
 
     /// Notes the passage of time (any record's counter): enters holdover
     /// when no pulse was accepted for 1.5 s.
-    pub fn advance(&mut self, counter: u64) {
+    pub(crate) fn advance(&mut self, counter: u64) {
         self.now = self.now.max(counter);
         if self.state == LockState::Locked
             && let Some(m) = &self.model
@@ -339,7 +339,7 @@ impl PpsClock {
     }
 
     /// A GNSS message valid at `valid`, received at `counter`.
-    pub fn push_gnss(&mut self, counter: u64, valid: GpsTime) {
+    pub(crate) fn push_gnss(&mut self, counter: u64, valid: GpsTime) {
         self.msgs.push_back(Msg { counter, valid });
         while self.msgs.len() > 64 {
             self.msgs.pop_front();

@@ -21,7 +21,7 @@ pub(crate) struct PolyFit {
 impl PolyFit {
     /// Fits `points` with degree `deg` (lowered when there are too few
     /// distinct points). `None` when there are no points.
-    pub fn fit(points: &[(f64, f64)], deg: usize) -> Option<PolyFit> {
+    pub(crate) fn fit(points: &[(f64, f64)], deg: usize) -> Option<PolyFit> {
         let n = points.len();
         if n == 0 {
             return None;
@@ -80,20 +80,20 @@ impl PolyFit {
 
     /// The polynomial at `x`.
     #[inline]
-    pub fn eval(&self, x: f64) -> f64 {
+    pub(crate) fn eval(&self, x: f64) -> f64 {
         let u = (x - self.x0) / self.scale;
         self.coef[0] + u * (self.coef[1] + u * self.coef[2])
     }
 
     /// The first derivative dy/dx at `x`.
-    pub fn slope(&self, x: f64) -> f64 {
+    pub(crate) fn slope(&self, x: f64) -> f64 {
         let u = (x - self.x0) / self.scale;
         (self.coef[1] + 2.0 * u * self.coef[2]) / self.scale
     }
 
     /// The second derivative d²y/dx².
     #[cfg(test)]
-    pub fn curvature(&self) -> f64 {
+    pub(crate) fn curvature(&self) -> f64 {
         2.0 * self.coef[2] / (self.scale * self.scale)
     }
 
@@ -126,13 +126,13 @@ impl PolyFit {
 
     /// Residual standard deviation `sqrt(RSS/(n − p))`, `None` without
     /// degrees of freedom.
-    pub fn sigma(&self) -> Option<f64> {
+    pub(crate) fn sigma(&self) -> Option<f64> {
         let dof = self.n as f64 - (self.deg + 1) as f64;
         (dof >= 1.0).then(|| (self.rss / dof).sqrt())
     }
 
     /// Degrees of freedom of the residuals.
-    pub fn dof(&self) -> usize {
+    pub(crate) fn dof(&self) -> usize {
         self.n.saturating_sub(self.deg + 1)
     }
 }

@@ -59,7 +59,7 @@ pub(crate) struct ImuTracker {
 
 impl ImuTracker {
     /// `nominal_period_ticks` from the header's `imu_rate_hz`, if any.
-    pub fn new(nominal_period_ticks: Option<f64>) -> Self {
+    pub(crate) fn new(nominal_period_ticks: Option<f64>) -> Self {
         ImuTracker {
             period_ticks: nominal_period_ticks,
             deltas: VecDeque::with_capacity(16),
@@ -185,7 +185,7 @@ pub(crate) struct RateEstimator {
 
 impl RateEstimator {
     /// A stamped, non-duplicate sample; `lost_before` samples were missing.
-    pub fn push(&mut self, time: GpsTime, lost_before: u32) {
+    pub(crate) fn push(&mut self, time: GpsTime, lost_before: u32) {
         self.index += lost_before as u64;
         let t0 = *self.t0.get_or_insert(time);
         self.last = Some(time);
@@ -234,7 +234,7 @@ impl RateEstimator {
     }
 
     /// The most common count per second.
-    pub fn mode(&self) -> Option<u32> {
+    pub(crate) fn mode(&self) -> Option<u32> {
         self.per_second
             .iter()
             .max_by_key(|(_, n)| **n)
@@ -243,14 +243,14 @@ impl RateEstimator {
 
     /// Seconds whose count differs from the most common one by more than
     /// one (a rate that is not an integer makes ±1 normal).
-    pub fn odd(&mut self) -> Vec<(i64, u32)> {
+    pub(crate) fn odd(&mut self) -> Vec<(i64, u32)> {
         self.compact_odd();
         self.odd_seconds.clone()
     }
 
     /// Mean rate over the run (Hz): sample periods elapsed (lost ones
     /// counted) over the time from the first to the last stamp.
-    pub fn rate_hz(&self) -> Option<f64> {
+    pub(crate) fn rate_hz(&self) -> Option<f64> {
         let span = self.last?.seconds_since(self.t0?);
         (self.n >= 3.0 && span > 0.0).then(|| (self.index - 1) as f64 / span)
     }

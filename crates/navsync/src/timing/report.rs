@@ -337,7 +337,7 @@ pub(crate) struct TruthAccumulator {
 
 impl TruthAccumulator {
     /// One stamp: estimated `t`, true `truth`, its bound, holdover flag.
-    pub fn push(&mut self, t: GpsTime, truth: GpsTime, bound_s: f64, holdover: bool) {
+    pub(crate) fn push(&mut self, t: GpsTime, truth: GpsTime, bound_s: f64, holdover: bool) {
         let e = (t - truth) as f64 * 1e-9;
         self.all.push(e);
         if e.abs() <= bound_s {
@@ -355,7 +355,7 @@ impl TruthAccumulator {
         self.prev_err = Some(e);
     }
 
-    pub fn finish(&self) -> TruthComparison {
+    pub(crate) fn finish(&self) -> TruthComparison {
         let n = self.all.n.max(1) as f64;
         let hn = self.hold.n.max(1) as f64;
         TruthComparison {
@@ -385,7 +385,7 @@ pub(crate) struct TruthTimes {
 }
 
 impl TruthTimes {
-    pub fn open(path: &Path) -> Result<Self, Error> {
+    pub(crate) fn open(path: &Path) -> Result<Self, Error> {
         Ok(TruthTimes {
             lines: LineReader::open(path)?,
             path: path.to_path_buf(),

@@ -173,7 +173,7 @@ pub(crate) struct SwClock {
 }
 
 impl SwClock {
-    pub fn new(cfg: SwConfig, counter_hz: f64) -> Self {
+    pub(crate) fn new(cfg: SwConfig, counter_hz: f64) -> Self {
         SwClock {
             cfg,
             c0: None,
@@ -198,22 +198,22 @@ impl SwClock {
     }
 
     /// Host seconds of an unwrapped counter.
-    pub fn host(&mut self, c: u64) -> f64 {
+    pub(crate) fn host(&mut self, c: u64) -> f64 {
         let c0 = *self.c0.get_or_insert(c);
         super::clock::tick_diff(c0, c) / self.hz
     }
 
     /// Latest host time seen.
-    pub fn now(&self) -> f64 {
+    pub(crate) fn now(&self) -> f64 {
         self.now_h
     }
 
-    pub fn advance(&mut self, h: f64) {
+    pub(crate) fn advance(&mut self, h: f64) {
         self.now_h = self.now_h.max(h);
     }
 
     /// A GNSS message valid at `valid`, received at host `h`.
-    pub fn push_gnss(&mut self, h: f64, valid: GpsTime) {
+    pub(crate) fn push_gnss(&mut self, h: f64, valid: GpsTime) {
         let t0 = *self.t0.get_or_insert(valid.ns().div_euclid(NS_PER_S));
         let t = (valid.ns() - t0 * NS_PER_S) as f64 * 1e-9;
         if self.gnss.back().is_some_and(|&(tb, _)| t <= tb) {
@@ -274,7 +274,7 @@ impl SwClock {
     }
 
     /// An IMU sample received at host `h`; returns (index, lost before).
-    pub fn push_imu(&mut self, h: f64) -> (i64, u32) {
+    pub(crate) fn push_imu(&mut self, h: f64) -> (i64, u32) {
         self.advance(h);
         let k = match (self.last_k, self.live) {
             (None, _) => 0,
@@ -358,12 +358,12 @@ impl SwClock {
     }
 
     /// True when the window after host `h` is complete (non-causal).
-    pub fn ready(&self, h: f64) -> bool {
+    pub(crate) fn ready(&self, h: f64) -> bool {
         self.now_h - h >= 0.5 * self.cfg.gnss_window_s + 2.0
     }
 
     /// True when a GNSS latency envelope can be made.
-    pub fn has_gnss(&self) -> bool {
+    pub(crate) fn has_gnss(&self) -> bool {
         self.gnss.len() >= 3
     }
 
@@ -501,7 +501,7 @@ impl SwClock {
 
     /// Latency of a GNSS message valid at `valid` received at host `h`:
     /// its excess over the envelope plus the assumed fastest latency.
-    pub fn gnss_latency(&mut self, h: f64, valid: GpsTime, causal: bool) -> Option<f64> {
+    pub(crate) fn gnss_latency(&mut self, h: f64, valid: GpsTime, causal: bool) -> Option<f64> {
         let t0 = self.t0?;
         let t = (valid.ns() - t0 * NS_PER_S) as f64 * 1e-9;
         let lam_min = self.cfg.gnss_min_latency_s;

@@ -14,10 +14,10 @@ use crate::time::{GpsTime, NS_PER_S};
 pub(crate) struct Rng(u64);
 
 impl Rng {
-    pub fn new(seed: u64) -> Self {
+    pub(super) fn new(seed: u64) -> Self {
         Rng(seed ^ 0x9E37_79B9_7F4A_7C15)
     }
-    pub fn u64(&mut self) -> u64 {
+    pub(super) fn u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -25,25 +25,25 @@ impl Rng {
         z ^ (z >> 31)
     }
     /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
+    pub(super) fn uniform(&mut self) -> f64 {
         (self.u64() >> 11) as f64 / (1u64 << 53) as f64
     }
-    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+    pub(super) fn range(&mut self, a: f64, b: f64) -> f64 {
         a + (b - a) * self.uniform()
     }
-    pub fn normal(&mut self) -> f64 {
+    pub(super) fn normal(&mut self) -> f64 {
         let u1 = self.uniform().max(1e-300);
         let u2 = self.uniform();
         (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
     }
-    pub fn chance(&mut self, p: f64) -> bool {
+    pub(super) fn chance(&mut self, p: f64) -> bool {
         self.uniform() < p
     }
 }
 
 /// Scenario parameters (SI units; times relative to the start second).
 #[derive(Clone, Debug)]
-pub struct Scenario {
+pub(super) struct Scenario {
     pub seed: u64,
     pub duration_s: f64,
     pub counter_hz: f64,
@@ -117,7 +117,7 @@ impl Default for Scenario {
 
 /// What was injected, for the assertions.
 #[derive(Clone, Debug, Default)]
-pub struct Truth {
+pub(super) struct Truth {
     /// True GPS time of every `imu` record, in record order.
     pub imu_times: Vec<GpsTime>,
     /// Unwrapped-phase-free: (raw counter, true second) of good pulses.
@@ -195,7 +195,7 @@ fn gps(s: &Scenario, t: f64) -> GpsTime {
 }
 
 /// Generates the log of scenario `s`.
-pub fn generate(s: &Scenario) -> Generated {
+pub(super) fn generate(s: &Scenario) -> Generated {
     let mut rng_clock = Rng::new(s.seed);
     let mut rng_pps = Rng::new(s.seed.wrapping_add(11));
     let mut rng_gnss = Rng::new(s.seed.wrapping_add(22));

@@ -46,7 +46,7 @@ impl Unwrapper {
     /// `reorder_ticks`: tolerated step back; `max_forward_ticks`: the
     /// largest plausible advance between two records (capped at half the
     /// wrap period).
-    pub fn new(bits: u32, reorder_ticks: u64, max_forward_ticks: u64) -> Self {
+    pub(crate) fn new(bits: u32, reorder_ticks: u64, max_forward_ticks: u64) -> Self {
         let half = if bits >= 64 {
             1u64 << 63
         } else {
@@ -81,7 +81,7 @@ impl Unwrapper {
     }
 
     /// Unwraps one raw value.
-    pub fn push(&mut self, raw: u64) -> Unwrapped {
+    pub(crate) fn push(&mut self, raw: u64) -> Unwrapped {
         if !self.started {
             self.started = true;
             self.last_raw = raw;
