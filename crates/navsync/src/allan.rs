@@ -12,7 +12,7 @@ use serde::Serialize;
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct AllanPoint {
     /// Cluster time τ = m·τ₀ (s).
-    pub tau_s: f64,
+    pub(crate) tau_s: f64,
     /// Overlapping Allan deviation at τ (units of the input).
     pub(crate) adev: f64,
     /// Independent (non-overlapping) clusters of length τ in the data,

@@ -13,8 +13,8 @@ use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 /// the new forward.
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct Euler {
-    pub roll_rad: f64,
-    pub pitch_rad: f64,
+    pub(crate) roll_rad: f64,
+    pub(crate) pitch_rad: f64,
     pub yaw_rad: f64,
 }
 

@@ -100,8 +100,8 @@ pub(crate) fn omega_en_n(
 #[derive(Copy, Clone, Debug)]
 pub struct LocalEarth {
     pub sin_lat: f64,
-    pub cos_lat: f64,
-    pub tan_lat: f64,
+    pub(crate) cos_lat: f64,
+    pub(crate) tan_lat: f64,
     /// R_M + h (m).
     pub(crate) rm_h: f64,
     /// R_N + h (m).
@@ -109,9 +109,9 @@ pub struct LocalEarth {
     /// Normal gravity magnitude (m/s²), positive down.
     pub g: f64,
     /// ω_ie^n (rad/s).
-    pub w_ie: Vector3<f64>,
+    pub(crate) w_ie: Vector3<f64>,
     /// ω_en^n (rad/s).
-    pub w_en: Vector3<f64>,
+    pub(crate) w_en: Vector3<f64>,
 }
 
 impl LocalEarth {

@@ -134,7 +134,7 @@ impl Diagnostics {
     }
 
     /// Appends all of `other`.
-    pub fn extend(&mut self, other: Diagnostics) {
+    pub(crate) fn extend(&mut self, other: Diagnostics) {
         let extra = other.total - other.items.len();
         for d in other.items {
             self.total += 1;

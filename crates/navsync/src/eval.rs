@@ -177,7 +177,7 @@ pub(crate) fn epoch_error(
 pub struct Evaluator {
     m: [Moments; 13],
     outages: Vec<(OutageWindow, OutageDrift)>,
-    pub epochs_without_truth: usize,
+    pub(crate) epochs_without_truth: usize,
 }
 
 impl Evaluator {

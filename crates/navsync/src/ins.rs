@@ -93,7 +93,7 @@ pub struct StepInfo {
     /// Coriolis): the kinematic acceleration times Δt (m/s).
     pub dv_n: Vector3<f64>,
     /// Compensated body increments of the step.
-    pub inc: Increment,
+    pub(crate) inc: Increment,
 }
 
 /// The strapdown integrator. Holds the previous increment (for the

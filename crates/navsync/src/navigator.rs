@@ -140,8 +140,8 @@ pub struct StreamCounts {
     pub fixes_outside: usize,
     /// Solutions written at the `output_at` epochs, and requested epochs
     /// that fell outside the data.
-    pub output_at_written: usize,
-    pub output_at_skipped: usize,
+    pub(crate) output_at_written: usize,
+    pub(crate) output_at_skipped: usize,
     /// Solutions not written because, moved to GNSS time, they would have
     /// gone back in time (the offset estimate stepped by more than a
     /// sample interval).
@@ -197,7 +197,7 @@ pub(crate) struct SolutionOutput {
     /// Interpolated epochs written.
     pub(crate) at_written: usize,
     /// Solutions left out of the GNSS-time output (τ̂ stepped back).
-    pub out_of_order: usize,
+    pub(crate) out_of_order: usize,
 }
 
 impl SolutionOutput {

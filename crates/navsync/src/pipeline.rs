@@ -367,7 +367,7 @@ impl ImuModelSummary {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct WeightingReport {
     pub observations: usize,
-    pub down_weighted: Vec<WeightedFix>,
+    pub(crate) down_weighted: Vec<WeightedFix>,
     pub rejected: Vec<WeightedFix>,
 }
 

@@ -28,7 +28,7 @@ use crate::io::config::KfGinsConfig;
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// The IMU presets a sheet may name (those of `navsync simulate`).
-pub const PRESETS: &[&str] = &["adis16465", "icm20602", "tactical", "nav"];
+pub(crate) const PRESETS: &[&str] = &["adis16465", "icm20602", "tactical", "nav"];
 
 /// The IMU block keys and what each holds (for messages and the template).
 pub(crate) const IMU_KEYS: &[(&str, &str)] = &[
@@ -80,8 +80,8 @@ pub struct ImuSheet {
     pub(crate) accel_bias_instability_mgal: Option<f64>,
     pub gyro_turn_on_bias_deg_h: Option<f64>,
     pub(crate) accel_turn_on_bias_mgal: Option<f64>,
-    pub gyro_scale_ppm: Option<f64>,
-    pub accel_scale_ppm: Option<f64>,
+    pub(crate) gyro_scale_ppm: Option<f64>,
+    pub(crate) accel_scale_ppm: Option<f64>,
     pub(crate) bias_corr_time_s: Option<f64>,
 }
 
@@ -94,8 +94,8 @@ pub struct ImuFigures {
     pub(crate) accel_bias_instability_mgal: f64,
     pub gyro_turn_on_bias_deg_h: f64,
     pub(crate) accel_turn_on_bias_mgal: f64,
-    pub gyro_scale_ppm: f64,
-    pub accel_scale_ppm: f64,
+    pub(crate) gyro_scale_ppm: f64,
+    pub(crate) accel_scale_ppm: f64,
     pub(crate) bias_corr_time_s: f64,
 }
 

@@ -519,7 +519,7 @@ pub struct Smoothed {
     tape: RecordFile,
     count: usize,
     /// Nodes where P⁻ was regularised.
-    pub failures: usize,
+    pub(crate) failures: usize,
 }
 
 impl Smoothed {

@@ -180,7 +180,7 @@ impl WeekTracker {
     }
 
     /// Absolute time of a seconds-of-week value given in nanoseconds.
-    pub fn resolve(&mut self, ns_of_week: i64) -> GpsTime {
+    pub(crate) fn resolve(&mut self, ns_of_week: i64) -> GpsTime {
         if let Some(last) = self.last_ns_of_week
             && last - ns_of_week > NS_PER_WEEK / 2
         {
@@ -192,7 +192,7 @@ impl WeekTracker {
 
     /// Absolute time without advancing the tracker (for look-ups such as
     /// `starttime` in a configuration).
-    pub fn peek(&self, ns_of_week: i64) -> GpsTime {
+    pub(crate) fn peek(&self, ns_of_week: i64) -> GpsTime {
         let mut week = self.week;
         if let Some(last) = self.last_ns_of_week
             && last - ns_of_week > NS_PER_WEEK / 2

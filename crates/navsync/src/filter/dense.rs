@@ -164,7 +164,7 @@ pub(crate) fn mul_transpose(a: &Mat, b: &Mat, out: &mut Mat) {
 }
 
 /// Dense `out = a · b`.
-pub fn mul(a: &Mat, b: &Mat, out: &mut Mat) {
+pub(crate) fn mul(a: &Mat, b: &Mat, out: &mut Mat) {
     debug_assert_eq!(a.cols, b.rows);
     out.rows = a.rows;
     out.cols = b.cols;
@@ -187,7 +187,7 @@ pub fn mul(a: &Mat, b: &Mat, out: &mut Mat) {
 
 /// Lower Cholesky factor L (row-major) of a symmetric positive-definite
 /// matrix, or `None` when it is not positive definite.
-pub fn cholesky(m: &Mat) -> Option<Mat> {
+pub(crate) fn cholesky(m: &Mat) -> Option<Mat> {
     let n = m.rows;
     let mut l = Mat::zeros(n, n);
     for j in 0..n {

@@ -45,7 +45,7 @@ pub(crate) const MAX_STATES: usize = 40;
 pub mod idx {
     pub(crate) const POS: usize = 0;
     pub(crate) const VEL: usize = 3;
-    pub const ATT: usize = 6;
+    pub(crate) const ATT: usize = 6;
     pub(crate) const BG: usize = 9;
     pub(crate) const BA: usize = 12;
     pub(crate) const SG: usize = 15;
@@ -64,7 +64,7 @@ pub mod idx {
 pub struct ExtraState {
     pub name: &'static str,
     pub index: usize,
-    pub random_walk_psd: f64,
+    pub(crate) random_walk_psd: f64,
     pub corr_time_s: Option<f64>,
 }
 
@@ -74,7 +74,7 @@ pub struct StateLayout {
     pub extras: Vec<ExtraState>,
     /// First index of the 12 misalignment states (6 gyro, then 6
     /// accelerometer), when estimated.
-    pub misalign: Option<usize>,
+    pub(crate) misalign: Option<usize>,
 }
 
 /// Names of the misalignment states (see [`crate::ins::ImuErrors`]).

@@ -20,9 +20,9 @@ pub struct VehicleConstraint {
     pub(crate) c_bv: Matrix3<f64>,
     /// Lever arm from the IMU to the constraint point (e.g. the rear-axle
     /// centre), in the body frame (m).
-    pub lever_b: Vector3<f64>,
+    pub(crate) lever_b: Vector3<f64>,
     /// Standard deviation of the lateral and vertical zero velocity (m/s).
-    pub nhc_sd: f64,
+    pub(crate) nhc_sd: f64,
 }
 
 impl VehicleConstraint {

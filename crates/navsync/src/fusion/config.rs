@@ -225,10 +225,10 @@ pub struct NhcOptions {
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct OdometerOptions {
     pub vehicle: VehicleConstraint,
-    pub sd_mps: f64,
+    pub(crate) sd_mps: f64,
     pub interval_s: f64,
     /// Estimate an odometer scale factor with this initial σ.
-    pub scale_sd: Option<f64>,
+    pub(crate) scale_sd: Option<f64>,
 }
 
 /// The IMU–GNSS time-offset state.

@@ -70,7 +70,7 @@ pub struct LowPassSpec {
 /// One point of the delay curve.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct DelayPoint {
-    pub freq_hz: f64,
+    pub(crate) freq_hz: f64,
     pub delay_s: f64,
     pub(crate) gain_db: f64,
 }

@@ -215,10 +215,10 @@ impl Counts {
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct IntervalStats {
     pub(crate) nominal_s: f64,
-    pub mean_s: f64,
-    pub median_s: f64,
-    pub min_s: f64,
-    pub max_s: f64,
+    pub(crate) mean_s: f64,
+    pub(crate) median_s: f64,
+    pub(crate) min_s: f64,
+    pub(crate) max_s: f64,
     /// RMS deviation from the mean over intervals that are not gaps.
     pub(crate) jitter_rms_s: f64,
     pub(crate) jitter_rms_frac: f64,
@@ -248,7 +248,7 @@ pub struct ChannelReport {
     pub noise_sd: f64,
     /// Print rounding noise (step/√12) over `noise_sd`.
     pub(crate) rounding_to_noise: f64,
-    pub stuck_segments: usize,
+    pub(crate) stuck_segments: usize,
     pub(crate) saturated_samples: usize,
     pub spikes: usize,
 }
@@ -256,8 +256,8 @@ pub struct ChannelReport {
 /// A static segment found in the log.
 #[derive(Clone, Debug, Serialize)]
 pub struct StaticSegment {
-    pub first_line: usize,
-    pub start_s: f64,
+    pub(crate) first_line: usize,
+    pub(crate) start_s: f64,
     pub duration_s: f64,
 }
 

@@ -52,11 +52,11 @@ impl ExportFormat {
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct SolutionSd {
     /// Position σ north, east, down (m).
-    pub pos_m: [f64; 3],
+    pub(crate) pos_m: [f64; 3],
     /// Velocity σ north, east, down (m/s).
-    pub vel_mps: [f64; 3],
+    pub(crate) vel_mps: [f64; 3],
     /// Attitude σ roll, pitch, yaw (deg).
-    pub att_deg: [f64; 3],
+    pub(crate) att_deg: [f64; 3],
 }
 
 /// Reads a KF-GINS `std.txt` (`sow pos×3 vel×3 att×3 …`, at least 10
@@ -506,7 +506,7 @@ fn sd_values(s: &SolutionSd) -> [f64; 9] {
 /// column with its unit, `week,sow_s,lat_deg,…,yaw_deg,sd_n_m,…,sd_yaw_deg`
 /// (heights ellipsoidal; σ fields empty where `std.txt` has none), values at
 /// the precision of the nav and std files.
-pub fn write_csv(points: &[ExportPoint], out: &mut Vec<u8>) {
+pub(crate) fn write_csv(points: &[ExportPoint], out: &mut Vec<u8>) {
     push_str(out, "week,sow_s");
     for n in NAV_NAMES.iter().chain(&SD_NAMES) {
         out.push(b',');

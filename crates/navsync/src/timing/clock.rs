@@ -165,7 +165,7 @@ impl Oscillator {
 
 /// An accepted pulse: unwrapped counter and GPS second (since the epoch).
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct Pulse {
+pub(crate) struct Pulse {
     pub counter: u64,
     pub second: i64,
 }

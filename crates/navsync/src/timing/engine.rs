@@ -103,7 +103,7 @@ pub struct StampedGnss {
     pub lat_deg: f64,
     pub lon_deg: f64,
     pub h_m: f64,
-    pub sd_m: [f64; 3],
+    pub(crate) sd_m: [f64; 3],
 }
 
 impl StampedGnss {

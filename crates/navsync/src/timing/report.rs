@@ -187,7 +187,7 @@ pub struct Implausible {
 pub struct LatencyStats {
     pub min: Option<f64>,
     pub median: Option<f64>,
-    pub p99: Option<f64>,
+    pub(crate) p99: Option<f64>,
     pub max: Option<f64>,
 }
 

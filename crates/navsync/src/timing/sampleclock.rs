@@ -42,7 +42,7 @@ pub struct SampleClockConfig {
     pub lookahead: usize,
     /// … and at least this much receive time (s): a host stall releases
     /// its backlog in one burst, which must not be taken for a loss.
-    pub lookahead_s: f64,
+    pub(crate) lookahead_s: f64,
     /// Stamp from past data only (plus the lookahead of step 1).
     pub causal: bool,
 }

@@ -168,7 +168,7 @@ pub(crate) struct SwClock {
     pub(crate) last_gnss_fit_excess: f64,
     pub(crate) gnss_fit_points: usize,
     pub(crate) imu_fit_points: usize,
-    pub host_ppm: Option<f64>,
+    pub(crate) host_ppm: Option<f64>,
     now_h: f64,
 }
 

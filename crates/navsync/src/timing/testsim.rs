@@ -50,7 +50,7 @@ pub(super) struct Scenario {
     pub counter_bits: u32,
     /// Counter value at t = 0 (ticks, may be fractional).
     pub(crate) counter_start: f64,
-    pub freq_error_ppm: f64,
+    pub(crate) freq_error_ppm: f64,
     /// Temperature ramp (°C/min) from t = ramp_start_s, and the counter's
     /// temperature coefficient (ppm/°C).
     pub(crate) ramp_c_per_min: f64,
@@ -62,7 +62,7 @@ pub(super) struct Scenario {
     pub(crate) pps_jitter_s: f64,
     /// (start, length) of PPS dropouts (s).
     pub(crate) pps_dropouts: Vec<(f64, f64)>,
-    pub displaced_fraction: f64,
+    pub(crate) displaced_fraction: f64,
     pub(crate) spurious_fraction: f64,
     /// GNSS latency: uniform base in this range plus jitter.
     pub gnss_latency_s: (f64, f64),
