@@ -178,7 +178,7 @@ pub struct Alignment {
 /// is the horizontal accelerometer bias over g). The two are one unknown
 /// at rest; starting the filter with them uncorrelated lets it misassign
 /// the first GNSS-observed tilt to the bias or back.
-pub fn levelling_tilt_coupling(c_nb: &Matrix3<f64>, g_mps2: f64) -> Matrix3<f64> {
+pub(crate) fn levelling_tilt_coupling(c_nb: &Matrix3<f64>, g_mps2: f64) -> Matrix3<f64> {
     let swap = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     swap * c_nb / g_mps2
 }
@@ -210,7 +210,7 @@ impl Sums {
 /// Levelling: roll and pitch from a specific force in the body frame that
 /// is minus gravity (plus vehicle acceleration removed), Groves eqs
 /// 5.101–5.102.
-pub fn level(f_b: &Vector3<f64>) -> (f64, f64) {
+pub(crate) fn level(f_b: &Vector3<f64>) -> (f64, f64) {
     let pitch = f_b.x.atan2((f_b.y * f_b.y + f_b.z * f_b.z).sqrt());
     let roll = (-f_b.y).atan2(-f_b.z);
     (roll, pitch)

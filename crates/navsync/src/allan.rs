@@ -18,7 +18,7 @@ pub struct AllanPoint {
     /// Independent (non-overlapping) clusters of length τ in the data,
     /// ⌊N/m⌋: a guide to the estimate's confidence (relative error ≈
     /// 1/√(2·(clusters − 1)) at worst).
-    pub clusters: usize,
+    pub(crate) clusters: usize,
 }
 
 /// Overlapping Allan deviation of `rates` sampled every `tau0_s` seconds,

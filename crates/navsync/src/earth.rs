@@ -20,7 +20,7 @@ pub const B: f64 = A * (1.0 - F);
 /// Earth rotation rate (rad/s), WGS-84.
 pub const OMEGA_E: f64 = 7.292_115e-5;
 /// Earth gravitational constant GM (m³/s²), WGS-84.
-pub const GM: f64 = 3.986_004_418e14;
+pub(crate) const GM: f64 = 3.986_004_418e14;
 /// Normal gravity at the equator (m/s²), TR8350.2 table 3.4.
 pub(crate) const GAMMA_E: f64 = 9.780_325_335_9;
 /// Somigliana constant k = (b γ_p)/(a γ_e) − 1, TR8350.2 eq 4-1.
@@ -99,7 +99,7 @@ pub(crate) fn omega_en_n(
 /// by the mechanization and the error model.
 #[derive(Copy, Clone, Debug)]
 pub struct LocalEarth {
-    pub sin_lat: f64,
+    pub(crate) sin_lat: f64,
     pub(crate) cos_lat: f64,
     pub(crate) tan_lat: f64,
     /// R_M + h (m).

@@ -112,7 +112,7 @@ pub struct TruthState {
     pub time: GpsTime,
     pub pos: Geodetic,
     pub vel: Vector3<f64>,
-    pub q_nb: UnitQuaternion<f64>,
+    pub(crate) q_nb: UnitQuaternion<f64>,
 }
 
 impl From<&NavRecord> for TruthState {
@@ -127,7 +127,7 @@ impl From<&NavRecord> for TruthState {
 }
 
 /// Linear/slerp interpolation between two truth states.
-pub fn interpolate(a: &TruthState, b: &TruthState, t: GpsTime) -> TruthState {
+pub(crate) fn interpolate(a: &TruthState, b: &TruthState, t: GpsTime) -> TruthState {
     let span = (b.time - a.time) as f64;
     let u = if span > 0.0 {
         (t - a.time) as f64 / span
@@ -308,7 +308,7 @@ pub(crate) struct TruthStream {
     next: Option<TruthState>,
     week: Option<i64>,
     /// Largest truth gap bridged by interpolation (s).
-    pub max_gap_s: f64,
+    pub(crate) max_gap_s: f64,
 }
 
 impl TruthStream {
@@ -388,7 +388,7 @@ impl TruthStream {
 pub struct TruthScorer {
     truth: TruthStream,
     pub(crate) without_truth: usize,
-    pub diag: Diagnostics,
+    pub(crate) diag: Diagnostics,
 }
 
 impl TruthScorer {

@@ -35,7 +35,12 @@ impl ImuErrors {
     /// IMU error compensation); with misalignments, to first order in M:
     /// Δθ = D⁻¹ (u − M D⁻¹ u), u = Δθ̃ − b_g Δt, D = I + diag(s_g).
     #[inline]
-    pub fn compensate(&self, dtheta: &Vector3<f64>, dvel: &Vector3<f64>, dt: f64) -> Increment {
+    pub(crate) fn compensate(
+        &self,
+        dtheta: &Vector3<f64>,
+        dvel: &Vector3<f64>,
+        dt: f64,
+    ) -> Increment {
         let d_g = self.gyro_scale.add_scalar(1.0);
         let d_a = self.accel_scale.add_scalar(1.0);
         let mut th = (dtheta - self.gyro_bias * dt).component_div(&d_g);
@@ -62,36 +67,20 @@ pub struct Increment {
     pub dt: f64,
 }
 
-impl Increment {
-    /// Splits at `fraction` of the interval under the linear-rate
-    /// assumption: returns (first part, second part).
-    pub fn split(&self, fraction: f64) -> (Increment, Increment) {
-        let a = Increment {
-            dtheta: self.dtheta * fraction,
-            dvel: self.dvel * fraction,
-            dt: self.dt * fraction,
-        };
-        let b = Increment {
-            dtheta: self.dtheta - a.dtheta,
-            dvel: self.dvel - a.dvel,
-            dt: self.dt - a.dt,
-        };
-        (a, b)
-    }
-}
+impl Increment {}
 
 /// What one mechanization step hands to the error model: the quantities it
 /// already computed, so that the filter does not recompute them.
 #[derive(Copy, Clone, Debug)]
 pub struct StepInfo {
-    pub dt: f64,
+    pub(crate) dt: f64,
     /// C_b^n at the start of the step.
-    pub c_nb: Matrix3<f64>,
+    pub(crate) c_nb: Matrix3<f64>,
     /// Specific-force velocity increment in NED, Δv_f^n (m/s).
     pub(crate) dv_f_n: Vector3<f64>,
     /// Total velocity change over the step (specific force, gravity,
     /// Coriolis): the kinematic acceleration times Δt (m/s).
-    pub dv_n: Vector3<f64>,
+    pub(crate) dv_n: Vector3<f64>,
     /// Compensated body increments of the step.
     pub(crate) inc: Increment,
 }

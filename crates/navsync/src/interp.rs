@@ -51,7 +51,7 @@ pub(crate) struct NavInterpolator {
     window: VecDeque<NavState>,
     requests: VecDeque<GpsTime>,
     /// Requested epochs that could not be served (outside the data).
-    pub skipped: usize,
+    pub(crate) skipped: usize,
 }
 
 impl NavInterpolator {
@@ -156,7 +156,7 @@ fn interpolate(w: &VecDeque<NavState>, lo: usize, hi: usize, t: GpsTime) -> NavS
 /// delay of `delay_samples` (seed 004 eq 18). Returns `(whole, taps)`:
 /// the output is `y[k] = Σ_m taps[m] · x[k − whole − m]`, with the
 /// fractional part centred: D = delay − whole ∈ [(N−1)/2, (N+1)/2].
-pub fn fractional_delay_taps(order: usize, delay_samples: f64) -> (i64, Vec<f64>) {
+pub(crate) fn fractional_delay_taps(order: usize, delay_samples: f64) -> (i64, Vec<f64>) {
     assert!((1..=15).contains(&order), "fractional-delay order 1..=15");
     let n = order as f64;
     // Choose the integer shift so the remaining delay sits in the centre.

@@ -121,7 +121,7 @@ pub enum Step {
     /// The filter is not running yet (the first sample sets its clock).
     Starting,
     /// The solution at this sample, handed to the sink (unless GNSS-time
-    /// output left it out: [`StreamCounts::solutions_out_of_order`]).
+    /// output left it out: the stream's diagnostics count those).
     Solution(NavOutput),
     /// The sample lies after the configured end: nothing was done.
     Ended,
@@ -142,10 +142,6 @@ pub struct StreamCounts {
     /// that fell outside the data.
     pub(crate) output_at_written: usize,
     pub(crate) output_at_skipped: usize,
-    /// Solutions not written because, moved to GNSS time, they would have
-    /// gone back in time (the offset estimate stepped by more than a
-    /// sample interval).
-    pub solutions_out_of_order: usize,
 }
 
 /// Raw logger records → synchronized samples, in front of the filter.
@@ -351,17 +347,8 @@ impl Navigator {
         self
     }
 
-    /// Write the solution interpolated at these epochs as well
-    /// ([`NavSink::nav_at`]) with (2n+1)-order Lagrange interpolation.
-    pub fn with_output_at(self, times: Vec<GpsTime>, n: usize) -> Self {
-        let mut ip = NavInterpolator::new(n);
-        for t in times {
-            ip.request(t);
-        }
-        self.with_interpolator(Some(ip))
-    }
-
-    /// As [`Self::with_output_at`], with the interpolator already built.
+    /// Write the solution interpolated at the interpolator's requested
+    /// epochs as well ([`NavSink::nav_at`]).
     pub(crate) fn with_interpolator(mut self, interp: Option<NavInterpolator>) -> Self {
         self.output.interp = interp;
         self
@@ -406,10 +393,9 @@ impl Navigator {
 
     /// What the stream counted so far (the output's counters are read
     /// from the output itself).
-    pub fn counts(&self) -> StreamCounts {
+    pub(crate) fn counts(&self) -> StreamCounts {
         StreamCounts {
             output_at_written: self.output.at_written,
-            solutions_out_of_order: self.output.out_of_order,
             ..self.counts.clone()
         }
     }
@@ -427,7 +413,7 @@ impl Navigator {
     }
 
     /// An odometer/CAN speed (m/s) valid at the next IMU sample.
-    pub fn push_speed(&mut self, speed_mps: f64) {
+    pub(crate) fn push_speed(&mut self, speed_mps: f64) {
         self.fusion.push_speed(speed_mps);
     }
 

@@ -366,7 +366,7 @@ impl ImuModelSummary {
 /// The GNSS observations the filter down-weighted or rejected.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct WeightingReport {
-    pub observations: usize,
+    pub(crate) observations: usize,
     pub(crate) down_weighted: Vec<WeightedFix>,
     pub rejected: Vec<WeightedFix>,
 }

@@ -74,7 +74,7 @@ pub enum ImuConfig {
 
 impl ImuConfig {
     /// Gyro axes present (x, y, z).
-    pub fn gyros(self) -> [bool; 3] {
+    pub(crate) fn gyros(self) -> [bool; 3] {
         match self {
             ImuConfig::Full => [true; 3],
             _ => [false, false, true],
@@ -203,7 +203,7 @@ impl ReducedImu {
     /// pseudo-signals over the interval of `dt` seconds that ends at the
     /// sample, evaluated at `nav` (the solution at the start of the
     /// interval) with the present z gyro corrected by `imu`.
-    pub fn fill(&self, s: &mut ImuSample, nav: &NavState, imu: &ImuErrors, dt: f64) {
+    pub(crate) fn fill(&self, s: &mut ImuSample, nav: &NavState, imu: &ImuErrors, dt: f64) {
         if self.config == ImuConfig::Full || dt <= 0.0 {
             return;
         }

@@ -73,7 +73,7 @@ pub(crate) const IMU_KEYS: &[(&str, &str)] = &[
 #[serde(deny_unknown_fields)]
 pub struct ImuSheet {
     pub preset: Option<String>,
-    pub rate_hz: Option<f64>,
+    pub(crate) rate_hz: Option<f64>,
     pub arw_deg_sqrt_h: Option<f64>,
     pub vrw_mps_sqrt_h: Option<f64>,
     pub(crate) gyro_bias_instability_deg_h: Option<f64>,

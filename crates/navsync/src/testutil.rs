@@ -17,7 +17,7 @@ use crate::time::GpsTime;
 pub(crate) struct TurningAtRest {
     pub pos: Geodetic,
     pub(crate) yaw0_rad: f64,
-    pub rate_rad_s: f64,
+    pub(crate) rate_rad_s: f64,
     pub t0: GpsTime,
 }
 

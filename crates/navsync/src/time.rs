@@ -165,7 +165,7 @@ impl fmt::Display for GpsTime {
 /// into absolute [`GpsTime`], adding a week whenever SOW falls back by more
 /// than half a week (a week rollover), so that time stays monotonic.
 #[derive(Clone, Debug)]
-pub struct WeekTracker {
+pub(crate) struct WeekTracker {
     week: i64,
     last_ns_of_week: Option<i64>,
 }

@@ -7,7 +7,7 @@
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mat {
     pub rows: usize,
-    pub cols: usize,
+    pub(crate) cols: usize,
     pub data: Vec<f64>,
 }
 
@@ -20,7 +20,7 @@ impl Mat {
         }
     }
 
-    pub fn identity(n: usize) -> Self {
+    pub(crate) fn identity(n: usize) -> Self {
         let mut m = Mat::zeros(n, n);
         for i in 0..n {
             m.data[i * n + i] = 1.0;
@@ -51,10 +51,6 @@ impl Mat {
     #[inline]
     pub(crate) fn row_mut(&mut self, r: usize) -> &mut [f64] {
         &mut self.data[r * self.cols..(r + 1) * self.cols]
-    }
-
-    pub fn fill(&mut self, v: f64) {
-        self.data.iter_mut().for_each(|x| *x = v);
     }
 
     /// Writes a 3×3 block with its top-left corner at (r, c).
@@ -100,8 +96,8 @@ impl Mat {
 /// hold nonzeros.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct RowPattern {
-    pub starts: Vec<usize>,
-    pub cols: Vec<usize>,
+    pub(crate) starts: Vec<usize>,
+    pub(crate) cols: Vec<usize>,
 }
 
 impl RowPattern {

@@ -61,17 +61,17 @@ pub mod idx {
 /// *Introduction to Random Signals and Applied Kalman Filtering*, 4th ed.,
 /// §4.2).
 #[derive(Clone, Debug, PartialEq)]
-pub struct ExtraState {
+pub(crate) struct ExtraState {
     pub name: &'static str,
-    pub index: usize,
+    pub(crate) index: usize,
     pub(crate) random_walk_psd: f64,
     pub corr_time_s: Option<f64>,
 }
 
 /// The state vector's layout: the 21 core states and any extras.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct StateLayout {
-    pub extras: Vec<ExtraState>,
+pub(crate) struct StateLayout {
+    pub(crate) extras: Vec<ExtraState>,
     /// First index of the 12 misalignment states (6 gyro, then 6
     /// accelerometer), when estimated.
     pub(crate) misalign: Option<usize>,
@@ -145,9 +145,9 @@ impl StateLayout {
 
 /// Sums over the mechanization steps since the last covariance propagation.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Window {
+pub(crate) struct Window {
     /// Total duration (s).
-    pub dt: f64,
+    pub(crate) dt: f64,
     /// Σ C_b^n Δt.
     pub(crate) c_dt: Matrix3<f64>,
     /// Σ Δv_f^n: the specific force integrated in NED.
@@ -262,14 +262,14 @@ pub(crate) struct ErrorStateFilter {
 /// covariance before and after this node's corrections, and the sum of
 /// the corrections fed back here.
 #[derive(Clone, Debug)]
-pub struct SmootherNode {
+pub(crate) struct SmootherNode {
     pub time: GpsTime,
     /// Φ from the previous node to this one (identity for the first).
     pub(crate) phi_in: Mat,
     /// P just before this node's corrections (equal to `p_plus` without).
     pub(crate) p_minus: Mat,
     /// P after them.
-    pub p_plus: Mat,
+    pub(crate) p_plus: Mat,
     /// Σ of the error states fed back at this node (closed loop: the
     /// nominal state after the node is the one before it minus this).
     pub dx: Vec<f64>,
@@ -791,7 +791,7 @@ fn add_half_q(p: &mut Mat, q: &Mat) {
 /// Applies the estimated error state to the navigation state and the IMU
 /// error estimates (closed-loop feedback; KF-GINS doc §3.8 "Error State
 /// Feedback", with this module's sign convention δx = x̂ − x).
-pub fn feedback(dx: &[f64], layout: &StateLayout, nav: &mut NavState, imu: &mut ImuErrors) {
+pub(crate) fn feedback(dx: &[f64], layout: &StateLayout, nav: &mut NavState, imu: &mut ImuErrors) {
     let v3 = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
     let le = LocalEarth::new(&nav.pos, &nav.vel);
     let dp = le.ned_to_geodetic_delta(&v3(idx::POS));

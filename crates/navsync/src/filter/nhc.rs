@@ -14,7 +14,7 @@ use crate::ins::NavState;
 
 /// How the IMU sits in the vehicle and how tightly the constraint holds.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VehicleConstraint {
+pub(crate) struct VehicleConstraint {
     /// C_b^v from the IMU's mounting angles relative to the vehicle frame
     /// (forward-right-down): roll, pitch, yaw of the IMU in the vehicle.
     pub(crate) c_bv: Matrix3<f64>,

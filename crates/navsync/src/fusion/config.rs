@@ -121,7 +121,7 @@ impl Default for RobustWeighting {
 
 impl RobustWeighting {
     /// The IGG-III equivalent weight of a standardised residual.
-    pub fn weight(&self, v: f64) -> f64 {
+    pub(crate) fn weight(&self, v: f64) -> f64 {
         let a = v.abs();
         if a <= self.k0 {
             1.0
@@ -174,13 +174,13 @@ pub struct FixRecord {
     /// "position" or "velocity".
     pub kind: &'static str,
     /// Innovation, predicted minus measured (m or m/s, NED).
-    pub innovation: [f64; 3],
+    pub(crate) innovation: [f64; 3],
     /// Stated standard deviations (m or m/s).
     pub sd: [f64; 3],
     /// Normalised innovation squared with the stated σ (3 degrees of freedom).
     pub nis: f64,
     /// Weight per axis (R divided by it, memory included).
-    pub weight: [f64; 3],
+    pub(crate) weight: [f64; 3],
     pub status: FixStatus,
 }
 
@@ -215,18 +215,18 @@ impl GnssErrorModel {
 /// Non-holonomic constraint settings.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct NhcOptions {
-    pub vehicle: VehicleConstraint,
+    pub(crate) vehicle: VehicleConstraint,
     /// Seconds between constraint updates.
-    pub interval_s: f64,
+    pub(crate) interval_s: f64,
 }
 
 /// Odometer speed update settings (speeds come from the IMU file's 8th
 /// column or from [`Fusion::push_speed`]).
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct OdometerOptions {
-    pub vehicle: VehicleConstraint,
+    pub(crate) vehicle: VehicleConstraint,
     pub(crate) sd_mps: f64,
-    pub interval_s: f64,
+    pub(crate) interval_s: f64,
     /// Estimate an odometer scale factor with this initial σ.
     pub(crate) scale_sd: Option<f64>,
 }

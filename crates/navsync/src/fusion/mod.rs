@@ -607,7 +607,7 @@ impl Fusion {
     }
 
     /// Sets the odometer speed (m/s) used at the next odometer update.
-    pub fn push_speed(&mut self, speed_mps: f64) {
+    pub(crate) fn push_speed(&mut self, speed_mps: f64) {
         self.core.aid.odometer.speed_mps = Some(speed_mps);
     }
 

@@ -110,18 +110,13 @@ impl RateToIncrement {
     /// sample after such a gap starts a new series (no increment is made
     /// for the gap, so it stays a gap downstream). Seed 001 §1.5 point 5
     /// calls any gap over 0.1 s a fault.
-    pub fn with_max_bridge(mut self, seconds: f64) -> Self {
+    pub(crate) fn with_max_bridge(mut self, seconds: f64) -> Self {
         self.max_bridge_ns = Some(crate::time::seconds_to_ns(seconds));
         self
     }
 
     pub fn stats(&self) -> &ConvertStats {
         &self.stats
-    }
-
-    /// Forgets the previous sample (the next one starts a new series).
-    pub fn reset(&mut self) {
-        self.prev = None;
     }
 
     /// The increment over `(t_prev, t]`, stamped `t`, or `None` for the

@@ -62,8 +62,8 @@ impl ImuLogFormat {
 /// 10^`step_exp`).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct FieldDigits {
-    pub significant: u8,
-    pub step_exp: i16,
+    pub(crate) significant: u8,
+    pub(crate) step_exp: i16,
 }
 
 impl FieldDigits {
@@ -198,7 +198,7 @@ impl ImuLogReader {
     }
 
     /// Lines that did not parse (reported and skipped).
-    pub fn malformed(&self) -> usize {
+    pub(crate) fn malformed(&self) -> usize {
         self.malformed
     }
 
@@ -314,7 +314,7 @@ impl ImuLogReader {
     /// possibly on other threads) and applies the checks that need
     /// order: header, field count, mixed formats. Returns true when a
     /// record was queued for [`Self::take_record`].
-    pub fn sequence(
+    pub(crate) fn sequence(
         &mut self,
         line_no: usize,
         parsed: Parsed,
@@ -394,7 +394,7 @@ impl ImuLogReader {
 
     /// After [`Self::sequence`]: the next record once the format is known
     /// (`None` while the format probe is still collecting).
-    pub fn take_record(&mut self) -> Result<Option<LogRecord>, Error> {
+    pub(crate) fn take_record(&mut self) -> Result<Option<LogRecord>, Error> {
         if self.format.is_none() {
             if self.queue.len() <= PROBE {
                 return Ok(None);
@@ -473,7 +473,7 @@ impl ImuLogReader {
 /// One line, parsed without context (so lines can be parsed in parallel;
 /// [`ImuLogReader::sequence`] applies the checks that need order).
 #[derive(Clone, Debug, PartialEq)]
-pub enum Parsed {
+pub(crate) enum Parsed {
     /// Blank or a `#` comment.
     Blank,
     /// A record with its field count (not yet checked against the file).
@@ -498,7 +498,7 @@ pub(crate) fn digits_wanted(line_no: usize) -> bool {
 
 /// Parses one line (without its terminator); `want_digits` also counts the
 /// digits written ([`FieldDigits`]; zeros otherwise).
-pub fn parse_line(line: &[u8], want_digits: bool) -> Parsed {
+pub(crate) fn parse_line(line: &[u8], want_digits: bool) -> Parsed {
     if is_blank_or_comment(line) {
         return Parsed::Blank;
     }

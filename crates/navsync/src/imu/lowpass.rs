@@ -69,9 +69,9 @@ pub struct LowPassSpec {
 
 /// One point of the delay curve.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
-pub struct DelayPoint {
+pub(crate) struct DelayPoint {
     pub(crate) freq_hz: f64,
-    pub delay_s: f64,
+    pub(crate) delay_s: f64,
     pub(crate) gain_db: f64,
 }
 
@@ -86,13 +86,13 @@ pub struct GroupDelay {
     /// −3 dB frequency (Hz), if the gain falls that far below Nyquist.
     pub cutoff_hz: Option<f64>,
     /// Dynamics band used below (Hz): up to `band_hz` or the cut-off.
-    pub band_hz: f64,
+    pub(crate) band_hz: f64,
     /// Smallest and largest delay in the band (s).
     pub(crate) band_min_s: f64,
     pub(crate) band_max_s: f64,
     /// The curve from DC to Nyquist (frequencies where the gain is zero
     /// are left out).
-    pub curve: Vec<DelayPoint>,
+    pub(crate) curve: Vec<DelayPoint>,
 }
 
 /// The triangular (Bartlett) window of `taps` taps, unnormalised:
@@ -173,7 +173,7 @@ impl LowPassFilter {
 
     /// The triangular window of `taps` taps ([`triangular_weights`]),
     /// normalised to unit DC gain.
-    pub fn triangular(taps: usize, sample_rate_hz: f64) -> Result<Self, Error> {
+    pub(crate) fn triangular(taps: usize, sample_rate_hz: f64) -> Result<Self, Error> {
         if taps == 0 {
             return Err(Error::Invalid(
                 "triangular filter needs at least 1 tap".into(),

@@ -230,7 +230,7 @@ pub struct IntervalStats {
 #[derive(Clone, Debug, Serialize)]
 pub struct ChannelReport {
     pub name: &'static str,
-    pub unit: &'static str,
+    pub(crate) unit: &'static str,
     pub mean: f64,
     pub std: f64,
     pub min: f64,
@@ -245,12 +245,12 @@ pub struct ChannelReport {
     /// Typical resolution of the written numbers.
     pub(crate) print_step: f64,
     /// High-frequency noise σ (robust, from second differences).
-    pub noise_sd: f64,
+    pub(crate) noise_sd: f64,
     /// Print rounding noise (step/√12) over `noise_sd`.
     pub(crate) rounding_to_noise: f64,
     pub(crate) stuck_segments: usize,
     pub(crate) saturated_samples: usize,
-    pub spikes: usize,
+    pub(crate) spikes: usize,
 }
 
 /// A static segment found in the log.
@@ -263,16 +263,16 @@ pub struct StaticSegment {
 
 /// Allan results of one channel.
 #[derive(Clone, Debug, Serialize)]
-pub struct AllanChannel {
+pub(crate) struct AllanChannel {
     pub name: &'static str,
     /// Random walk in SI (rad/√s, m/s/√s) and in display units
     /// (deg/√h, m/s/√h).
-    pub random_walk: f64,
+    pub(crate) random_walk: f64,
     pub(crate) random_walk_display: f64,
     /// Bias instability in SI (rad/s, m/s²) and display (deg/h, mGal).
-    pub bias_instability: f64,
+    pub(crate) bias_instability: f64,
     pub(crate) bias_instability_display: f64,
-    pub bias_instability_tau_s: f64,
+    pub(crate) bias_instability_tau_s: f64,
     /// False when the curve had not turned up within the segment (the
     /// value is then an upper bound).
     pub(crate) bias_instability_resolved: bool,
@@ -283,15 +283,15 @@ pub struct AllanChannel {
     /// increment logs only lag 2 tells a filter.
     pub(crate) lag1_correlation: f64,
     pub(crate) lag2_correlation: f64,
-    pub curve: Vec<AllanPoint>,
+    pub(crate) curve: Vec<AllanPoint>,
 }
 
 /// Allan analysis of the longest static segment.
 #[derive(Clone, Debug, Serialize)]
 pub struct AllanReport {
-    pub segment: StaticSegment,
-    pub tau0_s: f64,
-    pub channels: Vec<AllanChannel>,
+    pub(crate) segment: StaticSegment,
+    pub(crate) tau0_s: f64,
+    pub(crate) channels: Vec<AllanChannel>,
 }
 
 /// The delay of a declared low-pass filter.

@@ -200,7 +200,7 @@ pub struct ExportMeta {
 
 /// Namespace of navsync's GPX extension elements (σ in metres: GPX's own
 /// `<hdop>`/`<vdop>` are dilutions of precision, not lengths).
-pub const GPX_EXTENSION_NS: &str = "urn:navsync:gpx:sd:1";
+pub(crate) const GPX_EXTENSION_NS: &str = "urn:navsync:gpx:sd:1";
 
 /// Writes `points` in `format` into `out`.
 pub fn write(format: ExportFormat, points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {

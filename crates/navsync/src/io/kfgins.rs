@@ -49,7 +49,7 @@ impl ImuReader {
     }
 
     /// Records read so far.
-    pub fn count(&self) -> usize {
+    pub(crate) fn count(&self) -> usize {
         self.count
     }
 
@@ -522,7 +522,7 @@ pub fn format_imu_err_line(out: &mut Vec<u8>, time: GpsTime, e: &ImuErrors) {
 /// `sow pos(m ×3) vel(m/s ×3) att(deg ×3) gyro_bias(deg/h ×3)
 /// accel_bias(mGal ×3) gyro_scale(ppm ×3) accel_scale(ppm ×3)`; `sd` holds
 /// the 21 core standard deviations in SI units.
-pub fn format_std_line(out: &mut Vec<u8>, time: GpsTime, sd: &[f64]) {
+pub(crate) fn format_std_line(out: &mut Vec<u8>, time: GpsTime, sd: &[f64]) {
     time.write_sow(out);
     let deg = 180.0 / std::f64::consts::PI;
     for (i, &s) in sd.iter().take(21).enumerate() {

@@ -194,7 +194,7 @@ pub struct PosReader<R = File> {
     /// Replace standard deviations below this (m, m/s) instead of skipping.
     pub(crate) sd_floor: Option<f64>,
     /// Solutions skipped by Q, indexed by Q (0 unused).
-    pub q_skipped: [usize; 7],
+    pub(crate) q_skipped: [usize; 7],
 }
 
 impl PosReader<File> {
@@ -228,11 +228,6 @@ impl<R: Read> PosReader<R> {
 
     pub fn path(&self) -> &Path {
         &self.path
-    }
-
-    /// Fixes read so far.
-    pub fn count(&self) -> usize {
-        self.count
     }
 
     /// The next kept fix; bad lines are reported into `diag` and skipped,

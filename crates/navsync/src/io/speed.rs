@@ -37,11 +37,6 @@ impl SpeedStream {
         })
     }
 
-    /// Speeds read so far.
-    pub fn count(&self) -> usize {
-        self.count
-    }
-
     fn read(&mut self, diag: &mut Diagnostics) -> Result<Option<(GpsTime, f64)>, Error> {
         if self.done {
             return Ok(None);

@@ -39,9 +39,9 @@ pub struct ClockConfig {
     /// Half-width of the post-processing smoothing window (s).
     pub(crate) smooth_half_window_s: f64,
     /// Gate on a pulse's innovation, in predicted standard deviations.
-    pub gate_sigmas: f64,
+    pub(crate) gate_sigmas: f64,
     /// Narrowest gate (s).
-    pub min_gate_s: f64,
+    pub(crate) min_gate_s: f64,
     /// Largest plausible counter frequency error at start-up (ppm).
     pub(crate) max_freq_error_ppm: f64,
     /// Frequency random walk of the counter oscillator (1/s): the variance
@@ -167,7 +167,7 @@ impl Oscillator {
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub(crate) struct Pulse {
     pub counter: u64,
-    pub second: i64,
+    pub(crate) second: i64,
 }
 
 /// Lock state of the clock model.
@@ -251,12 +251,12 @@ pub(crate) struct PpsClock {
     causal: VecDeque<Pulse>,
     model: Option<CausalModel>,
     /// Accepted pulses kept for smoothing (pruned by the owner).
-    pub history: VecDeque<Pulse>,
+    pub(crate) history: VecDeque<Pulse>,
     msgs: VecDeque<Msg>,
     /// Recent label-correction votes after lock.
     votes: VecDeque<i64>,
     nonzero_vote_run: u32,
-    pub counts: PulseCounts,
+    pub(crate) counts: PulseCounts,
     pub events: Vec<LockEvent>,
     /// Slew: offset applied to causal outputs at `slew_anchor` (s).
     slew_offset: f64,
@@ -265,7 +265,7 @@ pub(crate) struct PpsClock {
     /// Frequency-error track (ppm) at each accepted pulse, for the report.
     pub(crate) freq_ppm: crate::stats::Moments,
     /// Residual of accepted pulses against the causal prediction (s).
-    pub innovation: crate::stats::Moments,
+    pub(crate) innovation: crate::stats::Moments,
     /// Latest counter seen by the clock.
     now: u64,
     chi2_table: Vec<f64>,
@@ -838,7 +838,7 @@ fn best_supported(votes: impl Iterator<Item = i64>) -> Option<i64> {
 /// bridges gaps with the drift seen on both sides). Returns GPS time and
 /// the standard deviation (s).
 #[derive(Clone, Debug, Default)]
-pub struct Smoother {
+pub(crate) struct Smoother {
     cache_key: Option<(u64, u64)>,
     bracket: (Option<Pulse>, Option<Pulse>),
     cache: Option<(u64, i64, PolyFit, f64, f64)>,

@@ -50,8 +50,8 @@ pub(crate) struct ImuTracker {
     prev_counter: Option<u64>,
     prev_values: Option<[f64; 6]>,
     pub lost: u64,
-    pub duplicated: u64,
-    pub irregular: u64,
+    pub(crate) duplicated: u64,
+    pub(crate) irregular: u64,
     pub gaps: Vec<ImuGap>,
     pub(crate) gaps_total: u64,
     since_update: u32,
@@ -279,7 +279,7 @@ use crate::imu::convert::rate_increment;
 impl RateRule {
     /// The rule a rig log's header asks for: its `imu_rates`, else
     /// instantaneous samples (seed 001 §1.1's trapezoid).
-    pub fn for_header(header: &crate::io::riglog::RigHeader) -> Self {
+    pub(crate) fn for_header(header: &crate::io::riglog::RigHeader) -> Self {
         match header.imu_rates {
             Some(crate::io::riglog::RateSampling::IntervalAverage) => RateRule::Average,
             _ => RateRule::Trapezoid,

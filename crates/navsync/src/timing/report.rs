@@ -429,7 +429,7 @@ pub(crate) fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
 /// intervals make a log implausible (i2Nav's acquisition guide asks for
 /// loss rates below 1e-5: Tang, Zhang & Niu, "MEMS IMU raw data
 /// acquisition and time synchronization pitfalls", 2022).
-pub const IMPLAUSIBLE_SHARE: f64 = 0.01;
+pub(crate) const IMPLAUSIBLE_SHARE: f64 = 0.01;
 /// Relative difference of the measured IMU rate from the nominal one
 /// above which the rate is implausible (crystals are within 1e-4).
 pub(crate) const IMPLAUSIBLE_RATE: f64 = 0.01;

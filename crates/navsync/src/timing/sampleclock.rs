@@ -37,9 +37,9 @@ pub struct SampleClockConfig {
     pub(crate) nominal_period_s: Option<f64>,
     /// Window of the stamping envelope (s): centred on the sample, or
     /// ending at it in causal mode.
-    pub window_s: f64,
+    pub(crate) window_s: f64,
     /// Samples looked ahead before an index is decided …
-    pub lookahead: usize,
+    pub(crate) lookahead: usize,
     /// … and at least this much receive time (s): a host stall releases
     /// its backlog in one burst, which must not be taken for a loss.
     pub(crate) lookahead_s: f64,
@@ -69,7 +69,7 @@ pub struct Timed<T> {
     /// Index in the IMU's own clock (passed-through: the previous one).
     pub k: i64,
     /// Samples lost just before this one.
-    pub lost_before: u32,
+    pub(crate) lost_before: u32,
     /// The place of a loss next to this sample was not certain: this
     /// sample may be one period off.
     pub ambiguous: bool,
@@ -78,7 +78,7 @@ pub struct Timed<T> {
     /// coin-flip placement (p²/4 instead of p²/2).
     pub(crate) k_offset: f64,
     /// False for records passed through (duplicates, unstamped).
-    pub sample: bool,
+    pub(crate) sample: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -183,7 +183,7 @@ impl<T: Clone> SampleClock<T> {
 
     /// A record that is not a sample (a duplicate, an unstamped line):
     /// kept in order, handed back with the previous sample's time.
-    pub fn pass(&mut self, tag: T, out: &mut Vec<Timed<T>>) {
+    pub(crate) fn pass(&mut self, tag: T, out: &mut Vec<Timed<T>>) {
         self.pending.push_back(Item { tag, t: None });
         self.advance(false, out);
     }

@@ -54,7 +54,7 @@ pub(super) struct Scenario {
     /// Temperature ramp (°C/min) from t = ramp_start_s, and the counter's
     /// temperature coefficient (ppm/°C).
     pub(crate) ramp_c_per_min: f64,
-    pub ramp_start_s: f64,
+    pub(crate) ramp_start_s: f64,
     pub(crate) tempco_ppm_per_c: f64,
     /// Fractional-frequency random walk: σ of the change over 1 s.
     pub(crate) freq_rw_per_sqrt_s: f64,
@@ -65,14 +65,14 @@ pub(super) struct Scenario {
     pub(crate) displaced_fraction: f64,
     pub(crate) spurious_fraction: f64,
     /// GNSS latency: uniform base in this range plus jitter.
-    pub gnss_latency_s: (f64, f64),
+    pub(crate) gnss_latency_s: (f64, f64),
     /// Uniform jitter added on top (s).
     pub(crate) gnss_jitter_uniform_s: f64,
     /// Gaussian jitter σ added on top (clipped so latency ≥ 5 ms).
     pub(crate) gnss_jitter_normal_s: f64,
     pub imu_rate_hz: f64,
     pub(crate) imu_ppm: f64,
-    pub imu_kind: ImuKind,
+    pub(crate) imu_kind: ImuKind,
     pub(crate) imu_lost_fraction: f64,
     pub(crate) imu_dup_fraction: f64,
     /// Software sync: IMU output delay T_c and uniform receive jitter.

@@ -10,7 +10,7 @@
 
 /// What the unwrapper made of one raw value.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum Unwrapped {
+pub(crate) enum Unwrapped {
     /// The unwrapped counter.
     Ok(u64),
     /// A small step back (records slightly out of order): the unwrapped
