@@ -19,6 +19,7 @@ pub struct Euler {
 }
 
 impl Euler {
+    /// From roll, pitch and yaw (rad).
     pub const fn new(roll_rad: f64, pitch_rad: f64, yaw_rad: f64) -> Self {
         Euler {
             roll_rad,

@@ -38,6 +38,7 @@ pub struct Geodetic {
 }
 
 impl Geodetic {
+    /// From latitude, longitude (rad) and ellipsoidal height (m).
     pub const fn new(lat_rad: f64, lon_rad: f64, h_m: f64) -> Self {
         Geodetic {
             lat_rad,

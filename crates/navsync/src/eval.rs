@@ -203,6 +203,7 @@ impl Evaluator {
         }
     }
 
+    /// Adds one epoch's errors.
     pub fn push(&mut self, e: &EpochError) {
         let p = e.pos_ned_m;
         let v = e.vel_ned_mps;
@@ -235,6 +236,7 @@ impl Evaluator {
         }
     }
 
+    /// The statistics over the epochs pushed.
     pub fn finish(self) -> EvalReport {
         let m = &self.m;
         let drifts: Vec<OutageDrift> = self
@@ -392,6 +394,7 @@ pub struct TruthScorer {
 }
 
 impl TruthScorer {
+    /// Opens the truth trajectory file.
     pub fn open(truth_path: &Path) -> Result<Self, Error> {
         Ok(TruthScorer {
             truth: TruthStream::open(truth_path)?,

@@ -95,6 +95,7 @@ pub struct Mechanization {
 }
 
 impl Mechanization {
+    /// A mechanization with no previous sample.
     pub fn new() -> Self {
         Self::default()
     }

@@ -341,6 +341,7 @@ pub struct ImuModelSummary {
 }
 
 impl ImuModelSummary {
+    /// The IMU model of a configuration.
     pub fn of(cfg: &KfGinsConfig) -> Self {
         const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
         const MGAL: f64 = 1e-5;

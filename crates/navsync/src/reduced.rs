@@ -168,6 +168,7 @@ pub struct ReducedImu {
 const ABSENT_SD: f64 = 1e-9;
 
 impl ReducedImu {
+    /// Pseudo-signals for the sensors `config` lacks, with the default noise.
     pub fn new(config: ImuConfig) -> Self {
         ReducedImu {
             config,
@@ -274,6 +275,7 @@ pub struct OdometerSettings {
 }
 
 impl OdometerSettings {
+    /// Odometer speeds from this file, with the default settings.
     pub fn new(path: PathBuf) -> Self {
         OdometerSettings {
             path,

@@ -30,6 +30,7 @@ pub struct OutageWindow {
 }
 
 impl OutageWindow {
+    /// A window from `start` lasting `duration_s` seconds.
     pub fn new(start: GpsTime, duration_s: f64) -> Self {
         OutageWindow { start, duration_s }
     }

@@ -12,6 +12,7 @@ pub struct Mat {
 }
 
 impl Mat {
+    /// A `rows` × `cols` matrix of zeros.
     pub fn zeros(rows: usize, cols: usize) -> Self {
         Mat {
             rows,
@@ -28,11 +29,13 @@ impl Mat {
         m
     }
 
+    /// Element (`r`, `c`).
     #[inline]
     pub fn get(&self, r: usize, c: usize) -> f64 {
         self.data[r * self.cols + c]
     }
 
+    /// Sets element (`r`, `c`).
     #[inline]
     pub fn set(&mut self, r: usize, c: usize, v: f64) {
         self.data[r * self.cols + c] = v;
@@ -43,6 +46,7 @@ impl Mat {
         self.data[r * self.cols + c] += v;
     }
 
+    /// Row `r`.
     #[inline]
     pub fn row(&self, r: usize) -> &[f64] {
         &self.data[r * self.cols..(r + 1) * self.cols]

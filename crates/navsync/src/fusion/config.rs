@@ -199,6 +199,7 @@ pub struct GnssErrorModel {
 }
 
 impl GnssErrorModel {
+    /// Checks the model's values; the message names the bad one.
     pub fn validate(&self) -> Result<(), String> {
         if self.gm_sd_m.iter().any(|s| !(s.is_finite() && *s > 0.0))
             || !(self.corr_time_s.is_finite() && self.corr_time_s > 0.0)

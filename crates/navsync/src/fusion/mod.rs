@@ -441,6 +441,7 @@ pub struct Fusion {
 }
 
 impl Fusion {
+    /// A filter over this configuration, waiting for its first IMU sample.
     pub fn new(cfg: FusionConfig) -> Self {
         let search = cfg
             .time_offset
@@ -553,6 +554,7 @@ impl Fusion {
         &self.core.imu
     }
 
+    /// Counts of what the filter did so far.
     pub fn stats(&self) -> FusionStats {
         let mut s = self.core.stats.clone();
         self.core.aid.counters(&mut s);

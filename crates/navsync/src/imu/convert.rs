@@ -72,6 +72,7 @@ pub fn rate_increment(
     }
 }
 
+/// Counts of a rate-to-increment conversion.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct ConvertStats {
     pub(crate) rates_in: usize,
@@ -115,6 +116,7 @@ impl RateToIncrement {
         self
     }
 
+    /// What the conversion counted so far.
     pub fn stats(&self) -> &ConvertStats {
         &self.stats
     }

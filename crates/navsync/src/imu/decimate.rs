@@ -310,6 +310,7 @@ impl IncrementDecimator {
         }
     }
 
+    /// What the decimator counted so far.
     pub fn stats(&self) -> &DecimatorStats {
         &self.win.stats
     }
@@ -425,6 +426,7 @@ impl RateDecimator {
         }
     }
 
+    /// What the decimator counted so far.
     pub fn stats(&self) -> &DecimatorStats {
         &self.win.stats
     }
@@ -547,6 +549,7 @@ pub struct Conditioner {
 }
 
 impl Conditioner {
+    /// A conditioner over this configuration.
     pub fn new(cfg: ConditionerConfig) -> Self {
         let bridge = |c: RateToIncrement| match cfg.max_bridge_s {
             Some(s) => c.with_max_bridge(s),
@@ -602,6 +605,7 @@ impl Conditioner {
         }
     }
 
+    /// Its configuration.
     pub fn config(&self) -> &ConditionerConfig {
         &self.cfg
     }

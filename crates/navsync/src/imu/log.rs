@@ -45,6 +45,7 @@ pub enum ImuLogFormat {
 }
 
 impl ImuLogFormat {
+    /// The format's name in reports.
     pub fn name(self) -> &'static str {
         match self {
             ImuLogFormat::KfGins => "kf-gins",
@@ -178,6 +179,7 @@ impl ImuLogReader {
         }
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -619,6 +621,7 @@ impl TimeOrder {
     /// Records behind the last accepted time that make a reset.
     pub(crate) const RESET_RUN: usize = 16;
 
+    /// Checks the time order of the next record (`path` names the file in errors).
     pub fn check(&mut self, path: &Path, rec: &LogRecord) -> Result<Order, Error> {
         let Some(last) = self.last_ns else {
             self.last_ns = Some(rec.time_ns);

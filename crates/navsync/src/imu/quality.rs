@@ -118,6 +118,7 @@ pub enum Status {
 }
 
 impl Status {
+    /// The status as a word for reports.
     pub fn label(self) -> &'static str {
         match self {
             Status::Pass => "PASS",

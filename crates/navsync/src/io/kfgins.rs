@@ -44,6 +44,7 @@ impl ImuReader {
         })
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -148,6 +149,7 @@ pub struct GnssReader {
 }
 
 impl GnssReader {
+    /// Opens a KF-GINS GNSS file of this layout; `week` dates its seconds of week.
     pub fn open(path: &Path, week: i64, layout: GnssLayout) -> Result<Self, Error> {
         Ok(GnssReader {
             lines: LineReader::open(path)?,
@@ -160,6 +162,7 @@ impl GnssReader {
         })
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -313,6 +316,7 @@ pub struct NavReader {
 }
 
 impl NavReader {
+    /// Opens a KF-GINS navigation result (`.nav`).
     pub fn open(path: &Path) -> Result<Self, Error> {
         Ok(NavReader {
             lines: LineReader::open(path)?,
@@ -322,6 +326,7 @@ impl NavReader {
         })
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -591,6 +596,7 @@ pub struct TextWriter {
 }
 
 impl TextWriter {
+    /// Creates (or truncates) the file.
     pub fn create(path: &Path) -> Result<Self, Error> {
         let file = File::create(path).map_err(|e| Error::io(path, e))?;
         Ok(TextWriter {
@@ -599,12 +605,14 @@ impl TextWriter {
         })
     }
 
+    /// Appends bytes (buffered).
     pub fn write(&mut self, bytes: &[u8]) -> Result<(), Error> {
         self.inner
             .write_all(bytes)
             .map_err(|e| Error::io(&self.path, e))
     }
 
+    /// Flushes the buffer; an error names the file.
     pub fn finish(mut self) -> Result<(), Error> {
         self.inner.flush().map_err(|e| Error::io(&self.path, e))
     }

@@ -226,6 +226,7 @@ impl<R: Read> PosReader<R> {
         }
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }

@@ -288,6 +288,7 @@ impl RateRule {
 }
 
 impl IncrementBuilder {
+    /// A builder for IMU values of this kind.
     pub fn new(kind: ImuKind) -> Self {
         Self::with_rule(kind, RateRule::Trapezoid)
     }

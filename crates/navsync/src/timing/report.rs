@@ -36,6 +36,7 @@ impl WeekSow {
     }
 }
 
+/// How many records of each kind the log held.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct RecordCounts {
     pub imu: u64,
@@ -63,6 +64,7 @@ pub struct MarkReport {
     pub used_as_clock_reference: bool,
 }
 
+/// Mean, minimum and maximum of a quantity.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RangeStats {
     pub mean: f64,
@@ -70,6 +72,7 @@ pub struct RangeStats {
     pub max: f64,
 }
 
+/// The counter: its frequency, width, wraps and faults.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CounterReport {
     pub(crate) nominal_hz: f64,
@@ -86,6 +89,7 @@ pub struct CounterReport {
     pub freq_error_ppm: Option<RangeStats>,
 }
 
+/// A span of one lock state of the clock model.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LockSpan {
     pub state: String,
@@ -93,6 +97,7 @@ pub struct LockSpan {
     pub end: WeekSow,
 }
 
+/// A span of IMU stamps made in holdover (no recent pulse).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct HoldoverSpan {
     /// First and last IMU stamp made without a pulse within 1.5 s.
@@ -104,6 +109,7 @@ pub struct HoldoverSpan {
     pub samples: u64,
 }
 
+/// The 1PPS edges: counts and the fit of accepted ones.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PpsReport {
     #[serde(flatten)]
@@ -119,6 +125,7 @@ pub(crate) struct OddSecond {
     pub samples: u32,
 }
 
+/// The IMU records: rate, losses and stamp quality.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ImuReport {
     pub records: u64,
@@ -183,6 +190,7 @@ pub struct Implausible {
     pub fix: String,
 }
 
+/// Statistics of a latency (ms).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LatencyStats {
     pub min: Option<f64>,
@@ -229,6 +237,7 @@ impl Histogram {
     }
 }
 
+/// The GNSS messages: counts and latencies.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GnssReport {
     pub messages: u64,
@@ -252,6 +261,7 @@ pub struct RejectedPulse {
     pub reason: String,
 }
 
+/// Software synchronization: host-clock estimates and their limits.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SoftwareReport {
     pub(crate) imu_envelope_mean_delay_ms: f64,
@@ -265,6 +275,7 @@ pub struct SoftwareReport {
     pub(crate) pps_records_ignored: u64,
 }
 
+/// Mean and maximum of a stamp error bound (µs).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct BoundStats {
     pub mean: Option<f64>,

@@ -146,6 +146,7 @@ const BLOCK_S: f64 = 1.0;
 const MIN_FIT_POINTS: usize = 50;
 
 impl<T: Clone> SampleClock<T> {
+    /// A sample clock over this configuration.
     pub fn new(cfg: SampleClockConfig) -> Self {
         SampleClock {
             cfg,
