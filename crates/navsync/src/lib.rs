@@ -26,12 +26,12 @@ pub mod filter;
 pub mod fusion;
 pub mod imu;
 pub mod ins;
-pub mod interp;
+pub(crate) mod interp;
 pub mod io;
 pub mod navigator;
 // Number formatting without allocation (under time and io::text).
 mod numfmt;
-pub mod offset_search;
+pub(crate) mod offset_search;
 pub mod pipeline;
 pub mod reduced;
 pub mod sensor;

@@ -21,7 +21,7 @@
 
 pub mod dense;
 pub mod gnss;
-pub mod model;
+pub(crate) mod model;
 pub mod nhc;
 pub mod standstill;
 #[cfg(test)]
@@ -42,7 +42,7 @@ pub use crate::types::{ImuNoise, InitialStd};
 pub(crate) const MAX_STATES: usize = 40;
 
 /// Indices of the 21 core error states.
-pub mod idx {
+pub(crate) mod idx {
     pub(crate) const POS: usize = 0;
     pub(crate) const VEL: usize = 3;
     pub(crate) const ATT: usize = 6;

@@ -23,7 +23,7 @@ pub mod imu;
 pub mod report;
 pub mod sampleclock;
 pub mod swsync;
-pub mod unwrap;
+pub(crate) mod unwrap;
 
 #[cfg(test)]
 mod tests;
