@@ -10,7 +10,7 @@
 //!   Navigation Systems*, 2nd ed., §5.6.2, eqs 5.101–5.102). Their σ is
 //!   the accelerometer bias over g (the bias is not separable from tilt at
 //!   rest) and the averaged noise. The tilt error is the bias itself seen
-//!   through gravity (see [`levelling_tilt_coupling`]), so a run started at
+//!   through gravity (see `levelling_tilt_coupling`), so a run started at
 //!   the standstill gets that correlation in its initial covariance.
 //! - **In motion, without a standstill**: the same from the specific force
 //!   with the vehicle's acceleration (from GNSS velocity) removed,

@@ -6,7 +6,7 @@
 //! Here each IMU of the array is fused with the (correctly timed) GNSS with
 //! the time-offset state of [`crate::fusion`] (the same rows −v and −a),
 //! which gives each IMU's offset to GNSS time τ_i; every stream is then
-//! shifted onto GNSS time by τ_i with [`crate::interp::fractional_delay_taps`]
+//! shifted onto GNSS time by τ_i with `crate::interp::fractional_delay_taps`
 //! and the aligned increments are averaged into one virtual IMU whose white
 //! noise is 1/√N of a single unit's (independent sensors), which is fused.
 //!
@@ -390,7 +390,7 @@ impl DelayFit {
 /// differences), ω_1 shifted by an order-5 Lagrange fractional-delay
 /// filter (seed 004 eq 18) and its δ-derivative taken by central
 /// difference of two more shifted copies (an instrumental variable, see
-/// [`DERIV_HALF_SPAN`]). σ(δ) is the least-squares
+/// `DERIV_HALF_SPAN`). σ(δ) is the least-squares
 /// covariance inflated by √((1+ρ)/(1−ρ)), ρ the residuals' lag-1
 /// correlation (an AR(1) effective sample size, Bartlett 1946).
 pub fn relative_delays(

@@ -356,7 +356,7 @@ impl Navigator {
 
     /// Put raw rig-log records through the synchronization engine first
     /// ([`Self::push_record`]); rates become increments by the header's
-    /// rule ([`RateRule::for_header`]). A rig log delivers each fix when
+    /// rule (`RateRule::for_header`). A rig log delivers each fix when
     /// its last byte arrived, after the IMU passed its time of validity: an
     /// offline filter becomes a delayed-state one (the update at the fix's
     /// time, then forward again over the buffered samples; exact, like

@@ -9,7 +9,7 @@
 //! The forward filter ([`crate::fusion`]) keeps a nominal state x̂ and an
 //! error state δx = x̂ − x whose mean it feeds back at once: after the
 //! corrections at node k the nominal is x̂ₖ⁺ = x̂ₖ⁻ ⊖ dxₖ (for vectors
-//! x̂ₖ⁺ = x̂ₖ⁻ − dxₖ, for attitude the rotation of [`crate::filter::feedback`]),
+//! x̂ₖ⁺ = x̂ₖ⁻ − dxₖ, for attitude the rotation of `crate::filter::feedback`),
 //! and the filter's error-state mean is zero again, with covariance Pₖ⁺.
 //! Between nodes the nominal is mechanized from x̂ₖ⁺, so the error of the
 //! nominal obeys δxₖ₊₁⁻ = Φₖ δxₖ⁺ + wₖ with predicted mean 0 and

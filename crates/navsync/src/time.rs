@@ -4,7 +4,7 @@
 //! epoch (1980-01-06 00:00:00 UTC), so that no precision is lost over a week
 //! (an `f64` seconds-of-week keeps ~0.1 ns, an `f32` only ~60 ms) and equal
 //! epochs compare equal. Files carry week + seconds of week (SOW); KF-GINS
-//! files carry SOW only, and [`WeekTracker`] turns such a stream into
+//! files carry SOW only, and `WeekTracker` turns such a stream into
 //! absolute time across a week rollover.
 
 use std::fmt;

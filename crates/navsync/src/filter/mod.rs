@@ -4,10 +4,10 @@
 //! as *estimate minus truth*:
 //! `[δr^n (m, NED), δv^n (m/s), φ (rad, φ-angle: Ĉ_b^n = (I − φ×) C_b^n),
 //!   δb_g (rad/s), δb_a (m/s²), δs_g, δs_a]`, followed by optional extra
-//! states (e.g. the IMU–GNSS time offset) appended by a [`StateLayout`].
+//! states (e.g. the IMU–GNSS time offset) appended by a `StateLayout`.
 //!
 //! Propagation does not run at the IMU rate: the mechanization hands each
-//! step's quantities to a [`Window`] which sums them (Σ C_b^n Δt, Σ Δv_f^n,
+//! step's quantities to a `Window` which sums them (Σ C_b^n Δt, Σ Δv_f^n,
 //! Σ C_b^n diag(Δv), Σ C_b^n diag(Δθ)); every `cov_step` seconds, and always
 //! before a measurement, the window's A = ∫F dt gives
 //! Φ = I + A + A²/2 and P ← Φ (P + Q/2) Φᵀ + Q/2 (the trapezoidal noise

@@ -222,7 +222,7 @@ pub struct NhcOptions {
 }
 
 /// Odometer speed update settings (speeds come from the IMU file's 8th
-/// column or from [`Fusion::push_speed`]).
+/// column or from `Fusion::push_speed`).
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct OdometerOptions {
     pub(crate) vehicle: VehicleConstraint,

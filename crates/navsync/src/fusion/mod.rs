@@ -18,7 +18,7 @@
 //!   [H, −v]; PSINS's delay state has the same rows): a fix tagged t is
 //!   processed at t − τ̂ and its rows are −v_antenna (position) and −a
 //!   (velocity). τ̂ is held while it is unobservable (standstill, constant
-//!   velocity), and a coarse search ([`crate::offset_search`]) brings large
+//!   velocity), and a coarse search (`crate::offset_search`) brings large
 //!   offsets (±0.5 s) within the filter's linear range.
 //! - Fixes that arrive late in real time (latency) are handled by one of
 //!   the [`LatencyMode`]s.

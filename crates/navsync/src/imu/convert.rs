@@ -96,7 +96,7 @@ pub struct RateToIncrement {
 
 impl RateToIncrement {
     /// A converter for rates of `kind`. Gaps of any length are bridged
-    /// (the trapezoid over the gap) until [`Self::with_max_bridge`] says
+    /// (the trapezoid over the gap) until `Self::with_max_bridge` says
     /// otherwise.
     pub fn new(kind: RateRule) -> Self {
         RateToIncrement {

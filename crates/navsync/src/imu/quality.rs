@@ -1953,8 +1953,8 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
 }
 
 /// Checks a log file. One thread reads blocks, worker threads parse them
-/// ([`super::log::parse_line`]), the calling thread puts them back in
-/// order ([`ImuLogReader::sequence`]) and analyzes. Malformed lines are
+/// (`super::log::parse_line`), the calling thread puts them back in
+/// order (`ImuLogReader::sequence`) and analyzes. Malformed lines are
 /// reported in `diag` (and counted as bad data).
 pub fn check_file(
     path: &Path,

@@ -6,7 +6,7 @@
 //! [`SyncEngine::finish`] flushes and returns the [`SyncReport`].
 //!
 //! * Hardware sync (seed 001 §2.1, seed 002): the local counter is
-//!   unwrapped ([`unwrap`]), each 1PPS edge labelled with its GPS second
+//!   unwrapped (`unwrap`), each 1PPS edge labelled with its GPS second
 //!   from the GNSS messages, and a robust windowed regression maps the
 //!   counter to GPS time ([`clock`]), with holdover and relock.
 //! * Software sync (seed 001 §2.2): lower envelopes of receive times
