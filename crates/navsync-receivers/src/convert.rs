@@ -276,7 +276,7 @@ pub fn convert_with_topics(
 }
 
 /// The name standard input goes by in messages and summary.json.
-pub const STDIN_NAME: &str = "<stdin>";
+pub(crate) const STDIN_NAME: &str = "<stdin>";
 
 /// Opens `input`, or standard input for `-` (so that `gpspipe -R |
 /// navsync convert --from ubx -` works); returns the reader and the name
@@ -779,7 +779,7 @@ impl StreamConverter {
 }
 
 /// Header of the receiver-time rig-log (FORMATS.md §2).
-pub const RIG_HEADER: &str = "# rig-log v1
+pub(crate) const RIG_HEADER: &str = "# rig-log v1
 # counter_hz: 1000000000
 # counter_bits: 64
 # imu: rate                  (no imu records here; the header needs the line)

@@ -45,15 +45,6 @@ impl FileKind {
         )
     }
 
-    /// Whether the file holds IMU samples (a UBX stream may, as ESF
-    /// messages, but on the receiver's sensor time axis: not counted).
-    pub fn has_imu(self) -> bool {
-        matches!(
-            self,
-            FileKind::RigLog | FileKind::Mcap | FileKind::RateCsv | FileKind::KfginsImu
-        )
-    }
-
     pub fn describe(self) -> &'static str {
         match self {
             FileKind::RigLog => "rig log (rig-log v1)",
@@ -69,7 +60,7 @@ impl FileKind {
 }
 
 /// What an unknown file should have been.
-pub const EXPECTED: &str = "expected a rig log ('# rig-log v1' first line), a u-blox UBX or \
+pub(crate) const EXPECTED: &str = "expected a rig log ('# rig-log v1' first line), a u-blox UBX or \
     NMEA 0183 receiver log, a ROS 2 .mcap bag, a comma2k19 gnss_ublox.csv, an IMU log \
     (lines of 'time gyro_x gyro_y gyro_z acc_x acc_y acc_z' in s, rad/s, m/s²) or KF-GINS \
     imu/gnss text files";
@@ -98,7 +89,7 @@ pub fn detect(path: &Path) -> Result<FileKind, Error> {
 }
 
 /// [`detect`] on the first bytes of a file.
-pub fn detect_bytes(buf: &[u8]) -> Option<FileKind> {
+pub(crate) fn detect_bytes(buf: &[u8]) -> Option<FileKind> {
     if buf.starts_with(b"\x89MCAP") {
         return Some(FileKind::Mcap);
     }

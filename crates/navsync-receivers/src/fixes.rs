@@ -125,7 +125,7 @@ pub struct ReceiverFix {
     /// The ellipsoidal height used the EGM96 geoid model
     /// ([`crate::geoid`]): the message gave height above mean sea level
     /// without the geoid separation.
-    pub geoid_from_model: bool,
+    pub(crate) geoid_from_model: bool,
 }
 
 /// The GPS week and leap seconds a stream has told so far.
@@ -237,7 +237,7 @@ pub fn nav_pvt_fix(p: &NavPvt, ctx: &TimeContext) -> Result<Option<ReceiverFix>,
 
 /// [`nav_pvt_fix`] under `opts`, with the reason when the epoch gives no
 /// fix (and, for [`DropReason::NoTime`], what was wrong with its time).
-pub fn nav_pvt_epoch(
+pub(crate) fn nav_pvt_epoch(
     p: &NavPvt,
     ctx: &TimeContext,
     opts: &FixOptions,

@@ -37,7 +37,8 @@ impl Egm96Grid {
     }
 
     /// Spherical-harmonic syntheses done so far (grid nodes computed).
-    pub fn nodes_computed(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn nodes_computed(&self) -> usize {
         self.nodes.len()
     }
 

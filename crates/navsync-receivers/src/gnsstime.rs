@@ -24,7 +24,7 @@ pub fn days_from_civil(year: i32, month: u32, day: u32) -> i64 {
 }
 
 /// Days from 1970-01-01 to the GPS epoch, 1980-01-06.
-pub const GPS_EPOCH_UNIX_DAYS: i64 = 3657;
+pub(crate) const GPS_EPOCH_UNIX_DAYS: i64 = 3657;
 
 /// UTC instants (seconds since the GPS epoch, counted without leap seconds)
 /// from which GPS − UTC took its next value: 1 s from 1981-07-01, …, 18 s
@@ -53,7 +53,7 @@ const LEAP_STEPS: [(i32, u32, u32); 18] = [
 /// GPS − UTC (s) from the table at a UTC instant given as seconds since the
 /// GPS epoch without leap seconds. Before 1980-01-06 it is 0 (GPS did not
 /// exist; callers should not ask).
-pub fn table_leap_seconds(utc_s_since_gps_epoch: i64) -> i32 {
+pub(crate) fn table_leap_seconds(utc_s_since_gps_epoch: i64) -> i32 {
     LEAP_STEPS
         .iter()
         .filter(|&&(y, m, d)| {
@@ -78,7 +78,7 @@ pub struct UtcTime {
 impl UtcTime {
     /// Checks the ranges (month 1..12, day valid for the month, hour < 24,
     /// min < 60, sec ≤ 60, nano < 1e9).
-    pub fn is_valid(&self) -> bool {
+    pub(crate) fn is_valid(&self) -> bool {
         if !(1..=12).contains(&self.month) || self.day == 0 || self.hour >= 24 {
             return false;
         }
@@ -92,7 +92,7 @@ impl UtcTime {
     }
 
     /// From a date and nanoseconds since midnight.
-    pub fn from_date_tod(year: i32, month: u32, day: u32, tod_ns: i64) -> Self {
+    pub(crate) fn from_date_tod(year: i32, month: u32, day: u32, tod_ns: i64) -> Self {
         let s = tod_ns.div_euclid(NS_PER_S);
         UtcTime {
             year,
@@ -159,12 +159,8 @@ impl LeapSeconds {
     }
 
     /// Records the receiver's GPS − UTC (s).
-    pub fn set_from_receiver(&mut self, leap_s: i32) {
+    pub(crate) fn set_from_receiver(&mut self, leap_s: i32) {
         self.receiver = Some(leap_s);
-    }
-
-    pub fn receiver_value(&self) -> Option<i32> {
-        self.receiver
     }
 
     /// GPS − UTC (s) at `utc` and where the value came from.
@@ -188,7 +184,7 @@ impl LeapSeconds {
 }
 
 /// GPS time of a UTC instant given GPS − UTC = `leap_s`.
-pub fn utc_to_gps_with(utc: &UtcTime, leap_s: i32) -> GpsTime {
+pub(crate) fn utc_to_gps_with(utc: &UtcTime, leap_s: i32) -> GpsTime {
     let (s, ns) = utc.naive();
     GpsTime::from_ns((s + leap_s as i64) * NS_PER_S + ns)
 }

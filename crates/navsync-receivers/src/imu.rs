@@ -101,7 +101,7 @@ impl RateToIncrement {
 
 /// Unwraps a wrapping 32-bit sensor time tag into a monotonic count.
 #[derive(Clone, Debug, Default)]
-pub struct TagUnwrapper {
+pub(crate) struct TagUnwrapper {
     last: Option<u32>,
     high: u64,
 }
@@ -109,7 +109,7 @@ pub struct TagUnwrapper {
 impl TagUnwrapper {
     /// Forward steps below 2³¹ ticks are progress; a larger step is taken
     /// as going back (it stays put, the caller sees time not increasing).
-    pub fn unwrap(&mut self, tag: u32) -> u64 {
+    pub(crate) fn unwrap(&mut self, tag: u32) -> u64 {
         if let Some(last) = self.last
             && tag < last
             && last - tag > 1 << 31

@@ -27,20 +27,20 @@ pub enum Edge {
 
 /// One external-event edge in GPS time.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub struct EdgeStamp {
+pub(crate) struct EdgeStamp {
     pub time: GpsTime,
     pub edge: Edge,
     pub channel: u8,
     /// The receiver's rising-edge counter at this message.
     pub count: u16,
     /// Accuracy estimate (ns).
-    pub acc_ns: u32,
+    pub(crate) acc_ns: u32,
 }
 
 /// A pulse (e.g. a camera exposure signal) with both edges, stamped at its
 /// middle (seed 001 §2.3.1).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub struct Strobe {
+pub(crate) struct Strobe {
     pub channel: u8,
     pub rising: GpsTime,
     pub falling: GpsTime,
@@ -51,7 +51,7 @@ pub struct Strobe {
 
 /// What one TIM-TM2 message yields.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct MarkOutput {
+pub(crate) struct MarkOutput {
     /// New edges, in time order.
     pub edges: Vec<EdgeStamp>,
     /// Pulses completed by this message.
@@ -63,16 +63,16 @@ pub struct MarkOutput {
 /// Turns TIM-TM2 messages into GPS-time event stamps, pairing rising and
 /// falling edges per channel.
 #[derive(Clone, Debug, Default)]
-pub struct TimeMarks {
+pub(crate) struct TimeMarks {
     open_rising: [Option<(GpsTime, u16)>; 4],
     last_count: [Option<u16>; 4],
     /// Longest pulse paired into a strobe (ns); longer ones are left as
     /// separate edges. Default 1 s.
-    pub max_pulse_ns: i64,
+    pub(crate) max_pulse_ns: i64,
 }
 
 impl TimeMarks {
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         TimeMarks {
             max_pulse_ns: 1_000_000_000,
             ..Default::default()
@@ -83,7 +83,11 @@ impl TimeMarks {
     /// GPS time (the u-blox default grid; CFG-TP-TIMEGRID selects it), UTC
     /// is converted with the leap seconds known; receiver time has no GNSS
     /// meaning and gives `None`.
-    pub fn edge_to_gps(tb: TimeBase, ns_in_base: i64, leap: &LeapSeconds) -> Option<GpsTime> {
+    pub(crate) fn edge_to_gps(
+        tb: TimeBase,
+        ns_in_base: i64,
+        leap: &LeapSeconds,
+    ) -> Option<GpsTime> {
         match tb {
             TimeBase::Gnss => Some(GpsTime::from_ns(ns_in_base)),
             TimeBase::Utc => {
@@ -96,7 +100,7 @@ impl TimeMarks {
         }
     }
 
-    pub fn push(&mut self, tm: &TimTm2, leap: &LeapSeconds) -> MarkOutput {
+    pub(crate) fn push(&mut self, tm: &TimTm2, leap: &LeapSeconds) -> MarkOutput {
         let mut out = MarkOutput::default();
         let ch = tm.ch as usize;
         if ch >= self.open_rising.len() {
@@ -171,13 +175,13 @@ impl TimeMarks {
 /// The logger-clock time of the ideal pulse, given the logger's timestamp
 /// of a 1PPS edge (ns, any local time scale) and the qErr (ps) of that
 /// pulse: `edge + qErr`, rounded to the ns.
-pub fn correct_pps_edge(edge_local_ns: i64, q_err_ps: i32) -> i64 {
+pub(crate) fn correct_pps_edge(edge_local_ns: i64, q_err_ps: i32) -> i64 {
     edge_local_ns + (q_err_ps as i64 * 2 + 1000).div_euclid(2000)
 }
 
 /// GPS time at which the pulse edge really left the receiver: the pulse
 /// time minus qErr (the edge is early by qErr).
-pub fn pps_edge_gps(pulse: GpsTime, q_err_ps: i32) -> GpsTime {
+pub(crate) fn pps_edge_gps(pulse: GpsTime, q_err_ps: i32) -> GpsTime {
     pulse + (-(q_err_ps as i64) * 2 + 1000).div_euclid(2000)
 }
 

@@ -21,7 +21,7 @@ pub fn encode_sentence(body: &str) -> String {
 }
 
 /// Nanoseconds since midnight UTC.
-pub type TimeOfDayNs = i64;
+pub(crate) type TimeOfDayNs = i64;
 
 fn tod_ns(t: NaiveTime) -> TimeOfDayNs {
     t.num_seconds_from_midnight() as i64 * 1_000_000_000 + t.nanosecond() as i64
@@ -54,12 +54,9 @@ pub struct Gga {
 
 impl Gga {
     /// Ellipsoidal height (m) when both parts are present.
-    pub fn ellipsoidal_height_m(&self) -> Option<f64> {
+    #[cfg(test)]
+    pub(crate) fn ellipsoidal_height_m(&self) -> Option<f64> {
         Some(self.alt_msl_m? + self.geoid_sep_m?)
-    }
-    /// A usable position fix (quality 1..=5 and a position).
-    pub fn has_fix(&self) -> bool {
-        (1..=5).contains(&self.quality) && self.lat_deg.is_some() && self.lon_deg.is_some()
     }
 }
 
@@ -137,7 +134,7 @@ pub fn formatter(sentence: &[u8]) -> &[u8] {
 }
 
 /// Whether navsync decodes sentences with this formatter.
-pub fn is_read(formatter: &[u8]) -> bool {
+pub(crate) fn is_read(formatter: &[u8]) -> bool {
     matches!(formatter, b"GGA" | b"RMC" | b"GST" | b"ZDA")
 }
 

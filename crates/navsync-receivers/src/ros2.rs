@@ -39,7 +39,7 @@ pub const TWIST_SCHEMA: &str = "geometry_msgs/msg/TwistWithCovarianceStamped";
 
 /// A CDR (XCDR1) reader over one serialized message.
 #[derive(Debug)]
-pub struct Cdr<'a> {
+pub(crate) struct Cdr<'a> {
     /// The bytes after the encapsulation header (alignment origin).
     buf: &'a [u8],
     pos: usize,
@@ -48,7 +48,7 @@ pub struct Cdr<'a> {
 
 impl<'a> Cdr<'a> {
     /// Reads the encapsulation header (DDS-XTypes 1.3 §7.6.3.1.2).
-    pub fn new(data: &'a [u8]) -> Result<Self, String> {
+    pub(crate) fn new(data: &'a [u8]) -> Result<Self, String> {
         if data.len() < 4 {
             return Err(format!(
                 "{} bytes: shorter than the 4-byte CDR encapsulation header",
@@ -98,25 +98,25 @@ impl<'a> Cdr<'a> {
         Ok(a)
     }
 
-    pub fn u8(&mut self) -> Result<u8, String> {
+    pub(crate) fn u8(&mut self) -> Result<u8, String> {
         Ok(self.take(1, 1)?[0])
     }
-    pub fn i8(&mut self) -> Result<i8, String> {
+    pub(crate) fn i8(&mut self) -> Result<i8, String> {
         Ok(self.u8()? as i8)
     }
-    pub fn u16(&mut self) -> Result<u16, String> {
+    pub(crate) fn u16(&mut self) -> Result<u16, String> {
         Ok(u16::from_ne_bytes(self.array(2)?))
     }
-    pub fn i32(&mut self) -> Result<i32, String> {
+    pub(crate) fn i32(&mut self) -> Result<i32, String> {
         Ok(i32::from_ne_bytes(self.array(4)?))
     }
-    pub fn u32(&mut self) -> Result<u32, String> {
+    pub(crate) fn u32(&mut self) -> Result<u32, String> {
         Ok(u32::from_ne_bytes(self.array(4)?))
     }
-    pub fn f64(&mut self) -> Result<f64, String> {
+    pub(crate) fn f64(&mut self) -> Result<f64, String> {
         Ok(f64::from_ne_bytes(self.array(8)?))
     }
-    pub fn f64s<const N: usize>(&mut self) -> Result<[f64; N], String> {
+    pub(crate) fn f64s<const N: usize>(&mut self) -> Result<[f64; N], String> {
         let mut a = [0.0; N];
         for v in &mut a {
             *v = self.f64()?;
@@ -124,7 +124,7 @@ impl<'a> Cdr<'a> {
         Ok(a)
     }
     /// A CDR string: uint32 length counting the NUL, the bytes, the NUL.
-    pub fn string(&mut self) -> Result<String, String> {
+    pub(crate) fn string(&mut self) -> Result<String, String> {
         let n = self.u32()? as usize;
         let b = self.take(n, 1)?;
         let b = b.strip_suffix(&[0]).unwrap_or(b);
@@ -137,7 +137,7 @@ impl<'a> Cdr<'a> {
 pub struct Header {
     pub sec: i32,
     pub nanosec: u32,
-    pub frame_id: String,
+    pub(crate) frame_id: String,
 }
 
 impl Header {
@@ -166,12 +166,12 @@ impl Header {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Imu {
     pub header: Header,
-    pub orientation_xyzw: [f64; 4],
-    pub orientation_covariance: [f64; 9],
+    pub(crate) orientation_xyzw: [f64; 4],
+    pub(crate) orientation_covariance: [f64; 9],
     pub angular_velocity: [f64; 3],
-    pub angular_velocity_covariance: [f64; 9],
+    pub(crate) angular_velocity_covariance: [f64; 9],
     pub linear_acceleration: [f64; 3],
-    pub linear_acceleration_covariance: [f64; 9],
+    pub(crate) linear_acceleration_covariance: [f64; 9],
 }
 
 impl Imu {
@@ -195,15 +195,15 @@ pub struct NavSatFix {
     pub header: Header,
     /// -1 NO_FIX, 0 FIX, 1 SBAS_FIX, 2 GBAS_FIX.
     pub status: i8,
-    pub service: u16,
-    pub latitude_deg: f64,
-    pub longitude_deg: f64,
+    pub(crate) service: u16,
+    pub(crate) latitude_deg: f64,
+    pub(crate) longitude_deg: f64,
     /// Above the WGS 84 ellipsoid (the message's definition).
-    pub altitude_m: f64,
+    pub(crate) altitude_m: f64,
     /// ENU, row-major, m².
     pub position_covariance: [f64; 9],
     /// 0 unknown, 1 approximated, 2 diagonal known, 3 known.
-    pub position_covariance_type: u8,
+    pub(crate) position_covariance_type: u8,
 }
 
 impl NavSatFix {
@@ -265,7 +265,7 @@ pub struct StampLag {
 pub struct TopicSummary {
     pub topic: String,
     pub schema: String,
-    pub message_encoding: String,
+    pub(crate) message_encoding: String,
     pub messages: u64,
     /// What navsync used it for (`imu`, `gnss`, `velocity`), if anything.
     pub role: Option<String>,
@@ -299,8 +299,8 @@ pub struct BagData {
     pub fixes: Vec<BagFix>,
     pub gnss_topic: Option<String>,
     /// NavSatFix messages that gave no fix, by reason.
-    pub fix_drops: BTreeMap<String, u64>,
-    pub fix_messages: u64,
+    pub(crate) fix_drops: BTreeMap<String, u64>,
+    pub(crate) fix_messages: u64,
     pub summary: BagSummary,
 }
 
@@ -716,7 +716,7 @@ pub fn read_bag(
 /// `bytes` up to the first top-level record whose length runs past the
 /// end (MCAP spec, "Records": opcode u8, length u64 LE, body; after the
 /// 8-byte magic), and that record's offset, if one does.
-pub fn frame_records(bytes: &[u8]) -> (&[u8], Option<usize>) {
+pub(crate) fn frame_records(bytes: &[u8]) -> (&[u8], Option<usize>) {
     let mut pos = 8;
     while let Some(h) = bytes.get(pos..pos + 9) {
         let mut len = [0u8; 8];
@@ -739,7 +739,7 @@ fn lag_s(it: &Item, h: &Header) -> f64 {
 /// Why a median `log_time − header.stamp` looks systematic, if it does:
 /// transport delays are milliseconds, so half a second or more means the
 /// stamps are on another clock.
-pub fn lag_problem(median_s: f64) -> Option<String> {
+pub(crate) fn lag_problem(median_s: f64) -> Option<String> {
     let a = median_s.abs();
     if a < 0.5 {
         None
@@ -766,7 +766,7 @@ pub fn lag_problem(median_s: f64) -> Option<String> {
 
 /// GPS time of a ROS `header.stamp` taken as UTC (Unix time), with the
 /// leap-second table.
-pub fn stamp_to_gps(h: &Header) -> Result<GpsTime, String> {
+pub(crate) fn stamp_to_gps(h: &Header) -> Result<GpsTime, String> {
     let ns = h.unix_ns()?;
     // 1980-01-06 in Unix seconds: earlier stamps are not Unix time.
     if h.sec < 315_964_800 {

@@ -9,15 +9,15 @@
 //! its number (DF002), e.g. 1005 (station position) or 1077 (GPS MSM7).
 
 /// Transport-layer preamble.
-pub const PREAMBLE: u8 = 0xD3;
+pub(crate) const PREAMBLE: u8 = 0xD3;
 /// Bytes around the message: preamble, 2 bytes reserved + length, 3 CRC.
-pub const FRAME_OVERHEAD: usize = 6;
+pub(crate) const FRAME_OVERHEAD: usize = 6;
 /// Largest message (10-bit length field).
-pub const MAX_MESSAGE_LEN: usize = 1023;
+pub(crate) const MAX_MESSAGE_LEN: usize = 1023;
 
 /// CRC-24Q (Qualcomm) as RTCM 10403.x §4 defines it, bitwise: polynomial
 /// x²⁴ + x²³ + x¹⁸ + x¹⁷ + x¹⁴ + x¹¹ + x¹⁰ + x⁷ + x⁶ + x⁵ + x⁴ + x³ + x + 1.
-pub fn crc24q(bytes: &[u8]) -> u32 {
+pub(crate) fn crc24q(bytes: &[u8]) -> u32 {
     const POLY: u32 = 0x186_4CFB;
     let mut crc = 0u32;
     for &b in bytes {
@@ -34,7 +34,7 @@ pub fn crc24q(bytes: &[u8]) -> u32 {
 
 /// The message number (DF002, first 12 bits) of a message, `None` when it
 /// is shorter than 2 bytes.
-pub fn message_number(message: &[u8]) -> Option<u16> {
+pub(crate) fn message_number(message: &[u8]) -> Option<u16> {
     match message {
         [a, b, ..] => Some(((*a as u16) << 4) | ((*b as u16) >> 4)),
         _ => None,

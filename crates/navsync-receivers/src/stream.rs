@@ -31,14 +31,14 @@ use crate::ubx::{self, MsgId, UbxMessage};
 
 /// Limits that bound how long a candidate can make the reader wait.
 #[derive(Copy, Clone, Debug)]
-pub struct ReaderLimits {
+pub(crate) struct ReaderLimits {
     /// Largest UBX payload accepted (bytes). u-blox output messages stay
     /// below ~8.2 kB (RXM-RAWX: 16 + 32·255); a longer length field is
     /// treated as corruption.
-    pub max_ubx_payload: usize,
+    pub(crate) max_ubx_payload: usize,
     /// Longest NMEA sentence accepted, `$` to LF (NMEA 0183 says 82;
     /// receivers exceed it, e.g. u-blox PUBX).
-    pub max_nmea_len: usize,
+    pub(crate) max_nmea_len: usize,
 }
 
 impl Default for ReaderLimits {
@@ -265,7 +265,7 @@ impl StreamReader {
         Self::with_limits(ReaderLimits::default())
     }
 
-    pub fn with_limits(limits: ReaderLimits) -> Self {
+    pub(crate) fn with_limits(limits: ReaderLimits) -> Self {
         StreamReader {
             buf: Vec::new(),
             pos: 0,
@@ -279,7 +279,7 @@ impl StreamReader {
     }
 
     /// Offsets in events start at `offset` (e.g. after a file's header).
-    pub fn starting_at(mut self, offset: u64) -> Self {
+    pub(crate) fn starting_at(mut self, offset: u64) -> Self {
         self.base = offset;
         self
     }

@@ -34,7 +34,7 @@ pub const SYNC1: u8 = 0xB5;
 /// Second UBX sync character ([M8] §32.2).
 pub const SYNC2: u8 = 0x62;
 /// Bytes around the payload: 2 sync, class, id, 2 length, 2 checksum.
-pub const FRAME_OVERHEAD: usize = 8;
+pub(crate) const FRAME_OVERHEAD: usize = 8;
 
 /// 8-bit Fletcher checksum over class, id, length and payload ([M8] §32.4,
 /// RFC 1145): `CK_A += b; CK_B += CK_A` modulo 256.
@@ -122,47 +122,47 @@ pub struct MsgId {
 }
 
 impl MsgId {
-    pub const NAV_PVT: MsgId = MsgId {
+    pub(crate) const NAV_PVT: MsgId = MsgId {
         class: 0x01,
         id: 0x07,
     };
-    pub const NAV_POSLLH: MsgId = MsgId {
+    pub(crate) const NAV_POSLLH: MsgId = MsgId {
         class: 0x01,
         id: 0x02,
     };
-    pub const NAV_STATUS: MsgId = MsgId {
+    pub(crate) const NAV_STATUS: MsgId = MsgId {
         class: 0x01,
         id: 0x03,
     };
-    pub const NAV_SOL: MsgId = MsgId {
+    pub(crate) const NAV_SOL: MsgId = MsgId {
         class: 0x01,
         id: 0x06,
     };
-    pub const NAV_HPPOSLLH: MsgId = MsgId {
+    pub(crate) const NAV_HPPOSLLH: MsgId = MsgId {
         class: 0x01,
         id: 0x14,
     };
-    pub const NAV_VELNED: MsgId = MsgId {
+    pub(crate) const NAV_VELNED: MsgId = MsgId {
         class: 0x01,
         id: 0x12,
     };
-    pub const NAV_TIMEGPS: MsgId = MsgId {
+    pub(crate) const NAV_TIMEGPS: MsgId = MsgId {
         class: 0x01,
         id: 0x20,
     };
-    pub const TIM_TP: MsgId = MsgId {
+    pub(crate) const TIM_TP: MsgId = MsgId {
         class: 0x0D,
         id: 0x01,
     };
-    pub const TIM_TM2: MsgId = MsgId {
+    pub(crate) const TIM_TM2: MsgId = MsgId {
         class: 0x0D,
         id: 0x03,
     };
-    pub const ESF_MEAS: MsgId = MsgId {
+    pub(crate) const ESF_MEAS: MsgId = MsgId {
         class: 0x10,
         id: 0x02,
     };
-    pub const ESF_RAW: MsgId = MsgId {
+    pub(crate) const ESF_RAW: MsgId = MsgId {
         class: 0x10,
         id: 0x03,
     };
@@ -352,21 +352,18 @@ impl NavPvt {
         w
     }
 
-    pub fn valid_date(&self) -> bool {
+    pub(crate) fn valid_date(&self) -> bool {
         self.valid & 0x01 != 0
     }
-    pub fn valid_time(&self) -> bool {
+    pub(crate) fn valid_time(&self) -> bool {
         self.valid & 0x02 != 0
     }
-    pub fn fully_resolved(&self) -> bool {
-        self.valid & 0x04 != 0
-    }
     /// gnssFixOK: a valid fix within the DOP and accuracy masks.
-    pub fn gnss_fix_ok(&self) -> bool {
+    pub(crate) fn gnss_fix_ok(&self) -> bool {
         self.flags & 0x01 != 0
     }
     /// invalidLlh (protocol ≥ 27): lon, lat, height and hMSL are invalid.
-    pub fn invalid_llh(&self) -> bool {
+    pub(crate) fn invalid_llh(&self) -> bool {
         self.flags3 & 0x01 != 0
     }
     pub fn lat_deg(&self) -> f64 {
@@ -375,19 +372,19 @@ impl NavPvt {
     pub fn lon_deg(&self) -> f64 {
         self.lon_e7 as f64 * 1e-7
     }
-    pub fn height_m(&self) -> f64 {
+    pub(crate) fn height_m(&self) -> f64 {
         self.height_mm as f64 * 1e-3
     }
     pub fn vel_ned_mps(&self) -> [f64; 3] {
         self.vel_ned_mm_s.map(|v| v as f64 * 1e-3)
     }
-    pub fn h_acc_m(&self) -> f64 {
+    pub(crate) fn h_acc_m(&self) -> f64 {
         self.h_acc_mm as f64 * 1e-3
     }
-    pub fn v_acc_m(&self) -> f64 {
+    pub(crate) fn v_acc_m(&self) -> f64 {
         self.v_acc_mm as f64 * 1e-3
     }
-    pub fn s_acc_mps(&self) -> f64 {
+    pub(crate) fn s_acc_mps(&self) -> f64 {
         self.s_acc_mm_s as f64 * 1e-3
     }
 }
@@ -396,7 +393,7 @@ impl NavPvt {
 
 /// Fix type as NAV-PVT, NAV-SOL and NAV-STATUS report it ([M8]
 /// UBX-NAV-PVT fixType, UBX-NAV-SOL gpsFix, UBX-NAV-STATUS gpsFix).
-pub fn fix_type_name(fix_type: u8) -> &'static str {
+pub(crate) fn fix_type_name(fix_type: u8) -> &'static str {
     match fix_type {
         0 => "no fix",
         1 => "dead reckoning only",
@@ -434,7 +431,7 @@ pub struct NavSol {
     pub p_dop_e2: u16,
     pub reserved1: u8,
     pub num_sv: u8,
-    pub reserved2: [u8; 4],
+    pub(crate) reserved2: [u8; 4],
 }
 
 impl NavSol {
@@ -483,23 +480,23 @@ impl NavSol {
     }
 
     /// GPSfixOK: a valid fix within the DOP and accuracy masks.
-    pub fn gps_fix_ok(&self) -> bool {
+    pub(crate) fn gps_fix_ok(&self) -> bool {
         self.flags & 0x01 != 0
     }
     /// WKNSET and TOWSET: week and time of week are valid.
-    pub fn week_and_tow_valid(&self) -> bool {
+    pub(crate) fn week_and_tow_valid(&self) -> bool {
         self.flags & 0x0C == 0x0C
     }
-    pub fn ecef_m(&self) -> [f64; 3] {
+    pub(crate) fn ecef_m(&self) -> [f64; 3] {
         self.ecef_cm.map(|v| v as f64 * 1e-2)
     }
-    pub fn ecef_vel_mps(&self) -> [f64; 3] {
+    pub(crate) fn ecef_vel_mps(&self) -> [f64; 3] {
         self.ecef_vel_cm_s.map(|v| v as f64 * 1e-2)
     }
-    pub fn p_acc_m(&self) -> f64 {
+    pub(crate) fn p_acc_m(&self) -> f64 {
         self.p_acc_cm as f64 * 1e-2
     }
-    pub fn s_acc_mps(&self) -> f64 {
+    pub(crate) fn s_acc_mps(&self) -> f64 {
         self.s_acc_cm_s as f64 * 1e-2
     }
 }
@@ -556,13 +553,13 @@ impl NavPosLlh {
     pub fn lon_deg(&self) -> f64 {
         self.lon_e7 as f64 * 1e-7
     }
-    pub fn height_m(&self) -> f64 {
+    pub(crate) fn height_m(&self) -> f64 {
         self.height_mm as f64 * 1e-3
     }
-    pub fn h_acc_m(&self) -> f64 {
+    pub(crate) fn h_acc_m(&self) -> f64 {
         self.h_acc_mm as f64 * 1e-3
     }
-    pub fn v_acc_m(&self) -> f64 {
+    pub(crate) fn v_acc_m(&self) -> f64 {
         self.v_acc_mm as f64 * 1e-3
     }
 }
@@ -639,7 +636,7 @@ impl NavHpPosLlh {
     }
 
     /// invalidLlh: lon, lat, height and hMSL are invalid.
-    pub fn invalid_llh(&self) -> bool {
+    pub(crate) fn invalid_llh(&self) -> bool {
         self.flags & 0x01 != 0
     }
     /// lat + latHp (deg): 1e-7 deg + 1e-9 deg parts.
@@ -650,13 +647,13 @@ impl NavHpPosLlh {
         self.lon_e7 as f64 * 1e-7 + self.lon_hp_e9 as f64 * 1e-9
     }
     /// height + heightHp (m): mm + 0.1 mm parts.
-    pub fn height_m(&self) -> f64 {
+    pub(crate) fn height_m(&self) -> f64 {
         self.height_mm as f64 * 1e-3 + self.height_hp_e4 as f64 * 1e-4
     }
-    pub fn h_acc_m(&self) -> f64 {
+    pub(crate) fn h_acc_m(&self) -> f64 {
         self.h_acc_e4 as f64 * 1e-4
     }
-    pub fn v_acc_m(&self) -> f64 {
+    pub(crate) fn v_acc_m(&self) -> f64 {
         self.v_acc_e4 as f64 * 1e-4
     }
 }
@@ -715,7 +712,7 @@ impl NavVelNed {
     pub fn vel_ned_mps(&self) -> [f64; 3] {
         self.vel_ned_cm_s.map(|v| v as f64 * 1e-2)
     }
-    pub fn s_acc_mps(&self) -> f64 {
+    pub(crate) fn s_acc_mps(&self) -> f64 {
         self.s_acc_cm_s as f64 * 1e-2
     }
 }
@@ -766,7 +763,7 @@ impl NavStatus {
         w
     }
 
-    pub fn gps_fix_ok(&self) -> bool {
+    pub(crate) fn gps_fix_ok(&self) -> bool {
         self.flags & 0x01 != 0
     }
 }
@@ -818,13 +815,13 @@ impl NavTimeGps {
         w
     }
 
-    pub fn tow_valid(&self) -> bool {
+    pub(crate) fn tow_valid(&self) -> bool {
         self.valid & 0x01 != 0
     }
-    pub fn week_valid(&self) -> bool {
+    pub(crate) fn week_valid(&self) -> bool {
         self.valid & 0x02 != 0
     }
-    pub fn leap_valid(&self) -> bool {
+    pub(crate) fn leap_valid(&self) -> bool {
         self.valid & 0x04 != 0
     }
     /// GPS time of the epoch (ns since the GPS epoch) when week and TOW are
@@ -896,14 +893,9 @@ impl TimTp {
     pub fn q_err_valid(&self) -> bool {
         self.flags & 0x10 == 0
     }
-    /// GNSS the time base refers to when it is GNSS time: 0 GPS, 1 GLONASS,
-    /// 2 BeiDou, 3 Galileo ([F9] §5.17.2 refInfo).
-    pub fn time_ref_gnss(&self) -> u8 {
-        self.ref_info & 0x0F
-    }
     /// Pulse time in its time base, ns since that scale's week 0 (rounded:
     /// towSubMS has 2⁻³² ms resolution).
-    pub fn pulse_time_ns(&self) -> i64 {
+    pub(crate) fn pulse_time_ns(&self) -> i64 {
         let sub_ns = ((self.tow_sub_ms as u64 * 1_000_000 + (1 << 31)) >> 32) as i64;
         self.week as i64 * navsync::time::NS_PER_WEEK + self.tow_ms as i64 * 1_000_000 + sub_ns
     }
@@ -994,22 +986,22 @@ impl TimTm2 {
             _ => TimeBase::Reserved,
         }
     }
-    pub fn new_rising_edge(&self) -> bool {
+    pub(crate) fn new_rising_edge(&self) -> bool {
         self.flags & 0x80 != 0
     }
-    pub fn new_falling_edge(&self) -> bool {
+    pub(crate) fn new_falling_edge(&self) -> bool {
         self.flags & 0x04 != 0
     }
     /// Time valid (a valid GNSS fix).
-    pub fn time_valid(&self) -> bool {
+    pub(crate) fn time_valid(&self) -> bool {
         self.flags & 0x40 != 0
     }
     /// Rising edge, ns since week 0 of the time base.
-    pub fn rising_ns(&self) -> i64 {
+    pub(crate) fn rising_ns(&self) -> i64 {
         edge_ns(self.wn_r, self.tow_ms_r, self.tow_sub_ms_r_ns)
     }
     /// Falling edge, ns since week 0 of the time base.
-    pub fn falling_ns(&self) -> i64 {
+    pub(crate) fn falling_ns(&self) -> i64 {
         edge_ns(self.wn_f, self.tow_ms_f, self.tow_sub_ms_f_ns)
     }
 }
@@ -1121,7 +1113,7 @@ pub struct EsfMeas {
     /// Data words; the 6-bit type is bits 24..29 of each word.
     pub data: Vec<EsfData>,
     /// The two bits above the type (30..31), kept for exact re-encoding.
-    pub data_high_bits: Vec<u8>,
+    pub(crate) data_high_bits: Vec<u8>,
     /// Receiver local time calibrated (ms), when calibTtagValid.
     pub calib_ttag: Option<u32>,
 }

@@ -46,7 +46,7 @@ use navsync::io::kfgins::{
 use navsync::io::riglog::{
     ImuKind, ImuTiming, RateSampling, RigGnss, RigHeader, write as rig_write,
 };
-use navsync::io::text::push_u64;
+use navsync::io::text::{plain_number, push_u64};
 use navsync::time::GpsTime;
 
 /// At most this many entries per fault list in `scenario.json`.
@@ -717,7 +717,10 @@ impl Simulation {
         y.push_str(&format!("gnsspath: \"./{gnss_file}\"\n"));
         y.push_str("outputpath: \"./out\"\n");
         y.push_str("imudatalen: 7\n");
-        y.push_str(&format!("imudatarate: {}\n", fmt_num(imu.output_rate_hz)));
+        y.push_str(&format!(
+            "imudatarate: {}\n",
+            plain_number(imu.output_rate_hz)
+        ));
         y.push_str(&format!("starttime: {:.9}\n", init.sow));
         y.push_str("endtime: -1\n");
         y.push_str(&format!(
@@ -787,15 +790,6 @@ fn kfgins_units(e: &ImuErrors) -> serde_json::Value {
         "gyro_scale_ppm": (e.gyro_scale * 1e6).as_slice(),
         "accel_scale_ppm": (e.accel_scale * 1e6).as_slice(),
     })
-}
-
-/// A number without a trailing `.0` when whole.
-fn fmt_num(x: f64) -> String {
-    if x.fract() == 0.0 && x.abs() < 1e15 {
-        format!("{}", x as i64)
-    } else {
-        format!("{x}")
-    }
 }
 
 fn update_motion(

@@ -149,7 +149,7 @@ impl AidingErrorProcess {
     }
 
     /// The Doppler aiding error (Hz) at `t_s`; calls must not go back in time.
-    pub fn error_hz(&mut self, t_s: f64) -> f64 {
+    pub(crate) fn error_hz(&mut self, t_s: f64) -> f64 {
         match &self.cfg {
             AidingErrorConfig::None => 0.0,
             AidingErrorConfig::ConstantRamp { rate_hz_s } => rate_hz_s * t_s,

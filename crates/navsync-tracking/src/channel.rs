@@ -28,7 +28,7 @@ pub enum BandwidthMode {
 
 /// One interval's early, prompt and late correlations (I, Q).
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
-pub struct Correlators {
+pub(crate) struct Correlators {
     pub early: [f64; 2],
     pub prompt: [f64; 2],
     pub late: [f64; 2],
@@ -46,10 +46,10 @@ pub struct ChannelConfig {
     /// The receiver's model of its own oscillator (for the adaptive budget).
     pub oscillator: AllanCoefficients,
     /// Early-to-late spacing (chips).
-    pub el_spacing_chips: f64,
-    pub dll_bn_hz: f64,
+    pub(crate) el_spacing_chips: f64,
+    pub(crate) dll_bn_hz: f64,
     /// Time constant of the C/N0 estimator (s).
-    pub cn0_tau_s: f64,
+    pub(crate) cn0_tau_s: f64,
     /// Line-of-sight dynamics an unaided loop must follow (adaptive budget).
     pub dynamics: Option<DynamicsEnvelope>,
     /// Divide the discriminator output by its mean gain at the estimated
@@ -61,22 +61,22 @@ pub struct ChannelConfig {
 
 /// What the channel asks of the NCOs for the next interval.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct ChannelStep {
+pub(crate) struct ChannelStep {
     /// Loop-filter frequency (rad/s); the NCO runs at this plus the aiding.
-    pub loop_freq_rad_s: f64,
+    pub(crate) loop_freq_rad_s: f64,
     /// DLL correction of the code rate (chips/s) on top of carrier aiding.
-    pub code_corr_chips_s: f64,
+    pub(crate) code_corr_chips_s: f64,
     /// Discriminator output of this interval (rad).
-    pub discriminator_rad: f64,
+    pub(crate) discriminator_rad: f64,
     /// Bandwidth in force for the next interval (Hz).
     pub bn_hz: f64,
     pub cn0_dbhz: Option<f64>,
-    pub lock_indicator: f64,
+    pub(crate) lock_indicator: f64,
 }
 
 /// One tracking channel.
 #[derive(Clone, Debug)]
-pub struct TrackingChannel {
+pub(crate) struct TrackingChannel {
     cfg: ChannelConfig,
     filter: LoopFilter,
     adaptive: Option<AdaptiveBandwidth>,
@@ -85,7 +85,7 @@ pub struct TrackingChannel {
 }
 
 impl TrackingChannel {
-    pub fn new(cfg: ChannelConfig) -> Self {
+    pub(crate) fn new(cfg: ChannelConfig) -> Self {
         let initial = match cfg.bandwidth {
             BandwidthMode::Fixed(b) => b,
             BandwidthMode::Adaptive { initial_hz, .. } => initial_hz,
@@ -111,27 +111,24 @@ impl TrackingChannel {
         }
     }
 
-    pub fn config(&self) -> &ChannelConfig {
-        &self.cfg
-    }
-
-    pub fn filter(&self) -> &LoopFilter {
-        &self.filter
-    }
-
     /// Presets the loop's learned frequency and rate (e.g. from acquisition).
-    pub fn set_loop_state(&mut self, freq_rad_s: f64, freq_rate_rad_s2: f64) {
+    pub(crate) fn set_loop_state(&mut self, freq_rad_s: f64, freq_rate_rad_s2: f64) {
         self.filter.set_state(freq_rad_s, freq_rate_rad_s2);
     }
 
-    pub fn locked(&self) -> bool {
+    pub(crate) fn locked(&self) -> bool {
         self.lock.locked()
     }
 
     /// Processes the correlations of the interval ending at `t_s`.
     /// `aiding` carries the navigation filter's aiding-error statistics
     /// when the loop is aided.
-    pub fn push(&mut self, t_s: f64, c: &Correlators, aiding: Option<AidingStats>) -> ChannelStep {
+    pub(crate) fn push(
+        &mut self,
+        t_s: f64,
+        c: &Correlators,
+        aiding: Option<AidingStats>,
+    ) -> ChannelStep {
         let [i, q] = c.prompt;
         self.lock.push(i, q);
         self.cn0.push(i, q);
@@ -182,18 +179,6 @@ impl TrackingChannel {
             bn_hz: self.filter.bandwidth_hz(),
             cn0_dbhz: cn0_hz.map(|c| 10.0 * c.log10()),
             lock_indicator: self.lock.indicator(),
-        }
-    }
-
-    /// The adaptive controller's current unconstrained optimum (Hz).
-    pub fn adaptive_target_hz(&self) -> Option<f64> {
-        self.adaptive.as_ref().map(|a| a.target_hz())
-    }
-
-    pub fn cfg_adaptive(&self) -> Option<AdaptiveConfig> {
-        match self.cfg.bandwidth {
-            BandwidthMode::Adaptive { cfg, .. } => Some(cfg),
-            BandwidthMode::Fixed(_) => None,
         }
     }
 }

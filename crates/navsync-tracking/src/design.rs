@@ -37,7 +37,9 @@ use serde::Serialize;
 use super::aiding::AidingStats;
 use super::discriminator::Discriminator;
 use super::dynamics::DynamicsEnvelope;
-use super::loop_filter::{A2, A3, B3, LoopCoefficients, LoopOrder};
+#[cfg(test)]
+use super::loop_filter::{A2, A3, B3};
+use super::loop_filter::{LoopCoefficients, LoopOrder};
 use super::oscillator::AllanCoefficients;
 
 /// Thermal-noise phase jitter (rad), Kaplan & Hegarty §5.6, for a noise
@@ -49,7 +51,8 @@ pub fn thermal_jitter_rad(disc: Discriminator, bn_hz: f64, cn0_hz: f64, t_s: f64
 /// |1 − H(jω)|² of the analog prototype loop at normalised frequency
 /// u = ω/ω0: the phase-error transfer sⁿ/(sⁿ + k_p sⁿ⁻¹ + …) of Kaplan
 /// Table 5.6's filters.
-pub fn error_transfer_sq(order: LoopOrder, u: f64) -> f64 {
+#[cfg(test)]
+pub(crate) fn error_transfer_sq(order: LoopOrder, u: f64) -> f64 {
     let u2 = u * u;
     match order {
         LoopOrder::First => u2 / (u2 + 1.0),
@@ -111,7 +114,7 @@ pub fn discrete_response(
 /// h = T/2 the polynomial is (1 − x)ⁿ + h x (1 + x)·P(x), P = k_p (n = 1),
 /// k_p(1 − x) + k_f h(1 + x) (n = 2), k_p(1 − x)² + k_f h(1 − x²) + k_r h²(1 + x)²
 /// (n = 3); its roots in x must lie outside the unit circle.
-pub fn discrete_loop_is_stable(order: LoopOrder, bn_hz: f64, t_s: f64) -> bool {
+pub(crate) fn discrete_loop_is_stable(order: LoopOrder, bn_hz: f64, t_s: f64) -> bool {
     let c = LoopCoefficients::new(order, bn_hz);
     let h = 0.5 * t_s;
     let mul = |a: &[f64], b: &[f64]| {
@@ -311,7 +314,7 @@ impl PhaseErrorModel {
     }
 
     /// Largest tabulated bandwidth at which the discrete loop is stable (Hz).
-    pub fn max_stable_bandwidth_hz(&self) -> f64 {
+    pub(crate) fn max_stable_bandwidth_hz(&self) -> f64 {
         let t = &self.tables;
         let i = t
             .bn_eff
@@ -328,7 +331,7 @@ impl PhaseErrorModel {
 
     /// Oscillator-induced jitter (rad): ∫|E|² sinc²(πfT) S_φ(f) df with
     /// S_φ = f_L² S_y(f)/f² (see [`super::oscillator`]).
-    pub fn oscillator_jitter_rad(
+    pub(crate) fn oscillator_jitter_rad(
         &self,
         osc: &AllanCoefficients,
         carrier_hz: f64,
@@ -417,7 +420,7 @@ impl PhaseErrorModel {
     /// the same GM error (1 for small Bn·T, larger towards instability).
     /// Other orders: the GM PSD 2σ_u²α/(ω² + α²) through the discrete
     /// loop's |B/(1 + L)|², integrated numerically.
-    pub fn gm_aiding_jitter_rad(&self, stats: &AidingStats, bn_hz: f64) -> f64 {
+    pub(crate) fn gm_aiding_jitter_rad(&self, stats: &AidingStats, bn_hz: f64) -> f64 {
         if stats.gm_sd_hz <= 0.0 || stats.gm_tau_s <= 0.0 {
             return 0.0;
         }
@@ -438,7 +441,7 @@ impl PhaseErrorModel {
     /// held over an update period: seed 003 eq 16, Δḟ·2π/ω_n², for the
     /// second order; zero for the third; for the first order the mean of
     /// the frequency error that builds up over the period, 2π·ḟ·T/2/ω0.
-    pub fn ramp_bias_rad(&self, ramp_hz_s: f64, update_period_s: f64, bn_hz: f64) -> f64 {
+    pub(crate) fn ramp_bias_rad(&self, ramp_hz_s: f64, update_period_s: f64, bn_hz: f64) -> f64 {
         let w0 = bn_hz / self.order.bn_over_w0();
         let rate = 2.0 * PI * ramp_hz_s.abs();
         match self.order {
@@ -450,7 +453,12 @@ impl PhaseErrorModel {
 
     /// Dynamic stress error (rad) of an unaided loop, Kaplan §5.6:
     /// θ_e = (dⁿR/dtⁿ)/ω0ⁿ with R in radians (range × 2π/λ).
-    pub fn dynamic_stress_rad(&self, env: &DynamicsEnvelope, wavelength_m: f64, bn_hz: f64) -> f64 {
+    pub(crate) fn dynamic_stress_rad(
+        &self,
+        env: &DynamicsEnvelope,
+        wavelength_m: f64,
+        bn_hz: f64,
+    ) -> f64 {
         let w0 = bn_hz / self.order.bn_over_w0();
         let k = 2.0 * PI / wavelength_m;
         match self.order {
@@ -492,7 +500,7 @@ impl PhaseErrorModel {
     /// The bandwidth in `[lo_hz, hi_hz]` with the smallest predicted RMS
     /// phase error: a 64-point logarithmic grid, then golden-section search
     /// around the best point.
-    pub fn optimal_bandwidth(&self, inp: &BudgetInputs, lo_hz: f64, hi_hz: f64) -> f64 {
+    pub(crate) fn optimal_bandwidth(&self, inp: &BudgetInputs, lo_hz: f64, hi_hz: f64) -> f64 {
         if hi_hz <= lo_hz {
             return lo_hz;
         }
@@ -538,7 +546,7 @@ impl PhaseErrorModel {
 /// over the filter period `t_s` (eq 20: σ_w = σ_u √((1 − e^{−2αT})/T); eq 21:
 /// γ = √(e^{αT})·α). For T → 0 it tends to the continuous-time result
 /// (σ_w² e^{αT} → 2ασ_u², γ → α).
-pub fn gm_jitter_eq22(sigma_u: f64, alpha: f64, t_s: f64, wn: f64) -> f64 {
+pub(crate) fn gm_jitter_eq22(sigma_u: f64, alpha: f64, t_s: f64, wn: f64) -> f64 {
     let eat = (alpha * t_s).exp();
     let sw2 = if t_s > 0.0 {
         sigma_u * sigma_u * (1.0 - (-2.0 * alpha * t_s).exp()) / t_s
@@ -557,7 +565,7 @@ pub struct BudgetInputs {
     pub t_coh_s: f64,
     pub discriminator: Discriminator,
     /// C/N0 (Hz, linear).
-    pub cn0_hz: f64,
+    pub(crate) cn0_hz: f64,
     pub carrier_hz: f64,
     pub wavelength_m: f64,
     pub oscillator: AllanCoefficients,
@@ -579,12 +587,12 @@ pub struct ErrorBudget {
 
 impl ErrorBudget {
     /// 1σ jitter (rad).
-    pub fn jitter_rad(&self) -> f64 {
+    pub(crate) fn jitter_rad(&self) -> f64 {
         (self.thermal_rad.powi(2) + self.oscillator_rad.powi(2) + self.aiding_rad.powi(2)).sqrt()
     }
 
     /// RMS phase error including the bias (rad): the adaptive criterion.
-    pub fn total_rms_rad(&self) -> f64 {
+    pub(crate) fn total_rms_rad(&self) -> f64 {
         (self.jitter_rad().powi(2) + self.bias_rad.powi(2)).sqrt()
     }
 
@@ -625,7 +633,7 @@ impl Default for AdaptiveConfig {
 /// the bandwidth towards the budget's optimum, within the clamps and the
 /// slew limit.
 #[derive(Clone, Debug)]
-pub struct AdaptiveBandwidth {
+pub(crate) struct AdaptiveBandwidth {
     cfg: AdaptiveConfig,
     model: PhaseErrorModel,
     bn_hz: f64,
@@ -636,7 +644,12 @@ pub struct AdaptiveBandwidth {
 
 impl AdaptiveBandwidth {
     /// A controller for a loop of `order` updated every `t_coh_s`.
-    pub fn new(cfg: AdaptiveConfig, order: LoopOrder, t_coh_s: f64, initial_hz: f64) -> Self {
+    pub(crate) fn new(
+        cfg: AdaptiveConfig,
+        order: LoopOrder,
+        t_coh_s: f64,
+        initial_hz: f64,
+    ) -> Self {
         AdaptiveBandwidth {
             cfg,
             model: PhaseErrorModel::new(order, t_coh_s),
@@ -647,22 +660,15 @@ impl AdaptiveBandwidth {
         }
     }
 
-    pub fn bandwidth_hz(&self) -> f64 {
-        self.bn_hz
-    }
-
     /// The unconstrained optimum found at the last evaluation.
-    pub fn target_hz(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn target_hz(&self) -> f64 {
         self.target_hz
-    }
-
-    pub fn model(&self) -> &PhaseErrorModel {
-        &self.model
     }
 
     /// Evaluates the rule at `t_s` if due; returns the (possibly unchanged)
     /// bandwidth.
-    pub fn update(&mut self, t_s: f64, inp: &BudgetInputs) -> f64 {
+    pub(crate) fn update(&mut self, t_s: f64, inp: &BudgetInputs) -> f64 {
         if t_s < self.next_update_s {
             return self.bn_hz;
         }

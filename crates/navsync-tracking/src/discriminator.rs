@@ -24,7 +24,7 @@ pub enum Discriminator {
 impl Discriminator {
     /// Phase error estimate (rad) from prompt I and Q.
     #[inline]
-    pub fn phase_error(self, i: f64, q: f64) -> f64 {
+    pub(crate) fn phase_error(self, i: f64, q: f64) -> f64 {
         match self {
             Discriminator::Costas => {
                 if i == 0.0 {
@@ -39,7 +39,7 @@ impl Discriminator {
 
     /// Spacing of the stable tracking points (rad): a cycle slip moves the
     /// loop by a multiple of this.
-    pub fn ambiguity_rad(self) -> f64 {
+    pub(crate) fn ambiguity_rad(self) -> f64 {
         match self {
             Discriminator::Costas => PI,
             Discriminator::Pll => 2.0 * PI,
@@ -58,7 +58,7 @@ impl Discriminator {
     /// Squaring loss of the thermal-noise jitter: Kaplan & Hegarty §5.6
     /// (PLL thermal noise, σ_tPLL) has the factor 1 + 1/(2 T C/N0) for the
     /// Costas (squaring) loop; a pure PLL with data wipe-off has none.
-    pub fn squaring_loss(self, cn0_hz: f64, t_s: f64) -> f64 {
+    pub(crate) fn squaring_loss(self, cn0_hz: f64, t_s: f64) -> f64 {
         match self {
             Discriminator::Costas => 1.0 + 1.0 / (2.0 * t_s * cn0_hz),
             Discriminator::Pll => 1.0,
@@ -96,7 +96,7 @@ impl Discriminator {
     }
 
     /// Output variance (rad²) at zero phase error for SNR `rho`.
-    pub fn output_variance(self, rho: f64) -> f64 {
+    pub(crate) fn output_variance(self, rho: f64) -> f64 {
         let table = variance_table();
         let col = match self {
             Discriminator::Costas => 0,
@@ -117,7 +117,7 @@ impl Discriminator {
     }
 
     /// Equivalent phase-noise variance of one interval, v/g² (rad²).
-    pub fn equivalent_noise_variance(self, rho: f64) -> f64 {
+    pub(crate) fn equivalent_noise_variance(self, rho: f64) -> f64 {
         let g = self.gain(rho).max(1e-6);
         self.output_variance(rho) / (g * g)
     }
@@ -183,7 +183,7 @@ fn erf(x: f64) -> f64 {
 /// even in lock: it is a lock *indicator*, the simulator counts slips
 /// against the true phase.
 #[derive(Clone, Debug)]
-pub struct LockDetector {
+pub(crate) struct LockDetector {
     m: usize,
     count: usize,
     sum_i: f64,
@@ -197,7 +197,7 @@ pub struct LockDetector {
 impl LockDetector {
     /// Sums of `m` intervals, smoothed over about `k` sums; `threshold` is
     /// the indicator value above which the loop is declared locked.
-    pub fn new(m: usize, k: f64, threshold: f64) -> Self {
+    pub(crate) fn new(m: usize, k: f64, threshold: f64) -> Self {
         LockDetector {
             m: m.max(1),
             count: 0,
@@ -211,7 +211,7 @@ impl LockDetector {
     }
 
     /// Adds one prompt correlation.
-    pub fn push(&mut self, i: f64, q: f64) {
+    pub(crate) fn push(&mut self, i: f64, q: f64) {
         self.sum_i += i;
         self.sum_q += q;
         self.count += 1;
@@ -231,7 +231,7 @@ impl LockDetector {
     }
 
     /// The indicator cos 2Δφ estimate (0 before the first sum).
-    pub fn indicator(&self) -> f64 {
+    pub(crate) fn indicator(&self) -> f64 {
         if self.nbp > 0.0 {
             self.nbd / self.nbp
         } else {
@@ -239,7 +239,7 @@ impl LockDetector {
         }
     }
 
-    pub fn locked(&self) -> bool {
+    pub(crate) fn locked(&self) -> bool {
         self.indicator() > self.threshold
     }
 }
@@ -252,7 +252,7 @@ impl LockDetector {
 /// wipe-off, so it works for every coherent time (1–20 ms). The moments
 /// are exponentially averaged with time constant `tau_s`.
 #[derive(Clone, Debug)]
-pub struct Cn0Estimator {
+pub(crate) struct Cn0Estimator {
     t_s: f64,
     alpha: f64,
     m2: f64,
@@ -261,7 +261,7 @@ pub struct Cn0Estimator {
 }
 
 impl Cn0Estimator {
-    pub fn new(t_s: f64, tau_s: f64) -> Self {
+    pub(crate) fn new(t_s: f64, tau_s: f64) -> Self {
         Cn0Estimator {
             t_s,
             alpha: (t_s / tau_s).min(1.0),
@@ -271,7 +271,7 @@ impl Cn0Estimator {
         }
     }
 
-    pub fn push(&mut self, i: f64, q: f64) {
+    pub(crate) fn push(&mut self, i: f64, q: f64) {
         let p = i * i + q * q;
         self.n += 1;
         // Plain averaging until the exponential window is full: no start-up bias.
@@ -283,7 +283,7 @@ impl Cn0Estimator {
     /// Estimated C/N0 (Hz, linear); `None` before any sample. Floors the
     /// signal power at a small positive value when noise makes 2M2² − M4
     /// negative (very weak signals).
-    pub fn cn0_hz(&self) -> Option<f64> {
+    pub(crate) fn cn0_hz(&self) -> Option<f64> {
         if self.n == 0 {
             return None;
         }
@@ -293,7 +293,8 @@ impl Cn0Estimator {
         Some(s / noise / self.t_s)
     }
 
-    pub fn cn0_dbhz(&self) -> Option<f64> {
+    #[cfg(test)]
+    pub(crate) fn cn0_dbhz(&self) -> Option<f64> {
         self.cn0_hz().map(|c| 10.0 * c.log10())
     }
 }

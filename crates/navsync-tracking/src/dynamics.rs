@@ -23,8 +23,8 @@ pub const G0: f64 = 9.806_65;
 pub struct Kinematics {
     pub pos_m: Vector3<f64>,
     pub vel_mps: Vector3<f64>,
-    pub acc_mps2: Vector3<f64>,
-    pub jerk_mps3: Vector3<f64>,
+    pub(crate) acc_mps2: Vector3<f64>,
+    pub(crate) jerk_mps3: Vector3<f64>,
 }
 
 /// A receiver trajectory with random access in time (seconds from its
@@ -52,17 +52,17 @@ impl Trajectory for StaticTrajectory {
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct SatelliteLos {
     pub unit_ned: Vector3<f64>,
-    pub sat_rate_mps: f64,
-    pub sat_accel_mps2: f64,
+    pub(crate) sat_rate_mps: f64,
+    pub(crate) sat_accel_mps2: f64,
 }
 
 /// Range from the satellite to the receiver and its derivatives.
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct LosState {
-    pub range_m: f64,
-    pub rate_mps: f64,
+    pub(crate) range_m: f64,
+    pub(crate) rate_mps: f64,
     pub accel_mps2: f64,
-    pub jerk_mps3: f64,
+    pub(crate) jerk_mps3: f64,
 }
 
 impl SatelliteLos {
@@ -103,9 +103,9 @@ impl SatelliteLos {
 /// every `step_s`), the dynamic-stress inputs of an unaided loop design.
 #[derive(Copy, Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct DynamicsEnvelope {
-    pub rate_mps: f64,
+    pub(crate) rate_mps: f64,
     pub accel_mps2: f64,
-    pub jerk_mps3: f64,
+    pub(crate) jerk_mps3: f64,
 }
 
 impl DynamicsEnvelope {
@@ -476,7 +476,7 @@ fn plan_maneuvers(o: &LandVehicleOptions) -> (Vec<Pulse>, Vec<Pulse>) {
 
 /// One sample of a trajectory given in geodetic coordinates.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct GeodeticSample {
+pub(crate) struct GeodeticSample {
     pub t_s: f64,
     pub pos: Geodetic,
     pub vel_ned_mps: Vector3<f64>,
@@ -498,7 +498,7 @@ pub struct SampledTrajectory {
 impl SampledTrajectory {
     /// From samples in increasing time; times are made relative to the
     /// first. Errors with fewer than two samples or non-increasing times.
-    pub fn from_geodetic(samples: &[GeodeticSample]) -> Result<Self, String> {
+    pub(crate) fn from_geodetic(samples: &[GeodeticSample]) -> Result<Self, String> {
         if samples.len() < 2 {
             return Err("a sampled trajectory needs at least two samples".into());
         }

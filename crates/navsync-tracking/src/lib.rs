@@ -31,8 +31,8 @@ pub mod scenario;
 pub mod sim;
 
 /// GPS L1 carrier frequency (Hz).
-pub const GPS_L1_HZ: f64 = 1_575.42e6;
+pub(crate) const GPS_L1_HZ: f64 = 1_575.42e6;
 /// Speed of light (m/s), IS-GPS-200.
-pub const SPEED_OF_LIGHT: f64 = 299_792_458.0;
+pub(crate) const SPEED_OF_LIGHT: f64 = 299_792_458.0;
 /// L1 carrier cycles per C/A chip (1575.42 MHz / 1.023 MHz).
-pub const CARRIER_CYCLES_PER_CA_CHIP: f64 = 1540.0;
+pub(crate) const CARRIER_CYCLES_PER_CA_CHIP: f64 = 1540.0;

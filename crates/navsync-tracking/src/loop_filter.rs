@@ -53,7 +53,7 @@ impl LoopOrder {
     }
 
     /// Bn/ω0 of the analog prototype (Kaplan Table 5.6).
-    pub fn bn_over_w0(self) -> f64 {
+    pub(crate) fn bn_over_w0(self) -> f64 {
         match self {
             LoopOrder::First => 0.25,
             LoopOrder::Second => 0.53,
@@ -65,8 +65,8 @@ impl LoopOrder {
 /// Second-order loop coefficient a2 = √2 (damping 0.707), Kaplan Table 5.6.
 pub const A2: f64 = 1.414;
 /// Third-order loop coefficients (Kaplan Table 5.6).
-pub const A3: f64 = 1.1;
-pub const B3: f64 = 2.4;
+pub(crate) const A3: f64 = 1.1;
+pub(crate) const B3: f64 = 2.4;
 
 /// Gains of the analog prototype for a noise bandwidth.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -74,11 +74,11 @@ pub struct LoopCoefficients {
     /// Natural radian frequency ω0 (rad/s).
     pub w0: f64,
     /// Proportional gain on the phase error (1/s): ω0, a2 ω0 or b3 ω0.
-    pub k_phase: f64,
+    pub(crate) k_phase: f64,
     /// Gain into the frequency integrator (1/s²): ω0² (2nd order) or a3 ω0² (3rd).
-    pub k_freq: f64,
+    pub(crate) k_freq: f64,
     /// Gain into the frequency-rate integrator (1/s³): ω0³ (3rd order only).
-    pub k_rate: f64,
+    pub(crate) k_rate: f64,
 }
 
 impl LoopCoefficients {
@@ -110,7 +110,7 @@ impl LoopCoefficients {
 
 /// A carrier-loop filter: phase error in, NCO frequency correction out.
 #[derive(Clone, Debug)]
-pub struct LoopFilter {
+pub(crate) struct LoopFilter {
     order: LoopOrder,
     bn_hz: f64,
     t_s: f64,
@@ -125,7 +125,7 @@ pub struct LoopFilter {
 impl LoopFilter {
     /// A filter of `order` with noise bandwidth `bn_hz`, updated every
     /// `t_s` seconds (the coherent integration time).
-    pub fn new(order: LoopOrder, bn_hz: f64, t_s: f64) -> Self {
+    pub(crate) fn new(order: LoopOrder, bn_hz: f64, t_s: f64) -> Self {
         LoopFilter {
             order,
             bn_hz,
@@ -137,44 +137,38 @@ impl LoopFilter {
         }
     }
 
-    pub fn order(&self) -> LoopOrder {
-        self.order
-    }
-
-    pub fn bandwidth_hz(&self) -> f64 {
+    pub(crate) fn bandwidth_hz(&self) -> f64 {
         self.bn_hz
     }
 
-    pub fn coefficients(&self) -> LoopCoefficients {
+    #[cfg(test)]
+    pub(crate) fn coefficients(&self) -> LoopCoefficients {
         self.coef
-    }
-
-    /// Update interval (s).
-    pub fn interval_s(&self) -> f64 {
-        self.t_s
     }
 
     /// Changes the noise bandwidth; the learned frequency and frequency
     /// rate are kept, so the output does not jump.
-    pub fn set_bandwidth(&mut self, bn_hz: f64) {
+    pub(crate) fn set_bandwidth(&mut self, bn_hz: f64) {
         self.bn_hz = bn_hz;
         self.coef = LoopCoefficients::new(self.order, bn_hz);
     }
 
     /// Presets the learned frequency (rad/s) and frequency rate (rad/s²),
     /// e.g. from acquisition.
-    pub fn set_state(&mut self, freq_rad_s: f64, freq_rate_rad_s2: f64) {
+    pub(crate) fn set_state(&mut self, freq_rad_s: f64, freq_rate_rad_s2: f64) {
         self.freq = freq_rad_s;
         self.freq_rate = freq_rate_rad_s2;
     }
 
     /// Learned frequency (rad/s).
-    pub fn frequency(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn frequency(&self) -> f64 {
         self.freq
     }
 
     /// Learned frequency rate (rad/s²).
-    pub fn frequency_rate(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn frequency_rate(&self) -> f64 {
         self.freq_rate
     }
 
@@ -186,7 +180,7 @@ impl LoopFilter {
     /// ν_k = ν_{k−1} + T [k_f (e_k + e_{k−1})/2 + (ρ_k + ρ_{k−1})/2],
     /// output ν_k + k_p e_k (a first-order loop has no integrator: its ν
     /// stays at the preset frequency, a feed-forward).
-    pub fn update(&mut self, err_rad: f64) -> f64 {
+    pub(crate) fn update(&mut self, err_rad: f64) -> f64 {
         let t = self.t_s;
         let e_avg = 0.5 * (err_rad + self.prev_err);
         self.prev_err = err_rad;
@@ -213,7 +207,13 @@ impl LoopFilter {
 /// variance σ² then gives a phase jitter σ² Σh² = σ² 2 Bn T, the discrete
 /// form of σ² = Bn N0/C, Kaplan & Hegarty §5.6). `steps` bounds the response
 /// length (it decays like exp(−ζ ω0 t)).
-pub fn measured_noise_bandwidth(order: LoopOrder, bn_hz: f64, t_s: f64, steps: usize) -> f64 {
+#[cfg(test)]
+pub(crate) fn measured_noise_bandwidth(
+    order: LoopOrder,
+    bn_hz: f64,
+    t_s: f64,
+    steps: usize,
+) -> f64 {
     let mut f = LoopFilter::new(order, bn_hz, t_s);
     // NCO phase at the start of the interval and its frequency.
     let mut theta = 0.0;

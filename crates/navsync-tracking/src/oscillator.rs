@@ -11,7 +11,9 @@
 //! Allan variance σ_y²(τ) = h0/(2τ) + 2 ln2 h−1 + (2π²/3) h−2 τ, and the
 //! carrier phase noise φ = 2π f_L ∫y dt with S_φ(f) = f_L² S_y(f)/f² (rad²/Hz).
 
-use std::f64::consts::{LN_2, PI};
+#[cfg(test)]
+use std::f64::consts::LN_2;
+use std::f64::consts::PI;
 
 use rand::RngExt;
 use rand::SeedableRng;
@@ -31,7 +33,7 @@ pub struct AllanCoefficients {
 
 impl AllanCoefficients {
     /// A perfect oscillator.
-    pub const IDEAL: AllanCoefficients = AllanCoefficients {
+    pub(crate) const IDEAL: AllanCoefficients = AllanCoefficients {
         h0: 0.0,
         h_m1: 0.0,
         h_m2: 0.0,
@@ -49,7 +51,7 @@ impl AllanCoefficients {
     /// An older, low-quality compensated crystal (Brown & Hwang's table of
     /// clock h-parameters, "compensated crystal": h0 = 2e-19, h−1 = 7e-21,
     /// h−2 = 2e-20; σ_y ≈ 4.9e-10 at 1 s): narrow loops are limited by it.
-    pub const TCXO_LOW: AllanCoefficients = AllanCoefficients {
+    pub(crate) const TCXO_LOW: AllanCoefficients = AllanCoefficients {
         h0: 2e-19,
         h_m1: 7e-21,
         h_m2: 2e-20,
@@ -74,11 +76,13 @@ impl AllanCoefficients {
     }
 
     /// Allan variance at averaging time `tau_s` (Barnes et al. 1971).
-    pub fn allan_variance(&self, tau_s: f64) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn allan_variance(&self, tau_s: f64) -> f64 {
         self.h0 / (2.0 * tau_s) + 2.0 * LN_2 * self.h_m1 + 2.0 * PI * PI / 3.0 * self.h_m2 * tau_s
     }
 
-    pub fn allan_deviation(&self, tau_s: f64) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn allan_deviation(&self, tau_s: f64) -> f64 {
         self.allan_variance(tau_s).sqrt()
     }
 }
@@ -193,18 +197,14 @@ impl OscillatorNoise {
     }
 
     /// Accumulated clock time error (s).
-    pub fn time_error_s(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn time_error_s(&self) -> f64 {
         self.x_s
     }
 
     /// Accumulated carrier phase error (rad).
-    pub fn phase_rad(&self) -> f64 {
+    pub(crate) fn phase_rad(&self) -> f64 {
         2.0 * PI * self.carrier_hz * self.x_s
-    }
-
-    /// Current slowly varying fractional frequency (random walk + flicker).
-    pub fn fractional_frequency(&self) -> f64 {
-        self.y_rw + self.y_flicker
     }
 }
 

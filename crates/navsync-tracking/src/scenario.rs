@@ -38,7 +38,7 @@ pub fn trajectory(s: &Scenario, diag: &mut Diagnostics) -> Result<Box<dyn Trajec
 }
 
 /// Reads an 11-column navigation file into a [`SampledTrajectory`].
-pub fn nav_file_trajectory(
+pub(crate) fn nav_file_trajectory(
     path: &Path,
     diag: &mut Diagnostics,
 ) -> Result<SampledTrajectory, Error> {

@@ -10,7 +10,7 @@
 //!   Navigation Systems*, 2nd ed., §5.6.2, eqs 5.101–5.102). Their σ is
 //!   the accelerometer bias over g (the bias is not separable from tilt at
 //!   rest) and the averaged noise. The tilt error is the bias itself seen
-//!   through gravity (see [`levelling_tilt_coupling`]), so a run started at
+//!   through gravity (see `levelling_tilt_coupling`), so a run started at
 //!   the standstill gets that correlation in its initial covariance.
 //! - **In motion, without a standstill**: the same from the specific force
 //!   with the vehicle's acceleration (from GNSS velocity) removed,
@@ -142,10 +142,10 @@ pub struct Alignment {
     pub time_sow: f64,
     #[serde(skip)]
     pub nav: NavState,
-    pub attitude_deg: [f64; 3],
+    pub(crate) attitude_deg: [f64; 3],
     /// σ of roll, pitch, yaw (rad).
     pub att_sd_rad: [f64; 3],
-    pub pos_sd_m: [f64; 3],
+    pub(crate) pos_sd_m: [f64; 3],
     pub vel_sd_mps: [f64; 3],
     pub method: AlignMethod,
     /// Length of the standstill used for levelling (s).
@@ -155,14 +155,14 @@ pub struct Alignment {
     /// The vehicle was reversing (heading turned by 180°).
     pub reversing: bool,
     /// Whether the reversing check had enough acceleration to decide.
-    pub reversing_checked: bool,
+    pub(crate) reversing_checked: bool,
     pub note: String,
     /// Levelled at the run's start (over a standstill the run starts at, or
     /// in motion): the tilt error is M·δb_a ([`levelling_tilt_coupling`]),
     /// and `tilt_noise_sd_rad` is the part of the tilt σ that is not the
     /// accelerometer bias.
     #[serde(skip)]
-    pub levelling_coupling: Option<Matrix3<f64>>,
+    pub(crate) levelling_coupling: Option<Matrix3<f64>>,
     #[serde(skip)]
     pub tilt_noise_sd_rad: f64,
 }
@@ -178,7 +178,7 @@ pub struct Alignment {
 /// is the horizontal accelerometer bias over g). The two are one unknown
 /// at rest; starting the filter with them uncorrelated lets it misassign
 /// the first GNSS-observed tilt to the bias or back.
-pub fn levelling_tilt_coupling(c_nb: &Matrix3<f64>, g_mps2: f64) -> Matrix3<f64> {
+pub(crate) fn levelling_tilt_coupling(c_nb: &Matrix3<f64>, g_mps2: f64) -> Matrix3<f64> {
     let swap = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     swap * c_nb / g_mps2
 }
@@ -210,7 +210,7 @@ impl Sums {
 /// Levelling: roll and pitch from a specific force in the body frame that
 /// is minus gravity (plus vehicle acceleration removed), Groves eqs
 /// 5.101–5.102.
-pub fn level(f_b: &Vector3<f64>) -> (f64, f64) {
+pub(crate) fn level(f_b: &Vector3<f64>) -> (f64, f64) {
     let pitch = f_b.x.atan2((f_b.y * f_b.y + f_b.z * f_b.z).sqrt());
     let roll = (-f_b.y).atan2(-f_b.z);
     (roll, pitch)
@@ -218,7 +218,7 @@ pub fn level(f_b: &Vector3<f64>) -> (f64, f64) {
 
 /// The streaming aligner.
 #[derive(Clone, Debug)]
-pub struct Aligner {
+pub(crate) struct Aligner {
     opts: AlignOptions,
     last_imu: Option<GpsTime>,
     /// IMU sums since the last GNSS fix, and over the current standstill.
@@ -280,7 +280,7 @@ struct MotionWindow {
 }
 
 impl Aligner {
-    pub fn new(opts: AlignOptions) -> Self {
+    pub(crate) fn new(opts: AlignOptions) -> Self {
         Aligner {
             opts,
             last_imu: None,
@@ -303,7 +303,7 @@ impl Aligner {
         }
     }
 
-    pub fn push_imu(&mut self, s: &ImuSample) {
+    pub(crate) fn push_imu(&mut self, s: &ImuSample) {
         let dt = match self.last_imu {
             Some(t) if s.time > t => (s.time - t) as f64 * 1e-9,
             Some(_) => return,
@@ -402,7 +402,7 @@ impl Aligner {
 
     /// Pushes a GNSS fix (after the IMU samples up to its time); returns
     /// the alignment when this fix completes it.
-    pub fn push_gnss(&mut self, fix: &GnssFix) -> Option<Alignment> {
+    pub(crate) fn push_gnss(&mut self, fix: &GnssFix) -> Option<Alignment> {
         if self.done {
             return None;
         }
@@ -752,7 +752,7 @@ impl Aligner {
     /// At the end of the data without alignment: levelled from the last
     /// standstill with an unknown heading, at the first fix; `None` without
     /// any GNSS fix (position unknown).
-    pub fn finish(&mut self) -> Option<Alignment> {
+    pub(crate) fn finish(&mut self) -> Option<Alignment> {
         if self.done {
             return None;
         }

@@ -12,13 +12,13 @@ use serde::Serialize;
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct AllanPoint {
     /// Cluster time τ = m·τ₀ (s).
-    pub tau_s: f64,
+    pub(crate) tau_s: f64,
     /// Overlapping Allan deviation at τ (units of the input).
-    pub adev: f64,
+    pub(crate) adev: f64,
     /// Independent (non-overlapping) clusters of length τ in the data,
     /// ⌊N/m⌋: a guide to the estimate's confidence (relative error ≈
     /// 1/√(2·(clusters − 1)) at worst).
-    pub clusters: usize,
+    pub(crate) clusters: usize,
 }
 
 /// Overlapping Allan deviation of `rates` sampled every `tau0_s` seconds,

@@ -6,7 +6,7 @@
 //! Here each IMU of the array is fused with the (correctly timed) GNSS with
 //! the time-offset state of [`crate::fusion`] (the same rows −v and −a),
 //! which gives each IMU's offset to GNSS time τ_i; every stream is then
-//! shifted onto GNSS time by τ_i with [`crate::interp::fractional_delay_taps`]
+//! shifted onto GNSS time by τ_i with `crate::interp::fractional_delay_taps`
 //! and the aligned increments are averaged into one virtual IMU whose white
 //! noise is 1/√N of a single unit's (independent sensors), which is fused.
 //!
@@ -47,7 +47,7 @@ pub(crate) struct FractionalShifter {
 }
 
 impl FractionalShifter {
-    pub fn new(order: usize, delay_samples: f64) -> Self {
+    pub(crate) fn new(order: usize, delay_samples: f64) -> Self {
         let (whole, taps) = fractional_delay_taps(order, delay_samples);
         FractionalShifter {
             whole,
@@ -81,7 +81,7 @@ impl FractionalShifter {
     }
 
     /// Adds input sample k (in order); returns outputs that became ready.
-    pub fn push(&mut self, x: [f64; 6], out: &mut Vec<[f64; 6]>) {
+    pub(crate) fn push(&mut self, x: [f64; 6], out: &mut Vec<[f64; 6]>) {
         if self.first.is_none() {
             self.first = Some(x);
         }
@@ -101,7 +101,7 @@ impl FractionalShifter {
     }
 
     /// Emits the outputs still pending at the end of the data.
-    pub fn finish(&mut self, out: &mut Vec<[f64; 6]>) {
+    pub(crate) fn finish(&mut self, out: &mut Vec<[f64; 6]>) {
         let last = self.received - 1;
         while self.emitted < self.received {
             out.push(self.output(self.emitted, last));
@@ -118,7 +118,7 @@ pub(crate) struct Lockstep<'a> {
 }
 
 impl<'a> Lockstep<'a> {
-    pub fn open(paths: &'a [&'a Path], week: i64) -> Result<Self, Error> {
+    pub(crate) fn open(paths: &'a [&'a Path], week: i64) -> Result<Self, Error> {
         let readers = paths
             .iter()
             .map(|p| ImuReader::open(p, week))
@@ -128,7 +128,7 @@ impl<'a> Lockstep<'a> {
 
     /// The next record of every file (`None` at the common end); errors
     /// when one file ends early or leaves the first file's grid.
-    pub fn next(&mut self, diag: &mut Diagnostics) -> Result<Option<Vec<ImuSample>>, Error> {
+    pub(crate) fn next(&mut self, diag: &mut Diagnostics) -> Result<Option<Vec<ImuSample>>, Error> {
         let mut samples = Vec::with_capacity(self.readers.len());
         let mut ended = Vec::new();
         for (i, r) in self.readers.iter_mut().enumerate() {
@@ -390,7 +390,7 @@ impl DelayFit {
 /// differences), ω_1 shifted by an order-5 Lagrange fractional-delay
 /// filter (seed 004 eq 18) and its δ-derivative taken by central
 /// difference of two more shifted copies (an instrumental variable, see
-/// [`DERIV_HALF_SPAN`]). σ(δ) is the least-squares
+/// `DERIV_HALF_SPAN`). σ(δ) is the least-squares
 /// covariance inflated by √((1+ρ)/(1−ρ)), ρ the residuals' lag-1
 /// correlation (an AR(1) effective sample size, Bartlett 1946).
 pub fn relative_delays(

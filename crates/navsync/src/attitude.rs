@@ -13,12 +13,13 @@ use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 /// the new forward.
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct Euler {
-    pub roll_rad: f64,
-    pub pitch_rad: f64,
+    pub(crate) roll_rad: f64,
+    pub(crate) pitch_rad: f64,
     pub yaw_rad: f64,
 }
 
 impl Euler {
+    /// From roll, pitch and yaw (rad).
     pub const fn new(roll_rad: f64, pitch_rad: f64, yaw_rad: f64) -> Self {
         Euler {
             roll_rad,
@@ -72,7 +73,7 @@ pub fn euler_to_dcm(e: &Euler) -> Matrix3<f64> {
 
 /// ZYX Euler angles from C_b^n; yaw in (−π, π]. At pitch ±90° roll is set
 /// to zero and the whole heading goes to yaw. Groves eq 2.22.
-pub fn dcm_to_euler(c: &Matrix3<f64>) -> Euler {
+pub(crate) fn dcm_to_euler(c: &Matrix3<f64>) -> Euler {
     let pitch = (-c[(2, 0)]).clamp(-1.0, 1.0).asin();
     if c[(2, 0)].abs() < 1.0 - 1e-12 {
         Euler::new(
@@ -100,7 +101,7 @@ pub fn euler_to_quat(e: &Euler) -> UnitQuaternion<f64> {
 }
 
 /// ZYX Euler angles from q_nb.
-pub fn quat_to_euler(q: &UnitQuaternion<f64>) -> Euler {
+pub(crate) fn quat_to_euler(q: &UnitQuaternion<f64>) -> Euler {
     dcm_to_euler(q.to_rotation_matrix().matrix())
 }
 
@@ -124,7 +125,7 @@ pub fn rotvec_to_quat(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
 }
 
 /// Rotation vector of a unit quaternion (angle in [0, π]).
-pub fn quat_to_rotvec(q: &UnitQuaternion<f64>) -> Vector3<f64> {
+pub(crate) fn quat_to_rotvec(q: &UnitQuaternion<f64>) -> Vector3<f64> {
     let q = if q.w < 0.0 {
         -q.into_inner()
     } else {
@@ -152,7 +153,7 @@ pub fn wrap_pi(a: f64) -> f64 {
 
 /// Wraps an angle in degrees to (−180, 180].
 #[inline]
-pub fn wrap_180(deg: f64) -> f64 {
+pub(crate) fn wrap_180(deg: f64) -> f64 {
     wrap_pi(deg.to_radians()).to_degrees()
 }
 

@@ -14,19 +14,19 @@ pub const A: f64 = 6_378_137.0;
 /// WGS-84 flattening.
 pub const F: f64 = 1.0 / 298.257_223_563;
 /// WGS-84 first eccentricity squared, e² = f(2 − f).
-pub const E2: f64 = F * (2.0 - F);
+pub(crate) const E2: f64 = F * (2.0 - F);
 /// WGS-84 semi-minor axis (m).
 pub const B: f64 = A * (1.0 - F);
 /// Earth rotation rate (rad/s), WGS-84.
 pub const OMEGA_E: f64 = 7.292_115e-5;
 /// Earth gravitational constant GM (m³/s²), WGS-84.
-pub const GM: f64 = 3.986_004_418e14;
+pub(crate) const GM: f64 = 3.986_004_418e14;
 /// Normal gravity at the equator (m/s²), TR8350.2 table 3.4.
-pub const GAMMA_E: f64 = 9.780_325_335_9;
+pub(crate) const GAMMA_E: f64 = 9.780_325_335_9;
 /// Somigliana constant k = (b γ_p)/(a γ_e) − 1, TR8350.2 eq 4-1.
-pub const SOMIGLIANA_K: f64 = 0.001_931_852_652_41;
+pub(crate) const SOMIGLIANA_K: f64 = 0.001_931_852_652_41;
 /// m = ω² a² b / GM, TR8350.2 eq 4-3.
-pub const GRAVITY_M: f64 = OMEGA_E * OMEGA_E * A * A * B / GM;
+pub(crate) const GRAVITY_M: f64 = OMEGA_E * OMEGA_E * A * A * B / GM;
 
 /// Geodetic position: latitude and longitude in radians, ellipsoidal height
 /// in metres.
@@ -38,6 +38,7 @@ pub struct Geodetic {
 }
 
 impl Geodetic {
+    /// From latitude, longitude (rad) and ellipsoidal height (m).
     pub const fn new(lat_rad: f64, lon_rad: f64, h_m: f64) -> Self {
         Geodetic {
             lat_rad,
@@ -82,7 +83,12 @@ pub fn omega_ie_n(sin_lat: f64, cos_lat: f64) -> Vector3<f64> {
 /// Transport rate ω_en^n = [v_E/(R_N+h), −v_N/(R_M+h), −v_E tan φ/(R_N+h)].
 /// Groves eq 5.44.
 #[inline]
-pub fn omega_en_n(vel_ned: &Vector3<f64>, rm_h: f64, rn_h: f64, tan_lat: f64) -> Vector3<f64> {
+pub(crate) fn omega_en_n(
+    vel_ned: &Vector3<f64>,
+    rm_h: f64,
+    rn_h: f64,
+    tan_lat: f64,
+) -> Vector3<f64> {
     Vector3::new(
         vel_ned.y / rn_h,
         -vel_ned.x / rm_h,
@@ -94,19 +100,19 @@ pub fn omega_en_n(vel_ned: &Vector3<f64>, rm_h: f64, rn_h: f64, tan_lat: f64) ->
 /// by the mechanization and the error model.
 #[derive(Copy, Clone, Debug)]
 pub struct LocalEarth {
-    pub sin_lat: f64,
-    pub cos_lat: f64,
-    pub tan_lat: f64,
+    pub(crate) sin_lat: f64,
+    pub(crate) cos_lat: f64,
+    pub(crate) tan_lat: f64,
     /// R_M + h (m).
-    pub rm_h: f64,
+    pub(crate) rm_h: f64,
     /// R_N + h (m).
-    pub rn_h: f64,
+    pub(crate) rn_h: f64,
     /// Normal gravity magnitude (m/s²), positive down.
     pub g: f64,
     /// ω_ie^n (rad/s).
-    pub w_ie: Vector3<f64>,
+    pub(crate) w_ie: Vector3<f64>,
     /// ω_en^n (rad/s).
-    pub w_en: Vector3<f64>,
+    pub(crate) w_en: Vector3<f64>,
 }
 
 impl LocalEarth {
@@ -132,7 +138,7 @@ impl LocalEarth {
 
     /// ω_in^n = ω_ie^n + ω_en^n.
     #[inline]
-    pub fn w_in(&self) -> Vector3<f64> {
+    pub(crate) fn w_in(&self) -> Vector3<f64> {
         self.w_ie + self.w_en
     }
 

@@ -75,9 +75,9 @@ impl Error {
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Diagnostic {
     /// The file concerned (empty when not file-related).
-    pub file: String,
+    pub(crate) file: String,
     /// 1-based line, 0 when not line-related.
-    pub line: usize,
+    pub(crate) line: usize,
     /// What was wrong and what was done.
     pub message: String,
 }
@@ -134,7 +134,7 @@ impl Diagnostics {
     }
 
     /// Appends all of `other`.
-    pub fn extend(&mut self, other: Diagnostics) {
+    pub(crate) fn extend(&mut self, other: Diagnostics) {
         let extra = other.total - other.items.len();
         for d in other.items {
             self.total += 1;

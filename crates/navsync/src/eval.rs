@@ -55,13 +55,13 @@ pub struct EvalReport {
     pub epochs_compared: usize,
     pub epochs_without_truth: usize,
     pub pos_north_m: ErrorStats,
-    pub pos_east_m: ErrorStats,
-    pub pos_down_m: ErrorStats,
+    pub(crate) pos_east_m: ErrorStats,
+    pub(crate) pos_down_m: ErrorStats,
     pub pos_horizontal_m: ErrorStats,
     pub pos_3d_m: ErrorStats,
-    pub vel_north_mps: ErrorStats,
-    pub vel_east_mps: ErrorStats,
-    pub vel_down_mps: ErrorStats,
+    pub(crate) vel_north_mps: ErrorStats,
+    pub(crate) vel_east_mps: ErrorStats,
+    pub(crate) vel_down_mps: ErrorStats,
     pub vel_horizontal_mps: ErrorStats,
     pub vel_3d_mps: ErrorStats,
     pub roll_deg: ErrorStats,
@@ -72,7 +72,7 @@ pub struct EvalReport {
     pub outage_rms_max_horizontal_m: Option<f64>,
     pub outage_rms_max_3d_m: Option<f64>,
     pub outage_worst_horizontal_m: Option<f64>,
-    pub outage_worst_3d_m: Option<f64>,
+    pub(crate) outage_worst_3d_m: Option<f64>,
 }
 
 impl EvalReport {
@@ -112,7 +112,7 @@ pub struct TruthState {
     pub time: GpsTime,
     pub pos: Geodetic,
     pub vel: Vector3<f64>,
-    pub q_nb: UnitQuaternion<f64>,
+    pub(crate) q_nb: UnitQuaternion<f64>,
 }
 
 impl From<&NavRecord> for TruthState {
@@ -127,7 +127,7 @@ impl From<&NavRecord> for TruthState {
 }
 
 /// Linear/slerp interpolation between two truth states.
-pub fn interpolate(a: &TruthState, b: &TruthState, t: GpsTime) -> TruthState {
+pub(crate) fn interpolate(a: &TruthState, b: &TruthState, t: GpsTime) -> TruthState {
     let span = (b.time - a.time) as f64;
     let u = if span > 0.0 {
         (t - a.time) as f64 / span
@@ -148,7 +148,7 @@ pub fn interpolate(a: &TruthState, b: &TruthState, t: GpsTime) -> TruthState {
 }
 
 /// Errors of a solution state against a truth state at the same epoch.
-pub fn epoch_error(
+pub(crate) fn epoch_error(
     truth: &TruthState,
     pos: &Geodetic,
     vel: &Vector3<f64>,
@@ -177,7 +177,7 @@ pub fn epoch_error(
 pub struct Evaluator {
     m: [Moments; 13],
     outages: Vec<(OutageWindow, OutageDrift)>,
-    pub epochs_without_truth: usize,
+    pub(crate) epochs_without_truth: usize,
 }
 
 impl Evaluator {
@@ -203,6 +203,7 @@ impl Evaluator {
         }
     }
 
+    /// Adds one epoch's errors.
     pub fn push(&mut self, e: &EpochError) {
         let p = e.pos_ned_m;
         let v = e.vel_ned_mps;
@@ -235,6 +236,7 @@ impl Evaluator {
         }
     }
 
+    /// The statistics over the epochs pushed.
     pub fn finish(self) -> EvalReport {
         let m = &self.m;
         let drifts: Vec<OutageDrift> = self
@@ -302,17 +304,17 @@ pub fn parse_outages(text: &str, week: i64) -> Result<Vec<OutageWindow>, Error> 
 /// Streams a truth file and interpolates it at increasing epochs. Records
 /// are matched by seconds of week when either file has week 0 (KF-GINS
 /// writes week 0).
-pub struct TruthStream {
+pub(crate) struct TruthStream {
     reader: NavReader,
     prev: Option<TruthState>,
     next: Option<TruthState>,
     week: Option<i64>,
     /// Largest truth gap bridged by interpolation (s).
-    pub max_gap_s: f64,
+    pub(crate) max_gap_s: f64,
 }
 
 impl TruthStream {
-    pub fn open(path: &Path) -> Result<Self, Error> {
+    pub(crate) fn open(path: &Path) -> Result<Self, Error> {
         Ok(TruthStream {
             reader: NavReader::open(path)?,
             prev: None,
@@ -333,7 +335,7 @@ impl TruthStream {
 
     /// The truth at `t`, or `None` when `t` is outside the truth's span or
     /// in a gap longer than `max_gap_s`. Calls must have increasing `t`.
-    pub fn at(
+    pub(crate) fn at(
         &mut self,
         t: GpsTime,
         by_sow: bool,
@@ -375,7 +377,7 @@ impl TruthStream {
     }
 
     /// Week of the first truth record (reads it if needed).
-    pub fn week(&mut self, diag: &mut Diagnostics) -> Result<Option<i64>, Error> {
+    pub(crate) fn week(&mut self, diag: &mut Diagnostics) -> Result<Option<i64>, Error> {
         if self.next.is_none() && self.prev.is_none() {
             self.next = self.fetch(diag)?;
         }
@@ -387,11 +389,12 @@ impl TruthStream {
 /// view) against a truth file, matched by seconds of week.
 pub struct TruthScorer {
     truth: TruthStream,
-    pub without_truth: usize,
-    pub diag: Diagnostics,
+    pub(crate) without_truth: usize,
+    pub(crate) diag: Diagnostics,
 }
 
 impl TruthScorer {
+    /// Opens the truth trajectory file.
     pub fn open(truth_path: &Path) -> Result<Self, Error> {
         Ok(TruthScorer {
             truth: TruthStream::open(truth_path)?,

@@ -35,7 +35,12 @@ impl ImuErrors {
     /// IMU error compensation); with misalignments, to first order in M:
     /// Δθ = D⁻¹ (u − M D⁻¹ u), u = Δθ̃ − b_g Δt, D = I + diag(s_g).
     #[inline]
-    pub fn compensate(&self, dtheta: &Vector3<f64>, dvel: &Vector3<f64>, dt: f64) -> Increment {
+    pub(crate) fn compensate(
+        &self,
+        dtheta: &Vector3<f64>,
+        dvel: &Vector3<f64>,
+        dt: f64,
+    ) -> Increment {
         let d_g = self.gyro_scale.add_scalar(1.0);
         let d_a = self.accel_scale.add_scalar(1.0);
         let mut th = (dtheta - self.gyro_bias * dt).component_div(&d_g);
@@ -62,38 +67,22 @@ pub struct Increment {
     pub dt: f64,
 }
 
-impl Increment {
-    /// Splits at `fraction` of the interval under the linear-rate
-    /// assumption: returns (first part, second part).
-    pub fn split(&self, fraction: f64) -> (Increment, Increment) {
-        let a = Increment {
-            dtheta: self.dtheta * fraction,
-            dvel: self.dvel * fraction,
-            dt: self.dt * fraction,
-        };
-        let b = Increment {
-            dtheta: self.dtheta - a.dtheta,
-            dvel: self.dvel - a.dvel,
-            dt: self.dt - a.dt,
-        };
-        (a, b)
-    }
-}
+impl Increment {}
 
 /// What one mechanization step hands to the error model: the quantities it
 /// already computed, so that the filter does not recompute them.
 #[derive(Copy, Clone, Debug)]
 pub struct StepInfo {
-    pub dt: f64,
+    pub(crate) dt: f64,
     /// C_b^n at the start of the step.
-    pub c_nb: Matrix3<f64>,
+    pub(crate) c_nb: Matrix3<f64>,
     /// Specific-force velocity increment in NED, Δv_f^n (m/s).
-    pub dv_f_n: Vector3<f64>,
+    pub(crate) dv_f_n: Vector3<f64>,
     /// Total velocity change over the step (specific force, gravity,
     /// Coriolis): the kinematic acceleration times Δt (m/s).
-    pub dv_n: Vector3<f64>,
+    pub(crate) dv_n: Vector3<f64>,
     /// Compensated body increments of the step.
-    pub inc: Increment,
+    pub(crate) inc: Increment,
 }
 
 /// The strapdown integrator. Holds the previous increment (for the
@@ -106,6 +95,7 @@ pub struct Mechanization {
 }
 
 impl Mechanization {
+    /// A mechanization with no previous sample.
     pub fn new() -> Self {
         Self::default()
     }
@@ -118,7 +108,7 @@ impl Mechanization {
 
     /// Forgets the history (after a data gap the two-sample terms would
     /// couple unrelated intervals).
-    pub fn reset_history(&mut self) {
+    pub(crate) fn reset_history(&mut self) {
         self.prev = None;
         self.prev_dv_total = None;
     }
@@ -197,7 +187,7 @@ impl Mechanization {
 
 /// ω_nb^b = ω_ib^b − C_n^b ω_in^n, the body rate relative to NED, from a
 /// compensated gyro rate (for lever-arm velocity terms).
-pub fn omega_nb_b(nav: &NavState, w_ib_b: &Vector3<f64>) -> Vector3<f64> {
+pub(crate) fn omega_nb_b(nav: &NavState, w_ib_b: &Vector3<f64>) -> Vector3<f64> {
     let le = LocalEarth::new(&nav.pos, &nav.vel);
     w_ib_b - nav.q_nb.inverse_transform_vector(&le.w_in())
 }

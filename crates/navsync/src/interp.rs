@@ -21,7 +21,7 @@ use crate::types::NavState;
 
 /// Lagrange basis weights for interpolating at `t` from samples at `ts`
 /// (offsets in seconds; any spacing, all distinct).
-pub fn lagrange_weights(ts: &[f64], t: f64, out: &mut [f64]) {
+pub(crate) fn lagrange_weights(ts: &[f64], t: f64, out: &mut [f64]) {
     for (i, w) in out.iter_mut().enumerate().take(ts.len()) {
         let mut p = 1.0;
         for (j, &tj) in ts.iter().enumerate() {
@@ -156,7 +156,7 @@ fn interpolate(w: &VecDeque<NavState>, lo: usize, hi: usize, t: GpsTime) -> NavS
 /// delay of `delay_samples` (seed 004 eq 18). Returns `(whole, taps)`:
 /// the output is `y[k] = Σ_m taps[m] · x[k − whole − m]`, with the
 /// fractional part centred: D = delay − whole ∈ [(N−1)/2, (N+1)/2].
-pub fn fractional_delay_taps(order: usize, delay_samples: f64) -> (i64, Vec<f64>) {
+pub(crate) fn fractional_delay_taps(order: usize, delay_samples: f64) -> (i64, Vec<f64>) {
     assert!((1..=15).contains(&order), "fractional-delay order 1..=15");
     let n = order as f64;
     // Choose the integer shift so the remaining delay sits in the centre.
@@ -174,7 +174,8 @@ pub fn fractional_delay_taps(order: usize, delay_samples: f64) -> (i64, Vec<f64>
 }
 
 /// Frequency response of taps at normalized angular frequency ω (rad/sample).
-pub fn fir_response(taps: &[f64], omega: f64) -> (f64, f64) {
+#[cfg(test)]
+pub(crate) fn fir_response(taps: &[f64], omega: f64) -> (f64, f64) {
     let mut re = 0.0;
     let mut im = 0.0;
     for (m, &h) in taps.iter().enumerate() {
@@ -188,7 +189,8 @@ pub fn fir_response(taps: &[f64], omega: f64) -> (f64, f64) {
 /// `out[k] ≈ x(k − delay)`; samples that would need data outside `x` are
 /// taken from the nearest edge (the filter's transient is confined to
 /// `order` samples at each end).
-pub fn shift_sequence(x: &[f64], delay_samples: f64, order: usize) -> Vec<f64> {
+#[cfg(test)]
+pub(crate) fn shift_sequence(x: &[f64], delay_samples: f64, order: usize) -> Vec<f64> {
     let (whole, taps) = fractional_delay_taps(order, delay_samples);
     let len = x.len() as i64;
     (0..len)

@@ -31,7 +31,7 @@ pub mod io;
 pub mod navigator;
 // Number formatting without allocation (under time and io::text).
 mod numfmt;
-pub mod offset_search;
+pub(crate) mod offset_search;
 pub mod pipeline;
 pub mod reduced;
 pub mod sensor;
@@ -43,6 +43,8 @@ mod testutil;
 pub mod time;
 pub mod timing;
 pub mod types;
+// Enums written as words, one table both ways.
+mod words;
 
 pub use error::{Diagnostic, Diagnostics, Error, Result};
 pub use time::{GpsTime, OutageWindow};

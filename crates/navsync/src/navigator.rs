@@ -64,6 +64,7 @@ use crate::io::riglog::{RigHeader, RigRecord};
 use crate::reduced::ReducedImu;
 use crate::time::GpsTime;
 use crate::time::OutageSchedule;
+use crate::time::seconds_to_ns;
 use crate::timing::engine::{SyncConfig, SyncEngine, SyncOutput};
 use crate::timing::imu::{IncrementBuilder, RateRule};
 use crate::timing::report::SyncReport;
@@ -120,7 +121,7 @@ pub enum Step {
     /// The filter is not running yet (the first sample sets its clock).
     Starting,
     /// The solution at this sample, handed to the sink (unless GNSS-time
-    /// output left it out: [`StreamCounts::solutions_out_of_order`]).
+    /// output left it out: the stream's diagnostics count those).
     Solution(NavOutput),
     /// The sample lies after the configured end: nothing was done.
     Ended,
@@ -139,12 +140,8 @@ pub struct StreamCounts {
     pub fixes_outside: usize,
     /// Solutions written at the `output_at` epochs, and requested epochs
     /// that fell outside the data.
-    pub output_at_written: usize,
-    pub output_at_skipped: usize,
-    /// Solutions not written because, moved to GNSS time, they would have
-    /// gone back in time (the offset estimate stepped by more than a
-    /// sample interval).
-    pub solutions_out_of_order: usize,
+    pub(crate) output_at_written: usize,
+    pub(crate) output_at_skipped: usize,
 }
 
 /// Raw logger records → synchronized samples, in front of the filter.
@@ -175,6 +172,8 @@ pub struct Navigator {
     reduced_imu: Option<ReducedImu>,
     nominal_dt_s: f64,
     output: SolutionOutput,
+    /// The navigator's own counts (the output's are read from `output`:
+    /// see [`Self::counts`]).
     counts: StreamCounts,
     rig: Option<RigFrontEnd>,
 }
@@ -192,20 +191,20 @@ pub(crate) struct SolutionOutput {
     /// Time of the last solution handed to the sink.
     last_written: Option<GpsTime>,
     /// Interpolated epochs written.
-    pub at_written: usize,
+    pub(crate) at_written: usize,
     /// Solutions left out of the GNSS-time output (τ̂ stepped back).
-    pub out_of_order: usize,
+    pub(crate) out_of_order: usize,
 }
 
 impl SolutionOutput {
-    pub fn new(
+    pub(crate) fn new(
         output_gnss_time: bool,
         aux_interval_s: Option<f64>,
         interp: Option<NavInterpolator>,
     ) -> Self {
         SolutionOutput {
             output_gnss_time,
-            aux_ns: aux_interval_s.map(|s| (s * 1e9).round() as i64),
+            aux_ns: aux_interval_s.map(seconds_to_ns),
             next_aux: None,
             interp,
             last_written: None,
@@ -215,7 +214,7 @@ impl SolutionOutput {
     }
 
     /// The first epoch: the auxiliary schedule counts from it.
-    pub fn start(&mut self, t: GpsTime) {
+    pub(crate) fn start(&mut self, t: GpsTime) {
         self.next_aux = self.aux_ns.map(|_| t);
     }
 
@@ -224,7 +223,7 @@ impl SolutionOutput {
     /// offset with its σ when an auxiliary line is due (the filter
     /// propagates its covariance for them). `false`: left out (GNSS time
     /// stepped back).
-    pub fn write(
+    pub(crate) fn write(
         &mut self,
         nav: &NavState,
         imu: &ImuErrors,
@@ -271,7 +270,7 @@ impl SolutionOutput {
 
     /// The end of the stream: the interpolator's pending epochs are
     /// dropped; returns how many requested epochs were not written.
-    pub fn finish(&mut self) -> usize {
+    pub(crate) fn finish(&mut self) -> usize {
         match self.interp.as_mut() {
             Some(ip) => {
                 ip.finish();
@@ -311,7 +310,7 @@ impl Navigator {
     /// real-time latency mode a negative lead delivers each at its arrival).
     pub fn for_batch(mut self, lead_s: f64) -> Self {
         self.drop_fixes_before_start = true;
-        self.fix_lead_ns = Some((lead_s * 1e9).round() as i64);
+        self.fix_lead_ns = Some(seconds_to_ns(lead_s));
         self
     }
 
@@ -331,7 +330,7 @@ impl Navigator {
     /// Auxiliary output ([`NavSink::aux`]: IMU errors, σ, time offset) at
     /// this interval (s; 0 at every epoch), or none.
     pub fn with_aux_interval(mut self, interval_s: Option<f64>) -> Self {
-        self.output.aux_ns = interval_s.map(|s| (s * 1e9).round() as i64);
+        self.output.aux_ns = interval_s.map(seconds_to_ns);
         self
     }
 
@@ -348,17 +347,8 @@ impl Navigator {
         self
     }
 
-    /// Write the solution interpolated at these epochs as well
-    /// ([`NavSink::nav_at`]) with (2n+1)-order Lagrange interpolation.
-    pub fn with_output_at(self, times: Vec<GpsTime>, n: usize) -> Self {
-        let mut ip = NavInterpolator::new(n);
-        for t in times {
-            ip.request(t);
-        }
-        self.with_interpolator(Some(ip))
-    }
-
-    /// As [`Self::with_output_at`], with the interpolator already built.
+    /// Write the solution interpolated at the interpolator's requested
+    /// epochs as well ([`NavSink::nav_at`]).
     pub fn with_interpolator(mut self, interp: Option<NavInterpolator>) -> Self {
         self.output.interp = interp;
         self
@@ -366,7 +356,7 @@ impl Navigator {
 
     /// Put raw rig-log records through the synchronization engine first
     /// ([`Self::push_record`]); rates become increments by the header's
-    /// rule ([`RateRule::for_header`]). A rig log delivers each fix when
+    /// rule (`RateRule::for_header`). A rig log delivers each fix when
     /// its last byte arrived, after the IMU passed its time of validity: an
     /// offline filter becomes a delayed-state one (the update at the fix's
     /// time, then forward again over the buffered samples; exact, like
@@ -401,13 +391,18 @@ impl Navigator {
         self.fusion
     }
 
-    /// What the stream counted so far.
-    pub fn counts(&self) -> &StreamCounts {
-        &self.counts
+    /// What the stream counted so far (the output's counters are read
+    /// from the output itself).
+    pub fn counts(&self) -> StreamCounts {
+        StreamCounts {
+            output_at_written: self.output.at_written,
+            ..self.counts.clone()
+        }
     }
 
     /// Fixes waiting for the IMU to reach them.
-    pub fn pending_fixes(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn pending_fixes(&self) -> usize {
         self.pending.len()
     }
 
@@ -481,8 +476,6 @@ impl Navigator {
             let sd = fusion.std_devs();
             (sd, fusion.position_covariance(), fusion.time_offset())
         })?;
-        self.counts.output_at_written = self.output.at_written;
-        self.counts.solutions_out_of_order = self.output.out_of_order;
         Ok(Step::Solution(out))
     }
 
@@ -551,16 +544,16 @@ impl Navigator {
         }
         self.counts.output_at_skipped = self.output.finish();
         diagnostics.extend(self.fusion.take_diagnostics());
-        if self.counts.solutions_out_of_order > 0 {
+        if self.output.out_of_order > 0 {
             diagnostics.note(format!(
                 "{} solutions left out of the GNSS-time output: the time-offset estimate stepped back by more than a sample interval",
-                self.counts.solutions_out_of_order
+                self.output.out_of_order
             ));
         }
         let fix_records = self.fusion.take_fix_log();
         sink.fix_records(&fix_records)?;
         Ok(StreamEnd {
-            counts: self.counts.clone(),
+            counts: self.counts(),
             fix_records,
             sync_report,
             diagnostics,

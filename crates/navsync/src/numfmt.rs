@@ -42,7 +42,7 @@ pub fn push_u64(out: &mut Vec<u8>, v: u64) {
 
 /// Appends `v` zero-padded to `width` digits (at most 20).
 #[inline]
-pub fn push_u64_padded(out: &mut Vec<u8>, v: u64, width: usize) {
+pub(crate) fn push_u64_padded(out: &mut Vec<u8>, v: u64, width: usize) {
     let mut tmp = [b'0'; 20];
     let i = digits(v, &mut tmp);
     let start = tmp.len() - width.min(20).max(tmp.len() - i);
@@ -66,7 +66,7 @@ pub fn push_f64(out: &mut Vec<u8>, v: f64) {
 /// without allocating. Values too large for the fast path fall back to the
 /// standard formatter; non-finite values print as `nan`/`inf`.
 #[inline]
-pub fn push_fixed(out: &mut Vec<u8>, v: f64, decimals: usize) {
+pub(crate) fn push_fixed(out: &mut Vec<u8>, v: f64, decimals: usize) {
     let decimals = decimals.min(15);
     let scale = POW10[decimals];
     let scaled = (v * scale).round();

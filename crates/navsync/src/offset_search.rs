@@ -23,7 +23,7 @@ use crate::time::GpsTime;
 
 /// Result of a converged search.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct OffsetEstimate {
+pub(crate) struct OffsetEstimate {
     /// Estimated offset (s): GNSS time tag − true time of validity.
     pub offset_s: f64,
     /// Its standard deviation from the cost curvature (s).
@@ -46,13 +46,13 @@ pub(crate) struct CoarseOffsetSearch {
     epochs: usize,
     result: Option<OffsetEstimate>,
     /// Stop once σ falls below this (s).
-    pub target_sd_s: f64,
+    pub(crate) target_sd_s: f64,
 }
 
 impl CoarseOffsetSearch {
     /// Searches offsets in ±`range_s` with 1 ms steps; `v0` is the initial
     /// INS velocity (only its changes matter).
-    pub fn new(range_s: f64, v0: Vector3<f64>) -> Self {
+    pub(crate) fn new(range_s: f64, v0: Vector3<f64>) -> Self {
         // The grid extends 50 ms beyond the range so that an offset at the
         // range's end is still an interior minimum.
         let steps = ((range_s + 0.05) / 0.001).round() as i64;
@@ -73,7 +73,7 @@ impl CoarseOffsetSearch {
     }
 
     /// The estimate, once converged.
-    pub fn result(&self) -> Option<OffsetEstimate> {
+    pub(crate) fn result(&self) -> Option<OffsetEstimate> {
         self.result
     }
 
@@ -82,7 +82,13 @@ impl CoarseOffsetSearch {
     /// (C_b^n ℓ) at that time, so that the search compares antenna
     /// positions with antenna positions (a rotating lever arm has second
     /// differences of its own in turns).
-    pub fn push_step(&mut self, t: GpsTime, dv_n: &Vector3<f64>, dt: f64, lever_n: &Vector3<f64>) {
+    pub(crate) fn push_step(
+        &mut self,
+        t: GpsTime,
+        dv_n: &Vector3<f64>,
+        dt: f64,
+        lever_n: &Vector3<f64>,
+    ) {
         if self.result.is_some() {
             return;
         }
@@ -103,7 +109,7 @@ impl CoarseOffsetSearch {
     }
 
     /// Adds a GNSS fix (time tag, position, NED standard deviations).
-    pub fn push_fix(&mut self, tag: GpsTime, pos: &Geodetic, sd: &Vector3<f64>) {
+    pub(crate) fn push_fix(&mut self, tag: GpsTime, pos: &Geodetic, sd: &Vector3<f64>) {
         if self.result.is_some() {
             return;
         }

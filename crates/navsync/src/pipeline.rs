@@ -292,12 +292,12 @@ pub struct FuseSummary {
     pub start_sow: f64,
     pub end_sow: f64,
     pub duration_s: f64,
-    pub imu_records_read: usize,
-    pub imu_lines_skipped: usize,
-    pub gnss_fixes_read: usize,
-    pub gnss_lines_skipped: usize,
+    pub(crate) imu_records_read: usize,
+    pub(crate) imu_lines_skipped: usize,
+    pub(crate) gnss_fixes_read: usize,
+    pub(crate) gnss_lines_skipped: usize,
     pub gnss_fixes_withheld_by_outages: usize,
-    pub gnss_fixes_outside_run: usize,
+    pub(crate) gnss_fixes_outside_run: usize,
     /// Outage windows as `sow:len` (the `navsync eval --outages` argument).
     pub outages: String,
     /// Final time-offset estimate (GNSS tag − true validity time), when estimated.
@@ -309,10 +309,10 @@ pub struct FuseSummary {
     pub output_at_written: usize,
     pub output_at_skipped: usize,
     pub stats: FusionStats,
-    pub final_gyro_bias_deg_h: [f64; 3],
-    pub final_accel_bias_mgal: [f64; 3],
-    pub final_gyro_scale_ppm: [f64; 3],
-    pub final_accel_scale_ppm: [f64; 3],
+    pub(crate) final_gyro_bias_deg_h: [f64; 3],
+    pub(crate) final_accel_bias_mgal: [f64; 3],
+    pub(crate) final_gyro_scale_ppm: [f64; 3],
+    pub(crate) final_accel_scale_ppm: [f64; 3],
     /// Estimated odometer scale factor (when odometer updates ran).
     pub final_odometer_scale: Option<f64>,
     /// Estimated axis misalignments m₀…m₅ of the gyro and accelerometer
@@ -355,6 +355,7 @@ pub struct ImuModelSummary {
 }
 
 impl ImuModelSummary {
+    /// The IMU model of a configuration.
     pub fn of(cfg: &KfGinsConfig) -> Self {
         const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
         const MGAL: f64 = 1e-5;
@@ -380,8 +381,8 @@ impl ImuModelSummary {
 /// The GNSS observations the filter down-weighted or rejected.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct WeightingReport {
-    pub observations: usize,
-    pub down_weighted: Vec<WeightedFix>,
+    pub(crate) observations: usize,
+    pub(crate) down_weighted: Vec<WeightedFix>,
     pub rejected: Vec<WeightedFix>,
 }
 
@@ -392,11 +393,11 @@ pub struct WeightedFix {
     pub sow: f64,
     pub kind: &'static str,
     pub nis: f64,
-    pub min_weight: f64,
+    pub(crate) min_weight: f64,
 }
 
 impl WeightingReport {
-    pub fn from_records(records: &[FixRecord]) -> Self {
+    pub(crate) fn from_records(records: &[FixRecord]) -> Self {
         let mut r = WeightingReport {
             observations: records.len(),
             ..WeightingReport::default()
@@ -420,7 +421,7 @@ impl WeightingReport {
 
 /// Builds the engine configuration from a KF-GINS configuration.
 pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
-    let start = GpsTime::from_week_ns(opts.week, (cfg.start_sow * 1e9).round() as i64);
+    let start = GpsTime::from_week_ns(opts.week, crate::time::seconds_to_ns(cfg.start_sow));
     let nav = NavState::new(start, cfg.init_pos, cfg.init_vel, &cfg.init_att);
     let mut fc = FusionConfig::new(nav, cfg.init_std, cfg.noise, cfg.imu_rate_hz);
     fc.init_imu = cfg.init_imu;
@@ -804,7 +805,7 @@ fn run_inner(
     let start = fc.init_nav.time;
     let end = cfg
         .end_sow
-        .map(|e| GpsTime::from_week_ns(opts.week, (e * 1e9).round() as i64));
+        .map(|e| GpsTime::from_week_ns(opts.week, crate::time::seconds_to_ns(e)));
     let mut navigator = batch_navigator(fc, opts)?.with_end(end);
     let smoothing = match (opts.smooth, smoothed_sink) {
         (Some(sm), Some(s)) => {
@@ -821,7 +822,7 @@ fn run_inner(
     };
     // Fixes are read from the file as far ahead of the IMU as the
     // navigator delivers them (it holds them until then).
-    let lead_ns = (fix_lead_s(opts) * 1e9).round() as i64;
+    let lead_ns = crate::time::seconds_to_ns(fix_lead_s(opts));
 
     let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
     let mut next_fix: Option<GnssFix> = gnss.next_fix(&mut diag)?;
@@ -1024,7 +1025,7 @@ pub fn batch_navigator(cfg: FusionConfig, opts: &FuseOptions) -> Result<Navigato
 /// fixes are queued ahead (the filter processes each at its corrected
 /// time, and the time-offset search needs them early); in a real-time mode
 /// each is delivered at its arrival, `gnss_latency_s` after its time tag.
-pub fn fix_lead_s(opts: &FuseOptions) -> f64 {
+pub(crate) fn fix_lead_s(opts: &FuseOptions) -> f64 {
     if !matches!(opts.latency, LatencyMode::Offline) {
         -opts.gnss_latency_s
     } else {

@@ -56,6 +56,7 @@ use serde::Serialize;
 use crate::earth::LocalEarth;
 use crate::filter::{ImuNoise, InitialStd};
 use crate::ins::{ImuErrors, ImuSample, NavState};
+use crate::words;
 
 /// Which inertial sensors exist.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
@@ -73,7 +74,7 @@ pub enum ImuConfig {
 
 impl ImuConfig {
     /// Gyro axes present (x, y, z).
-    pub fn gyros(self) -> [bool; 3] {
+    pub(crate) fn gyros(self) -> [bool; 3] {
         match self {
             ImuConfig::Full => [true; 3],
             _ => [false, false, true],
@@ -81,7 +82,7 @@ impl ImuConfig {
     }
 
     /// Accelerometer axes present (x, y, z).
-    pub fn accels(self) -> [bool; 3] {
+    pub(crate) fn accels(self) -> [bool; 3] {
         match self {
             ImuConfig::OneGyroTwoAccels => [true, true, false],
             _ => [true; 3],
@@ -89,27 +90,28 @@ impl ImuConfig {
     }
 }
 
+impl ImuConfig {
+    /// The configurations' words, both ways (`FromStr` and `Display`).
+    const WORDS: [(ImuConfig, &'static str); 3] = [
+        (ImuConfig::Full, "full"),
+        (ImuConfig::OneGyroTwoAccels, "1g2a"),
+        (ImuConfig::OneGyroThreeAccels, "1g3a"),
+    ];
+}
+
 impl FromStr for ImuConfig {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "full" => Ok(ImuConfig::Full),
-            "1g2a" => Ok(ImuConfig::OneGyroTwoAccels),
-            "1g3a" => Ok(ImuConfig::OneGyroThreeAccels),
-            _ => Err(format!(
-                "unknown IMU configuration '{s}' (full, 1g2a, 1g3a)"
-            )),
-        }
+        words::from_word(&Self::WORDS, s).ok_or_else(|| {
+            let all: Vec<&str> = Self::WORDS.iter().map(|(_, w)| *w).collect();
+            format!("unknown IMU configuration '{s}' ({})", all.join(", "))
+        })
     }
 }
 
 impl fmt::Display for ImuConfig {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            ImuConfig::Full => "full",
-            ImuConfig::OneGyroTwoAccels => "1g2a",
-            ImuConfig::OneGyroThreeAccels => "1g3a",
-        })
+        f.write_str(words::word_of(&Self::WORDS, *self))
     }
 }
 
@@ -143,12 +145,12 @@ impl Default for PseudoSignalNoise {
 
 impl PseudoSignalNoise {
     /// Equivalent angle random walk of a pseudo gyro (rad/√s): σ√(2τ).
-    pub fn gyro_arw(&self) -> f64 {
+    pub(crate) fn gyro_arw(&self) -> f64 {
         self.rate_sd * (2.0 * self.rate_corr_s).sqrt()
     }
 
     /// Equivalent velocity random walk of a pseudo accelerometer (m/s/√s).
-    pub fn accel_vrw(&self) -> f64 {
+    pub(crate) fn accel_vrw(&self) -> f64 {
         self.vertical_accel_sd * (2.0 * self.vertical_accel_corr_s).sqrt()
     }
 }
@@ -166,6 +168,7 @@ pub struct ReducedImu {
 const ABSENT_SD: f64 = 1e-9;
 
 impl ReducedImu {
+    /// Pseudo-signals for the sensors `config` lacks, with the default noise.
     pub fn new(config: ImuConfig) -> Self {
         ReducedImu {
             config,
@@ -175,7 +178,7 @@ impl ReducedImu {
 
     /// Replaces the noise model's entries of absent sensors with the
     /// pseudo-signal noise and pins their bias and scale-factor states.
-    pub fn adjust_noise(&self, noise: &mut ImuNoise, init: &mut InitialStd) {
+    pub(crate) fn adjust_noise(&self, noise: &mut ImuNoise, init: &mut InitialStd) {
         for (i, present) in self.config.gyros().into_iter().enumerate() {
             if !present {
                 noise.arw[i] = self.noise.gyro_arw();
@@ -201,7 +204,7 @@ impl ReducedImu {
     /// pseudo-signals over the interval of `dt` seconds that ends at the
     /// sample, evaluated at `nav` (the solution at the start of the
     /// interval) with the present z gyro corrected by `imu`.
-    pub fn fill(&self, s: &mut ImuSample, nav: &NavState, imu: &ImuErrors, dt: f64) {
+    pub(crate) fn fill(&self, s: &mut ImuSample, nav: &NavState, imu: &ImuErrors, dt: f64) {
         if self.config == ImuConfig::Full || dt <= 0.0 {
             return;
         }
@@ -272,6 +275,7 @@ pub struct OdometerSettings {
 }
 
 impl OdometerSettings {
+    /// Odometer speeds from this file, with the default settings.
     pub fn new(path: PathBuf) -> Self {
         OdometerSettings {
             path,
@@ -288,7 +292,7 @@ impl OdometerSettings {
 /// frame (mounting angles) and NHC standard deviation from the NHC
 /// settings when given (zero mounting angles otherwise), the lever arm of
 /// the odometer or else of the NHC point.
-pub fn odometer_options(
+pub(crate) fn odometer_options(
     o: &OdometerSettings,
     nhc: Option<&NhcSettings>,
 ) -> crate::fusion::OdometerOptions {
@@ -621,7 +625,6 @@ mod tests {
             imu_path: dir.join("imu.txt"),
             gnss_path: dir.join("gnss.txt"),
             output_path: dir.clone(),
-            imu_columns: 7,
             imu_rate_hz: 100.0,
             start_sow: t0,
             end_sow: None,

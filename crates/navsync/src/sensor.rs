@@ -28,10 +28,10 @@ use crate::io::config::KfGinsConfig;
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// The IMU presets a sheet may name (those of `navsync simulate`).
-pub const PRESETS: &[&str] = &["adis16465", "icm20602", "tactical", "nav"];
+pub(crate) const PRESETS: &[&str] = &["adis16465", "icm20602", "tactical", "nav"];
 
 /// The IMU block keys and what each holds (for messages and the template).
-pub const IMU_KEYS: &[(&str, &str)] = &[
+pub(crate) const IMU_KEYS: &[(&str, &str)] = &[
     ("preset", "a named IMU whose figures fill the keys left out"),
     (
         "rate_hz",
@@ -67,29 +67,6 @@ pub const IMU_KEYS: &[(&str, &str)] = &[
     (
         "accel_misalignment_deg",
         "accelerometer axis misalignment σ (deg; cross-axis sensitivity 1 % ≈ 0.57°): levelling takes it for tilt; 0 if left out",
-    ),
-];
-
-/// Top-level keys.
-pub const SHEET_KEYS: &[(&str, &str)] = &[
-    ("imu", "the IMU block (a preset or the datasheet figures)"),
-    (
-        "antenna_lever_m",
-        "[forward, right, down] from the IMU to the GNSS antenna, IMU axes (m)",
-    ),
-    (
-        "mount_deg",
-        "[roll, pitch, yaw] of the IMU in the vehicle (deg)",
-    ),
-    (
-        "nhc",
-        "apply the non-holonomic constraint of a land vehicle (true/false)",
-    ),
-    ("odometer", "an optional wheel/CAN speed input"),
-    ("time_offset", "optional IMU–GNSS time-offset estimation"),
-    (
-        "gnss_default_sd_m",
-        "[north, east, down] σ (m) for fixes that carry none",
     ),
 ];
 
@@ -453,7 +430,6 @@ impl SensorSheet {
             imu_path: data.imu.clone(),
             gnss_path: data.gnss.clone(),
             output_path: data.output.clone(),
-            imu_columns: 7,
             imu_rate_hz,
             start_sow: data.start_sow,
             end_sow: None,

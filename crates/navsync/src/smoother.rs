@@ -9,7 +9,7 @@
 //! The forward filter ([`crate::fusion`]) keeps a nominal state x̂ and an
 //! error state δx = x̂ − x whose mean it feeds back at once: after the
 //! corrections at node k the nominal is x̂ₖ⁺ = x̂ₖ⁻ ⊖ dxₖ (for vectors
-//! x̂ₖ⁺ = x̂ₖ⁻ − dxₖ, for attitude the rotation of [`crate::filter::feedback`]),
+//! x̂ₖ⁺ = x̂ₖ⁻ − dxₖ, for attitude the rotation of `crate::filter::feedback`),
 //! and the filter's error-state mean is zero again, with covariance Pₖ⁺.
 //! Between nodes the nominal is mechanized from x̂ₖ⁺, so the error of the
 //! nominal obeys δxₖ₊₁⁻ = Φₖ δxₖ⁺ + wₖ with predicted mean 0 and
@@ -78,7 +78,7 @@ static TEMP_COUNTER: AtomicUsize = AtomicUsize::new(0);
 
 impl RecordFile {
     /// A new, empty file of records of `record_len` values in `dir`.
-    pub fn create(dir: &Path, tag: &str, record_len: usize) -> Result<Self, Error> {
+    pub(crate) fn create(dir: &Path, tag: &str, record_len: usize) -> Result<Self, Error> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let nanos = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -107,17 +107,17 @@ impl RecordFile {
     }
 
     /// Number of records.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.len
     }
 
     /// Bytes on disk.
-    pub fn bytes(&self) -> u64 {
+    pub(crate) fn bytes(&self) -> u64 {
         (self.len * self.record_len * 8) as u64
     }
 
     /// Appends one record (`values.len()` must be the record length).
-    pub fn push(&mut self, values: &[f64]) -> Result<(), Error> {
+    pub(crate) fn push(&mut self, values: &[f64]) -> Result<(), Error> {
         debug_assert_eq!(values.len(), self.record_len);
         let w = self
             .writer
@@ -132,7 +132,7 @@ impl RecordFile {
     }
 
     /// Record `k` (the file is closed for writing on the first read).
-    pub fn get(&mut self, k: usize) -> Result<&[f64], Error> {
+    pub(crate) fn get(&mut self, k: usize) -> Result<&[f64], Error> {
         if k >= self.len {
             return Err(Error::Invalid(format!(
                 "record {k} of {} requested from {}",
@@ -196,7 +196,7 @@ pub(crate) struct NodeNominal {
     pub imu: ImuErrors,
     /// Time offset τ̂ (s) and odometer scale, when they are states.
     pub time_offset_s: f64,
-    pub odometer_scale: f64,
+    pub(crate) odometer_scale: f64,
 }
 
 const NOMINAL_LEN: usize = 26;
@@ -268,7 +268,7 @@ const TAPE_LEN: usize = 11;
 
 impl Recorder {
     /// A recorder for `n` error states with its files in `dir`.
-    pub fn create(dir: &Path, n: usize) -> Result<Self, Error> {
+    pub(crate) fn create(dir: &Path, n: usize) -> Result<Self, Error> {
         let tri = n * (n + 1) / 2;
         Ok(Recorder {
             n,
@@ -280,7 +280,11 @@ impl Recorder {
     }
 
     /// Stores one node with the nominal state after its corrections.
-    pub fn push_node(&mut self, node: &SmootherNode, nominal: &NodeNominal) -> Result<(), Error> {
+    pub(crate) fn push_node(
+        &mut self,
+        node: &SmootherNode,
+        nominal: &NodeNominal,
+    ) -> Result<(), Error> {
         let v = &mut self.scratch;
         v.clear();
         v.push(time_to_f64(node.time));
@@ -293,7 +297,7 @@ impl Recorder {
     }
 
     /// Stores the forward solution at one output epoch.
-    pub fn push_nav(&mut self, nav: &NavState) -> Result<(), Error> {
+    pub(crate) fn push_nav(&mut self, nav: &NavState) -> Result<(), Error> {
         let q = nav.q_nb.quaternion();
         self.tape.push(&[
             time_to_f64(nav.time),
@@ -310,12 +314,12 @@ impl Recorder {
         ])
     }
 
-    pub fn node_count(&self) -> usize {
+    pub(crate) fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
     /// Bytes of the temporary files.
-    pub fn bytes(&self) -> u64 {
+    pub(crate) fn bytes(&self) -> u64 {
         self.nodes.bytes() + self.tape.bytes()
     }
 
@@ -347,7 +351,7 @@ impl Recorder {
     }
 
     /// The backward pass over every node. The nodes' file is dropped.
-    pub fn smooth(mut self, layout: StateLayout) -> Result<Smoothed, Error> {
+    pub(crate) fn smooth(mut self, layout: StateLayout) -> Result<Smoothed, Error> {
         let n = self.n;
         let count = self.nodes.len();
         if count == 0 {
@@ -495,15 +499,14 @@ struct ResultNode {
 
 /// The smoothed solution at one epoch.
 #[derive(Clone, Debug)]
-pub struct SmoothedEpoch {
+pub(crate) struct SmoothedEpoch {
     pub nav: NavState,
     pub imu: ImuErrors,
     /// σ of every state (SI), interpolated between nodes.
     pub sd: Vec<f64>,
     /// Position-error covariance (m², NED).
-    pub p_pos: nalgebra::Matrix3<f64>,
+    pub(crate) p_pos: nalgebra::Matrix3<f64>,
     pub time_offset_s: f64,
-    pub odometer_scale: f64,
 }
 
 /// The backward pass's result: smoothed corrections at every node, and the
@@ -516,11 +519,11 @@ pub struct Smoothed {
     tape: RecordFile,
     count: usize,
     /// Nodes where P⁻ was regularised.
-    pub failures: usize,
+    pub(crate) failures: usize,
 }
 
 impl Smoothed {
-    pub fn node_count(&self) -> usize {
+    pub(crate) fn node_count(&self) -> usize {
         self.count
     }
 
@@ -546,7 +549,7 @@ impl Smoothed {
 
     /// Calls `f` with the smoothed solution at every forward epoch, in
     /// time order.
-    pub fn for_each(
+    pub(crate) fn for_each(
         &mut self,
         mut f: impl FnMut(&SmoothedEpoch) -> Result<(), Error>,
     ) -> Result<(), Error> {
@@ -615,7 +618,6 @@ impl Smoothed {
                 sd: sd.clone(),
                 p_pos,
                 time_offset_s: a.nominal.time_offset_s - extra("time_offset"),
-                odometer_scale: a.nominal.odometer_scale - extra("odometer_scale"),
             })?;
         }
         Ok(())

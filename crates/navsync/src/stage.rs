@@ -105,12 +105,12 @@ pub(crate) enum Source<P: Producer> {
 
 impl<P: Producer> Source<P> {
     /// Starts `producer` as [`io_threads`] says.
-    pub fn start(producer: P, name: &'static str) -> Result<Self, Error> {
+    pub(crate) fn start(producer: P, name: &'static str) -> Result<Self, Error> {
         Self::new(producer, name, io_threads())
     }
 
     /// Starts `producer` on its own thread (`threaded`) or inline.
-    pub fn new(mut producer: P, name: &'static str, threaded: bool) -> Result<Self, Error> {
+    pub(crate) fn new(mut producer: P, name: &'static str, threaded: bool) -> Result<Self, Error> {
         if !threaded {
             return Ok(Source::Inline(producer));
         }
@@ -131,7 +131,7 @@ impl<P: Producer> Source<P> {
 
     /// The next batch. A threaded producer's error comes from
     /// [`Source::finish`] (the batch stream just ends).
-    pub fn next_batch(&mut self) -> Result<Option<Vec<P::Item>>, Error> {
+    pub(crate) fn next_batch(&mut self) -> Result<Option<Vec<P::Item>>, Error> {
         match self {
             Source::Threaded { rx, .. } => Ok(rx.recv().ok()),
             Source::Inline(p) => p.next_batch(),
@@ -140,7 +140,7 @@ impl<P: Producer> Source<P> {
 
     /// Stops reading (whatever is left is not read) and returns the
     /// producer's output or its error.
-    pub fn finish(self) -> Result<P::Output, Error> {
+    pub(crate) fn finish(self) -> Result<P::Output, Error> {
         match self {
             Source::Threaded { rx, handle, name } => {
                 drop(rx);
@@ -164,12 +164,12 @@ pub(crate) enum Drain<C: Consumer> {
 
 impl<C: Consumer> Drain<C> {
     /// Starts `consumer` as [`io_threads`] says.
-    pub fn start(consumer: C, name: &'static str) -> Result<Self, Error> {
+    pub(crate) fn start(consumer: C, name: &'static str) -> Result<Self, Error> {
         Self::new(consumer, name, io_threads())
     }
 
     /// Starts `consumer` on its own thread (`threaded`) or inline.
-    pub fn new(mut consumer: C, name: &'static str, threaded: bool) -> Result<Self, Error> {
+    pub(crate) fn new(mut consumer: C, name: &'static str, threaded: bool) -> Result<Self, Error> {
         if !threaded {
             return Ok(Drain::Inline(consumer));
         }
@@ -192,7 +192,7 @@ impl<C: Consumer> Drain<C> {
 
     /// Hands over a batch. A consumer that failed returns its error here
     /// (a threaded one: at the first send after it stopped).
-    pub fn send(&mut self, batch: Vec<C::Item>) -> Result<(), Error> {
+    pub(crate) fn send(&mut self, batch: Vec<C::Item>) -> Result<(), Error> {
         match self {
             Drain::Threaded { tx, handle, name } => {
                 if tx.as_ref().is_some_and(|t| t.send(batch).is_ok()) {
@@ -210,7 +210,7 @@ impl<C: Consumer> Drain<C> {
     }
 
     /// Waits for everything sent to be consumed; the consumer's output.
-    pub fn finish(self) -> Result<C::Output, Error> {
+    pub(crate) fn finish(self) -> Result<C::Output, Error> {
         match self {
             Drain::Threaded {
                 mut tx,

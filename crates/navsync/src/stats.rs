@@ -122,6 +122,7 @@ pub struct Moments {
 }
 
 impl Moments {
+    /// Adds a value.
     pub fn push(&mut self, v: f64) {
         if self.n == 0 {
             self.min = v;
@@ -136,6 +137,7 @@ impl Moments {
         self.sum_sq += v * v;
     }
 
+    /// Mean of the values (NaN when none).
     pub fn mean(&self) -> f64 {
         if self.n == 0 {
             f64::NAN
@@ -144,6 +146,7 @@ impl Moments {
         }
     }
 
+    /// Root mean square of the values (NaN when none).
     pub fn rms(&self) -> f64 {
         if self.n == 0 {
             f64::NAN

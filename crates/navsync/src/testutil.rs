@@ -14,22 +14,22 @@ use crate::time::GpsTime;
 
 /// A level vehicle at rest turning about the down axis at `rate_rad_s`.
 #[derive(Clone, Copy, Debug)]
-pub struct TurningAtRest {
+pub(crate) struct TurningAtRest {
     pub pos: Geodetic,
-    pub yaw0_rad: f64,
-    pub rate_rad_s: f64,
+    pub(crate) yaw0_rad: f64,
+    pub(crate) rate_rad_s: f64,
     pub t0: GpsTime,
 }
 
 impl TurningAtRest {
     /// The true state at `t`.
-    pub fn state(&self, t: GpsTime) -> NavState {
+    pub(crate) fn state(&self, t: GpsTime) -> NavState {
         let yaw = self.yaw0_rad + self.rate_rad_s * t.seconds_since(self.t0);
         NavState::new(t, self.pos, Vector3::zeros(), &Euler::new(0.0, 0.0, yaw))
     }
 
     /// Exact increments over (t_a, t_b].
-    pub fn sample(&self, ta: GpsTime, tb: GpsTime) -> ImuSample {
+    pub(crate) fn sample(&self, ta: GpsTime, tb: GpsTime) -> ImuSample {
         let (s, c) = self.pos.lat_rad.sin_cos();
         let w = omega_ie_n(s, c);
         let g = gravity(s, self.pos.h_m);
@@ -55,12 +55,12 @@ impl TurningAtRest {
 /// The simulator's random streams (`navsync_sim::rng`), for tests of the
 /// core: the same generator and seeding, so the tests draw the same data
 /// as when the simulator lived in the core (rand is a dev-dependency).
-pub mod rng {
+pub(crate) mod rng {
     use rand::RngExt;
     use rand_distr::StandardNormal;
 
     /// PCG-64 MCG, as the simulator's `SimRng`.
-    pub type SimRng = rand_pcg::Pcg64Mcg;
+    pub(crate) type SimRng = rand_pcg::Pcg64Mcg;
 
     fn splitmix64(mut z: u64) -> u64 {
         z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
@@ -79,7 +79,7 @@ pub mod rng {
     }
 
     /// The random stream of source `source` in a run with seed `seed`.
-    pub fn stream(seed: u64, source: &str) -> SimRng {
+    pub(crate) fn stream(seed: u64, source: &str) -> SimRng {
         let lo = splitmix64(seed ^ fnv1a(source));
         let hi = splitmix64(lo ^ 0x5851_f42d_4c95_7f2d);
         let state = ((hi as u128) << 64) | lo as u128;
@@ -87,17 +87,17 @@ pub mod rng {
     }
 
     /// A standard normal draw.
-    pub fn normal(rng: &mut SimRng) -> f64 {
+    pub(crate) fn normal(rng: &mut SimRng) -> f64 {
         rng.sample(StandardNormal)
     }
 
     /// A uniform draw in [0, 1).
-    pub fn uniform(rng: &mut SimRng) -> f64 {
+    pub(crate) fn uniform(rng: &mut SimRng) -> f64 {
         rng.random::<f64>()
     }
 
     /// A uniform draw in [lo, hi).
-    pub fn uniform_in(rng: &mut SimRng, lo: f64, hi: f64) -> f64 {
+    pub(crate) fn uniform_in(rng: &mut SimRng, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * uniform(rng)
     }
 }
@@ -106,7 +106,7 @@ pub mod rng {
 /// draws), for the quality-check tests: a static start, then gentle
 /// land-vehicle-like motion, with ADIS16465-class white noise (ARW 0.15
 /// deg/√h, VRW 0.04 m/s/√h) and constant biases.
-pub struct SyntheticImu {
+pub(crate) struct SyntheticImu {
     rng: rand_pcg::Pcg64,
     dt_ns: i64,
     t0_ns: i64,
@@ -120,7 +120,7 @@ pub struct SyntheticImu {
 
 impl SyntheticImu {
     /// `rate_hz` samples from GPS time `t0_ns`, static for `static_s` s.
-    pub fn new(rate_hz: f64, t0_ns: i64, static_s: f64, seed: u64) -> Self {
+    pub(crate) fn new(rate_hz: f64, t0_ns: i64, static_s: f64, seed: u64) -> Self {
         use rand::SeedableRng;
         let dt_ns = crate::imu::period_ns(rate_hz);
         let rate = 1e9 / dt_ns as f64;
@@ -155,7 +155,7 @@ impl SyntheticImu {
     }
 
     /// The next rate sample.
-    pub fn next_rate(&mut self) -> crate::imu::RateSample {
+    pub(crate) fn next_rate(&mut self) -> crate::imu::RateSample {
         use rand::RngExt;
         let t_rel = (self.k * self.dt_ns) as f64 * 1e-9;
         let (w, f) = self.truth(t_rel);

@@ -4,7 +4,7 @@
 //! epoch (1980-01-06 00:00:00 UTC), so that no precision is lost over a week
 //! (an `f64` seconds-of-week keeps ~0.1 ns, an `f32` only ~60 ms) and equal
 //! epochs compare equal. Files carry week + seconds of week (SOW); KF-GINS
-//! files carry SOW only, and [`WeekTracker`] turns such a stream into
+//! files carry SOW only, and `WeekTracker` turns such a stream into
 //! absolute time across a week rollover.
 
 use std::fmt;
@@ -13,9 +13,14 @@ use std::ops::{Add, Sub};
 /// Nanoseconds in one second.
 pub const NS_PER_S: i64 = 1_000_000_000;
 /// Seconds in one GPS week.
-pub const SECONDS_PER_WEEK: i64 = 604_800;
+pub(crate) const SECONDS_PER_WEEK: i64 = 604_800;
 /// Nanoseconds in one GPS week.
 pub const NS_PER_WEEK: i64 = SECONDS_PER_WEEK * NS_PER_S;
+
+/// Seconds to whole nanoseconds (rounded to the nearest ns).
+pub(crate) fn seconds_to_ns(seconds: f64) -> i64 {
+    (seconds * 1e9).round() as i64
+}
 
 /// A window of GPS time, such as a GNSS outage: its start and length.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -25,6 +30,7 @@ pub struct OutageWindow {
 }
 
 impl OutageWindow {
+    /// A window from `start` lasting `duration_s` seconds.
     pub fn new(start: GpsTime, duration_s: f64) -> Self {
         OutageWindow { start, duration_s }
     }
@@ -80,13 +86,13 @@ impl GpsTime {
 
     /// From a week number and seconds of week. Rounded to the nearest ns.
     pub fn from_week_sow(week: i64, sow_s: f64) -> Self {
-        Self::from_week_ns(week, (sow_s * 1e9).round() as i64)
+        Self::from_week_ns(week, seconds_to_ns(sow_s))
     }
 
     /// From seconds since the GPS epoch (rounded to the nearest ns).
     pub fn from_seconds(seconds: f64) -> Self {
         GpsTime {
-            ns: (seconds * 1e9).round() as i64,
+            ns: seconds_to_ns(seconds),
         }
     }
 
@@ -120,7 +126,7 @@ impl GpsTime {
     /// This instant shifted by `seconds` (rounded to the nearest ns).
     pub fn add_seconds(self, seconds: f64) -> GpsTime {
         GpsTime {
-            ns: self.ns + (seconds * 1e9).round() as i64,
+            ns: self.ns + seconds_to_ns(seconds),
         }
     }
 
@@ -160,7 +166,7 @@ impl fmt::Display for GpsTime {
 /// into absolute [`GpsTime`], adding a week whenever SOW falls back by more
 /// than half a week (a week rollover), so that time stays monotonic.
 #[derive(Clone, Debug)]
-pub struct WeekTracker {
+pub(crate) struct WeekTracker {
     week: i64,
     last_ns_of_week: Option<i64>,
 }
@@ -175,7 +181,7 @@ impl WeekTracker {
     }
 
     /// Absolute time of a seconds-of-week value given in nanoseconds.
-    pub fn resolve(&mut self, ns_of_week: i64) -> GpsTime {
+    pub(crate) fn resolve(&mut self, ns_of_week: i64) -> GpsTime {
         if let Some(last) = self.last_ns_of_week
             && last - ns_of_week > NS_PER_WEEK / 2
         {
@@ -187,7 +193,7 @@ impl WeekTracker {
 
     /// Absolute time without advancing the tracker (for look-ups such as
     /// `starttime` in a configuration).
-    pub fn peek(&self, ns_of_week: i64) -> GpsTime {
+    pub(crate) fn peek(&self, ns_of_week: i64) -> GpsTime {
         let mut week = self.week;
         if let Some(last) = self.last_ns_of_week
             && last - ns_of_week > NS_PER_WEEK / 2

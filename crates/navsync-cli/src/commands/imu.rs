@@ -3,7 +3,7 @@
 //! averaging decimation, and find the lowest IMU rate that costs no
 //! accuracy.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -201,13 +201,16 @@ pub fn run(args: Args) -> Result<()> {
     }
 }
 
+/// The `--lowpass` filter description (TOML), if one is given.
+fn load_lowpass(path: Option<&Path>) -> Result<Option<LowPassFilter>> {
+    Ok(path
+        .map(|p| LowPassFilter::load_with(p, |t| toml::from_str(t)))
+        .transpose()?)
+}
+
 fn check(a: CheckArgs) -> Result<()> {
     let started = Instant::now();
-    let lowpass = a
-        .lowpass
-        .as_deref()
-        .map(|p| LowPassFilter::load_with(p, |t| toml::from_str(t)))
-        .transpose()?;
+    let lowpass = load_lowpass(a.lowpass.as_deref())?;
     let cfg = QualityConfig {
         nominal_rate_hz: a.rate,
         raw_rate_hz: a.raw_rate,
@@ -351,11 +354,7 @@ fn convert(a: ConvertArgs) -> Result<()> {
             regular.len() as f64 / regular.iter().sum::<f64>()
         }
     };
-    let lowpass = a
-        .lowpass
-        .as_deref()
-        .map(|p| LowPassFilter::load_with(p, |t| toml::from_str(t)))
-        .transpose()?;
+    let lowpass = load_lowpass(a.lowpass.as_deref())?;
     let delay_s = lowpass
         .as_ref()
         .map(|f| f.delay_compensation_s())

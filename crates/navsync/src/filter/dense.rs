@@ -7,11 +7,12 @@
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mat {
     pub rows: usize,
-    pub cols: usize,
+    pub(crate) cols: usize,
     pub data: Vec<f64>,
 }
 
 impl Mat {
+    /// A `rows` × `cols` matrix of zeros.
     pub fn zeros(rows: usize, cols: usize) -> Self {
         Mat {
             rows,
@@ -20,7 +21,7 @@ impl Mat {
         }
     }
 
-    pub fn identity(n: usize) -> Self {
+    pub(crate) fn identity(n: usize) -> Self {
         let mut m = Mat::zeros(n, n);
         for i in 0..n {
             m.data[i * n + i] = 1.0;
@@ -28,37 +29,36 @@ impl Mat {
         m
     }
 
+    /// Element (`r`, `c`).
     #[inline]
     pub fn get(&self, r: usize, c: usize) -> f64 {
         self.data[r * self.cols + c]
     }
 
+    /// Sets element (`r`, `c`).
     #[inline]
     pub fn set(&mut self, r: usize, c: usize, v: f64) {
         self.data[r * self.cols + c] = v;
     }
 
     #[inline]
-    pub fn add_at(&mut self, r: usize, c: usize, v: f64) {
+    pub(crate) fn add_at(&mut self, r: usize, c: usize, v: f64) {
         self.data[r * self.cols + c] += v;
     }
 
+    /// Row `r`.
     #[inline]
     pub fn row(&self, r: usize) -> &[f64] {
         &self.data[r * self.cols..(r + 1) * self.cols]
     }
 
     #[inline]
-    pub fn row_mut(&mut self, r: usize) -> &mut [f64] {
+    pub(crate) fn row_mut(&mut self, r: usize) -> &mut [f64] {
         &mut self.data[r * self.cols..(r + 1) * self.cols]
     }
 
-    pub fn fill(&mut self, v: f64) {
-        self.data.iter_mut().for_each(|x| *x = v);
-    }
-
     /// Writes a 3×3 block with its top-left corner at (r, c).
-    pub fn set_block3(&mut self, r: usize, c: usize, b: &nalgebra::Matrix3<f64>) {
+    pub(crate) fn set_block3(&mut self, r: usize, c: usize, b: &nalgebra::Matrix3<f64>) {
         for i in 0..3 {
             for j in 0..3 {
                 self.set(r + i, c + j, b[(i, j)]);
@@ -67,12 +67,12 @@ impl Mat {
     }
 
     /// Reads the 3×3 block at (r, c).
-    pub fn block3(&self, r: usize, c: usize) -> nalgebra::Matrix3<f64> {
+    pub(crate) fn block3(&self, r: usize, c: usize) -> nalgebra::Matrix3<f64> {
         nalgebra::Matrix3::from_fn(|i, j| self.get(r + i, c + j))
     }
 
     /// Transpose into `out` (resized as needed).
-    pub fn transpose_into(&self, out: &mut Mat) {
+    pub(crate) fn transpose_into(&self, out: &mut Mat) {
         out.rows = self.cols;
         out.cols = self.rows;
         out.data.resize(self.data.len(), 0.0);
@@ -84,7 +84,7 @@ impl Mat {
     }
 
     /// Makes a square matrix exactly symmetric: (M + Mᵀ)/2.
-    pub fn symmetrize(&mut self) {
+    pub(crate) fn symmetrize(&mut self) {
         let n = self.rows;
         for i in 0..n {
             for j in (i + 1)..n {
@@ -99,14 +99,14 @@ impl Mat {
 /// The nonzero pattern of a matrix by rows: for each row, the columns that
 /// hold nonzeros.
 #[derive(Clone, Debug, Default)]
-pub struct RowPattern {
-    pub starts: Vec<usize>,
-    pub cols: Vec<usize>,
+pub(crate) struct RowPattern {
+    pub(crate) starts: Vec<usize>,
+    pub(crate) cols: Vec<usize>,
 }
 
 impl RowPattern {
     /// Scans `m` for nonzeros.
-    pub fn scan(m: &Mat, out: &mut RowPattern) {
+    pub(crate) fn scan(m: &Mat, out: &mut RowPattern) {
         out.starts.clear();
         out.cols.clear();
         for i in 0..m.rows {
@@ -121,18 +121,14 @@ impl RowPattern {
     }
 
     #[inline]
-    pub fn row(&self, i: usize) -> &[usize] {
+    pub(crate) fn row(&self, i: usize) -> &[usize] {
         &self.cols[self.starts[i]..self.starts[i + 1]]
-    }
-
-    pub fn nnz(&self) -> usize {
-        self.cols.len()
     }
 }
 
 /// `out = a · b` where `a` is given with its nonzero pattern (rows of `a`
 /// mostly zero) and `b` is dense. Inner loop runs along contiguous rows.
-pub fn sparse_mul(a: &Mat, pat: &RowPattern, b: &Mat, out: &mut Mat) {
+pub(crate) fn sparse_mul(a: &Mat, pat: &RowPattern, b: &Mat, out: &mut Mat) {
     debug_assert_eq!(a.cols, b.rows);
     out.rows = a.rows;
     out.cols = b.cols;
@@ -152,7 +148,7 @@ pub fn sparse_mul(a: &Mat, pat: &RowPattern, b: &Mat, out: &mut Mat) {
 }
 
 /// `out = a · bᵀ` where both are dense (`a`: r×k, `b`: c×k).
-pub fn mul_transpose(a: &Mat, b: &Mat, out: &mut Mat) {
+pub(crate) fn mul_transpose(a: &Mat, b: &Mat, out: &mut Mat) {
     debug_assert_eq!(a.cols, b.cols);
     out.rows = a.rows;
     out.cols = b.rows;
@@ -168,7 +164,7 @@ pub fn mul_transpose(a: &Mat, b: &Mat, out: &mut Mat) {
 }
 
 /// Dense `out = a · b`.
-pub fn mul(a: &Mat, b: &Mat, out: &mut Mat) {
+pub(crate) fn mul(a: &Mat, b: &Mat, out: &mut Mat) {
     debug_assert_eq!(a.cols, b.rows);
     out.rows = a.rows;
     out.cols = b.cols;
@@ -191,7 +187,7 @@ pub fn mul(a: &Mat, b: &Mat, out: &mut Mat) {
 
 /// Lower Cholesky factor L (row-major) of a symmetric positive-definite
 /// matrix, or `None` when it is not positive definite.
-pub fn cholesky(m: &Mat) -> Option<Mat> {
+pub(crate) fn cholesky(m: &Mat) -> Option<Mat> {
     let n = m.rows;
     let mut l = Mat::zeros(n, n);
     for j in 0..n {
@@ -216,7 +212,7 @@ pub fn cholesky(m: &Mat) -> Option<Mat> {
 }
 
 /// Solves L Lᵀ x = b in place for one right-hand side.
-pub fn cholesky_solve(l: &Mat, b: &mut [f64]) {
+pub(crate) fn cholesky_solve(l: &Mat, b: &mut [f64]) {
     let n = l.rows;
     for i in 0..n {
         let mut s = b[i];
@@ -235,7 +231,7 @@ pub fn cholesky_solve(l: &Mat, b: &mut [f64]) {
 }
 
 /// Inverse of a symmetric positive-definite matrix from its Cholesky factor.
-pub fn cholesky_inverse(l: &Mat) -> Mat {
+pub(crate) fn cholesky_inverse(l: &Mat) -> Mat {
     let n = l.rows;
     let mut inv = Mat::zeros(n, n);
     let mut col = vec![0.0; n];

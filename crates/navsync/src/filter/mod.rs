@@ -4,10 +4,10 @@
 //! as *estimate minus truth*:
 //! `[δr^n (m, NED), δv^n (m/s), φ (rad, φ-angle: Ĉ_b^n = (I − φ×) C_b^n),
 //!   δb_g (rad/s), δb_a (m/s²), δs_g, δs_a]`, followed by optional extra
-//! states (e.g. the IMU–GNSS time offset) appended by a [`StateLayout`].
+//! states (e.g. the IMU–GNSS time offset) appended by a `StateLayout`.
 //!
 //! Propagation does not run at the IMU rate: the mechanization hands each
-//! step's quantities to a [`Window`] which sums them (Σ C_b^n Δt, Σ Δv_f^n,
+//! step's quantities to a `Window` which sums them (Σ C_b^n Δt, Σ Δv_f^n,
 //! Σ C_b^n diag(Δv), Σ C_b^n diag(Δθ)); every `cov_step` seconds, and always
 //! before a measurement, the window's A = ∫F dt gives
 //! Φ = I + A + A²/2 and P ← Φ (P + Q/2) Φᵀ + Q/2 (the trapezoidal noise
@@ -21,7 +21,7 @@
 
 pub mod dense;
 pub mod gnss;
-pub mod model;
+pub(crate) mod model;
 pub mod nhc;
 pub mod standstill;
 #[cfg(test)]
@@ -39,19 +39,19 @@ use dense::{Mat, RowPattern};
 pub use crate::types::{ImuNoise, InitialStd};
 
 /// Largest supported number of error states.
-pub const MAX_STATES: usize = 40;
+pub(crate) const MAX_STATES: usize = 40;
 
 /// Indices of the 21 core error states.
-pub mod idx {
-    pub const POS: usize = 0;
-    pub const VEL: usize = 3;
-    pub const ATT: usize = 6;
-    pub const BG: usize = 9;
-    pub const BA: usize = 12;
-    pub const SG: usize = 15;
-    pub const SA: usize = 18;
+pub(crate) mod idx {
+    pub(crate) const POS: usize = 0;
+    pub(crate) const VEL: usize = 3;
+    pub(crate) const ATT: usize = 6;
+    pub(crate) const BG: usize = 9;
+    pub(crate) const BA: usize = 12;
+    pub(crate) const SG: usize = 15;
+    pub(crate) const SA: usize = 18;
     /// Number of core states.
-    pub const CORE: usize = 21;
+    pub(crate) const CORE: usize = 21;
 }
 
 /// An extra state appended after the 21 core states: a random walk with
@@ -61,20 +61,20 @@ pub mod idx {
 /// *Introduction to Random Signals and Applied Kalman Filtering*, 4th ed.,
 /// §4.2).
 #[derive(Clone, Debug, PartialEq)]
-pub struct ExtraState {
+pub(crate) struct ExtraState {
     pub name: &'static str,
-    pub index: usize,
-    pub random_walk_psd: f64,
+    pub(crate) index: usize,
+    pub(crate) random_walk_psd: f64,
     pub corr_time_s: Option<f64>,
 }
 
 /// The state vector's layout: the 21 core states and any extras.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct StateLayout {
-    pub extras: Vec<ExtraState>,
+pub(crate) struct StateLayout {
+    pub(crate) extras: Vec<ExtraState>,
     /// First index of the 12 misalignment states (6 gyro, then 6
     /// accelerometer), when estimated.
-    pub misalign: Option<usize>,
+    pub(crate) misalign: Option<usize>,
 }
 
 /// Names of the misalignment states (see [`crate::ins::ImuErrors`]).
@@ -113,7 +113,12 @@ impl StateLayout {
 
     /// Appends a first-order Gauss–Markov state with steady-state σ `sd`
     /// and correlation time `corr_time_s`, and returns its index.
-    pub fn add_gauss_markov(&mut self, name: &'static str, sd: f64, corr_time_s: f64) -> usize {
+    pub(crate) fn add_gauss_markov(
+        &mut self,
+        name: &'static str,
+        sd: f64,
+        corr_time_s: f64,
+    ) -> usize {
         let index = self.add(name, 2.0 * sd * sd / corr_time_s);
         if let Some(e) = self.extras.last_mut() {
             e.corr_time_s = Some(corr_time_s);
@@ -123,7 +128,7 @@ impl StateLayout {
 
     /// Appends the 12 axis-misalignment states (random constants) and
     /// returns the first index.
-    pub fn add_misalignment(&mut self) -> usize {
+    pub(crate) fn add_misalignment(&mut self) -> usize {
         let first = self.n();
         for name in MISALIGN_NAMES {
             self.add(name, 0.0);
@@ -133,28 +138,28 @@ impl StateLayout {
     }
 
     /// Index of the extra state called `name`.
-    pub fn index_of(&self, name: &str) -> Option<usize> {
+    pub(crate) fn index_of(&self, name: &str) -> Option<usize> {
         self.extras.iter().find(|e| e.name == name).map(|e| e.index)
     }
 }
 
 /// Sums over the mechanization steps since the last covariance propagation.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct Window {
+pub(crate) struct Window {
     /// Total duration (s).
-    pub dt: f64,
+    pub(crate) dt: f64,
     /// Σ C_b^n Δt.
-    pub c_dt: Matrix3<f64>,
+    pub(crate) c_dt: Matrix3<f64>,
     /// Σ Δv_f^n: the specific force integrated in NED.
-    pub f_n_dt: Vector3<f64>,
+    pub(crate) f_n_dt: Vector3<f64>,
     /// Σ C_b^n diag(Δv^b).
-    pub c_diag_dv: Matrix3<f64>,
+    pub(crate) c_diag_dv: Matrix3<f64>,
     /// Σ C_b^n diag(Δθ^b).
-    pub c_diag_dth: Matrix3<f64>,
+    pub(crate) c_diag_dth: Matrix3<f64>,
     /// Σ C_b^n J(Δθ^b) and Σ C_b^n J(Δv^b), J(v) = ∂(M v)/∂m (3 × 6):
     /// only summed when misalignments are estimated.
-    pub c_j_dth: SMatrix<f64, 3, 6>,
-    pub c_j_dv: SMatrix<f64, 3, 6>,
+    pub(crate) c_j_dth: SMatrix<f64, 3, 6>,
+    pub(crate) c_j_dv: SMatrix<f64, 3, 6>,
 }
 
 /// J(v) = ∂(M v)/∂m for the off-diagonal M of [`crate::ins::ImuErrors`].
@@ -173,7 +178,7 @@ pub(crate) fn misalign_jacobian(v: &Vector3<f64>) -> SMatrix<f64, 3, 6> {
 impl Window {
     /// The misalignment sums of one step.
     #[inline]
-    pub fn add_misalign(&mut self, s: &StepInfo) {
+    pub(crate) fn add_misalign(&mut self, s: &StepInfo) {
         self.c_j_dth += s.c_nb * misalign_jacobian(&s.inc.dtheta);
         self.c_j_dv += s.c_nb * misalign_jacobian(&s.inc.dvel);
     }
@@ -215,14 +220,14 @@ impl Observation {
         }
     }
 
-    pub fn dim(&self) -> usize {
+    pub(crate) fn dim(&self) -> usize {
         self.z.len()
     }
 }
 
 /// The result of one measurement update.
 #[derive(Clone, Debug)]
-pub struct UpdateOutcome {
+pub(crate) struct UpdateOutcome {
     /// Normalised innovation squared zᵀ S⁻¹ z.
     pub nis: f64,
     /// False when the chi-square gate rejected the measurement.
@@ -235,7 +240,7 @@ pub struct UpdateOutcome {
 /// propagation window. The error-state mean is always zero between updates
 /// (closed-loop feedback), so only P is kept.
 #[derive(Clone, Debug)]
-pub struct ErrorStateFilter {
+pub(crate) struct ErrorStateFilter {
     layout: StateLayout,
     n: usize,
     p: Mat,
@@ -257,14 +262,14 @@ pub struct ErrorStateFilter {
 /// covariance before and after this node's corrections, and the sum of
 /// the corrections fed back here.
 #[derive(Clone, Debug)]
-pub struct SmootherNode {
+pub(crate) struct SmootherNode {
     pub time: GpsTime,
     /// Φ from the previous node to this one (identity for the first).
-    pub phi_in: Mat,
+    pub(crate) phi_in: Mat,
     /// P just before this node's corrections (equal to `p_plus` without).
-    pub p_minus: Mat,
+    pub(crate) p_minus: Mat,
     /// P after them.
-    pub p_plus: Mat,
+    pub(crate) p_plus: Mat,
     /// Σ of the error states fed back at this node (closed loop: the
     /// nominal state after the node is the one before it minus this).
     pub dx: Vec<f64>,
@@ -319,7 +324,7 @@ impl ErrorStateFilter {
     /// A filter with diagonal initial covariance from `init_std`; extra
     /// states start with the variances in `extra_var` (same order as
     /// `layout.extras`).
-    pub fn new(
+    pub(crate) fn new(
         layout: StateLayout,
         noise: ImuNoise,
         init_std: &InitialStd,
@@ -362,7 +367,7 @@ impl ErrorStateFilter {
 
     /// Starts recording [`SmootherNode`]s, at least one every `interval_s`,
     /// with a first node now.
-    pub fn record_nodes(&mut self, time: GpsTime, interval_s: f64) {
+    pub(crate) fn record_nodes(&mut self, time: GpsTime, interval_s: f64) {
         let mut track = NodeTrack {
             interval_s,
             phi_acc: Mat::identity(self.n),
@@ -375,7 +380,7 @@ impl ErrorStateFilter {
     }
 
     /// The nodes completed since the last call (empty unless recording).
-    pub fn take_nodes(&mut self) -> Vec<SmootherNode> {
+    pub(crate) fn take_nodes(&mut self) -> Vec<SmootherNode> {
         self.track
             .as_mut()
             .map(|t| std::mem::take(&mut t.closed))
@@ -384,7 +389,7 @@ impl ErrorStateFilter {
 
     /// Ends the recording: the node being built is completed, and a last
     /// node is placed at `time` (after propagating the pending window).
-    pub fn finish_nodes(&mut self, nav: &NavState) {
+    pub(crate) fn finish_nodes(&mut self, nav: &NavState) {
         self.propagate(nav);
         if let Some(t) = self.track.as_mut() {
             t.close_open(&self.p);
@@ -397,7 +402,7 @@ impl ErrorStateFilter {
     /// Records a change of the nominal state made outside a Kalman update
     /// (a re-initialisation), as the error state `dx` it removed, before
     /// the caller changes P (a no-op unless recording).
-    pub fn record_correction(&mut self, time: GpsTime, dx: &[f64]) {
+    pub(crate) fn record_correction(&mut self, time: GpsTime, dx: &[f64]) {
         if let Some(t) = self.track.as_mut() {
             for (a, b) in t.open_at(time, &self.p).iter_mut().zip(dx) {
                 *a += b;
@@ -405,38 +410,38 @@ impl ErrorStateFilter {
         }
     }
 
-    pub fn layout(&self) -> &StateLayout {
+    pub(crate) fn layout(&self) -> &StateLayout {
         &self.layout
     }
 
     /// Number of states.
-    pub fn n(&self) -> usize {
+    pub(crate) fn n(&self) -> usize {
         self.n
     }
 
     /// The covariance (valid after [`Self::propagate`]).
-    pub fn covariance(&self) -> &Mat {
+    pub(crate) fn covariance(&self) -> &Mat {
         &self.p
     }
 
     /// Mutable covariance, for models that reset or inflate states.
-    pub fn covariance_mut(&mut self) -> &mut Mat {
+    pub(crate) fn covariance_mut(&mut self) -> &mut Mat {
         &mut self.p
     }
 
     /// Standard deviation of state `i`.
-    pub fn sd(&self, i: usize) -> f64 {
+    pub(crate) fn sd(&self, i: usize) -> f64 {
         self.p.get(i, i).max(0.0).sqrt()
     }
 
     /// Seconds accumulated since the last propagation.
-    pub fn pending_dt(&self) -> f64 {
+    pub(crate) fn pending_dt(&self) -> f64 {
         self.window.dt
     }
 
     /// Adds one mechanization step to the propagation window.
     #[inline]
-    pub fn accumulate(&mut self, step: &StepInfo) {
+    pub(crate) fn accumulate(&mut self, step: &StepInfo) {
         self.window.add(step);
         if self.layout.misalign.is_some() {
             self.window.add_misalign(step);
@@ -450,7 +455,7 @@ impl ErrorStateFilter {
     /// navigation errors couple to everything, every later state (IMU
     /// errors, extras) has diagonal dynamics. The products below use it:
     /// about 6k multiply-adds for 21 states instead of 2·21³.
-    pub fn propagate(&mut self, nav: &NavState) {
+    pub(crate) fn propagate(&mut self, nav: &NavState) {
         let w = self.window;
         if w.dt <= 0.0 {
             return;
@@ -582,14 +587,14 @@ impl ErrorStateFilter {
     }
 
     /// The innovation covariance S = H P Hᵀ + R of `obs` at the current P.
-    pub fn innovation_covariance(&self, obs: &Observation) -> Mat {
+    pub(crate) fn innovation_covariance(&self, obs: &Observation) -> Mat {
         self.innovation_parts(obs).2
     }
 
     /// Multiplies the whole covariance by `factor` ≥ 1 (a fading-memory
     /// step, Fagin 1964; Xia et al. 1994): the filter admits that its model
     /// left errors out.
-    pub fn inflate(&mut self, factor: f64) {
+    pub(crate) fn inflate(&mut self, factor: f64) {
         if factor.is_finite() && factor > 1.0 {
             for i in 0..self.n {
                 self.p.row_mut(i).iter_mut().for_each(|x| *x *= factor);
@@ -600,7 +605,8 @@ impl ErrorStateFilter {
     /// Kalman update with `obs` (Joseph form). With `gate = Some(t)` the
     /// measurement is rejected when its NIS exceeds `t`. Errors when the
     /// innovation covariance or the updated P is not positive definite.
-    pub fn update(
+    #[cfg(test)]
+    pub(crate) fn update(
         &mut self,
         obs: &Observation,
         gate: Option<f64>,
@@ -613,7 +619,7 @@ impl ErrorStateFilter {
     /// gain rows are zero, a Schmidt "consider" update); the Joseph form
     /// keeps P exact for this suboptimal gain, so those states keep their
     /// estimate and an honest covariance.
-    pub fn update_with_frozen(
+    pub(crate) fn update_with_frozen(
         &mut self,
         obs: &Observation,
         gate: Option<f64>,
@@ -710,7 +716,7 @@ impl ErrorStateFilter {
 
     /// Errors unless P is finite, symmetric by construction and positive
     /// definite (Cholesky succeeds after the tiniest relative jitter).
-    pub fn check_covariance(&self, time: GpsTime) -> Result<(), Error> {
+    pub(crate) fn check_covariance(&self, time: GpsTime) -> Result<(), Error> {
         let n = self.n;
         for i in 0..n {
             let d = self.p.get(i, i);
@@ -785,7 +791,7 @@ fn add_half_q(p: &mut Mat, q: &Mat) {
 /// Applies the estimated error state to the navigation state and the IMU
 /// error estimates (closed-loop feedback; KF-GINS doc §3.8 "Error State
 /// Feedback", with this module's sign convention δx = x̂ − x).
-pub fn feedback(dx: &[f64], layout: &StateLayout, nav: &mut NavState, imu: &mut ImuErrors) {
+pub(crate) fn feedback(dx: &[f64], layout: &StateLayout, nav: &mut NavState, imu: &mut ImuErrors) {
     let v3 = |i: usize| Vector3::new(dx[i], dx[i + 1], dx[i + 2]);
     let le = LocalEarth::new(&nav.pos, &nav.vel);
     let dp = le.ned_to_geodetic_delta(&v3(idx::POS));

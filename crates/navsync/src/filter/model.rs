@@ -18,16 +18,16 @@ use crate::earth::{LocalEarth, OMEGA_E};
 /// Position/velocity partials of the local Earth quantities.
 pub(crate) struct ErrorPartials {
     /// ∂ω_ie^n/∂δr.
-    pub w_ie_r: Matrix3<f64>,
+    pub(crate) w_ie_r: Matrix3<f64>,
     /// ∂ω_en^n/∂δr.
-    pub w_en_r: Matrix3<f64>,
+    pub(crate) w_en_r: Matrix3<f64>,
     /// ∂ω_en^n/∂δv.
-    pub w_en_v: Matrix3<f64>,
+    pub(crate) w_en_v: Matrix3<f64>,
     /// F_rr: d(δr)/dt with respect to δr.
-    pub f_rr: Matrix3<f64>,
+    pub(crate) f_rr: Matrix3<f64>,
     /// F_vr and F_vv.
-    pub f_vr: Matrix3<f64>,
-    pub f_vv: Matrix3<f64>,
+    pub(crate) f_vr: Matrix3<f64>,
+    pub(crate) f_vv: Matrix3<f64>,
 }
 
 /// Partials at a point with NED velocity `v` (KF-GINS doc §3.3, δω_ie^n,
@@ -98,7 +98,7 @@ pub(crate) fn partials(le: &LocalEarth, v: &Vector3<f64>) -> ErrorPartials {
 /// terms evaluated at the window's end (`le`, `v`). Gauss-Markov rows get
 /// −Δt/T. Extra states have zero rows. Only the structurally nonzero
 /// blocks are written: `a` must start zeroed and be reused.
-pub fn fill_transition(
+pub(crate) fn fill_transition(
     a: &mut Mat,
     w: &Window,
     le: &LocalEarth,
@@ -149,7 +149,7 @@ pub fn fill_transition(
 /// Fills `q` (n × n) with the window's process noise G q Gᵀ Δt
 /// (KF-GINS doc §3.4), using the mean attitude over the window. Q is block
 /// diagonal; only those blocks are written (`q` must start zeroed).
-pub fn fill_noise(q: &mut Mat, w: &Window, noise: &ImuNoise, layout: &StateLayout) {
+pub(crate) fn fill_noise(q: &mut Mat, w: &Window, noise: &ImuNoise, layout: &StateLayout) {
     let dt = w.dt;
     let c = w.c_dt / dt;
     let vrw2 = Matrix3::from_diagonal(&noise.vrw.component_mul(&noise.vrw));

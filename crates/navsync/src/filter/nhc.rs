@@ -14,15 +14,15 @@ use crate::ins::NavState;
 
 /// How the IMU sits in the vehicle and how tightly the constraint holds.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VehicleConstraint {
+pub(crate) struct VehicleConstraint {
     /// C_b^v from the IMU's mounting angles relative to the vehicle frame
     /// (forward-right-down): roll, pitch, yaw of the IMU in the vehicle.
-    pub c_bv: Matrix3<f64>,
+    pub(crate) c_bv: Matrix3<f64>,
     /// Lever arm from the IMU to the constraint point (e.g. the rear-axle
     /// centre), in the body frame (m).
-    pub lever_b: Vector3<f64>,
+    pub(crate) lever_b: Vector3<f64>,
     /// Standard deviation of the lateral and vertical zero velocity (m/s).
-    pub nhc_sd: f64,
+    pub(crate) nhc_sd: f64,
 }
 
 impl VehicleConstraint {

@@ -86,18 +86,18 @@ impl StandstillOptions {
 
 /// One window's verdict.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StillWindow {
+pub(crate) struct StillWindow {
     /// Mean raw angular rate over the window (compensated rate plus the
     /// gyro bias estimate in force at each sample), rad/s.
-    pub mean_raw_rate: Vector3<f64>,
+    pub(crate) mean_raw_rate: Vector3<f64>,
     /// σ of that mean from the samples' spread (rad/s).
-    pub mean_rate_sd: Vector3<f64>,
+    pub(crate) mean_rate_sd: Vector3<f64>,
 }
 
 /// Streaming detector: push every compensated sample; at the end of each
 /// window it says whether the window was still.
 #[derive(Clone, Debug, Default)]
-pub struct StandstillDetector {
+pub(crate) struct StandstillDetector {
     opts: StandstillOptions,
     n: usize,
     dt_s: f64,
@@ -109,19 +109,19 @@ pub struct StandstillDetector {
 }
 
 impl StandstillDetector {
-    pub fn new(opts: StandstillOptions) -> Self {
+    pub(crate) fn new(opts: StandstillOptions) -> Self {
         StandstillDetector {
             opts,
             ..Default::default()
         }
     }
 
-    pub fn options(&self) -> &StandstillOptions {
+    pub(crate) fn options(&self) -> &StandstillOptions {
         &self.opts
     }
 
     /// Forgets the current window (after a data gap).
-    pub fn reset(&mut self) {
+    pub(crate) fn reset(&mut self) {
         *self = StandstillDetector::new(self.opts);
     }
 
@@ -130,7 +130,7 @@ impl StandstillDetector {
     /// that compensated it, and its length. Returns the
     /// window's verdict when this sample completes a window: `Some(None)`
     /// moving, `Some(Some(w))` still.
-    pub fn push(
+    pub(crate) fn push(
         &mut self,
         f_n: &Vector3<f64>,
         w_b: &Vector3<f64>,
@@ -185,7 +185,7 @@ pub fn zupt(nav: &NavState, sd_mps: f64, n: usize) -> Observation {
 /// Zero angular rate: at rest the gyros measure b_g + ω_ie^b (scale-factor
 /// error on the earth rate, ≤ 10⁻⁶ rad/s, neglected), so with the window's
 /// mean raw rate ω̄, z = (b̂_g + ω_ie^b) − ω̄ = δb_g − noise.
-pub fn zaru(
+pub(crate) fn zaru(
     nav: &NavState,
     gyro_bias: &Vector3<f64>,
     window: &StillWindow,

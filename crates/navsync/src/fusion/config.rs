@@ -121,7 +121,7 @@ impl Default for RobustWeighting {
 
 impl RobustWeighting {
     /// The IGG-III equivalent weight of a standardised residual.
-    pub fn weight(&self, v: f64) -> f64 {
+    pub(crate) fn weight(&self, v: f64) -> f64 {
         let a = v.abs();
         if a <= self.k0 {
             1.0
@@ -174,13 +174,13 @@ pub struct FixRecord {
     /// "position" or "velocity".
     pub kind: &'static str,
     /// Innovation, predicted minus measured (m or m/s, NED).
-    pub innovation: [f64; 3],
+    pub(crate) innovation: [f64; 3],
     /// Stated standard deviations (m or m/s).
     pub sd: [f64; 3],
     /// Normalised innovation squared with the stated σ (3 degrees of freedom).
     pub nis: f64,
     /// Weight per axis (R divided by it, memory included).
-    pub weight: [f64; 3],
+    pub(crate) weight: [f64; 3],
     pub status: FixStatus,
 }
 
@@ -199,6 +199,7 @@ pub struct GnssErrorModel {
 }
 
 impl GnssErrorModel {
+    /// Checks the model's values; the message names the bad one.
     pub fn validate(&self) -> Result<(), String> {
         if self.gm_sd_m.iter().any(|s| !(s.is_finite() && *s > 0.0))
             || !(self.corr_time_s.is_finite() && self.corr_time_s > 0.0)
@@ -215,20 +216,20 @@ impl GnssErrorModel {
 /// Non-holonomic constraint settings.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct NhcOptions {
-    pub vehicle: VehicleConstraint,
+    pub(crate) vehicle: VehicleConstraint,
     /// Seconds between constraint updates.
-    pub interval_s: f64,
+    pub(crate) interval_s: f64,
 }
 
 /// Odometer speed update settings (speeds come from the IMU file's 8th
-/// column or from [`Fusion::push_speed`]).
+/// column or from `Fusion::push_speed`).
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct OdometerOptions {
-    pub vehicle: VehicleConstraint,
-    pub sd_mps: f64,
-    pub interval_s: f64,
+    pub(crate) vehicle: VehicleConstraint,
+    pub(crate) sd_mps: f64,
+    pub(crate) interval_s: f64,
     /// Estimate an odometer scale factor with this initial σ.
-    pub scale_sd: Option<f64>,
+    pub(crate) scale_sd: Option<f64>,
 }
 
 /// The IMU–GNSS time-offset state.
@@ -264,11 +265,11 @@ pub struct FusionConfig {
     /// Initial navigation state; its `time` is the start: samples before it
     /// are skipped and the first sample at or after it starts the run.
     pub init_nav: NavState,
-    pub init_imu: ImuErrors,
+    pub(crate) init_imu: ImuErrors,
     pub init_std: InitialStd,
     pub noise: ImuNoise,
     /// GNSS antenna position in the body frame (m, FRD).
-    pub antenna_lever_b: Vector3<f64>,
+    pub(crate) antenna_lever_b: Vector3<f64>,
     /// Nominal IMU rate (Hz), for gap detection.
     pub imu_rate_hz: f64,
     /// A step longer than this many nominal periods is a gap.
@@ -292,21 +293,21 @@ pub struct FusionConfig {
     /// A MEMS IMU's ±0.05° couples a 10°/s turn into 30°/h of tilt rate,
     /// which the 21 KF-GINS states leave out (the filter is then
     /// overconfident in turns and outages).
-    pub misalignment_sd_rad: Option<[f64; 2]>,
+    pub(crate) misalignment_sd_rad: Option<[f64; 2]>,
     /// Time-correlated GNSS position error as filter states.
     pub gnss_error: Option<GnssErrorModel>,
     /// Started levelled over a standstill: the tilt error is M·δb_a
     /// ([`crate::align::levelling_tilt_coupling`]). P starts with
     /// P_φφ += M Σ_b Mᵀ and P_φb = M Σ_b (Σ_b from `init_std.accel_bias`);
     /// `init_std.att` then holds only the tilt σ that is not the bias.
-    pub levelling_coupling: Option<Matrix3<f64>>,
+    pub(crate) levelling_coupling: Option<Matrix3<f64>>,
     /// With `levelling_coupling`: σ (rad) of the accelerometer triad's axis
     /// misalignment (the datasheet's cross-axis figure) when it is not
     /// estimated. Levelling takes the misaligned axes for level, so the
     /// tilt error gains M·J(f̄ᵇ)·δm_a, J the misalignment Jacobian of the
     /// levelled specific force f̄ᵇ. With the misalignment states on, their
     /// σ is used instead and P_φm is set as well.
-    pub levelling_accel_misalignment_sd_rad: f64,
+    pub(crate) levelling_accel_misalignment_sd_rad: f64,
     /// Detect standstills and apply zero-velocity and zero-angular-rate
     /// updates while stopped.
     pub standstill: Option<StandstillOptions>,
@@ -368,15 +369,15 @@ pub struct FusionStats {
     pub imu_samples: usize,
     pub gnss_fixes_used: usize,
     pub gnss_fixes_rejected: usize,
-    pub gnss_fixes_late: usize,
+    pub(crate) gnss_fixes_late: usize,
     pub gnss_velocity_used: usize,
-    pub gnss_velocity_rejected: usize,
-    pub gnss_split_intervals: usize,
-    pub gate_reopened: usize,
+    pub(crate) gnss_velocity_rejected: usize,
+    pub(crate) gnss_split_intervals: usize,
+    pub(crate) gate_reopened: usize,
     /// Fixes over the gate accepted because they agreed with the previous
     /// rejected fix (the INS had drifted beyond its covariance, which was
     /// inflated); see `Core::gnss_update`.
-    pub gnss_fixes_accepted_consistent: usize,
+    pub(crate) gnss_fixes_accepted_consistent: usize,
     /// Robust weighting: fixes used with an inflated R on some axis.
     pub gnss_fixes_downweighted: usize,
     pub gnss_velocity_downweighted: usize,
@@ -396,7 +397,7 @@ pub struct FusionStats {
     pub gaps: usize,
     pub gap_total_s: f64,
     pub max_gap_s: f64,
-    pub covariance_propagations: usize,
-    pub time_offset_held_updates: usize,
-    pub delayed_state_replays: usize,
+    pub(crate) covariance_propagations: usize,
+    pub(crate) time_offset_held_updates: usize,
+    pub(crate) delayed_state_replays: usize,
 }

@@ -18,7 +18,7 @@
 //!   [H, −v]; PSINS's delay state has the same rows): a fix tagged t is
 //!   processed at t − τ̂ and its rows are −v_antenna (position) and −a
 //!   (velocity). τ̂ is held while it is unobservable (standstill, constant
-//!   velocity), and a coarse search ([`crate::offset_search`]) brings large
+//!   velocity), and a coarse search (`crate::offset_search`) brings large
 //!   offsets (±0.5 s) within the filter's linear range.
 //! - Fixes that arrive late in real time (latency) are handled by one of
 //!   the [`LatencyMode`]s.
@@ -471,6 +471,7 @@ pub struct Fusion {
 }
 
 impl Fusion {
+    /// A filter over this configuration, waiting for its first IMU sample.
     pub fn new(cfg: FusionConfig) -> Self {
         let search = cfg
             .time_offset
@@ -499,7 +500,7 @@ impl Fusion {
     /// every correction epoch and at least every `node_interval_s`. Call
     /// before the first sample; then [`Self::smooth`] at the end.
     /// Smoothing is post-processing: it needs [`LatencyMode::Offline`].
-    pub fn enable_smoother(
+    pub(crate) fn enable_smoother(
         &mut self,
         dir: &std::path::Path,
         node_interval_s: f64,
@@ -549,23 +550,17 @@ impl Fusion {
     }
 
     /// The error-state layout (state names and indices).
-    pub fn state_layout(&self) -> &StateLayout {
+    pub(crate) fn state_layout(&self) -> &StateLayout {
         self.core.filter.layout()
     }
 
     /// Nodes and bytes the smoother has recorded so far.
-    pub fn smoother_record(&self) -> Option<(usize, u64)> {
+    pub(crate) fn smoother_record(&self) -> Option<(usize, u64)> {
         self.recorder.as_ref().map(|r| (r.node_count(), r.bytes()))
     }
 
-    /// The GNSS observations weighed so far (robust weighting): time,
-    /// innovation, NIS, weights and what became of each.
-    pub fn fix_log(&self) -> &[FixRecord] {
-        &self.fix_log
-    }
-
     /// Takes the GNSS observation records collected so far.
-    pub fn take_fix_log(&mut self) -> Vec<FixRecord> {
+    pub(crate) fn take_fix_log(&mut self) -> Vec<FixRecord> {
         std::mem::take(&mut self.fix_log)
     }
 
@@ -585,10 +580,11 @@ impl Fusion {
     }
 
     /// The current IMU error estimates.
-    pub fn imu_errors(&self) -> &ImuErrors {
+    pub(crate) fn imu_errors(&self) -> &ImuErrors {
         &self.core.imu
     }
 
+    /// Counts of what the filter did so far.
     pub fn stats(&self) -> FusionStats {
         let mut s = self.core.stats.clone();
         self.core.aid.counters(&mut s);
@@ -602,12 +598,12 @@ impl Fusion {
     }
 
     /// Takes the diagnostics collected so far.
-    pub fn take_diagnostics(&mut self) -> Diagnostics {
+    pub(crate) fn take_diagnostics(&mut self) -> Diagnostics {
         std::mem::replace(&mut self.diag, Diagnostics::with_cap(1000))
     }
 
     /// Estimated odometer scale factor (0 when not estimated).
-    pub fn odometer_scale(&self) -> f64 {
+    pub(crate) fn odometer_scale(&self) -> f64 {
         self.core.odo_scale
     }
 
@@ -621,7 +617,7 @@ impl Fusion {
     }
 
     /// The coarse time-offset search result, once it converged.
-    pub fn coarse_offset(&self) -> Option<OffsetEstimate> {
+    pub(crate) fn coarse_offset(&self) -> Option<OffsetEstimate> {
         self.search.as_ref().and_then(|s| s.result())
     }
 
@@ -643,7 +639,7 @@ impl Fusion {
     }
 
     /// Sets the odometer speed (m/s) used at the next odometer update.
-    pub fn push_speed(&mut self, speed_mps: f64) {
+    pub(crate) fn push_speed(&mut self, speed_mps: f64) {
         self.core.aid.odometer.speed_mps = Some(speed_mps);
     }
 

@@ -72,12 +72,13 @@ pub fn rate_increment(
     }
 }
 
+/// Counts of a rate-to-increment conversion.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct ConvertStats {
-    pub rates_in: usize,
-    pub increments_out: usize,
+    pub(crate) rates_in: usize,
+    pub(crate) increments_out: usize,
     /// Samples whose time was not after the previous one (ignored).
-    pub rejected_time: usize,
+    pub(crate) rejected_time: usize,
     /// Gaps longer than the bridging limit: the conversion restarted there
     /// and the gap stays visible in the output.
     pub gaps_not_bridged: usize,
@@ -95,7 +96,7 @@ pub struct RateToIncrement {
 
 impl RateToIncrement {
     /// A converter for rates of `kind`. Gaps of any length are bridged
-    /// (the trapezoid over the gap) until [`Self::with_max_bridge`] says
+    /// (the trapezoid over the gap) until `Self::with_max_bridge` says
     /// otherwise.
     pub fn new(kind: RateRule) -> Self {
         RateToIncrement {
@@ -110,18 +111,14 @@ impl RateToIncrement {
     /// sample after such a gap starts a new series (no increment is made
     /// for the gap, so it stays a gap downstream). Seed 001 §1.5 point 5
     /// calls any gap over 0.1 s a fault.
-    pub fn with_max_bridge(mut self, seconds: f64) -> Self {
-        self.max_bridge_ns = Some((seconds * 1e9).round() as i64);
+    pub(crate) fn with_max_bridge(mut self, seconds: f64) -> Self {
+        self.max_bridge_ns = Some(crate::time::seconds_to_ns(seconds));
         self
     }
 
+    /// What the conversion counted so far.
     pub fn stats(&self) -> &ConvertStats {
         &self.stats
-    }
-
-    /// Forgets the previous sample (the next one starts a new series).
-    pub fn reset(&mut self) {
-        self.prev = None;
     }
 
     /// The increment over `(t_prev, t]`, stamped `t`, or `None` for the

@@ -31,9 +31,10 @@ pub struct DecRate(pub u32);
 
 impl DecRate {
     /// Largest DEC_RATE the ADIS16465 accepts (2000 Hz / 2000 = 1 Hz).
-    pub const ADIS16465_MAX: u32 = 1999;
+    pub(crate) const ADIS16465_MAX: u32 = 1999;
     /// The ADIS16465's internal sampling rate (Hz).
-    pub const ADIS16465_INTERNAL_HZ: f64 = 2000.0;
+    #[cfg(test)]
+    pub(crate) const ADIS16465_INTERNAL_HZ: f64 = 2000.0;
 
     /// A register value checked against the ADIS16465 range 0..=1999.
     pub fn adis16465(reg: u32) -> Result<Self, Error> {
@@ -99,7 +100,7 @@ pub enum DecimationMethod {
 
 /// Where windows end.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
-pub enum WindowMode {
+pub(crate) enum WindowMode {
     /// Every `factor` input samples (device semantics).
     Count,
     /// At the sample nearest each multiple of `period_ns` (GPS time).
@@ -109,15 +110,15 @@ pub enum WindowMode {
 /// Counters of a decimator.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct DecimatorStats {
-    pub samples_in: usize,
-    pub samples_out: usize,
+    pub(crate) samples_in: usize,
+    pub(crate) samples_out: usize,
     /// Outputs made of fewer (or, in grid mode, more) input samples than
     /// the factor: at the start, around gaps, under clock drift.
     pub partial_windows: usize,
     /// Input intervals longer than `gap_factor` nominal periods.
     pub gaps: usize,
     /// Samples not after the previous one (ignored).
-    pub rejected_time: usize,
+    pub(crate) rejected_time: usize,
 }
 
 /// The outputs of one push: none, one, or (when a gap closes a window
@@ -309,6 +310,7 @@ impl IncrementDecimator {
         }
     }
 
+    /// What the decimator counted so far.
     pub fn stats(&self) -> &DecimatorStats {
         &self.win.stats
     }
@@ -424,6 +426,7 @@ impl RateDecimator {
         }
     }
 
+    /// What the decimator counted so far.
     pub fn stats(&self) -> &DecimatorStats {
         &self.win.stats
     }
@@ -546,6 +549,7 @@ pub struct Conditioner {
 }
 
 impl Conditioner {
+    /// A conditioner over this configuration.
     pub fn new(cfg: ConditionerConfig) -> Self {
         let bridge = |c: RateToIncrement| match cfg.max_bridge_s {
             Some(s) => c.with_max_bridge(s),
@@ -597,10 +601,11 @@ impl Conditioner {
             conv,
             rate_dec,
             inc_dec,
-            shift_ns: (cfg.delay_compensation_s * 1e9).round() as i64,
+            shift_ns: crate::time::seconds_to_ns(cfg.delay_compensation_s),
         }
     }
 
+    /// Its configuration.
     pub fn config(&self) -> &ConditionerConfig {
         &self.cfg
     }

@@ -45,6 +45,7 @@ pub enum ImuLogFormat {
 }
 
 impl ImuLogFormat {
+    /// The format's name in reports.
     pub fn name(self) -> &'static str {
         match self {
             ImuLogFormat::KfGins => "kf-gins",
@@ -62,8 +63,8 @@ impl ImuLogFormat {
 /// 10^`step_exp`).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct FieldDigits {
-    pub significant: u8,
-    pub step_exp: i16,
+    pub(crate) significant: u8,
+    pub(crate) step_exp: i16,
 }
 
 impl FieldDigits {
@@ -154,7 +155,7 @@ impl ImuLogReader {
 
     /// A reader fed by the caller through [`Self::sequence`] (lines parsed
     /// elsewhere, e.g. in parallel); `path` names the file in messages.
-    pub fn sequencer(path: &Path, format: Option<ImuLogFormat>) -> Self {
+    pub(crate) fn sequencer(path: &Path, format: Option<ImuLogFormat>) -> Self {
         ImuLogReader {
             lines: None,
             path: path.to_path_buf(),
@@ -178,6 +179,7 @@ impl ImuLogReader {
         }
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -198,7 +200,7 @@ impl ImuLogReader {
     }
 
     /// Lines that did not parse (reported and skipped).
-    pub fn malformed(&self) -> usize {
+    pub(crate) fn malformed(&self) -> usize {
         self.malformed
     }
 
@@ -314,7 +316,7 @@ impl ImuLogReader {
     /// possibly on other threads) and applies the checks that need
     /// order: header, field count, mixed formats. Returns true when a
     /// record was queued for [`Self::take_record`].
-    pub fn sequence(
+    pub(crate) fn sequence(
         &mut self,
         line_no: usize,
         parsed: Parsed,
@@ -394,7 +396,7 @@ impl ImuLogReader {
 
     /// After [`Self::sequence`]: the next record once the format is known
     /// (`None` while the format probe is still collecting).
-    pub fn take_record(&mut self) -> Result<Option<LogRecord>, Error> {
+    pub(crate) fn take_record(&mut self) -> Result<Option<LogRecord>, Error> {
         if self.format.is_none() {
             if self.queue.len() <= PROBE {
                 return Ok(None);
@@ -407,7 +409,7 @@ impl ImuLogReader {
     /// At the end of a file fed through [`Self::sequence`]: decides the
     /// format if the file was shorter than the probe, and returns the
     /// records still queued.
-    pub fn finish_sequence(&mut self) -> Result<Vec<LogRecord>, Error> {
+    pub(crate) fn finish_sequence(&mut self) -> Result<Vec<LogRecord>, Error> {
         if self.format.is_none() {
             self.decide_format()?;
         }
@@ -473,7 +475,7 @@ impl ImuLogReader {
 /// One line, parsed without context (so lines can be parsed in parallel;
 /// [`ImuLogReader::sequence`] applies the checks that need order).
 #[derive(Clone, Debug, PartialEq)]
-pub enum Parsed {
+pub(crate) enum Parsed {
     /// Blank or a `#` comment.
     Blank,
     /// A record with its field count (not yet checked against the file).
@@ -498,7 +500,7 @@ pub(crate) fn digits_wanted(line_no: usize) -> bool {
 
 /// Parses one line (without its terminator); `want_digits` also counts the
 /// digits written ([`FieldDigits`]; zeros otherwise).
-pub fn parse_line(line: &[u8], want_digits: bool) -> Parsed {
+pub(crate) fn parse_line(line: &[u8], want_digits: bool) -> Parsed {
     if is_blank_or_comment(line) {
         return Parsed::Blank;
     }
@@ -617,8 +619,9 @@ pub struct TimeOrder {
 
 impl TimeOrder {
     /// Records behind the last accepted time that make a reset.
-    pub const RESET_RUN: usize = 16;
+    pub(crate) const RESET_RUN: usize = 16;
 
+    /// Checks the time order of the next record (`path` names the file in errors).
     pub fn check(&mut self, path: &Path, rec: &LogRecord) -> Result<Order, Error> {
         let Some(last) = self.last_ns else {
             self.last_ns = Some(rec.time_ns);

@@ -69,10 +69,10 @@ pub struct LowPassSpec {
 
 /// One point of the delay curve.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
-pub struct DelayPoint {
-    pub freq_hz: f64,
-    pub delay_s: f64,
-    pub gain_db: f64,
+pub(crate) struct DelayPoint {
+    pub(crate) freq_hz: f64,
+    pub(crate) delay_s: f64,
+    pub(crate) gain_db: f64,
 }
 
 /// The group delay of a filter.
@@ -80,19 +80,19 @@ pub struct DelayPoint {
 pub struct GroupDelay {
     /// At DC, in samples of the filter's rate and in seconds: the delay
     /// compensated in the time stamps.
-    pub dc_samples: f64,
-    pub dc_s: f64,
-    pub dc_gain: f64,
+    pub(crate) dc_samples: f64,
+    pub(crate) dc_s: f64,
+    pub(crate) dc_gain: f64,
     /// −3 dB frequency (Hz), if the gain falls that far below Nyquist.
     pub cutoff_hz: Option<f64>,
     /// Dynamics band used below (Hz): up to `band_hz` or the cut-off.
-    pub band_hz: f64,
+    pub(crate) band_hz: f64,
     /// Smallest and largest delay in the band (s).
-    pub band_min_s: f64,
-    pub band_max_s: f64,
+    pub(crate) band_min_s: f64,
+    pub(crate) band_max_s: f64,
     /// The curve from DC to Nyquist (frequencies where the gain is zero
     /// are left out).
-    pub curve: Vec<DelayPoint>,
+    pub(crate) curve: Vec<DelayPoint>,
 }
 
 /// The triangular (Bartlett) window of `taps` taps, unnormalised:
@@ -149,7 +149,7 @@ impl LowPassFilter {
     }
 
     /// An `n`-tap moving average (boxcar).
-    pub fn moving_average(n: usize, sample_rate_hz: f64) -> Result<Self, Error> {
+    pub(crate) fn moving_average(n: usize, sample_rate_hz: f64) -> Result<Self, Error> {
         if n == 0 {
             return Err(Error::Invalid("moving average needs n >= 1".into()));
         }
@@ -173,7 +173,7 @@ impl LowPassFilter {
 
     /// The triangular window of `taps` taps ([`triangular_weights`]),
     /// normalised to unit DC gain.
-    pub fn triangular(taps: usize, sample_rate_hz: f64) -> Result<Self, Error> {
+    pub(crate) fn triangular(taps: usize, sample_rate_hz: f64) -> Result<Self, Error> {
         if taps == 0 {
             return Err(Error::Invalid(
                 "triangular filter needs at least 1 tap".into(),
@@ -190,7 +190,7 @@ impl LowPassFilter {
 
     /// A first-order low-pass y_k = α x_k + (1 − α) y_{k−1}, with
     /// α = 1 − exp(−2π f_c / f_s) (the sampled RC filter).
-    pub fn first_order(cutoff_hz: f64, sample_rate_hz: f64) -> Result<Self, Error> {
+    pub(crate) fn first_order(cutoff_hz: f64, sample_rate_hz: f64) -> Result<Self, Error> {
         if cutoff_hz.is_nan() || cutoff_hz <= 0.0 {
             return Err(Error::Invalid(
                 "first-order filter needs cutoff_hz > 0".into(),
@@ -206,7 +206,7 @@ impl LowPassFilter {
     }
 
     /// Builds a filter from its file form.
-    pub fn from_spec(spec: &LowPassSpec) -> Result<Self, Error> {
+    pub(crate) fn from_spec(spec: &LowPassSpec) -> Result<Self, Error> {
         let fs = spec.sample_rate_hz;
         let mut f = match spec.kind.as_str() {
             "fir" => {
@@ -267,11 +267,6 @@ impl LowPassFilter {
         Self::from_spec(&spec).map_err(|e| Error::config(path, e.to_string()))
     }
 
-    /// True for an FIR filter.
-    pub fn is_fir(&self) -> bool {
-        self.a.len() == 1
-    }
-
     /// Complex frequency response at ω (rad/sample): (re, im).
     fn response(c: &[f64], w: f64) -> ((f64, f64), (f64, f64)) {
         // Σ c_n e^{−jωn} and Σ n c_n e^{−jωn}.
@@ -295,7 +290,7 @@ impl LowPassFilter {
 
     /// Group delay (samples) and gain |H| at ω (rad/sample); NaN delay
     /// where the gain is zero.
-    pub fn delay_and_gain(&self, w: f64) -> (f64, f64) {
+    pub(crate) fn delay_and_gain(&self, w: f64) -> (f64, f64) {
         let (tb, mb) = Self::poly_delay(&self.b, w);
         let (ta, ma) = Self::poly_delay(&self.a, w);
         let gain = (mb / ma).sqrt();
@@ -306,7 +301,7 @@ impl LowPassFilter {
     }
 
     /// Group delay at DC in samples: Σ n b_n/Σ b_n − Σ n a_n/Σ a_n.
-    pub fn dc_delay_samples(&self) -> f64 {
+    pub(crate) fn dc_delay_samples(&self) -> f64 {
         let m = |c: &[f64]| {
             c.iter().enumerate().map(|(n, x)| n as f64 * x).sum::<f64>() / c.iter().sum::<f64>()
         };
@@ -417,7 +412,8 @@ impl LowPassFilter {
     }
 
     /// A streaming instance of the filter (direct form II transposed).
-    pub fn runner(&self) -> FilterRunner {
+    #[cfg(test)]
+    pub(crate) fn runner(&self) -> FilterRunner {
         FilterRunner {
             b: self.b.clone(),
             a: self.a.clone(),
@@ -428,16 +424,18 @@ impl LowPassFilter {
 
 /// Runs a filter on one channel, sample by sample (to simulate what the
 /// IMU did, and in tests).
+#[cfg(test)]
 #[derive(Clone, Debug)]
-pub struct FilterRunner {
+pub(crate) struct FilterRunner {
     b: Vec<f64>,
     a: Vec<f64>,
     z: Vec<f64>,
 }
 
+#[cfg(test)]
 impl FilterRunner {
     /// Starts the filter in steady state at `x0` (no start-up transient).
-    pub fn prime(&mut self, x0: f64) {
+    pub(crate) fn prime(&mut self, x0: f64) {
         let gain = self.b.iter().sum::<f64>() / self.a.iter().sum::<f64>();
         let y0 = gain * x0;
         // DF-II transposed steady state: z_i = Σ_{k>i} (b_k x0 − a_k y0).
@@ -453,7 +451,7 @@ impl FilterRunner {
     }
 
     /// Filters one sample.
-    pub fn step(&mut self, x: f64) -> f64 {
+    pub(crate) fn step(&mut self, x: f64) -> f64 {
         let n = self.z.len();
         let b = |k: usize| self.b.get(k).copied().unwrap_or(0.0);
         let a = |k: usize| self.a.get(k).copied().unwrap_or(0.0);

@@ -40,11 +40,10 @@ use crate::time::GpsTime;
 
 pub use convert::{RateRule, RateToIncrement};
 pub use decimate::{
-    Conditioner, ConditionerConfig, DecRate, DecimationMethod, DecimatorStats, IncrementDecimator,
-    RateDecimator,
+    Conditioner, ConditionerConfig, DecRate, DecimationMethod, IncrementDecimator, RateDecimator,
 };
-pub use log::{ImuLogFormat, ImuLogReader, LogRecord};
-pub use lowpass::{GroupDelay, LowPassFilter};
+pub use log::{ImuLogFormat, ImuLogReader};
+pub use lowpass::LowPassFilter;
 pub use quality::{QualityAnalyzer, QualityConfig, QualityReport, Status, check_file};
 
 /// Angular rate and specific force at one instant (or averaged over the

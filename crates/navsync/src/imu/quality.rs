@@ -118,6 +118,7 @@ pub enum Status {
 }
 
 impl Status {
+    /// The status as a word for reports.
     pub fn label(self) -> &'static str {
         match self {
             Status::Pass => "PASS",
@@ -181,18 +182,18 @@ pub struct Event {
 pub struct Counts {
     pub malformed_lines: usize,
     pub gaps: usize,
-    pub gaps_over_limit: usize,
-    pub lost_samples: usize,
+    pub(crate) gaps_over_limit: usize,
+    pub(crate) lost_samples: usize,
     pub duplicates: usize,
     pub out_of_order: usize,
     pub stale_records: usize,
     pub stuck_segments: usize,
-    pub stuck_samples: usize,
+    pub(crate) stuck_samples: usize,
     pub saturation_events: usize,
-    pub saturated_samples: usize,
+    pub(crate) saturated_samples: usize,
     pub spikes: usize,
     /// Records with at least one spike.
-    pub spike_records: usize,
+    pub(crate) spike_records: usize,
 }
 
 impl Counts {
@@ -214,84 +215,84 @@ impl Counts {
 /// Interval statistics (s).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct IntervalStats {
-    pub nominal_s: f64,
-    pub mean_s: f64,
-    pub median_s: f64,
-    pub min_s: f64,
-    pub max_s: f64,
+    pub(crate) nominal_s: f64,
+    pub(crate) mean_s: f64,
+    pub(crate) median_s: f64,
+    pub(crate) min_s: f64,
+    pub(crate) max_s: f64,
     /// RMS deviation from the mean over intervals that are not gaps.
-    pub jitter_rms_s: f64,
-    pub jitter_rms_frac: f64,
+    pub(crate) jitter_rms_s: f64,
+    pub(crate) jitter_rms_frac: f64,
     /// 99th percentile of |interval − nominal| (histogram, 0.1 % bins).
-    pub p99_abs_dev_s: f64,
+    pub(crate) p99_abs_dev_s: f64,
 }
 
 /// Per-channel findings (values in rate units: rad/s, m/s²).
 #[derive(Clone, Debug, Serialize)]
 pub struct ChannelReport {
     pub name: &'static str,
-    pub unit: &'static str,
+    pub(crate) unit: &'static str,
     pub mean: f64,
     pub std: f64,
     pub min: f64,
     pub max: f64,
     /// Fraction of samples equal to the one before.
-    pub repeat_fraction: f64,
+    pub(crate) repeat_fraction: f64,
     /// Sensor resolution found in the values (None: no grid).
-    pub quantization_step: Option<f64>,
-    pub min_significant_digits: u8,
+    pub(crate) quantization_step: Option<f64>,
+    pub(crate) min_significant_digits: u8,
     /// Median significant digits written.
-    pub typical_significant_digits: u8,
+    pub(crate) typical_significant_digits: u8,
     /// Typical resolution of the written numbers.
-    pub print_step: f64,
+    pub(crate) print_step: f64,
     /// High-frequency noise σ (robust, from second differences).
-    pub noise_sd: f64,
+    pub(crate) noise_sd: f64,
     /// Print rounding noise (step/√12) over `noise_sd`.
-    pub rounding_to_noise: f64,
-    pub stuck_segments: usize,
-    pub saturated_samples: usize,
-    pub spikes: usize,
+    pub(crate) rounding_to_noise: f64,
+    pub(crate) stuck_segments: usize,
+    pub(crate) saturated_samples: usize,
+    pub(crate) spikes: usize,
 }
 
 /// A static segment found in the log.
 #[derive(Clone, Debug, Serialize)]
 pub struct StaticSegment {
-    pub first_line: usize,
-    pub start_s: f64,
+    pub(crate) first_line: usize,
+    pub(crate) start_s: f64,
     pub duration_s: f64,
 }
 
 /// Allan results of one channel.
 #[derive(Clone, Debug, Serialize)]
-pub struct AllanChannel {
+pub(crate) struct AllanChannel {
     pub name: &'static str,
     /// Random walk in SI (rad/√s, m/s/√s) and in display units
     /// (deg/√h, m/s/√h).
-    pub random_walk: f64,
-    pub random_walk_display: f64,
+    pub(crate) random_walk: f64,
+    pub(crate) random_walk_display: f64,
     /// Bias instability in SI (rad/s, m/s²) and display (deg/h, mGal).
-    pub bias_instability: f64,
-    pub bias_instability_display: f64,
-    pub bias_instability_tau_s: f64,
+    pub(crate) bias_instability: f64,
+    pub(crate) bias_instability_display: f64,
+    pub(crate) bias_instability_tau_s: f64,
     /// False when the curve had not turned up within the segment (the
     /// value is then an upper bound).
-    pub bias_instability_resolved: bool,
+    pub(crate) bias_instability_resolved: bool,
     /// Lag-1 and lag-2 autocorrelation of the static noise (≈ 0 when
     /// white; a low-pass filter makes them large). Increments converted
     /// from white rates by the trapezoid have lag-1 0.5 and lag-2 0 (a
     /// two-sample average with no delay beyond its own interval), so for
     /// increment logs only lag 2 tells a filter.
-    pub lag1_correlation: f64,
-    pub lag2_correlation: f64,
-    pub curve: Vec<AllanPoint>,
+    pub(crate) lag1_correlation: f64,
+    pub(crate) lag2_correlation: f64,
+    pub(crate) curve: Vec<AllanPoint>,
 }
 
 /// Allan analysis of the longest static segment.
 #[derive(Clone, Debug, Serialize)]
 pub struct AllanReport {
-    pub segment: StaticSegment,
-    pub tau0_s: f64,
-    pub channels: Vec<AllanChannel>,
+    pub(crate) segment: StaticSegment,
+    pub(crate) tau0_s: f64,
+    pub(crate) channels: Vec<AllanChannel>,
 }
 
 /// The delay of a declared low-pass filter.
@@ -311,25 +312,25 @@ pub struct QualityReport {
     pub records: usize,
     /// Records in time order (duplicates and out-of-order excluded).
     pub accepted: usize,
-    pub first_time_s: f64,
-    pub last_time_s: f64,
+    pub(crate) first_time_s: f64,
+    pub(crate) last_time_s: f64,
     pub duration_s: f64,
     pub nominal_rate_hz: f64,
     /// A round rate within 1 % of the nominal one, if any.
-    pub round_rate_hz: Option<f64>,
+    pub(crate) round_rate_hz: Option<f64>,
     /// From a least-squares fit of time on sample index.
     pub true_rate_hz: f64,
     /// (round or nominal period / true period − 1) × 1e6.
-    pub rate_error_ppm: f64,
+    pub(crate) rate_error_ppm: f64,
     pub intervals: IntervalStats,
-    pub longest_gap_s: f64,
-    pub longest_gap_line: usize,
+    pub(crate) longest_gap_s: f64,
+    pub(crate) longest_gap_line: usize,
     pub counts: Counts,
-    pub bad_records: usize,
-    pub loss_rate: f64,
-    pub bad_data_rate: f64,
+    pub(crate) bad_records: usize,
+    pub(crate) loss_rate: f64,
+    pub(crate) bad_data_rate: f64,
     pub channels: Vec<ChannelReport>,
-    pub static_segments: Vec<StaticSegment>,
+    pub(crate) static_segments: Vec<StaticSegment>,
     pub allan: Option<AllanReport>,
     pub lowpass: Option<LowPassReport>,
     pub criteria: Vec<Criterion>,
@@ -1952,8 +1953,8 @@ fn criteria(r: &QualityReport, cfg: &QualityConfig) -> Vec<Criterion> {
 }
 
 /// Checks a log file. One thread reads blocks, worker threads parse them
-/// ([`super::log::parse_line`]), the calling thread puts them back in
-/// order ([`ImuLogReader::sequence`]) and analyzes. Malformed lines are
+/// (`super::log::parse_line`), the calling thread puts them back in
+/// order (`ImuLogReader::sequence`) and analyzes. Malformed lines are
 /// reported in `diag` (and counted as bad data).
 pub fn check_file(
     path: &Path,

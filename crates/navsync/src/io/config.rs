@@ -105,7 +105,6 @@ pub struct KfGinsConfig {
     pub imu_path: PathBuf,
     pub gnss_path: PathBuf,
     pub output_path: PathBuf,
-    pub imu_columns: usize,
     pub imu_rate_hz: f64,
     /// Start, seconds of week.
     pub start_sow: f64,
@@ -117,10 +116,10 @@ pub struct KfGinsConfig {
     /// Whether `initpos`, `initvel` and `initatt` were given; without them
     /// the run starts from an alignment ([`crate::align`]).
     pub init_state_given: bool,
-    pub init_imu: ImuErrors,
+    pub(crate) init_imu: ImuErrors,
     pub init_std: InitialStd,
     pub noise: ImuNoise,
-    pub antenna_lever: Vector3<f64>,
+    pub(crate) antenna_lever: Vector3<f64>,
 }
 
 impl KfGinsConfig {
@@ -280,7 +279,6 @@ impl KfGinsConfig {
             imu_path: resolve_input(&cx.string("imupath")?, path, diag),
             gnss_path: resolve_input(&cx.string("gnsspath")?, path, diag),
             output_path: PathBuf::from(cx.string("outputpath")?),
-            imu_columns: imu_columns as usize,
             imu_rate_hz,
             start_sow,
             end_sow,

@@ -52,11 +52,11 @@ impl ExportFormat {
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct SolutionSd {
     /// Position σ north, east, down (m).
-    pub pos_m: [f64; 3],
+    pub(crate) pos_m: [f64; 3],
     /// Velocity σ north, east, down (m/s).
-    pub vel_mps: [f64; 3],
+    pub(crate) vel_mps: [f64; 3],
     /// Attitude σ roll, pitch, yaw (deg).
-    pub att_deg: [f64; 3],
+    pub(crate) att_deg: [f64; 3],
 }
 
 /// Reads a KF-GINS `std.txt` (`sow pos×3 vel×3 att×3 …`, at least 10
@@ -161,7 +161,7 @@ pub fn sd_at(sd: &[(GpsTime, SolutionSd)], t: GpsTime) -> Option<SolutionSd> {
 /// `every_s` = 1 the records on whole seconds, plus the very first one).
 /// `every_s` ≤ 0 keeps all.
 pub fn decimate(recs: &[NavRecord], every_s: f64) -> Vec<NavRecord> {
-    let bin_ns = (every_s * 1e9).round() as i64;
+    let bin_ns = crate::time::seconds_to_ns(every_s);
     if bin_ns <= 0 {
         return recs.to_vec();
     }
@@ -200,7 +200,7 @@ pub struct ExportMeta {
 
 /// Namespace of navsync's GPX extension elements (σ in metres: GPX's own
 /// `<hdop>`/`<vdop>` are dilutions of precision, not lengths).
-pub const GPX_EXTENSION_NS: &str = "urn:navsync:gpx:sd:1";
+pub(crate) const GPX_EXTENSION_NS: &str = "urn:navsync:gpx:sd:1";
 
 /// Writes `points` in `format` into `out`.
 pub fn write(format: ExportFormat, points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
@@ -302,7 +302,7 @@ fn msl_or_h(p: &ExportPoint) -> f64 {
 /// the position σ in metres as extension elements (`sd_n_m`, `sd_e_m`,
 /// `sd_d_m` in [`GPX_EXTENSION_NS`]), allowed by `extensionsType`
 /// (`xsd:any namespace="##other"`).
-pub fn write_gpx(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
+pub(crate) fn write_gpx(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
     push_str(out, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
     push_str(out, "<gpx version=\"1.1\" creator=\"");
     push_xml_text(out, &meta.creator);
@@ -363,7 +363,7 @@ pub fn write_gpx(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
 /// `Placemark`s, each with its `TimeStamp` (UTC), a `description` with the
 /// σ for the viewer's balloon and the same values as `ExtendedData`.
 /// Altitudes are `absolute` (above sea level, §16.1 altitudeModeEnumType).
-pub fn write_kml(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
+pub(crate) fn write_kml(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
     push_str(
         out,
         "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<kml xmlns=\"http://www.opengis.net/kml/2.2\">\n<Document>\n<name>",
@@ -444,7 +444,7 @@ pub fn write_kml(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
 }
 
 /// Names of the 9 σ columns/properties, with units.
-pub const SD_NAMES: [&str; 9] = [
+pub(crate) const SD_NAMES: [&str; 9] = [
     "sd_n_m",
     "sd_e_m",
     "sd_d_m",
@@ -457,7 +457,7 @@ pub const SD_NAMES: [&str; 9] = [
 ];
 
 /// Names of the nav columns after week and sow, with units.
-pub const NAV_NAMES: [&str; 9] = [
+pub(crate) const NAV_NAMES: [&str; 9] = [
     "lat_deg",
     "lon_deg",
     "h_m",
@@ -506,7 +506,7 @@ fn sd_values(s: &SolutionSd) -> [f64; 9] {
 /// column with its unit, `week,sow_s,lat_deg,…,yaw_deg,sd_n_m,…,sd_yaw_deg`
 /// (heights ellipsoidal; σ fields empty where `std.txt` has none), values at
 /// the precision of the nav and std files.
-pub fn write_csv(points: &[ExportPoint], out: &mut Vec<u8>) {
+pub(crate) fn write_csv(points: &[ExportPoint], out: &mut Vec<u8>) {
     push_str(out, "week,sow_s");
     for n in NAV_NAMES.iter().chain(&SD_NAMES) {
         out.push(b',');
@@ -538,7 +538,7 @@ pub fn write_csv(points: &[ExportPoint], out: &mut Vec<u8>) {
 /// track (`LineString`) and then one `Point` per epoch with the nav values
 /// and σ (null where unknown) as properties. Positions are `[lon, lat, h]`,
 /// h above the WGS 84 ellipsoid (§4), longitudes in [−180, 180).
-pub fn write_geojson(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
+pub(crate) fn write_geojson(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8>) {
     let push_pos = |out: &mut Vec<u8>, r: &NavRecord| {
         out.push(b'[');
         push_fixed(out, lon_180(r.lon_deg), 12);
@@ -609,7 +609,7 @@ pub fn write_geojson(points: &[ExportPoint], meta: &ExportMeta, out: &mut Vec<u8
 /// C_e^{n0} C_n^e(p) C_b^n(p), so it stays consistent with the positions
 /// far from the origin. Timestamp: GPS seconds since 1980-01-06 (the
 /// seconds of week when the nav file's week is 0), to the nanosecond.
-pub fn write_tum(points: &[ExportPoint], out: &mut Vec<u8>) {
+pub(crate) fn write_tum(points: &[ExportPoint], out: &mut Vec<u8>) {
     let Some(first) = points.first() else {
         return;
     };

@@ -44,12 +44,13 @@ impl ImuReader {
         })
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
 
     /// Records read so far.
-    pub fn count(&self) -> usize {
+    pub(crate) fn count(&self) -> usize {
         self.count
     }
 
@@ -144,10 +145,11 @@ pub struct GnssReader {
     count: usize,
     /// Replace standard deviations below this (m or m/s) instead of skipping
     /// the fix; `None` skips fixes with a non-positive std.
-    pub sd_floor: Option<f64>,
+    pub(crate) sd_floor: Option<f64>,
 }
 
 impl GnssReader {
+    /// Opens a KF-GINS GNSS file of this layout; `week` dates its seconds of week.
     pub fn open(path: &Path, week: i64, layout: GnssLayout) -> Result<Self, Error> {
         Ok(GnssReader {
             lines: LineReader::open(path)?,
@@ -160,6 +162,7 @@ impl GnssReader {
         })
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -313,6 +316,7 @@ pub struct NavReader {
 }
 
 impl NavReader {
+    /// Opens a KF-GINS navigation result (`.nav`).
     pub fn open(path: &Path) -> Result<Self, Error> {
         Ok(NavReader {
             lines: LineReader::open(path)?,
@@ -322,6 +326,7 @@ impl NavReader {
         })
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
     }
@@ -424,7 +429,7 @@ impl NavReader {
 /// separators, `#` comments). Epochs are placed in `week` when the file has
 /// none or when `week` is 0 (KF-GINS files carry no week). Epochs must
 /// increase; others are errors naming the line.
-pub fn read_times(path: &Path, week: i64) -> Result<Vec<GpsTime>, Error> {
+pub(crate) fn read_times(path: &Path, week: i64) -> Result<Vec<GpsTime>, Error> {
     let mut lines = LineReader::open(path)?;
     let mut out: Vec<GpsTime> = Vec::new();
     while let Some((line, line_no)) = lines.next_line()? {
@@ -522,7 +527,7 @@ pub fn format_imu_err_line(out: &mut Vec<u8>, time: GpsTime, e: &ImuErrors) {
 /// `sow pos(m ×3) vel(m/s ×3) att(deg ×3) gyro_bias(deg/h ×3)
 /// accel_bias(mGal ×3) gyro_scale(ppm ×3) accel_scale(ppm ×3)`; `sd` holds
 /// the 21 core standard deviations in SI units.
-pub fn format_std_line(out: &mut Vec<u8>, time: GpsTime, sd: &[f64]) {
+pub(crate) fn format_std_line(out: &mut Vec<u8>, time: GpsTime, sd: &[f64]) {
     time.write_sow(out);
     let deg = 180.0 / std::f64::consts::PI;
     for (i, &s) in sd.iter().take(21).enumerate() {
@@ -591,6 +596,7 @@ pub struct TextWriter {
 }
 
 impl TextWriter {
+    /// Creates (or truncates) the file.
     pub fn create(path: &Path) -> Result<Self, Error> {
         let file = File::create(path).map_err(|e| Error::io(path, e))?;
         Ok(TextWriter {
@@ -599,12 +605,14 @@ impl TextWriter {
         })
     }
 
+    /// Appends bytes (buffered).
     pub fn write(&mut self, bytes: &[u8]) -> Result<(), Error> {
         self.inner
             .write_all(bytes)
             .map_err(|e| Error::io(&self.path, e))
     }
 
+    /// Flushes the buffer; an error names the file.
     pub fn finish(mut self) -> Result<(), Error> {
         self.inner.flush().map_err(|e| Error::io(&self.path, e))
     }

@@ -14,9 +14,12 @@ use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use super::text::{LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, split_fields};
+use super::text::{
+    LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, plain_number, split_fields,
+};
 use crate::error::{Diagnostics, Error};
 use crate::time::{GpsTime, NS_PER_WEEK};
+use crate::words;
 
 /// What the six values of an `imu` record are.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -118,43 +121,40 @@ impl RigRecord {
 }
 
 impl ImuKind {
+    /// The header's words, both ways.
+    const WORDS: [(ImuKind, &'static str); 2] =
+        [(ImuKind::Rate, "rate"), (ImuKind::Increment, "increment")];
+
     /// The header's word for it.
     pub fn name(self) -> &'static str {
-        match self {
-            ImuKind::Rate => "rate",
-            ImuKind::Increment => "increment",
-        }
+        words::word_of(&Self::WORDS, self)
     }
 }
 
 impl ImuTiming {
+    /// The header's words, both ways.
+    const WORDS: [(ImuTiming, &'static str); 3] = [
+        (ImuTiming::DataReady, "data-ready"),
+        (ImuTiming::FrameStart, "frame-start"),
+        (ImuTiming::Receive, "receive"),
+    ];
+
     /// The header's word for it.
     pub fn name(self) -> &'static str {
-        match self {
-            ImuTiming::DataReady => "data-ready",
-            ImuTiming::FrameStart => "frame-start",
-            ImuTiming::Receive => "receive",
-        }
+        words::word_of(&Self::WORDS, self)
     }
 }
 
 impl RateSampling {
+    /// The header's words, both ways.
+    const WORDS: [(RateSampling, &'static str); 2] = [
+        (RateSampling::Instantaneous, "instantaneous"),
+        (RateSampling::IntervalAverage, "interval-average"),
+    ];
+
     /// The header's word for it.
     pub fn name(self) -> &'static str {
-        match self {
-            RateSampling::Instantaneous => "instantaneous",
-            RateSampling::IntervalAverage => "interval-average",
-        }
-    }
-}
-
-/// A header number as written: integers without a decimal point, other
-/// values in their shortest round-trip form.
-fn header_number(x: f64) -> String {
-    if x.fract() == 0.0 && x.abs() < 1e15 {
-        format!("{}", x as i64)
-    } else {
-        format!("{x}")
+        words::word_of(&Self::WORDS, self)
     }
 }
 
@@ -180,12 +180,12 @@ impl RigHeader {
         let mut h = String::from("# rig-log v1\n");
         h.push_str(&format!(
             "# counter_hz: {}\n",
-            header_number(self.counter_hz)
+            plain_number(self.counter_hz)
         ));
         h.push_str(&format!("# counter_bits: {}\n", self.counter_bits));
         h.push_str(&format!("# imu: {}\n", self.imu_kind.name()));
         if let Some(r) = self.imu_rate_hz {
-            h.push_str(&format!("# imu_rate_hz: {}\n", header_number(r)));
+            h.push_str(&format!("# imu_rate_hz: {}\n", plain_number(r)));
         }
         if let Some(t) = self.imu_timing {
             h.push_str(&format!("# imu_timing: {}\n", t.name()));
@@ -194,7 +194,7 @@ impl RigHeader {
             h.push_str(&format!("# imu_rates: {}\n", r.name()));
         }
         if let Some(d) = self.imu_output_delay_s {
-            h.push_str(&format!("# imu_output_delay_s: {}\n", header_number(d)));
+            h.push_str(&format!("# imu_output_delay_s: {}\n", plain_number(d)));
         }
         for (k, v) in &self.extra {
             h.push_str(&format!("# {k}: {v}\n"));
@@ -380,14 +380,16 @@ impl<R: Read> RigLogReader<R> {
                     }
                 },
                 "imu" => {
-                    imu_kind = Some(match first {
-                        "rate" => ImuKind::Rate,
-                        "increment" => ImuKind::Increment,
-                        _ => {
+                    imu_kind = Some(match words::from_word(&ImuKind::WORDS, first) {
+                        Some(k) => k,
+                        None => {
                             return Err(Error::parse(
                                 &path,
                                 no,
-                                format!("imu: expected 'rate' or 'increment', found '{value}'"),
+                                format!(
+                                    "imu: expected {}, found '{value}'",
+                                    words::quoted_choices(&ImuKind::WORDS)
+                                ),
                             ));
                         }
                     })
@@ -400,26 +402,25 @@ impl<R: Read> RigLogReader<R> {
                         format!("imu_rate_hz: '{value}' is not a positive rate; ignored"),
                     ),
                 },
-                "imu_timing" => match first {
-                    "data-ready" => imu_timing = Some(ImuTiming::DataReady),
-                    "frame-start" => imu_timing = Some(ImuTiming::FrameStart),
-                    "receive" => imu_timing = Some(ImuTiming::Receive),
-                    _ => diag.push(
+                "imu_timing" => match words::from_word(&ImuTiming::WORDS, first) {
+                    Some(t) => imu_timing = Some(t),
+                    None => diag.push(
                         &path,
                         no,
                         format!(
-                            "imu_timing: expected 'data-ready', 'frame-start' or 'receive', found '{value}'; ignored"
+                            "imu_timing: expected {}, found '{value}'; ignored",
+                            words::quoted_choices(&ImuTiming::WORDS)
                         ),
                     ),
                 },
-                "imu_rates" => match first {
-                    "instantaneous" => imu_rates = Some(RateSampling::Instantaneous),
-                    "interval-average" => imu_rates = Some(RateSampling::IntervalAverage),
-                    _ => diag.push(
+                "imu_rates" => match words::from_word(&RateSampling::WORDS, first) {
+                    Some(r) => imu_rates = Some(r),
+                    None => diag.push(
                         &path,
                         no,
                         format!(
-                            "imu_rates: expected 'instantaneous' or 'interval-average', found '{value}'; ignored"
+                            "imu_rates: expected {}, found '{value}'; ignored",
+                            words::quoted_choices(&RateSampling::WORDS)
                         ),
                     ),
                 },

@@ -41,7 +41,7 @@ pub enum GnssFormat {
 }
 
 /// Highest RTKLIB quality flag (6 = PPP).
-pub const RTKLIB_MAX_Q: u8 = 6;
+pub(crate) const RTKLIB_MAX_Q: u8 = 6;
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 enum Frame {
@@ -192,9 +192,9 @@ pub struct PosReader<R = File> {
     /// Keep solutions with quality flag Q ≤ this (1 fix … 6 PPP).
     pub max_q: u8,
     /// Replace standard deviations below this (m, m/s) instead of skipping.
-    pub sd_floor: Option<f64>,
+    pub(crate) sd_floor: Option<f64>,
     /// Solutions skipped by Q, indexed by Q (0 unused).
-    pub q_skipped: [usize; 7],
+    pub(crate) q_skipped: [usize; 7],
 }
 
 impl PosReader<File> {
@@ -226,13 +226,9 @@ impl<R: Read> PosReader<R> {
         }
     }
 
+    /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
-    }
-
-    /// Fixes read so far.
-    pub fn count(&self) -> usize {
-        self.count
     }
 
     /// The next kept fix; bad lines are reported into `diag` and skipped,

@@ -33,13 +33,8 @@ impl SpeedStream {
             next: None,
             count: 0,
             done: false,
-            max_gap_ns: (max_gap_s * 1e9).round() as i64,
+            max_gap_ns: crate::time::seconds_to_ns(max_gap_s),
         })
-    }
-
-    /// Speeds read so far.
-    pub fn count(&self) -> usize {
-        self.count
     }
 
     fn read(&mut self, diag: &mut Diagnostics) -> Result<Option<(GpsTime, f64)>, Error> {

@@ -169,7 +169,7 @@ pub fn split_fields<'a>(line: &'a [u8], out: &mut [&'a [u8]]) -> usize {
 /// Calls `f(start, end)` for each field of `line` (byte ranges), fields
 /// split at any mix of spaces, tabs, commas and carriage returns.
 #[inline]
-pub fn for_each_field(line: &[u8], mut f: impl FnMut(usize, usize)) {
+pub(crate) fn for_each_field(line: &[u8], mut f: impl FnMut(usize, usize)) {
     let mut i = 0;
     let n = line.len();
     while i < n {
@@ -258,7 +258,7 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
             b'e' | b'E' => {
                 let _ = k;
                 let v = parse_f64(field)?;
-                return Ok((v * 1e9).round() as i64);
+                return Ok(crate::time::seconds_to_ns(v));
             }
             _ => {
                 return Err(format!(
@@ -288,7 +288,18 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
     Ok(if neg { -ns } else { ns })
 }
 
-pub use crate::numfmt::{push_f64, push_fixed, push_u64, push_u64_padded};
+pub use crate::numfmt::{push_f64, push_u64};
+pub(crate) use crate::numfmt::{push_fixed, push_u64_padded};
+
+/// A number for a header or configuration line: integers without a
+/// decimal point, other values in their shortest round-trip form.
+pub fn plain_number(x: f64) -> String {
+    if x.fract() == 0.0 && x.abs() < 1e15 {
+        format!("{}", x as i64)
+    } else {
+        format!("{x}")
+    }
+}
 
 #[cfg(test)]
 mod tests {

@@ -33,37 +33,37 @@ pub struct ClockConfig {
     /// Nominal counter frequency (Hz).
     pub counter_hz: f64,
     /// 1PPS edge jitter (s, 1σ), on top of the counter quantization.
-    pub pps_jitter_s: f64,
+    pub(crate) pps_jitter_s: f64,
     /// Pulses in the causal (real-time) regression window.
-    pub causal_window: usize,
+    pub(crate) causal_window: usize,
     /// Half-width of the post-processing smoothing window (s).
-    pub smooth_half_window_s: f64,
+    pub(crate) smooth_half_window_s: f64,
     /// Gate on a pulse's innovation, in predicted standard deviations.
-    pub gate_sigmas: f64,
+    pub(crate) gate_sigmas: f64,
     /// Narrowest gate (s).
-    pub min_gate_s: f64,
+    pub(crate) min_gate_s: f64,
     /// Largest plausible counter frequency error at start-up (ppm).
-    pub max_freq_error_ppm: f64,
+    pub(crate) max_freq_error_ppm: f64,
     /// Frequency random walk of the counter oscillator (1/s): the variance
     /// of the fractional-frequency change over Δ seconds is `q·Δ`.
-    pub freq_random_walk: f64,
+    pub(crate) freq_random_walk: f64,
     /// Drift random walk (1/s³): variance of the drift change is `q·Δ`.
-    pub drift_random_walk: f64,
+    pub(crate) drift_random_walk: f64,
     /// Largest change of drift the past cannot foresee (1/s), e.g. a
     /// temperature ramp starting during a dropout: adds ½·d·Δ² to bounds
     /// and gates after Δ seconds without pulses.
-    pub max_drift_change: f64,
+    pub(crate) max_drift_change: f64,
     /// Error bounds are this many standard deviations (plus the above).
-    pub bound_sigmas: f64,
+    pub(crate) bound_sigmas: f64,
     /// Corrections larger than this are slewed, not stepped (s), causal mode.
-    pub slew_threshold_s: f64,
+    pub(crate) slew_threshold_s: f64,
     /// Slew rate (s/s).
-    pub slew_rate: f64,
+    pub(crate) slew_rate: f64,
 }
 
 impl ClockConfig {
     /// Defaults for a counter of `counter_hz`.
-    pub fn for_counter(counter_hz: f64) -> Self {
+    pub(crate) fn for_counter(counter_hz: f64) -> Self {
         let tick = 1.0 / counter_hz;
         ClockConfig {
             counter_hz,
@@ -84,16 +84,8 @@ impl ClockConfig {
         }
     }
 
-    /// Sets the clock noise of `osc`.
-    pub fn with_oscillator(mut self, osc: Oscillator) -> Self {
-        self.freq_random_walk = osc.freq_random_walk();
-        self.drift_random_walk = osc.drift_random_walk();
-        self.max_drift_change = osc.max_drift_change();
-        self
-    }
-
     /// The unforeseeable part of the error after `dt` s without pulses.
-    pub fn unmodelled(&self, dt: f64) -> f64 {
+    pub(crate) fn unmodelled(&self, dt: f64) -> f64 {
         0.5 * self.max_drift_change * dt.max(0.0).powi(2)
     }
 
@@ -114,7 +106,7 @@ impl ClockConfig {
 
     /// Variance of free-running phase error after `dt` seconds from the
     /// oscillator noise alone (integrated random walks).
-    pub fn process_var(&self, dt: f64) -> f64 {
+    pub(crate) fn process_var(&self, dt: f64) -> f64 {
         let dt = dt.max(0.0);
         self.freq_random_walk * dt.powi(3) / 3.0 + self.drift_random_walk * dt.powi(5) / 20.0
     }
@@ -143,7 +135,7 @@ pub enum Oscillator {
 
 impl Oscillator {
     /// Fractional-frequency random walk (1/s): var of the change over Δ is q·Δ.
-    pub fn freq_random_walk(self) -> f64 {
+    pub(crate) fn freq_random_walk(self) -> f64 {
         match self {
             Oscillator::Xo => 1e-20,
             Oscillator::Tcxo => 1e-21,
@@ -152,7 +144,7 @@ impl Oscillator {
     }
 
     /// Drift random walk (1/s³): the phase variance after Δ is q·Δ⁵/20.
-    pub fn drift_random_walk(self) -> f64 {
+    pub(crate) fn drift_random_walk(self) -> f64 {
         match self {
             Oscillator::Xo => 1e-20,
             Oscillator::Tcxo => 1e-22,
@@ -162,7 +154,7 @@ impl Oscillator {
 
     /// Unforeseeable drift change (1/s): 1 °C/min at 1 ppm/°C for a crystal
     /// (30 µs after 60 s), 0.05 ppm/°C for a TCXO, 1e-11/s for an OCXO.
-    pub fn max_drift_change(self) -> f64 {
+    pub(crate) fn max_drift_change(self) -> f64 {
         match self {
             Oscillator::Xo => 1.7e-8,
             Oscillator::Tcxo => 8.5e-10,
@@ -173,9 +165,9 @@ impl Oscillator {
 
 /// An accepted pulse: unwrapped counter and GPS second (since the epoch).
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct Pulse {
+pub(crate) struct Pulse {
     pub counter: u64,
-    pub second: i64,
+    pub(crate) second: i64,
 }
 
 /// Lock state of the clock model.
@@ -192,7 +184,7 @@ pub enum LockState {
 
 /// Why a pulse was not used.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum Rejection {
+pub(crate) enum Rejection {
     /// Far from any GPS second (> 1 ms): an extra, spurious pulse.
     Spurious,
     /// Near a GPS second but outside the gate: displaced.
@@ -207,7 +199,7 @@ pub enum Rejection {
 
 /// A lock-state change, at GPS time `time`.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct LockEvent {
+pub(crate) struct LockEvent {
     pub time: GpsTime,
     pub state: LockState,
 }
@@ -223,14 +215,14 @@ pub struct PulseCounts {
     pub rejected_unconfirmed: u64,
     pub rejected_acquisition: u64,
     /// Times the label offset was corrected after lock (should be 0).
-    pub label_corrections: u64,
+    pub(crate) label_corrections: u64,
     /// Times the model was re-acquired on a new consistent pulse train.
-    pub reacquisitions: u64,
+    pub(crate) reacquisitions: u64,
 }
 
 /// The causal model: a fit over the latest accepted pulses.
 #[derive(Clone, Debug)]
-pub struct CausalModel {
+pub(crate) struct CausalModel {
     c_ref: u64,
     s_ref: i64,
     fit: PolyFit,
@@ -247,7 +239,7 @@ struct Msg {
 
 /// The PPS clock model (causal part plus the history used for smoothing).
 #[derive(Clone, Debug)]
-pub struct PpsClock {
+pub(crate) struct PpsClock {
     pub cfg: ClockConfig,
     state: LockState,
     /// Unaccepted pulses during acquisition (counters).
@@ -259,28 +251,28 @@ pub struct PpsClock {
     causal: VecDeque<Pulse>,
     model: Option<CausalModel>,
     /// Accepted pulses kept for smoothing (pruned by the owner).
-    pub history: VecDeque<Pulse>,
+    pub(crate) history: VecDeque<Pulse>,
     msgs: VecDeque<Msg>,
     /// Recent label-correction votes after lock.
     votes: VecDeque<i64>,
     nonzero_vote_run: u32,
-    pub counts: PulseCounts,
+    pub(crate) counts: PulseCounts,
     pub events: Vec<LockEvent>,
     /// Slew: offset applied to causal outputs at `slew_anchor` (s).
     slew_offset: f64,
     slew_anchor: u64,
     last_stamp_counter: u64,
     /// Frequency-error track (ppm) at each accepted pulse, for the report.
-    pub freq_ppm: crate::stats::Moments,
+    pub(crate) freq_ppm: crate::stats::Moments,
     /// Residual of accepted pulses against the causal prediction (s).
-    pub innovation: crate::stats::Moments,
+    pub(crate) innovation: crate::stats::Moments,
     /// Latest counter seen by the clock.
     now: u64,
     chi2_table: Vec<f64>,
 }
 
 impl PpsClock {
-    pub fn new(cfg: ClockConfig) -> Self {
+    pub(crate) fn new(cfg: ClockConfig) -> Self {
         PpsClock {
             cfg,
             state: LockState::Acquiring,
@@ -306,12 +298,12 @@ impl PpsClock {
     }
 
     /// Current lock state (updated by [`Self::advance`]).
-    pub fn state(&self) -> LockState {
+    pub(crate) fn state(&self) -> LockState {
         self.state
     }
 
     /// True once pulses are labelled and a model exists.
-    pub fn has_model(&self) -> bool {
+    pub(crate) fn has_model(&self) -> bool {
         self.model.is_some()
     }
 
@@ -328,7 +320,7 @@ impl PpsClock {
 
     /// Notes the passage of time (any record's counter): enters holdover
     /// when no pulse was accepted for 1.5 s.
-    pub fn advance(&mut self, counter: u64) {
+    pub(crate) fn advance(&mut self, counter: u64) {
         self.now = self.now.max(counter);
         if self.state == LockState::Locked
             && let Some(m) = &self.model
@@ -347,7 +339,7 @@ impl PpsClock {
     }
 
     /// A GNSS message valid at `valid`, received at `counter`.
-    pub fn push_gnss(&mut self, counter: u64, valid: GpsTime) {
+    pub(crate) fn push_gnss(&mut self, counter: u64, valid: GpsTime) {
         self.msgs.push_back(Msg { counter, valid });
         while self.msgs.len() > 64 {
             self.msgs.pop_front();
@@ -393,7 +385,7 @@ impl PpsClock {
 
     /// A 1PPS edge latched at `counter`.
     /// Returns the GPS second the pulse was accepted as.
-    pub fn push_pulse(&mut self, counter: u64) -> Result<i64, Rejection> {
+    pub(crate) fn push_pulse(&mut self, counter: u64) -> Result<i64, Rejection> {
         self.counts.received += 1;
         self.advance(counter);
         let Some(model) = self.model.clone() else {
@@ -691,7 +683,7 @@ impl PpsClock {
 
     /// GPS time of counter `c` from the causal model (with slew) and its
     /// error bound (s). EPOCH and an infinite bound without a model.
-    pub fn causal_time(&self, c: u64) -> (GpsTime, f64) {
+    pub(crate) fn causal_time(&self, c: u64) -> (GpsTime, f64) {
         let Some(m) = &self.model else {
             return (GpsTime::EPOCH, f64::INFINITY);
         };
@@ -706,18 +698,13 @@ impl PpsClock {
     }
 
     /// Causal stamp for output: also remembers the counter for slewing.
-    pub fn stamp_causal(&mut self, c: u64) -> (GpsTime, f64) {
+    pub(crate) fn stamp_causal(&mut self, c: u64) -> (GpsTime, f64) {
         self.last_stamp_counter = self.last_stamp_counter.max(c);
         self.causal_time(c)
     }
 
-    /// True when the history holds an accepted pulse after `c`.
-    pub fn has_pulse_after(&self, c: u64) -> bool {
-        self.history.back().is_some_and(|p| p.counter > c)
-    }
-
     /// Drops history pulses that no stamp at or after counter `c` needs.
-    pub fn prune_history(&mut self, c: u64) {
+    pub(crate) fn prune_history(&mut self, c: u64) {
         let keep_s = self.cfg.smooth_half_window_s + 2.0;
         while self.history.len() > 2 {
             let second = self.history[1];
@@ -730,7 +717,7 @@ impl PpsClock {
     }
 
     /// Seconds of local time from the latest accepted pulse to `c`.
-    pub fn since_last_pulse(&self, c: u64) -> f64 {
+    pub(crate) fn since_last_pulse(&self, c: u64) -> f64 {
         self.history
             .back()
             .map(|p| self.secs(p.counter, c))
@@ -738,13 +725,8 @@ impl PpsClock {
     }
 
     /// Seconds between `a` and `b` on the nominal counter.
-    pub fn seconds_between(&self, a: u64, b: u64) -> f64 {
+    pub(crate) fn seconds_between(&self, a: u64, b: u64) -> f64 {
         self.secs(a, b)
-    }
-
-    /// Latest counter seen.
-    pub fn now(&self) -> u64 {
-        self.now
     }
 }
 
@@ -856,7 +838,7 @@ fn best_supported(votes: impl Iterator<Item = i64>) -> Option<i64> {
 /// bridges gaps with the drift seen on both sides). Returns GPS time and
 /// the standard deviation (s).
 #[derive(Clone, Debug, Default)]
-pub struct Smoother {
+pub(crate) struct Smoother {
     cache_key: Option<(u64, u64)>,
     bracket: (Option<Pulse>, Option<Pulse>),
     cache: Option<(u64, i64, PolyFit, f64, f64)>,
@@ -869,7 +851,7 @@ impl Smoother {
 
     /// GPS time, error bound, and whether `c` lies in a gap of the pulses
     /// (holdover), at counter `c`.
-    pub fn time_at(&mut self, clock: &PpsClock, c: u64) -> Option<(GpsTime, f64, bool)> {
+    pub(crate) fn time_at(&mut self, clock: &PpsClock, c: u64) -> Option<(GpsTime, f64, bool)> {
         let h = &clock.history;
         if h.is_empty() {
             return None;

@@ -11,7 +11,7 @@ use super::sampleclock::{SampleClock, SampleClockConfig, Timed};
 use super::swsync::{SwClock, SwConfig};
 use super::unwrap::{Unwrapped, Unwrapper};
 use crate::error::{Diagnostics, Error};
-use crate::io::riglog::{ImuKind, RigGnss, RigHeader, RigRecord};
+use crate::io::riglog::{RigGnss, RigHeader, RigRecord};
 use crate::time::GpsTime;
 
 /// Which synchronization to run.
@@ -103,7 +103,7 @@ pub struct StampedGnss {
     pub lat_deg: f64,
     pub lon_deg: f64,
     pub h_m: f64,
-    pub sd_m: [f64; 3],
+    pub(crate) sd_m: [f64; 3],
 }
 
 impl StampedGnss {
@@ -1199,15 +1199,5 @@ impl SyncEngine {
             });
         }
         spans
-    }
-
-    /// Diagnostics collected so far.
-    pub fn diagnostics(&self) -> &Diagnostics {
-        &self.diag
-    }
-
-    /// Meaning of the IMU values.
-    pub fn imu_kind(&self) -> ImuKind {
-        self.header.imu_kind
     }
 }

@@ -8,7 +8,7 @@
 /// degree 0, 1 or 2, with the unit covariance `(XᵀX)⁻¹` of its coefficients
 /// (multiply by the noise variance σ² for the parameter covariance).
 #[derive(Clone, Debug)]
-pub struct PolyFit {
+pub(crate) struct PolyFit {
     x0: f64,
     scale: f64,
     deg: usize,
@@ -21,7 +21,7 @@ pub struct PolyFit {
 impl PolyFit {
     /// Fits `points` with degree `deg` (lowered when there are too few
     /// distinct points). `None` when there are no points.
-    pub fn fit(points: &[(f64, f64)], deg: usize) -> Option<PolyFit> {
+    pub(crate) fn fit(points: &[(f64, f64)], deg: usize) -> Option<PolyFit> {
         let n = points.len();
         if n == 0 {
             return None;
@@ -72,21 +72,6 @@ impl PolyFit {
         Some(fit)
     }
 
-    /// Degree actually fitted.
-    pub fn degree(&self) -> usize {
-        self.deg
-    }
-
-    /// Number of points.
-    pub fn len(&self) -> usize {
-        self.n
-    }
-
-    /// True when fitted to no points (never: `fit` returns `None` then).
-    pub fn is_empty(&self) -> bool {
-        self.n == 0
-    }
-
     #[inline]
     fn phi(&self, x: f64) -> [f64; 3] {
         let u = (x - self.x0) / self.scale;
@@ -95,24 +80,25 @@ impl PolyFit {
 
     /// The polynomial at `x`.
     #[inline]
-    pub fn eval(&self, x: f64) -> f64 {
+    pub(crate) fn eval(&self, x: f64) -> f64 {
         let u = (x - self.x0) / self.scale;
         self.coef[0] + u * (self.coef[1] + u * self.coef[2])
     }
 
     /// The first derivative dy/dx at `x`.
-    pub fn slope(&self, x: f64) -> f64 {
+    pub(crate) fn slope(&self, x: f64) -> f64 {
         let u = (x - self.x0) / self.scale;
         (self.coef[1] + 2.0 * u * self.coef[2]) / self.scale
     }
 
     /// The second derivative d²y/dx².
-    pub fn curvature(&self) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn curvature(&self) -> f64 {
         2.0 * self.coef[2] / (self.scale * self.scale)
     }
 
     /// `φ(x)ᵀ (XᵀX)⁻¹ φ(x)`: the variance of `eval(x)` per unit noise variance.
-    pub fn var_factor(&self, x: f64) -> f64 {
+    pub(crate) fn var_factor(&self, x: f64) -> f64 {
         let phi = self.phi(x);
         let p = self.deg + 1;
         let mut v = 0.0;
@@ -125,7 +111,7 @@ impl PolyFit {
     }
 
     /// Variance of `slope(x)` per unit noise variance.
-    pub fn slope_var_factor(&self, x: f64) -> f64 {
+    pub(crate) fn slope_var_factor(&self, x: f64) -> f64 {
         let u = (x - self.x0) / self.scale;
         let d = [0.0, 1.0 / self.scale, 2.0 * u / self.scale];
         let p = self.deg + 1;
@@ -140,13 +126,13 @@ impl PolyFit {
 
     /// Residual standard deviation `sqrt(RSS/(n − p))`, `None` without
     /// degrees of freedom.
-    pub fn sigma(&self) -> Option<f64> {
+    pub(crate) fn sigma(&self) -> Option<f64> {
         let dof = self.n as f64 - (self.deg + 1) as f64;
         (dof >= 1.0).then(|| (self.rss / dof).sqrt())
     }
 
     /// Degrees of freedom of the residuals.
-    pub fn dof(&self) -> usize {
+    pub(crate) fn dof(&self) -> usize {
         self.n.saturating_sub(self.deg + 1)
     }
 }
@@ -208,7 +194,7 @@ pub struct EnvelopeFit {
     deg: usize,
     coef: [f64; 3],
     /// Mean one-way delay above the envelope (the mean excess).
-    pub mean_excess: f64,
+    pub(crate) mean_excess: f64,
     /// Number of points.
     pub n: usize,
 }

@@ -24,7 +24,7 @@ pub struct ImuFlags {
     /// Stamped while the clock was in holdover.
     pub holdover: bool,
     /// Stamped before the clock first locked (extrapolated backwards).
-    pub before_lock: bool,
+    pub(crate) before_lock: bool,
     /// No usable counter (corrupt): no time, not integrated.
     pub unstamped: bool,
     /// Receive-time (hybrid) timing: the place of a loss next to this
@@ -44,22 +44,22 @@ pub struct ImuGap {
 /// Classifies IMU records by their counter spacing (hardware timing) or by
 /// their values (software timing, where receive jitter may exceed a period).
 #[derive(Clone, Debug)]
-pub struct ImuTracker {
+pub(crate) struct ImuTracker {
     period_ticks: Option<f64>,
     deltas: VecDeque<f64>,
     prev_counter: Option<u64>,
     prev_values: Option<[f64; 6]>,
     pub lost: u64,
-    pub duplicated: u64,
-    pub irregular: u64,
+    pub(crate) duplicated: u64,
+    pub(crate) irregular: u64,
     pub gaps: Vec<ImuGap>,
-    pub gaps_total: u64,
+    pub(crate) gaps_total: u64,
     since_update: u32,
 }
 
 impl ImuTracker {
     /// `nominal_period_ticks` from the header's `imu_rate_hz`, if any.
-    pub fn new(nominal_period_ticks: Option<f64>) -> Self {
+    pub(crate) fn new(nominal_period_ticks: Option<f64>) -> Self {
         ImuTracker {
             period_ticks: nominal_period_ticks,
             deltas: VecDeque::with_capacity(16),
@@ -74,13 +74,8 @@ impl ImuTracker {
         }
     }
 
-    /// Current period estimate (counter ticks).
-    pub fn period_ticks(&self) -> Option<f64> {
-        self.period_ticks
-    }
-
     /// Hardware-timed record `seq` latched at unwrapped `counter`.
-    pub fn classify_hw(&mut self, seq: u64, counter: u64, values: &[f64; 6]) -> ImuFlags {
+    pub(crate) fn classify_hw(&mut self, seq: u64, counter: u64, values: &[f64; 6]) -> ImuFlags {
         let mut f = ImuFlags::default();
         let Some(prev) = self.prev_counter else {
             self.prev_counter = Some(counter);
@@ -146,7 +141,7 @@ impl ImuTracker {
 
     /// Software-timed record: duplicates by identical values; losses are
     /// decided by the software clock fit.
-    pub fn classify_sw(&mut self, values: &[f64; 6]) -> ImuFlags {
+    pub(crate) fn classify_sw(&mut self, values: &[f64; 6]) -> ImuFlags {
         let mut f = ImuFlags::default();
         if self.prev_values.as_ref() == Some(values) {
             f.duplicate = true;
@@ -158,7 +153,7 @@ impl ImuTracker {
     }
 
     /// Records a loss found by the software clock fit.
-    pub fn note_lost(&mut self, seq: u64, lost: u32) {
+    pub(crate) fn note_lost(&mut self, seq: u64, lost: u32) {
         self.lost += lost as u64;
         self.gaps_total += 1;
         if self.gaps.len() < 1000 {
@@ -170,7 +165,7 @@ impl ImuTracker {
 /// The IMU's true rate (a regression of stamps on sample index, lost
 /// samples counted) and the number of samples in each GPS second.
 #[derive(Clone, Debug, Default)]
-pub struct RateEstimator {
+pub(crate) struct RateEstimator {
     n: f64,
     mean_k: f64,
     mean_t: f64,
@@ -183,14 +178,14 @@ pub struct RateEstimator {
     current_count: u32,
     first_second: Option<i64>,
     /// Samples per GPS second → number of such seconds.
-    pub per_second: BTreeMap<u32, u64>,
+    pub(crate) per_second: BTreeMap<u32, u64>,
     /// Seconds whose count differs from the most common one (first 100).
-    pub odd_seconds: Vec<(i64, u32)>,
+    pub(crate) odd_seconds: Vec<(i64, u32)>,
 }
 
 impl RateEstimator {
     /// A stamped, non-duplicate sample; `lost_before` samples were missing.
-    pub fn push(&mut self, time: GpsTime, lost_before: u32) {
+    pub(crate) fn push(&mut self, time: GpsTime, lost_before: u32) {
         self.index += lost_before as u64;
         let t0 = *self.t0.get_or_insert(time);
         self.last = Some(time);
@@ -239,7 +234,7 @@ impl RateEstimator {
     }
 
     /// The most common count per second.
-    pub fn mode(&self) -> Option<u32> {
+    pub(crate) fn mode(&self) -> Option<u32> {
         self.per_second
             .iter()
             .max_by_key(|(_, n)| **n)
@@ -248,14 +243,14 @@ impl RateEstimator {
 
     /// Seconds whose count differs from the most common one by more than
     /// one (a rate that is not an integer makes ±1 normal).
-    pub fn odd(&mut self) -> Vec<(i64, u32)> {
+    pub(crate) fn odd(&mut self) -> Vec<(i64, u32)> {
         self.compact_odd();
         self.odd_seconds.clone()
     }
 
     /// Mean rate over the run (Hz): sample periods elapsed (lost ones
     /// counted) over the time from the first to the last stamp.
-    pub fn rate_hz(&self) -> Option<f64> {
+    pub(crate) fn rate_hz(&self) -> Option<f64> {
         let span = self.last?.seconds_since(self.t0?);
         (self.n >= 3.0 && span > 0.0).then(|| (self.index - 1) as f64 / span)
     }
@@ -263,7 +258,7 @@ impl RateEstimator {
     /// Rate from the least-squares slope of stamps on sample index (Hz):
     /// weights the middle of the run; differs from the mean rate when the
     /// IMU clock drifts.
-    pub fn rate_ls_hz(&self) -> Option<f64> {
+    pub(crate) fn rate_ls_hz(&self) -> Option<f64> {
         (self.n >= 3.0 && self.ckk > 0.0 && self.ckt > 0.0).then(|| self.ckk / self.ckt)
     }
 }
@@ -284,7 +279,7 @@ use crate::imu::convert::rate_increment;
 impl RateRule {
     /// The rule a rig log's header asks for: its `imu_rates`, else
     /// instantaneous samples (seed 001 §1.1's trapezoid).
-    pub fn for_header(header: &crate::io::riglog::RigHeader) -> Self {
+    pub(crate) fn for_header(header: &crate::io::riglog::RigHeader) -> Self {
         match header.imu_rates {
             Some(crate::io::riglog::RateSampling::IntervalAverage) => RateRule::Average,
             _ => RateRule::Trapezoid,
@@ -293,11 +288,12 @@ impl RateRule {
 }
 
 impl IncrementBuilder {
+    /// A builder for IMU values of this kind.
     pub fn new(kind: ImuKind) -> Self {
         Self::with_rule(kind, RateRule::Trapezoid)
     }
 
-    pub fn with_rule(kind: ImuKind, rule: RateRule) -> Self {
+    pub(crate) fn with_rule(kind: ImuKind, rule: RateRule) -> Self {
         IncrementBuilder {
             kind,
             rule,

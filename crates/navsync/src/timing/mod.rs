@@ -6,7 +6,7 @@
 //! [`SyncEngine::finish`] flushes and returns the [`SyncReport`].
 //!
 //! * Hardware sync (seed 001 §2.1, seed 002): the local counter is
-//!   unwrapped ([`unwrap`]), each 1PPS edge labelled with its GPS second
+//!   unwrapped (`unwrap`), each 1PPS edge labelled with its GPS second
 //!   from the GNSS messages, and a robust windowed regression maps the
 //!   counter to GPS time ([`clock`]), with holdover and relock.
 //! * Software sync (seed 001 §2.2): lower envelopes of receive times
@@ -23,15 +23,15 @@ pub mod imu;
 pub mod report;
 pub mod sampleclock;
 pub mod swsync;
-pub mod unwrap;
+pub(crate) mod unwrap;
 
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
 mod testsim;
 
-pub use clock::{ClockConfig, LockState, Oscillator};
-pub use engine::{StampedGnss, StampedImu, SyncConfig, SyncEngine, SyncMode, SyncOutput};
-pub use imu::{ImuFlags, IncrementBuilder, RateRule};
+pub use clock::{LockState, Oscillator};
+pub use engine::{SyncConfig, SyncEngine, SyncMode, SyncOutput};
+pub use imu::{IncrementBuilder, RateRule};
 pub use report::SyncReport;
 pub use swsync::SwConfig;

@@ -11,7 +11,7 @@ use super::imu::ImuGap;
 use crate::error::{Diagnostics, Error};
 use crate::io::riglog::ImuKind;
 use crate::io::text::{LineReader, is_blank_or_comment, parse_seconds_ns, split_fields};
-use crate::time::{GpsTime, NS_PER_S};
+use crate::time::GpsTime;
 
 /// A GPS time as week and seconds of week.
 #[derive(Copy, Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -36,6 +36,7 @@ impl WeekSow {
     }
 }
 
+/// How many records of each kind the log held.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct RecordCounts {
     pub imu: u64,
@@ -63,6 +64,7 @@ pub struct MarkReport {
     pub used_as_clock_reference: bool,
 }
 
+/// Mean, minimum and maximum of a quantity.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RangeStats {
     pub mean: f64,
@@ -70,15 +72,16 @@ pub struct RangeStats {
     pub max: f64,
 }
 
+/// The counter: its frequency, width, wraps and faults.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CounterReport {
-    pub nominal_hz: f64,
+    pub(crate) nominal_hz: f64,
     pub bits: u32,
     pub wraps: u64,
     /// Records skipped because the counter went back (or jumped) without wrapping.
-    pub went_backwards_or_jumped: u64,
+    pub(crate) went_backwards_or_jumped: u64,
     /// Records slightly out of counter order (within tolerance).
-    pub reordered_records: u64,
+    pub(crate) reordered_records: u64,
     /// Confirmed counter restarts.
     pub resets: u64,
     /// Counter frequency error (ppm; positive = counter fast), over the
@@ -86,6 +89,7 @@ pub struct CounterReport {
     pub freq_error_ppm: Option<RangeStats>,
 }
 
+/// A span of one lock state of the clock model.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LockSpan {
     pub state: String,
@@ -93,6 +97,7 @@ pub struct LockSpan {
     pub end: WeekSow,
 }
 
+/// A span of IMU stamps made in holdover (no recent pulse).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct HoldoverSpan {
     /// First and last IMU stamp made without a pulse within 1.5 s.
@@ -104,6 +109,7 @@ pub struct HoldoverSpan {
     pub samples: u64,
 }
 
+/// The 1PPS edges: counts and the fit of accepted ones.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PpsReport {
     #[serde(flatten)]
@@ -114,11 +120,12 @@ pub struct PpsReport {
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct OddSecond {
-    pub gps_second: i64,
+pub(crate) struct OddSecond {
+    pub(crate) gps_second: i64,
     pub samples: u32,
 }
 
+/// The IMU records: rate, losses and stamp quality.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ImuReport {
     pub records: u64,
@@ -127,7 +134,7 @@ pub struct ImuReport {
     /// The IMU's true mean rate from its stamps (Hz), lost samples counted.
     pub rate_hz: Option<f64>,
     /// Least-squares rate (stamps on sample index) (Hz).
-    pub rate_ls_hz: Option<f64>,
+    pub(crate) rate_ls_hz: Option<f64>,
     pub lost: u64,
     pub duplicated: u64,
     pub irregular_intervals: u64,
@@ -135,14 +142,14 @@ pub struct ImuReport {
     pub out_of_order: u64,
     /// Gaps (first 1000): record index after the gap, samples lost.
     pub gaps: Vec<ImuGap>,
-    pub gap_count: u64,
+    pub(crate) gap_count: u64,
     /// Samples counted in each full GPS second → how many seconds (seed 002).
     pub samples_per_gps_second: BTreeMap<String, u64>,
     /// Seconds whose count is off the most common one by more than one.
-    pub odd_seconds: Vec<OddSecond>,
+    pub(crate) odd_seconds: Vec<OddSecond>,
     /// T_c subtracted from every stamp (s).
     pub output_delay_s: f64,
-    pub timestamps_not_increasing: u64,
+    pub(crate) timestamps_not_increasing: u64,
     /// Robust spread (1.4826·MAD) of the intervals between the first
     /// ≤ 2000 `imu` counters (µs): about a tick for hardware captures,
     /// milliseconds for receive times.
@@ -163,14 +170,14 @@ pub struct HybridReport {
     /// Mean receive latency above the fastest one (ms).
     pub mean_latency_above_fastest_ms: f64,
     /// Points in the last envelope fit.
-    pub envelope_points: usize,
+    pub(crate) envelope_points: usize,
     /// Samples whose place next to a loss was not certain (may be one
     /// period off).
     pub ambiguous_samples: u64,
     /// Estimated 1σ of the stamps' varying error (µs), constant excluded.
     pub jitter_sd_us: f64,
     /// The constant subtracted as the fastest transport latency (s).
-    pub assumed_fastest_latency_s: f64,
+    pub(crate) assumed_fastest_latency_s: f64,
     pub unobservable: String,
 }
 
@@ -183,11 +190,12 @@ pub struct Implausible {
     pub fix: String,
 }
 
+/// Statistics of a latency (ms).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LatencyStats {
     pub min: Option<f64>,
     pub median: Option<f64>,
-    pub p99: Option<f64>,
+    pub(crate) p99: Option<f64>,
     pub max: Option<f64>,
 }
 
@@ -229,6 +237,7 @@ impl Histogram {
     }
 }
 
+/// The GNSS messages: counts and latencies.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GnssReport {
     pub messages: u64,
@@ -236,7 +245,7 @@ pub struct GnssReport {
     /// Latency from validity (the 1PPS edge for whole-second fixes) to the
     /// last byte (ms), seed 002.
     pub latency_ms: LatencyStats,
-    pub negative_latency: u64,
+    pub(crate) negative_latency: u64,
     /// The latencies (ms) in bins of 1 ms (or wider: at most 100 bins).
     #[serde(default)]
     pub latency_histogram_ms: Option<Histogram>,
@@ -252,19 +261,21 @@ pub struct RejectedPulse {
     pub reason: String,
 }
 
+/// Software synchronization: host-clock estimates and their limits.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SoftwareReport {
-    pub imu_envelope_mean_delay_ms: f64,
-    pub gnss_envelope_mean_delay_ms: f64,
+    pub(crate) imu_envelope_mean_delay_ms: f64,
+    pub(crate) gnss_envelope_mean_delay_ms: f64,
     pub host_clock_error_ppm: Option<f64>,
     /// Estimated standard deviation of the stamps' varying error (ms).
     pub jitter_sd_ms: f64,
-    pub assumed_fastest_gnss_latency_s: f64,
-    pub assumed_fastest_imu_latency_s: f64,
+    pub(crate) assumed_fastest_gnss_latency_s: f64,
+    pub(crate) assumed_fastest_imu_latency_s: f64,
     pub unobservable: String,
-    pub pps_records_ignored: u64,
+    pub(crate) pps_records_ignored: u64,
 }
 
+/// Mean and maximum of a stamp error bound (µs).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct BoundStats {
     pub mean: Option<f64>,
@@ -326,7 +337,7 @@ pub struct SyncReport {
 
 /// Accumulates stamp errors against truth, in record order.
 #[derive(Clone, Debug, Default)]
-pub struct TruthAccumulator {
+pub(crate) struct TruthAccumulator {
     all: crate::stats::Moments,
     hold: crate::stats::Moments,
     within: u64,
@@ -337,7 +348,7 @@ pub struct TruthAccumulator {
 
 impl TruthAccumulator {
     /// One stamp: estimated `t`, true `truth`, its bound, holdover flag.
-    pub fn push(&mut self, t: GpsTime, truth: GpsTime, bound_s: f64, holdover: bool) {
+    pub(crate) fn push(&mut self, t: GpsTime, truth: GpsTime, bound_s: f64, holdover: bool) {
         let e = (t - truth) as f64 * 1e-9;
         self.all.push(e);
         if e.abs() <= bound_s {
@@ -355,7 +366,7 @@ impl TruthAccumulator {
         self.prev_err = Some(e);
     }
 
-    pub fn finish(&self) -> TruthComparison {
+    pub(crate) fn finish(&self) -> TruthComparison {
         let n = self.all.n.max(1) as f64;
         let hn = self.hold.n.max(1) as f64;
         TruthComparison {
@@ -379,13 +390,13 @@ impl TruthAccumulator {
 }
 
 /// Reads a truth file of `week sow` lines (one per `imu` record), streaming.
-pub struct TruthTimes {
+pub(crate) struct TruthTimes {
     lines: LineReader<std::fs::File>,
     path: std::path::PathBuf,
 }
 
 impl TruthTimes {
-    pub fn open(path: &Path) -> Result<Self, Error> {
+    pub(crate) fn open(path: &Path) -> Result<Self, Error> {
         Ok(TruthTimes {
             lines: LineReader::open(path)?,
             path: path.to_path_buf(),
@@ -394,7 +405,7 @@ impl TruthTimes {
 
     /// The next true time; `None` at the end. A bad line is an error (the
     /// file must align with the records).
-    pub fn next_time(&mut self) -> Result<Option<GpsTime>, Error> {
+    pub(crate) fn next_time(&mut self) -> Result<Option<GpsTime>, Error> {
         loop {
             let Some((line, no)) = self.lines.next_line()? else {
                 return Ok(None);
@@ -418,34 +429,29 @@ impl TruthTimes {
 }
 
 /// Formats `week sow` with nanoseconds (the imu_times.txt layout).
-pub fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
+pub(crate) fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
     crate::io::text::push_u64(out, t.week().max(0) as u64);
     out.push(b' ');
     t.write_sow(out);
     out.push(b'\n');
 }
 
-/// Whole GPS seconds of `t`.
-pub fn gps_second(t: GpsTime) -> i64 {
-    t.ns().div_euclid(NS_PER_S)
-}
-
 /// Share of records above which losses, duplicates or irregular
 /// intervals make a log implausible (i2Nav's acquisition guide asks for
 /// loss rates below 1e-5: Tang, Zhang & Niu, "MEMS IMU raw data
 /// acquisition and time synchronization pitfalls", 2022).
-pub const IMPLAUSIBLE_SHARE: f64 = 0.01;
+pub(crate) const IMPLAUSIBLE_SHARE: f64 = 0.01;
 /// Relative difference of the measured IMU rate from the nominal one
 /// above which the rate is implausible (crystals are within 1e-4).
-pub const IMPLAUSIBLE_RATE: f64 = 0.01;
+pub(crate) const IMPLAUSIBLE_RATE: f64 = 0.01;
 /// Interval jitter of `imu` counters (µs) beyond which they cannot be
 /// hardware captures (a capture input is exact to a tick; an interrupt
 /// to tens of µs).
-pub const RECEIVE_JITTER_US: f64 = 100.0;
+pub(crate) const RECEIVE_JITTER_US: f64 = 100.0;
 
 impl SyncReport {
     /// The implausible figures of this report (see [`IMPLAUSIBLE_SHARE`]).
-    pub fn check_plausible(&self) -> Vec<Implausible> {
+    pub(crate) fn check_plausible(&self) -> Vec<Implausible> {
         let mut v = Vec::new();
         let i = &self.imu;
         let n = i.records.max(1) as f64;

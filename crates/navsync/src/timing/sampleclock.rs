@@ -34,15 +34,15 @@ use super::fit::EnvelopeFit;
 pub struct SampleClockConfig {
     /// Nominal sample period (s), e.g. from the header's `imu_rate_hz`;
     /// `None`: the median receive interval of the first samples.
-    pub nominal_period_s: Option<f64>,
+    pub(crate) nominal_period_s: Option<f64>,
     /// Window of the stamping envelope (s): centred on the sample, or
     /// ending at it in causal mode.
-    pub window_s: f64,
+    pub(crate) window_s: f64,
     /// Samples looked ahead before an index is decided …
-    pub lookahead: usize,
+    pub(crate) lookahead: usize,
     /// … and at least this much receive time (s): a host stall releases
     /// its backlog in one burst, which must not be taken for a loss.
-    pub lookahead_s: f64,
+    pub(crate) lookahead_s: f64,
     /// Stamp from past data only (plus the lookahead of step 1).
     pub causal: bool,
 }
@@ -69,16 +69,16 @@ pub struct Timed<T> {
     /// Index in the IMU's own clock (passed-through: the previous one).
     pub k: i64,
     /// Samples lost just before this one.
-    pub lost_before: u32,
+    pub(crate) lost_before: u32,
     /// The place of a loss next to this sample was not certain: this
     /// sample may be one period off.
     pub ambiguous: bool,
     /// Posterior mean of the index minus `k` (ambiguous samples): the
     /// stamp is taken there, which halves the mean square error of a
     /// coin-flip placement (p²/4 instead of p²/2).
-    pub k_offset: f64,
+    pub(crate) k_offset: f64,
     /// False for records passed through (duplicates, unstamped).
-    pub sample: bool,
+    pub(crate) sample: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -134,9 +134,9 @@ pub struct SampleClock<T> {
     pub gaps: u64,
     pub ambiguous: u64,
     /// Mean receive latency above the envelope of the last fit (s).
-    pub mean_excess_s: f64,
+    pub(crate) mean_excess_s: f64,
     /// Points of the last stamping fit.
-    pub fit_points: usize,
+    pub(crate) fit_points: usize,
     /// Period of the last stamping fit (s).
     pub period_s: Option<f64>,
 }
@@ -146,6 +146,7 @@ const BLOCK_S: f64 = 1.0;
 const MIN_FIT_POINTS: usize = 50;
 
 impl<T: Clone> SampleClock<T> {
+    /// A sample clock over this configuration.
     pub fn new(cfg: SampleClockConfig) -> Self {
         SampleClock {
             cfg,
@@ -183,7 +184,7 @@ impl<T: Clone> SampleClock<T> {
 
     /// A record that is not a sample (a duplicate, an unstamped line):
     /// kept in order, handed back with the previous sample's time.
-    pub fn pass(&mut self, tag: T, out: &mut Vec<Timed<T>>) {
+    pub(crate) fn pass(&mut self, tag: T, out: &mut Vec<Timed<T>>) {
         self.pending.push_back(Item { tag, t: None });
         self.advance(false, out);
     }
@@ -570,7 +571,7 @@ impl<T: Clone> SampleClock<T> {
     }
 
     /// Current period estimate (s).
-    pub fn current_period_s(&self) -> Option<f64> {
+    pub(crate) fn current_period_s(&self) -> Option<f64> {
         self.period_s.or(self.period())
     }
 }

@@ -143,7 +143,7 @@ struct ImuMap {
 
 /// The software clock: envelopes of IMU and GNSS receive times.
 #[derive(Clone, Debug)]
-pub struct SwClock {
+pub(crate) struct SwClock {
     pub cfg: SwConfig,
     /// Host seconds of counter 0 reference.
     c0: Option<u64>,
@@ -164,16 +164,16 @@ pub struct SwClock {
     /// Latest envelope for loss detection: (k_ref, h_ref, period).
     live: Option<(f64, f64, f64)>,
     recent_lat: VecDeque<f64>,
-    pub last_imu_fit_excess: f64,
-    pub last_gnss_fit_excess: f64,
-    pub gnss_fit_points: usize,
-    pub imu_fit_points: usize,
-    pub host_ppm: Option<f64>,
+    pub(crate) last_imu_fit_excess: f64,
+    pub(crate) last_gnss_fit_excess: f64,
+    pub(crate) gnss_fit_points: usize,
+    pub(crate) imu_fit_points: usize,
+    pub(crate) host_ppm: Option<f64>,
     now_h: f64,
 }
 
 impl SwClock {
-    pub fn new(cfg: SwConfig, counter_hz: f64) -> Self {
+    pub(crate) fn new(cfg: SwConfig, counter_hz: f64) -> Self {
         SwClock {
             cfg,
             c0: None,
@@ -198,22 +198,22 @@ impl SwClock {
     }
 
     /// Host seconds of an unwrapped counter.
-    pub fn host(&mut self, c: u64) -> f64 {
+    pub(crate) fn host(&mut self, c: u64) -> f64 {
         let c0 = *self.c0.get_or_insert(c);
         super::clock::tick_diff(c0, c) / self.hz
     }
 
     /// Latest host time seen.
-    pub fn now(&self) -> f64 {
+    pub(crate) fn now(&self) -> f64 {
         self.now_h
     }
 
-    pub fn advance(&mut self, h: f64) {
+    pub(crate) fn advance(&mut self, h: f64) {
         self.now_h = self.now_h.max(h);
     }
 
     /// A GNSS message valid at `valid`, received at host `h`.
-    pub fn push_gnss(&mut self, h: f64, valid: GpsTime) {
+    pub(crate) fn push_gnss(&mut self, h: f64, valid: GpsTime) {
         let t0 = *self.t0.get_or_insert(valid.ns().div_euclid(NS_PER_S));
         let t = (valid.ns() - t0 * NS_PER_S) as f64 * 1e-9;
         if self.gnss.back().is_some_and(|&(tb, _)| t <= tb) {
@@ -225,7 +225,7 @@ impl SwClock {
 
     /// A receiver time mark: an edge at host `h` that the receiver
     /// time-marked at GPS time `time`.
-    pub fn push_mark(&mut self, h: f64, time: GpsTime) {
+    pub(crate) fn push_mark(&mut self, h: f64, time: GpsTime) {
         let t0 = *self.t0.get_or_insert(time.ns().div_euclid(NS_PER_S));
         let t = (time.ns() - t0 * NS_PER_S) as f64 * 1e-9;
         if self.marks.back().is_some_and(|&(tb, _)| t <= tb) {
@@ -236,7 +236,7 @@ impl SwClock {
     }
 
     /// True when the time marks, not the GNSS envelope, map host time.
-    pub fn uses_marks(&self) -> bool {
+    pub(crate) fn uses_marks(&self) -> bool {
         self.marks.len() >= 2
     }
 
@@ -274,7 +274,7 @@ impl SwClock {
     }
 
     /// An IMU sample received at host `h`; returns (index, lost before).
-    pub fn push_imu(&mut self, h: f64) -> (i64, u32) {
+    pub(crate) fn push_imu(&mut self, h: f64) -> (i64, u32) {
         self.advance(h);
         let k = match (self.last_k, self.live) {
             (None, _) => 0,
@@ -330,7 +330,7 @@ impl SwClock {
     }
 
     /// Drops stored points that no stamp at or after host `h` needs.
-    pub fn prune(&mut self, h: f64) {
+    pub(crate) fn prune(&mut self, h: f64) {
         let keep_i = self.cfg.imu_window_s;
         let keep_g = self.cfg.gnss_window_s;
         while self
@@ -358,17 +358,17 @@ impl SwClock {
     }
 
     /// True when the window after host `h` is complete (non-causal).
-    pub fn ready(&self, h: f64) -> bool {
+    pub(crate) fn ready(&self, h: f64) -> bool {
         self.now_h - h >= 0.5 * self.cfg.gnss_window_s + 2.0
     }
 
     /// True when a GNSS latency envelope can be made.
-    pub fn has_gnss(&self) -> bool {
+    pub(crate) fn has_gnss(&self) -> bool {
         self.gnss.len() >= 3
     }
 
     /// True when a host→GPS map can be made (from GNSS or time marks).
-    pub fn has_map(&self) -> bool {
+    pub(crate) fn has_map(&self) -> bool {
         self.has_gnss() || self.uses_marks()
     }
 
@@ -452,7 +452,7 @@ impl SwClock {
 
     /// GPS time of IMU sample `k` received at host `h`; `output_delay_s`
     /// is the IMU's known output delay T_c (seed 000).
-    pub fn imu_time(
+    pub(crate) fn imu_time(
         &mut self,
         k: i64,
         h: f64,
@@ -473,7 +473,7 @@ impl SwClock {
     }
 
     /// GPS time of host time `h`.
-    pub fn host_to_gps(&mut self, h: f64, causal: bool) -> Option<GpsTime> {
+    pub(crate) fn host_to_gps(&mut self, h: f64, causal: bool) -> Option<GpsTime> {
         let t0 = self.t0?;
         let (b0, b1, w) = Self::blend(h, GNSS_BLOCK_S, causal);
         let t = if self.uses_marks() {
@@ -501,7 +501,7 @@ impl SwClock {
 
     /// Latency of a GNSS message valid at `valid` received at host `h`:
     /// its excess over the envelope plus the assumed fastest latency.
-    pub fn gnss_latency(&mut self, h: f64, valid: GpsTime, causal: bool) -> Option<f64> {
+    pub(crate) fn gnss_latency(&mut self, h: f64, valid: GpsTime, causal: bool) -> Option<f64> {
         let t0 = self.t0?;
         let t = (valid.ns() - t0 * NS_PER_S) as f64 * 1e-9;
         let lam_min = self.cfg.gnss_min_latency_s;

@@ -11,13 +11,13 @@ use crate::io::riglog::{ImuKind, RigGnss, RigHeader, RigRecord};
 use crate::time::{GpsTime, NS_PER_S};
 
 /// Deterministic generator (SplitMix64 → uniform, Box–Muller → normal).
-pub struct Rng(u64);
+pub(crate) struct Rng(u64);
 
 impl Rng {
-    pub fn new(seed: u64) -> Self {
+    pub(super) fn new(seed: u64) -> Self {
         Rng(seed ^ 0x9E37_79B9_7F4A_7C15)
     }
-    pub fn u64(&mut self) -> u64 {
+    pub(super) fn u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -25,61 +25,61 @@ impl Rng {
         z ^ (z >> 31)
     }
     /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
+    pub(super) fn uniform(&mut self) -> f64 {
         (self.u64() >> 11) as f64 / (1u64 << 53) as f64
     }
-    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+    pub(super) fn range(&mut self, a: f64, b: f64) -> f64 {
         a + (b - a) * self.uniform()
     }
-    pub fn normal(&mut self) -> f64 {
+    pub(super) fn normal(&mut self) -> f64 {
         let u1 = self.uniform().max(1e-300);
         let u2 = self.uniform();
         (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
     }
-    pub fn chance(&mut self, p: f64) -> bool {
+    pub(super) fn chance(&mut self, p: f64) -> bool {
         self.uniform() < p
     }
 }
 
 /// Scenario parameters (SI units; times relative to the start second).
 #[derive(Clone, Debug)]
-pub struct Scenario {
+pub(super) struct Scenario {
     pub seed: u64,
     pub duration_s: f64,
     pub counter_hz: f64,
     pub counter_bits: u32,
     /// Counter value at t = 0 (ticks, may be fractional).
-    pub counter_start: f64,
-    pub freq_error_ppm: f64,
+    pub(crate) counter_start: f64,
+    pub(crate) freq_error_ppm: f64,
     /// Temperature ramp (°C/min) from t = ramp_start_s, and the counter's
     /// temperature coefficient (ppm/°C).
-    pub ramp_c_per_min: f64,
-    pub ramp_start_s: f64,
-    pub tempco_ppm_per_c: f64,
+    pub(crate) ramp_c_per_min: f64,
+    pub(crate) ramp_start_s: f64,
+    pub(crate) tempco_ppm_per_c: f64,
     /// Fractional-frequency random walk: σ of the change over 1 s.
-    pub freq_rw_per_sqrt_s: f64,
+    pub(crate) freq_rw_per_sqrt_s: f64,
     pub pps: bool,
-    pub pps_jitter_s: f64,
+    pub(crate) pps_jitter_s: f64,
     /// (start, length) of PPS dropouts (s).
-    pub pps_dropouts: Vec<(f64, f64)>,
-    pub displaced_fraction: f64,
-    pub spurious_fraction: f64,
+    pub(crate) pps_dropouts: Vec<(f64, f64)>,
+    pub(crate) displaced_fraction: f64,
+    pub(crate) spurious_fraction: f64,
     /// GNSS latency: uniform base in this range plus jitter.
-    pub gnss_latency_s: (f64, f64),
+    pub(crate) gnss_latency_s: (f64, f64),
     /// Uniform jitter added on top (s).
-    pub gnss_jitter_uniform_s: f64,
+    pub(crate) gnss_jitter_uniform_s: f64,
     /// Gaussian jitter σ added on top (clipped so latency ≥ 5 ms).
-    pub gnss_jitter_normal_s: f64,
+    pub(crate) gnss_jitter_normal_s: f64,
     pub imu_rate_hz: f64,
-    pub imu_ppm: f64,
-    pub imu_kind: ImuKind,
-    pub imu_lost_fraction: f64,
-    pub imu_dup_fraction: f64,
+    pub(crate) imu_ppm: f64,
+    pub(crate) imu_kind: ImuKind,
+    pub(crate) imu_lost_fraction: f64,
+    pub(crate) imu_dup_fraction: f64,
     /// Software sync: IMU output delay T_c and uniform receive jitter.
     pub imu_output_delay_s: f64,
-    pub receive_jitter_s: Option<(f64, f64)>,
+    pub(crate) receive_jitter_s: Option<(f64, f64)>,
     /// GPS second of t = 0.
-    pub start_second: i64,
+    pub(crate) start_second: i64,
 }
 
 impl Default for Scenario {
@@ -117,19 +117,19 @@ impl Default for Scenario {
 
 /// What was injected, for the assertions.
 #[derive(Clone, Debug, Default)]
-pub struct Truth {
+pub(super) struct Truth {
     /// True GPS time of every `imu` record, in record order.
     pub imu_times: Vec<GpsTime>,
     /// Unwrapped-phase-free: (raw counter, true second) of good pulses.
-    pub good_pulses: Vec<(u64, i64)>,
+    pub(crate) good_pulses: Vec<(u64, i64)>,
     /// Raw counters of displaced or spurious pulses.
-    pub bad_pulses: Vec<u64>,
+    pub(crate) bad_pulses: Vec<u64>,
     pub imu_lost: u64,
-    pub imu_dup: u64,
+    pub(crate) imu_dup: u64,
 }
 
 /// A generated log.
-pub struct Generated {
+pub(crate) struct Generated {
     pub header: RigHeader,
     pub records: Vec<RigRecord>,
     pub truth: Truth,
@@ -195,7 +195,7 @@ fn gps(s: &Scenario, t: f64) -> GpsTime {
 }
 
 /// Generates the log of scenario `s`.
-pub fn generate(s: &Scenario) -> Generated {
+pub(super) fn generate(s: &Scenario) -> Generated {
     let mut rng_clock = Rng::new(s.seed);
     let mut rng_pps = Rng::new(s.seed.wrapping_add(11));
     let mut rng_gnss = Rng::new(s.seed.wrapping_add(22));

@@ -10,7 +10,7 @@
 
 /// What the unwrapper made of one raw value.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-pub enum Unwrapped {
+pub(crate) enum Unwrapped {
     /// The unwrapped counter.
     Ok(u64),
     /// A small step back (records slightly out of order): the unwrapped
@@ -27,7 +27,7 @@ pub enum Unwrapped {
 
 /// Unwraps a counter stream.
 #[derive(Clone, Debug)]
-pub struct Unwrapper {
+pub(crate) struct Unwrapper {
     bits: u32,
     reorder_ticks: u64,
     max_forward_ticks: u64,
@@ -46,7 +46,7 @@ impl Unwrapper {
     /// `reorder_ticks`: tolerated step back; `max_forward_ticks`: the
     /// largest plausible advance between two records (capped at half the
     /// wrap period).
-    pub fn new(bits: u32, reorder_ticks: u64, max_forward_ticks: u64) -> Self {
+    pub(crate) fn new(bits: u32, reorder_ticks: u64, max_forward_ticks: u64) -> Self {
         let half = if bits >= 64 {
             1u64 << 63
         } else {
@@ -80,13 +80,8 @@ impl Unwrapper {
         }
     }
 
-    /// The latest unwrapped value.
-    pub fn latest(&self) -> Option<u64> {
-        self.started.then_some(self.last)
-    }
-
     /// Unwraps one raw value.
-    pub fn push(&mut self, raw: u64) -> Unwrapped {
+    pub(crate) fn push(&mut self, raw: u64) -> Unwrapped {
         if !self.started {
             self.started = true;
             self.last_raw = raw;
