@@ -19,19 +19,19 @@
 use navsync::filter::gnss::GnssFix;
 use navsync_receivers::fixes::{FixOptions, NmeaFixes, NmeaOutcome, TimeContext, nav_pvt_fix};
 use navsync_receivers::imu::{EsfImu, RateSample};
-use navsync_receivers::stream::{EventKind, StreamReader, StreamStats};
+use navsync_receivers::stream::{EventKind, StreamReader};
 use navsync_receivers::ubx::UbxMessage;
 
 /// A fix and the host counter (ns) at which its last byte arrived.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct ReceivedFix {
+pub(crate) struct ReceivedFix {
     pub fix: GnssFix,
     pub received_ns: u64,
 }
 
 /// An IMU sample from ESF messages and the arrival of its message.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct EsfSample {
+pub(crate) struct EsfSample {
     /// Sensor time (time tag × tick, ns from the sensor's origin).
     pub sensor_ns: i64,
     /// Gyro rad/s then specific force m/s², sensor axes.
@@ -41,7 +41,7 @@ pub struct EsfSample {
 
 /// What a push produced.
 #[derive(Clone, Debug, Default)]
-pub struct Decoded {
+pub(crate) struct Decoded {
     pub fixes: Vec<ReceivedFix>,
     pub imu: Vec<EsfSample>,
     /// Problems: corrupt runs, invalid frames, unusable epochs.
@@ -57,7 +57,7 @@ struct Esf {
 }
 
 /// Incremental decoder of one receiver port.
-pub struct GnssDecoder {
+pub(crate) struct GnssDecoder {
     reader: StreamReader,
     ctx: TimeContext,
     nmea: NmeaFixes,
@@ -77,7 +77,7 @@ impl Default for GnssDecoder {
 }
 
 impl GnssDecoder {
-    pub fn new(opts: FixOptions) -> Self {
+    pub(crate) fn new(opts: FixOptions) -> Self {
         GnssDecoder {
             reader: StreamReader::new(),
             ctx: TimeContext::default(),
@@ -92,7 +92,7 @@ impl GnssDecoder {
 
     /// Also decode ESF-RAW/ESF-MEAS IMU data; `tick_s` is the sensor
     /// time-tag tick (u-blox: 1 ms for ESF-MEAS; check ESF-RAW's).
-    pub fn enable_esf(&mut self, tick_s: f64) {
+    pub(crate) fn enable_esf(&mut self, tick_s: f64) {
         self.esf = Some(Esf {
             raw: EsfImu::new(tick_s),
             meas: EsfImu::new(tick_s),
@@ -102,17 +102,13 @@ impl GnssDecoder {
     }
 
     /// Forgets a partial frame (after a reconnect); keeps the time context.
-    pub fn reset_stream(&mut self) {
+    pub(crate) fn reset_stream(&mut self) {
         self.reader = StreamReader::new();
-    }
-
-    pub fn stats(&self) -> &StreamStats {
-        self.reader.stats()
     }
 
     /// Bytes that arrived at host counter `arrival_ns`; what they complete
     /// is appended to `out`.
-    pub fn push(&mut self, bytes: &[u8], arrival_ns: u64, out: &mut Decoded) {
+    pub(crate) fn push(&mut self, bytes: &[u8], arrival_ns: u64, out: &mut Decoded) {
         self.reader.push(bytes);
         let notes = &mut out.notes;
         while let Some(ev) = self.reader.next_event() {

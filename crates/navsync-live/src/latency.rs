@@ -19,7 +19,7 @@ pub struct LatencySummary {
 
 /// The histogram.
 #[derive(Clone, Debug)]
-pub struct LatencyHistogram {
+pub(crate) struct LatencyHistogram {
     bins: Vec<u32>,
     over: u64,
     n: u64,
@@ -33,7 +33,7 @@ impl Default for LatencyHistogram {
 }
 
 impl LatencyHistogram {
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         LatencyHistogram {
             bins: vec![0; BINS],
             over: 0,
@@ -42,7 +42,7 @@ impl LatencyHistogram {
         }
     }
 
-    pub fn push(&mut self, ns: u64) {
+    pub(crate) fn push(&mut self, ns: u64) {
         self.n += 1;
         self.max_ns = self.max_ns.max(ns);
         match self.bins.get_mut((ns / BIN_NS) as usize) {
@@ -52,7 +52,7 @@ impl LatencyHistogram {
     }
 
     /// The `q` quantile (bin centre, µs); `None` when empty or beyond range.
-    pub fn quantile_us(&self, q: f64) -> Option<f64> {
+    pub(crate) fn quantile_us(&self, q: f64) -> Option<f64> {
         if self.n == 0 {
             return None;
         }
@@ -67,7 +67,7 @@ impl LatencyHistogram {
         None
     }
 
-    pub fn summary(&self) -> LatencySummary {
+    pub(crate) fn summary(&self) -> LatencySummary {
         LatencySummary {
             count: self.n,
             median_us: self.quantile_us(0.5),

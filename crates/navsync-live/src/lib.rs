@@ -20,16 +20,16 @@
 //! neither libc nor Linux.
 
 pub mod files;
-pub mod gnss;
+pub(crate) mod gnss;
 pub mod hostclock;
 pub mod imu;
-pub mod latency;
+pub(crate) mod latency;
 pub mod live;
-pub mod pps;
+pub(crate) mod pps;
 pub mod record;
 pub mod replay;
 pub mod selftest;
-pub mod serial;
+pub(crate) mod serial;
 
 pub use live::{LiveConfig, LiveReport, LiveSink, LiveStatus, PortConfig, PpsInput, run};
 

@@ -80,16 +80,16 @@ struct PpsFdata {
 
 const P: u32 = b'p' as u32;
 /// `_IOR('p', 0xa1, struct pps_kparams *)`
-pub const PPS_GETPARAMS: libc::Ioctl = libc::_IOR::<*mut libc::c_void>(P, 0xa1);
+pub(crate) const PPS_GETPARAMS: libc::Ioctl = libc::_IOR::<*mut libc::c_void>(P, 0xa1);
 /// `_IOW('p', 0xa2, struct pps_kparams *)`
-pub const PPS_SETPARAMS: libc::Ioctl = libc::_IOW::<*mut libc::c_void>(P, 0xa2);
+pub(crate) const PPS_SETPARAMS: libc::Ioctl = libc::_IOW::<*mut libc::c_void>(P, 0xa2);
 /// `_IOR('p', 0xa3, int *)`
-pub const PPS_GETCAP: libc::Ioctl = libc::_IOR::<*mut libc::c_int>(P, 0xa3);
+pub(crate) const PPS_GETCAP: libc::Ioctl = libc::_IOR::<*mut libc::c_int>(P, 0xa3);
 /// `_IOWR('p', 0xa4, struct pps_fdata *)`
-pub const PPS_FETCH: libc::Ioctl = libc::_IOWR::<*mut libc::c_void>(P, 0xa4);
+pub(crate) const PPS_FETCH: libc::Ioctl = libc::_IOWR::<*mut libc::c_void>(P, 0xa4);
 
 /// A kernel PPS device (`/dev/ppsN`).
-pub struct KernelPps {
+pub(crate) struct KernelPps {
     fd: OwnedFd,
     path: PathBuf,
     last_seq: Option<u32>,
@@ -98,7 +98,7 @@ pub struct KernelPps {
 impl KernelPps {
     /// Opens `path`, checks that it can capture assert edges and wait for
     /// them, and enables assert capture (when permitted).
-    pub fn open(path: &Path) -> io::Result<Self> {
+    pub(crate) fn open(path: &Path) -> io::Result<Self> {
         let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).map_err(|_| {
             io::Error::new(io::ErrorKind::InvalidInput, "PPS path holds a NUL byte")
         })?;
@@ -207,7 +207,7 @@ impl PpsSource for KernelPps {
 }
 
 /// Edges pushed by another thread (tests, replays, a GPIO poller).
-pub struct InjectedPps {
+pub(crate) struct InjectedPps {
     rx: mpsc::Receiver<u64>,
 }
 
@@ -225,7 +225,7 @@ impl PpsInjector {
 }
 
 /// An injector and the source it feeds.
-pub fn injected() -> (PpsInjector, InjectedPps) {
+pub(crate) fn injected() -> (PpsInjector, InjectedPps) {
     let (tx, rx) = mpsc::channel();
     (PpsInjector { tx }, InjectedPps { rx })
 }

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The termios speed constant of a standard baud rate.
-pub fn baud_constant(baud: u32) -> Option<libc::speed_t> {
+pub(crate) fn baud_constant(baud: u32) -> Option<libc::speed_t> {
     Some(match baud {
         1200 => libc::B1200,
         2400 => libc::B2400,
@@ -35,7 +35,7 @@ pub fn baud_constant(baud: u32) -> Option<libc::speed_t> {
 }
 
 /// Checks a baud rate before any port is opened.
-pub fn check_baud(baud: u32) -> Result<(), String> {
+pub(crate) fn check_baud(baud: u32) -> Result<(), String> {
     match baud_constant(baud) {
         Some(_) => Ok(()),
         None => Err(format!(
@@ -45,7 +45,7 @@ pub fn check_baud(baud: u32) -> Result<(), String> {
 }
 
 /// An open serial port (or other readable character source).
-pub struct SerialPort {
+pub(crate) struct SerialPort {
     fd: OwnedFd,
     path: PathBuf,
     /// False for a source that is not a terminal (no termios applied).
@@ -59,7 +59,7 @@ fn os_err(path: &Path, what: &str) -> io::Error {
 
 impl SerialPort {
     /// Opens `path` non-blocking, raw 8N1 at `baud`, no flow control.
-    pub fn open(path: &Path, baud: u32) -> io::Result<Self> {
+    pub(crate) fn open(path: &Path, baud: u32) -> io::Result<Self> {
         let speed = baud_constant(baud).ok_or_else(|| {
             io::Error::new(
                 io::ErrorKind::InvalidInput,
@@ -116,13 +116,9 @@ impl SerialPort {
         })
     }
 
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
     /// Reads what is there, waiting up to `timeout`; `Ok(0)` when nothing
     /// came. A device that went away is `ErrorKind::BrokenPipe`.
-    pub fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+    pub(crate) fn read_timeout(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let mut p = libc::pollfd {
             fd: self.fd.as_raw_fd(),
             events: libc::POLLIN,

@@ -77,7 +77,7 @@ impl ReportInputs {
 
 /// One GNSS position observation as the fusion weighed it.
 #[derive(Clone, Debug, PartialEq)]
-pub struct FixWeight {
+pub(crate) struct FixWeight {
     pub sow: f64,
     /// Innovation N, E, D (m) and stated σ (m).
     pub innovation: [f64; 3],
@@ -91,7 +91,7 @@ pub struct FixWeight {
 /// Reads the position lines of `gnss_residuals.txt`
 /// (`sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d
 /// status`); any other line is an error naming file and line.
-pub fn read_fix_weights(path: &Path) -> Result<Vec<FixWeight>, Error> {
+pub(crate) fn read_fix_weights(path: &Path) -> Result<Vec<FixWeight>, Error> {
     let mut lines = LineReader::open(path)?;
     let mut out = Vec::new();
     while let Some((line, no)) = lines.next_line()? {
@@ -126,7 +126,7 @@ pub fn read_fix_weights(path: &Path) -> Result<Vec<FixWeight>, Error> {
 }
 
 /// Seconds from `t0_sow` to `sow`, across one week rollover.
-pub fn rel_s(sow: f64, t0_sow: f64) -> f64 {
+pub(crate) fn rel_s(sow: f64, t0_sow: f64) -> f64 {
     let d = sow - t0_sow;
     if d < -302_400.0 {
         d + 604_800.0
@@ -140,7 +140,7 @@ pub fn rel_s(sow: f64, t0_sow: f64) -> f64 {
 /// Every compared epoch of the solution (times relative to its first
 /// epoch; horizontal positions relative to the first truth state, m).
 #[derive(Clone, Debug, Default)]
-pub struct Epochs {
+pub(crate) struct Epochs {
     pub t0_sow: f64,
     pub week: i64,
     pub t: Vec<f64>,
@@ -153,7 +153,7 @@ pub struct Epochs {
 }
 
 /// The scores and the epochs, from one pass of [`eval::eval_files_with`].
-pub fn score(
+pub(crate) fn score(
     truth: &Path,
     nav: &Path,
     outages: &[OutageWindow],
@@ -182,7 +182,7 @@ pub fn score(
 /// The solution's epochs without a reference (positions relative to its
 /// first epoch; no errors). Bad lines are skipped and reported, as
 /// `navsync eval` does.
-pub fn read_solution(nav: &Path, diag: &mut Diagnostics) -> Result<Epochs, Error> {
+pub(crate) fn read_solution(nav: &Path, diag: &mut Diagnostics) -> Result<Epochs, Error> {
     let mut r = NavReader::open(nav)?;
     let mut ep = Epochs::default();
     while let Some(rec) = r.next_record(diag)? {
@@ -201,7 +201,11 @@ pub fn read_solution(nav: &Path, diag: &mut Diagnostics) -> Result<Epochs, Error
 
 /// Reads a whitespace/comma table whose every record has exactly
 /// `columns` numbers; `layout` names the expected columns in messages.
-pub fn read_table(path: &Path, columns: usize, layout: &str) -> Result<Vec<Vec<f64>>, Error> {
+pub(crate) fn read_table(
+    path: &Path,
+    columns: usize,
+    layout: &str,
+) -> Result<Vec<Vec<f64>>, Error> {
     let mut lines = LineReader::open(path)?;
     let mut rows = Vec::new();
     while let Some((line, no)) = lines.next_line()? {
@@ -235,14 +239,14 @@ pub fn read_table(path: &Path, columns: usize, layout: &str) -> Result<Vec<Vec<f
 }
 
 /// KF-GINS `std.txt`: sow and 21 standard deviations.
-pub const STD_LAYOUT: &str = "KF-GINS std.txt: sow, position n e d (m), velocity (m/s), attitude (deg), gyro bias (deg/h), accel bias (mGal), gyro scale (ppm), accel scale (ppm)";
+pub(crate) const STD_LAYOUT: &str = "KF-GINS std.txt: sow, position n e d (m), velocity (m/s), attitude (deg), gyro bias (deg/h), accel bias (mGal), gyro scale (ppm), accel scale (ppm)";
 /// KF-GINS `imu_err.txt`: sow and 12 IMU errors.
-pub const IMU_ERR_LAYOUT: &str = "KF-GINS imu_err.txt: sow, gyro bias x y z (deg/h), accel bias (mGal), gyro scale (ppm), accel scale (ppm)";
+pub(crate) const IMU_ERR_LAYOUT: &str = "KF-GINS imu_err.txt: sow, gyro bias x y z (deg/h), accel bias (mGal), gyro scale (ppm), accel scale (ppm)";
 /// `time_offset.txt`.
-pub const TIME_OFFSET_LAYOUT: &str = "navsync time_offset.txt: sow offset_s sd_s observable";
+pub(crate) const TIME_OFFSET_LAYOUT: &str = "navsync time_offset.txt: sow offset_s sd_s observable";
 
 /// The synchronization report (`sync_report.json`).
-pub fn read_sync_report(path: &Path) -> Result<SyncReport, Error> {
+pub(crate) fn read_sync_report(path: &Path) -> Result<SyncReport, Error> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     serde_json::from_str(&text).map_err(|e| {
         Error::parse(
@@ -255,7 +259,7 @@ pub fn read_sync_report(path: &Path) -> Result<SyncReport, Error> {
 
 /// A `summary.json` of `navsync fuse` (read loosely: only a few fields
 /// are shown).
-pub fn read_summary(path: &Path) -> Result<serde_json::Value, Error> {
+pub(crate) fn read_summary(path: &Path) -> Result<serde_json::Value, Error> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let v: serde_json::Value = serde_json::from_str(&text)
         .map_err(|e| Error::parse(path, e.line(), format!("not JSON: {e}")))?;
@@ -270,7 +274,7 @@ pub fn read_summary(path: &Path) -> Result<serde_json::Value, Error> {
 }
 
 /// GNSS fix positions (sow, north, east relative to `origin`, m).
-pub fn read_gnss(
+pub(crate) fn read_gnss(
     path: &Path,
     origin: &Geodetic,
     diag: &mut Diagnostics,

@@ -8,10 +8,10 @@
 
 pub mod demo;
 pub mod drive;
-pub mod html;
-pub mod inputs;
-pub mod plot;
-pub mod quality;
+pub(crate) mod html;
+pub(crate) mod inputs;
+pub(crate) mod plot;
+pub(crate) mod quality;
 mod sections;
 pub mod tracking;
 

@@ -7,7 +7,7 @@ use plotters::prelude::*;
 
 /// A curve.
 #[derive(Clone, Debug)]
-pub struct Line {
+pub(crate) struct Line {
     pub name: String,
     pub color: RGBColor,
     pub width: u32,
@@ -16,7 +16,7 @@ pub struct Line {
 
 /// A filled band between `lo` and `hi`: (x, lo, hi).
 #[derive(Clone, Debug)]
-pub struct Band {
+pub(crate) struct Band {
     pub name: String,
     pub color: RGBColor,
     pub pts: Vec<(f64, f64, f64)>,
@@ -24,7 +24,7 @@ pub struct Band {
 
 /// Shaded x intervals (GNSS outages, held estimates).
 #[derive(Clone, Debug)]
-pub struct Shade {
+pub(crate) struct Shade {
     pub name: String,
     pub color: RGBColor,
     pub spans: Vec<(f64, f64)>,
@@ -32,7 +32,7 @@ pub struct Shade {
 
 /// One chart of a stacked figure.
 #[derive(Clone, Debug, Default)]
-pub struct Panel {
+pub(crate) struct Panel {
     pub title: String,
     pub y_label: String,
     pub lines: Vec<Line>,
@@ -46,7 +46,7 @@ pub struct Panel {
 
 /// Panels sharing an x axis, stacked.
 #[derive(Clone, Debug)]
-pub struct Figure {
+pub(crate) struct Figure {
     pub x_label: String,
     pub x_range: (f64, f64),
     pub shades: Vec<Shade>,
@@ -55,17 +55,17 @@ pub struct Figure {
     pub panel_height: u32,
 }
 
-pub const RED: RGBColor = RGBColor(200, 40, 40);
-pub const GREEN: RGBColor = RGBColor(30, 140, 30);
-pub const BLUE: RGBColor = RGBColor(30, 80, 200);
-pub const GREY: RGBColor = RGBColor(120, 120, 120);
-pub const ORANGE: RGBColor = RGBColor(230, 120, 0);
+pub(crate) const RED: RGBColor = RGBColor(200, 40, 40);
+pub(crate) const GREEN: RGBColor = RGBColor(30, 140, 30);
+pub(crate) const BLUE: RGBColor = RGBColor(30, 80, 200);
+pub(crate) const GREY: RGBColor = RGBColor(120, 120, 120);
+pub(crate) const ORANGE: RGBColor = RGBColor(230, 120, 0);
 /// Shading of GNSS outages.
-pub const OUTAGE: RGBColor = RGBColor(235, 175, 30);
+pub(crate) const OUTAGE: RGBColor = RGBColor(235, 175, 30);
 /// Shading of held estimates.
-pub const PURPLE: RGBColor = RGBColor(140, 90, 210);
+pub(crate) const PURPLE: RGBColor = RGBColor(140, 90, 210);
 /// Colours of the x/y/z (north/east/down) components.
-pub const AXES: [RGBColor; 3] = [RED, GREEN, BLUE];
+pub(crate) const AXES: [RGBColor; 3] = [RED, GREEN, BLUE];
 
 const FONT: &str = "sans-serif";
 
@@ -74,7 +74,7 @@ fn pe<E: std::fmt::Display>(e: E) -> Error {
 }
 
 /// Every `stride`-th index keeps at most `max` points of `n`.
-pub fn stride(n: usize, max: usize) -> usize {
+pub(crate) fn stride(n: usize, max: usize) -> usize {
     n.div_ceil(max.max(1)).max(1)
 }
 
@@ -150,7 +150,7 @@ fn decimals(span: f64) -> usize {
 }
 
 /// Tick labels without "-0.0" and with as many decimals as the range needs.
-pub fn tick(v: f64, dec: usize) -> String {
+pub(crate) fn tick(v: f64, dec: usize) -> String {
     let s = format!("{v:.dec$}");
     if s.trim_start_matches('-')
         .chars()
@@ -225,7 +225,7 @@ fn chart_on<'a, DB: DrawingBackend + 'a>(
 }
 
 /// Stacked time series with bands and shaded intervals.
-pub fn time_series(fig: &Figure) -> Result<String, Error> {
+pub(crate) fn time_series(fig: &Figure) -> Result<String, Error> {
     let mut svg = String::new();
     {
         let h = fig.panel_height * fig.panels.len().max(1) as u32;
@@ -324,7 +324,7 @@ fn draw_panel<DB: DrawingBackend>(
 
 /// The horizontal trajectory (points as (north, east) in m), GNSS fixes and
 /// the parts inside GNSS outages, at equal scales.
-pub struct Trajectory<'a> {
+pub(crate) struct Trajectory<'a> {
     pub truth: &'a [(f64, f64)],
     pub solution: &'a [(f64, f64)],
     pub gnss: &'a [(f64, f64)],
@@ -332,7 +332,7 @@ pub struct Trajectory<'a> {
     pub solution_in_outage: Vec<Vec<(f64, f64)>>,
 }
 
-pub fn trajectory(t: &Trajectory, width: u32, height: u32) -> Result<String, Error> {
+pub(crate) fn trajectory(t: &Trajectory, width: u32, height: u32) -> Result<String, Error> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
@@ -405,7 +405,7 @@ pub fn trajectory(t: &Trajectory, width: u32, height: u32) -> Result<String, Err
 
 /// The synchronization timeline: clock lock states, holdover spans,
 /// rejected pulses and GNSS outages on rows over time.
-pub struct Timeline {
+pub(crate) struct Timeline {
     pub x_range: (f64, f64),
     /// (start, end, state) with state acquiring, locked, holdover or software.
     pub lock: Vec<(f64, f64, String)>,
@@ -427,7 +427,7 @@ fn state_color(state: &str) -> RGBColor {
     }
 }
 
-pub fn timeline(t: &Timeline, width: u32, height: u32) -> Result<String, Error> {
+pub(crate) fn timeline(t: &Timeline, width: u32, height: u32) -> Result<String, Error> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
@@ -516,7 +516,7 @@ pub fn timeline(t: &Timeline, width: u32, height: u32) -> Result<String, Error> 
 }
 
 /// Bars of a histogram (`start`, bin `width`, counts).
-pub fn histogram(
+pub(crate) fn histogram(
     title: &str,
     x_label: &str,
     start: f64,

@@ -6,24 +6,22 @@
 //! Every threshold is a named constant below with the reason for its value;
 //! the report page prints the same rules beside each finding.
 
-pub use navsync::stats::{chi2_cdf, gamma_p, ln_gamma};
-
 /// The `p` quantile of χ²(`dof`) ([`navsync::stats::chi2_quantile`]);
 /// `None` unless 0 < p < 1 and dof > 0.
-pub fn chi2_quantile(p: f64, dof: f64) -> Option<f64> {
+pub(crate) fn chi2_quantile(p: f64, dof: f64) -> Option<f64> {
     (p > 0.0 && p < 1.0 && dof > 0.0 && dof.is_finite())
         .then(|| navsync::stats::chi2_quantile(p, dof))
 }
 
 /// Degrees of freedom of a GNSS position fix's NIS (north, east, down).
-pub const POSITION_DOF: f64 = 3.0;
+pub(crate) const POSITION_DOF: f64 = 3.0;
 
 /// The two-sided `conf` interval of the mean NIS over `n` independent
 /// fixes of `dof` each: the sum of n NIS is χ²(n·dof), so the mean lies in
 /// [χ²_{α/2}(n·dof)/n, χ²_{1−α/2}(n·dof)/n] (Bar-Shalom, Li & Kirubarajan,
 /// "Estimation with Applications to Tracking and Navigation", 2001,
 /// §5.4.2). With n = 1 it is the interval of a single NIS.
-pub fn nis_mean_interval(n: usize, dof: f64, conf: f64) -> Option<(f64, f64)> {
+pub(crate) fn nis_mean_interval(n: usize, dof: f64, conf: f64) -> Option<(f64, f64)> {
     if n == 0 {
         return None;
     }
@@ -38,13 +36,13 @@ pub fn nis_mean_interval(n: usize, dof: f64, conf: f64) -> Option<(f64, f64)> {
 /// A GNSS gap is an interval between consecutive fixes longer than
 /// `GAP_FACTOR` × the median interval (2.5: a 10 Hz receiver missing two
 /// fixes in a row; one lost fix is ordinary).
-pub const GAP_FACTOR: f64 = 2.5;
+pub(crate) const GAP_FACTOR: f64 = 2.5;
 /// Gaps at least this long (s) get a predicted-drift row: below a few
 /// seconds a MEMS INS drifts centimetres, which the σ tables already show.
-pub const DRIFT_MIN_GAP_S: f64 = 2.0;
+pub(crate) const DRIFT_MIN_GAP_S: f64 = 2.0;
 
 /// The gaps in sorted `times` (s): (last time before, first time after).
-pub fn find_gaps(times: &[f64]) -> Vec<(f64, f64)> {
+pub(crate) fn find_gaps(times: &[f64]) -> Vec<(f64, f64)> {
     if times.len() < 3 {
         return Vec::new();
     }
@@ -65,7 +63,7 @@ pub fn find_gaps(times: &[f64]) -> Vec<(f64, f64)> {
 /// `(t, σ_h)` sorted by t: σ at the last epoch at or before the gap's
 /// start and the largest σ inside it (reached just before the first fix
 /// after it). `None` when the history does not cover the gap.
-pub fn drift_through(sigma_h: &[(f64, f64)], start: f64, end: f64) -> Option<(f64, f64)> {
+pub(crate) fn drift_through(sigma_h: &[(f64, f64)], start: f64, end: f64) -> Option<(f64, f64)> {
     let before = sigma_h.iter().rev().find(|(t, _)| *t <= start)?.1;
     let peak = sigma_h
         .iter()
@@ -114,7 +112,7 @@ pub struct Verdict {
 
 /// What the GNSS position fixes said (from `gnss_residuals.txt`).
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct FixEvidence {
+pub(crate) struct FixEvidence {
     pub fixes: usize,
     pub rejected: usize,
     /// Used with a weight below 1 on some axis (not rejected).
@@ -127,7 +125,7 @@ pub struct FixEvidence {
 
 /// One IMU bias axis against the configured (datasheet) figures.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct BiasCheck {
+pub(crate) struct BiasCheck {
     /// e.g. "gyro x".
     pub axis: String,
     pub unit: &'static str,
@@ -150,7 +148,7 @@ pub struct BiasCheck {
 /// σ²(t) = σ₀² e^{−2t/τ} + σ_GM² (1 − e^{−2t/τ}) (the variance of a
 /// first-order Markov process; Gelb, "Applied Optimal Estimation", 1974,
 /// ch. 3; KF-GINS's bias model).
-pub fn bias_prior_sd(init_sd: f64, instability_sd: f64, corr_time_s: f64, t_s: f64) -> f64 {
+pub(crate) fn bias_prior_sd(init_sd: f64, instability_sd: f64, corr_time_s: f64, t_s: f64) -> f64 {
     let decay = if corr_time_s > 0.0 {
         (-2.0 * t_s.max(0.0) / corr_time_s).exp()
     } else {
@@ -161,7 +159,7 @@ pub fn bias_prior_sd(init_sd: f64, instability_sd: f64, corr_time_s: f64, t_s: f
 
 /// Synchronization facts (sync_report.json, summary.json).
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct SyncEvidence {
+pub(crate) struct SyncEvidence {
     /// IMU samples lost / expected (sync_report.json).
     pub imu_loss_fraction: Option<f64>,
     /// Largest stamp-error bound (µs, sync_report.json).
@@ -172,7 +170,7 @@ pub struct SyncEvidence {
 
 /// The alignment outcome (summary.json `alignment`).
 #[derive(Clone, Debug, PartialEq)]
-pub struct AlignEvidence {
+pub(crate) struct AlignEvidence {
     pub method: String,
     pub time_sow: f64,
     pub yaw_sd_deg: f64,
@@ -181,7 +179,7 @@ pub struct AlignEvidence {
 
 /// Everything the verdict weighs; absent evidence is "not assessed".
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Evidence {
+pub(crate) struct Evidence {
     pub fixes: Option<FixEvidence>,
     /// The filter's horizontal σ at the last epoch (m).
     pub final_h_sd_m: Option<f64>,
@@ -198,46 +196,46 @@ pub struct Evidence {
 /// Rejected fixes: a consistent filter gates at 99.99 % (or IGG-III k1 =
 /// 10σ), so chance rejections are ~1e-4; above 1 % the receiver had real
 /// faults (or the INS diverged), above 5 % for long stretches.
-pub const REJECTED_CAUTION: f64 = 0.01;
-pub const REJECTED_POOR: f64 = 0.05;
+pub(crate) const REJECTED_CAUTION: f64 = 0.01;
+pub(crate) const REJECTED_POOR: f64 = 0.05;
 /// Down-weighted fixes: the robust weighting's k0 = 4σ is exceeded by
 /// chance on ~2e-4 of fixes; 5 % means degraded GNSS the filter had to
 /// discount, 25 % means the GNSS was degraded most of the time.
-pub const DOWN_WEIGHTED_CAUTION: f64 = 0.05;
-pub const DOWN_WEIGHTED_POOR: f64 = 0.25;
+pub(crate) const DOWN_WEIGHTED_CAUTION: f64 = 0.05;
+pub(crate) const DOWN_WEIGHTED_POOR: f64 = 0.25;
 /// NIS mean: inside its 95 % interval is consistent. Above it, up to
 /// 3 × the expected 3 (innovations up to √3 ≈ 1.7× their stated σ) the σ
 /// figures are optimistic; beyond, they cannot be trusted. Below the
 /// interval the filter is pessimistic (σ figures conservative). Fixes at
 /// 10 Hz are correlated, so the effective n is smaller than counted and
 /// the interval too narrow: outside it is a caution, not a failure.
-pub const NIS_CONF: f64 = 0.95;
-pub const NIS_MEAN_POOR_FACTOR: f64 = 3.0;
+pub(crate) const NIS_CONF: f64 = 0.95;
+pub(crate) const NIS_MEAN_POOR_FACTOR: f64 = 3.0;
 /// Final horizontal σ against the fixes' stated σ: a filter updated by a
 /// fix ends at or below its σ; above 1.5× the last fixes did not constrain
 /// it, above 5× the solution is running on the INS alone.
-pub const FINAL_SD_CAUTION: f64 = 1.5;
-pub const FINAL_SD_POOR: f64 = 5.0;
+pub(crate) const FINAL_SD_CAUTION: f64 = 1.5;
+pub(crate) const FINAL_SD_POOR: f64 = 5.0;
 /// Biases: the configured σ(t) ([`bias_prior_sd`]) is the bias's 1σ
 /// spread; beyond 3σ (0.3 % chance per axis) the IMU is not what is
 /// configured, or the bias state absorbs another error (misalignment,
 /// lever arm, timing) or has not converged.
-pub const BIAS_SIGMAS: f64 = 3.0;
+pub(crate) const BIAS_SIGMAS: f64 = 3.0;
 /// IMU data loss: at most 1e-5 of samples (Tang, Zhang & Niu, "MEMS IMU
 /// raw data acquisition and time synchronization pitfalls", 2022); above
 /// 1e-3 the integration bridges gaps often.
-pub const IMU_LOSS_GOOD: f64 = 1e-5;
-pub const IMU_LOSS_POOR: f64 = 1e-3;
+pub(crate) const IMU_LOSS_GOOD: f64 = 1e-5;
+pub(crate) const IMU_LOSS_POOR: f64 = 1e-3;
 /// Synchronization error: < 1 ms good, < 10 ms required (same source);
 /// applied to the stamp-error bound and the time-offset state's σ.
-pub const SYNC_GOOD_S: f64 = 1e-3;
-pub const SYNC_POOR_S: f64 = 10e-3;
+pub(crate) const SYNC_GOOD_S: f64 = 1e-3;
+pub(crate) const SYNC_POOR_S: f64 = 10e-3;
 /// No IMU gap of 0.1 s (same source).
-pub const IMU_GAP_CAUTION_S: f64 = 0.1;
+pub(crate) const IMU_GAP_CAUTION_S: f64 = 0.1;
 /// Alignment heading σ: a yaw error δψ drifts a vehicle's position
 /// across-track by v·t·δψ; above 10° the small-angle error model of the
 /// filter no longer holds.
-pub const ALIGN_YAW_SD_CAUTION_DEG: f64 = 10.0;
+pub(crate) const ALIGN_YAW_SD_CAUTION_DEG: f64 = 10.0;
 
 /// The three-way grade of `x` with `good ≤ caution < poor` thresholds.
 fn grade_of(x: f64, caution_above: f64, poor_above: f64) -> Grade {
@@ -255,7 +253,7 @@ fn pct(x: f64) -> String {
 }
 
 /// Weighs the evidence.
-pub fn assess(ev: &Evidence) -> Verdict {
+pub(crate) fn assess(ev: &Evidence) -> Verdict {
     let mut checks = Vec::new();
     if let Some(f) = &ev.fixes
         && f.fixes > 0
@@ -454,6 +452,7 @@ pub fn assess(ev: &Evidence) -> Verdict {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use navsync::stats::{chi2_cdf, ln_gamma};
 
     fn close(a: f64, b: f64, rel: f64) -> bool {
         (a - b).abs() <= rel * b.abs()
