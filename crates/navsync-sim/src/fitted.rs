@@ -24,7 +24,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use navsync::attitude::{Euler, euler_to_dcm};
+use navsync::attitude::{body_rate_from_euler_rates, dcm_from_sin_cos};
 use navsync::earth::{Geodetic, radii};
 use navsync::error::Error;
 use navsync::io::kfgins::NavRecord;
@@ -352,16 +352,9 @@ fn radii_derivative(lat: f64) -> (f64, f64) {
 /// C_b^n and ω_nb^b from ZYX Euler angles and their rates (Groves 2013
 /// eqs 2.24 and 2.56).
 pub fn euler_kinematics(euler: &[f64; 3], rate: &[f64; 3]) -> (Matrix3<f64>, Vector3<f64>) {
-    let c_nb = euler_to_dcm(&Euler::new(euler[0], euler[1], euler[2]));
-    let (sph, cph) = euler[0].sin_cos();
-    let (sth, cth) = euler[1].sin_cos();
-    let [pd, td, yd] = *rate;
-    let w_nb_b = Vector3::new(
-        pd - yd * sth,
-        td * cph + yd * cth * sph,
-        -td * sph + yd * cth * cph,
-    );
-    (c_nb, w_nb_b)
+    let (roll, pitch) = (euler[0].sin_cos(), euler[1].sin_cos());
+    let c_nb = dcm_from_sin_cos(roll, pitch, euler[2].sin_cos());
+    (c_nb, body_rate_from_euler_rates(roll, pitch, *rate))
 }
 
 #[cfg(test)]

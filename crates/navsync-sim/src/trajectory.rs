@@ -27,7 +27,9 @@ use std::sync::Arc;
 
 use super::fitted::{FittedMotion, FittedState, euler_kinematics};
 use super::rng;
-use navsync::attitude::{Euler, euler_to_quat, rotvec_to_quat, skew};
+use navsync::attitude::{
+    Euler, body_rate_from_euler_rates, dcm_from_sin_cos, euler_to_quat, rotvec_to_quat, skew,
+};
 use navsync::earth::Geodetic;
 use navsync::error::Error;
 
@@ -1027,24 +1029,11 @@ impl Trajectory {
         let mut vel_n = u * v;
         let mut acc_n =
             u * s.accel_mps2 + (du_dpsi * s.yaw_rate_rad_s + du_dth * s.pitch_rate_rad_s) * v;
-        // C_b^n from ZYX Euler angles (Groves 2013 eq 2.24).
-        let mut c_nb = Matrix3::new(
-            cth * cps,
-            -cph * sps + sph * sth * cps,
-            sph * sps + cph * sth * cps,
-            cth * sps,
-            cph * cps + sph * sth * sps,
-            -sph * cps + cph * sth * sps,
-            -sth,
-            sph * cth,
-            cph * cth,
-        );
-        // ω_nb^b from Euler-angle rates (Groves 2013 eq 2.56, inverted).
-        let (pd, td, yd) = (s.roll_rate_rad_s, s.pitch_rate_rad_s, s.yaw_rate_rad_s);
-        let mut w_nb_b = Vector3::new(
-            pd - yd * sth,
-            td * cph + yd * cth * sph,
-            -td * sph + yd * cth * cph,
+        let mut c_nb = dcm_from_sin_cos((sph, cph), (sth, cth), (sps, cps));
+        let mut w_nb_b = body_rate_from_euler_rates(
+            (sph, cph),
+            (sth, cth),
+            [s.roll_rate_rad_s, s.pitch_rate_rad_s, s.yaw_rate_rad_s],
         );
         let mut alpha = Vector3::zeros();
         let mut dr_n = Vector3::zeros();

@@ -55,9 +55,20 @@ pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
 
 /// C_b^n from ZYX Euler angles. Groves eq 2.24.
 pub fn euler_to_dcm(e: &Euler) -> Matrix3<f64> {
-    let (sr, cr) = e.roll_rad.sin_cos();
-    let (sp, cp) = e.pitch_rad.sin_cos();
-    let (sy, cy) = e.yaw_rad.sin_cos();
+    dcm_from_sin_cos(
+        e.roll_rad.sin_cos(),
+        e.pitch_rad.sin_cos(),
+        e.yaw_rad.sin_cos(),
+    )
+}
+
+/// C_b^n from the (sin, cos) of roll, pitch and yaw (ZYX), for callers
+/// that already hold them. Groves eq 2.24.
+pub fn dcm_from_sin_cos(
+    (sr, cr): (f64, f64),
+    (sp, cp): (f64, f64),
+    (sy, cy): (f64, f64),
+) -> Matrix3<f64> {
     Matrix3::new(
         cp * cy,
         -cr * sy + sr * sp * cy,
@@ -68,6 +79,20 @@ pub fn euler_to_dcm(e: &Euler) -> Matrix3<f64> {
         -sp,
         sr * cp,
         cr * cp,
+    )
+}
+
+/// ω_nb^b from the ZYX Euler-angle rates [roll, pitch, yaw] (rad/s), given
+/// the (sin, cos) of roll and pitch. Groves eq 2.56, inverted.
+pub fn body_rate_from_euler_rates(
+    (sr, cr): (f64, f64),
+    (sp, cp): (f64, f64),
+    [roll_rate, pitch_rate, yaw_rate]: [f64; 3],
+) -> Vector3<f64> {
+    Vector3::new(
+        roll_rate - yaw_rate * sp,
+        pitch_rate * cr + yaw_rate * cp * sr,
+        -pitch_rate * sr + yaw_rate * cp * cr,
     )
 }
 

@@ -162,20 +162,20 @@ impl Core {
                     .accel_bias
                     .component_mul(&cfg.init_std.accel_bias),
             );
+            // The tilt error is M·δb_a + M·J·δm_a: the misalignment part
+            // correlated with its states when estimated, else tilt noise
+            // only (tried: folding it into the bias states' σ did worse on
+            // the test-track table of docs/alignment.md).
+            let mj = m * j;
+            let sd = states.map_or(cfg.levelling_accel_misalignment_sd_rad, |(_, sd)| sd);
             let p = filter.covariance_mut();
-            let p_att = p.block3(idx::ATT, idx::ATT) + m * sigma_b * m.transpose();
+            let p_att = p.block3(idx::ATT, idx::ATT)
+                + m * sigma_b * m.transpose()
+                + mj * mj.transpose() * (sd * sd);
             let p_att_ba = m * sigma_b;
             p.set_block3(idx::ATT, idx::ATT, &p_att);
             p.set_block3(idx::ATT, idx::BA, &p_att_ba);
             p.set_block3(idx::BA, idx::ATT, &p_att_ba.transpose());
-            // The tilt error gains M·J·δm_a: correlated with the
-            // misalignment states when estimated, else tilt noise only
-            // (tried: folding it into the bias states' σ did worse on the
-            // test-track table of docs/alignment.md).
-            let mj = m * j;
-            let sd = states.map_or(cfg.levelling_accel_misalignment_sd_rad, |(_, sd)| sd);
-            let p_att = p.block3(idx::ATT, idx::ATT) + mj * mj.transpose() * (sd * sd);
-            p.set_block3(idx::ATT, idx::ATT, &p_att);
             if let Some((first, _)) = states {
                 for r in 0..3 {
                     for c in 0..6 {
