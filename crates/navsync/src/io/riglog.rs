@@ -323,14 +323,14 @@ impl<R: Read> RigLogReader<R> {
         let mut extra = Vec::new();
         let mut pending = None;
         let mut first_line = true;
-        while let Some((line, no)) = lines.next_line()? {
+        while let Some((line, no, ended)) = lines.next_line_ended()? {
             let text = String::from_utf8_lossy(line);
             let t = text.trim();
             if t.is_empty() {
                 continue;
             }
             let Some(comment) = t.strip_prefix('#') else {
-                pending = Some((line.to_vec(), no, lines.last_line_terminated()));
+                pending = Some((line.to_vec(), no, ended));
                 break;
             };
             let c = comment.trim();

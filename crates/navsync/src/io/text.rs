@@ -57,17 +57,6 @@ impl<R: Read> LineReader<R> {
         &self.path
     }
 
-    /// Number of the line last returned (1-based).
-    pub fn line_no(&self) -> usize {
-        self.line_no
-    }
-
-    /// False when the line last returned is the file's last and has no
-    /// `\n`: a writer cut off mid-line (a logger killed) leaves one.
-    pub fn last_line_terminated(&self) -> bool {
-        self.terminated
-    }
-
     /// The next line without its terminator (`\n` or `\r\n`) and its
     /// 1-based number, or `None` at the end of the file.
     pub fn next_line(&mut self) -> Result<Option<(&[u8], usize)>, Error> {
