@@ -114,6 +114,10 @@ fn bad_inputs_give_clear_errors() {
             &["--gnss-gm-sd", "0.01,0.01,0.02", "--gnss-gm-time", "0"][..],
             "positive σ and correlation time",
         ),
+        (
+            &["--accel-misalignment", "30"][..],
+            "accelerometer misalignment σ 30° must be within 0–10°",
+        ),
     ] {
         let (ok, _, err) = run(bin().args(["fuse", "--config"]).arg(&cfg).args(args));
         assert!(!ok && err.contains(want), "{args:?}: {err}");

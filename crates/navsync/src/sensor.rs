@@ -675,6 +675,33 @@ mod tests {
         assert!(e.contains("'imu.rate_hz' must be positive"), "{e}");
     }
 
+    /// The accelerometer misalignment is optional without a preset (axes
+    /// taken as orthogonal) and must not be negative.
+    #[test]
+    fn accel_misalignment_defaults_to_zero_and_is_checked() {
+        let figures = |t: &str| {
+            SensorSheet::parse(t, Path::new("s.yaml"))
+                .and_then(|s| s.imu_figures(Path::new("s.yaml")))
+                .map_err(|e| e.to_string())
+        };
+        let no_preset = template("icm20602")
+            .unwrap()
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("accel_misalignment_deg"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert_eq!(figures(&no_preset).unwrap().accel_misalignment_deg, 0.0);
+        let negative = template("icm20602").unwrap().replace(
+            "accel_misalignment_deg: 0.3",
+            "accel_misalignment_deg: -0.3",
+        );
+        let e = figures(&negative).unwrap_err();
+        assert!(
+            e.contains("s.yaml") && e.contains("'imu.accel_misalignment_deg'"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn config_has_no_initial_state_and_si_noise() {
         let s = SensorSheet::parse(&template("adis16465").unwrap(), Path::new("s.yaml")).unwrap();
