@@ -28,6 +28,12 @@ use crate::navigator::{Navigator, SolutionOutput, Step, StreamCounts};
 use crate::stage::{Consumer, Drain, Producer, Source, fill_batch};
 use crate::time::GpsTime;
 
+/// Largest accelerometer cross-axis misalignment σ accepted (deg): the
+/// levelling term is linear in it (a datasheet gives a fraction of a
+/// degree), and beyond a few degrees the triad is mis-mounted, not
+/// misaligned.
+pub(crate) const MAX_ACCEL_MISALIGNMENT_DEG: f64 = 10.0;
+
 pub use crate::reduced::NhcSettings;
 pub use crate::time::OutageSchedule;
 
@@ -244,10 +250,10 @@ impl FuseOptions {
             m.validate().map_err(Error::Invalid)?;
         }
         if let Some(d) = self.accel_misalignment_sd_deg
-            && !(d.is_finite() && (0.0..=10.0).contains(&d))
+            && !(d.is_finite() && (0.0..=MAX_ACCEL_MISALIGNMENT_DEG).contains(&d))
         {
             return bad(format!(
-                "accelerometer misalignment σ {d}° must be within 0–10°"
+                "accelerometer misalignment σ {d}° must be within 0–{MAX_ACCEL_MISALIGNMENT_DEG}°"
             ));
         }
         if let Some(a) = &self.align

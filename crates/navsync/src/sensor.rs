@@ -346,6 +346,16 @@ impl SensorSheet {
                 ));
             }
         }
+        if f.accel_misalignment_deg > crate::pipeline::MAX_ACCEL_MISALIGNMENT_DEG {
+            return Err(Error::config(
+                path,
+                format!(
+                    "key 'imu.accel_misalignment_deg' must be at most {}° (a datasheet's cross-axis misalignment is a fraction of a degree), got {}",
+                    crate::pipeline::MAX_ACCEL_MISALIGNMENT_DEG,
+                    f.accel_misalignment_deg
+                ),
+            ));
+        }
         if f.bias_corr_time_s <= 0.0 {
             return Err(Error::config(
                 path,
@@ -698,6 +708,14 @@ mod tests {
         let e = figures(&negative).unwrap_err();
         assert!(
             e.contains("s.yaml") && e.contains("'imu.accel_misalignment_deg'"),
+            "{e}"
+        );
+        let too_large = template("icm20602")
+            .unwrap()
+            .replace("accel_misalignment_deg: 0.3", "accel_misalignment_deg: 30");
+        let e = figures(&too_large).unwrap_err();
+        assert!(
+            e.contains("s.yaml") && e.contains("'imu.accel_misalignment_deg' must be at most 10"),
             "{e}"
         );
     }
