@@ -3,13 +3,11 @@
 //! drivers publish them), then `convert --from mcap`, `fuse` and `eval`.
 
 mod common;
-#[path = "../../navsync-receivers/tests/common/ros2_bag.rs"]
-mod ros2_bag;
 
 use std::path::Path;
 
 use common::{bin, horizontal_rms, json, run, temp_dir};
-use ros2_bag::{FIX, IMU, Msg, fix_msg, imu_msg, write_bag_chunked};
+use navsync_receivers::testbag::{FIX, IMU, Msg, fix_msg, imu_msg, write_bag_chunked};
 
 /// GPS − UTC since 2017-01-01 (GPS week 1930; IERS Bulletin C).
 const LEAP_S: i64 = 18;

@@ -28,6 +28,8 @@ pub mod nmea;
 pub mod ros2;
 pub mod rtcm3;
 pub mod stream;
+#[cfg(feature = "test-bags")]
+pub mod testbag;
 pub mod ubx;
 
 pub use stream::{Event, EventKind, StreamReader};

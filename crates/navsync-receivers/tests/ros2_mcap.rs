@@ -1,9 +1,6 @@
 //! ROS 2 bags (MCAP) through `convert`: bags written with the `mcap`
-//! crate's writer and the CDR encoder of `common/ros2_bag.rs` (independent
-//! of the decoder under test), holding a known IMU rotation and known fixes.
-
-#[path = "common/ros2_bag.rs"]
-mod ros2_bag;
+//! crate's writer and the CDR encoder of `testbag` (independent of the
+//! decoder under test), holding a known IMU rotation and known fixes.
 
 use std::path::{Path, PathBuf};
 
@@ -11,7 +8,7 @@ use navsync_receivers::convert::{
     ConvertOptions, ConvertSummary, InputFormat, convert_with_topics,
 };
 use navsync_receivers::ros2::TopicChoice;
-use ros2_bag::{FIX, IMU, Msg, TWIST, fix_msg, imu_msg, twist_msg, write_bag};
+use navsync_receivers::testbag::{FIX, IMU, Msg, TWIST, fix_msg, imu_msg, twist_msg, write_bag};
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("navsync-ros2-{}-{name}", std::process::id()));

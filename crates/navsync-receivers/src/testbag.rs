@@ -1,8 +1,7 @@
 //! ROS 2 bags for tests: an XCDR1 encoder of `sensor_msgs/msg/Imu`,
 //! `sensor_msgs/msg/NavSatFix` and `geometry_msgs/msg/TwistWithCovarianceStamped`
 //! (independent of the decoder under test) and a writer using the `mcap`
-//! crate. Included with `#[path]` by the tests that write bags.
-#![allow(dead_code)]
+//! crate. For tests (feature `test-bags`), never used by the decoder.
 
 use std::collections::BTreeMap;
 use std::io::Cursor;
