@@ -5,6 +5,7 @@
 //! The overlapping estimator (Riley, *Handbook of Frequency Stability
 //! Analysis*, NIST SP 1065, 2008, eq 14) is computed from cumulative sums,
 //! so each cluster size costs one pass over the data.
+#![warn(missing_docs)]
 
 use serde::Serialize;
 

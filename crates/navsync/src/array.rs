@@ -21,6 +21,7 @@
 //! Sign convention: an IMU whose stamps are late by d (stamp = true + d)
 //! sees GNSS fixes as early: τ = −d. Aligning it means advancing its
 //! samples by d, i.e. a delay of τ/T samples.
+#![warn(missing_docs)]
 
 use std::collections::VecDeque;
 use std::path::Path;

@@ -5,6 +5,7 @@
 //! Sources: Groves (2013) eqs 2.22–2.24 (Euler ↔ matrix), 2.34–2.35
 //! (quaternion ↔ matrix); Savage, *Strapdown Analytics* (2000) §3.2.2
 //! (rotation vector ↔ quaternion, with series near zero).
+#![warn(missing_docs)]
 
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 
@@ -13,8 +14,13 @@ use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 /// the new forward.
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct Euler {
+    /// Roll (rad), the last rotation, about body forward (x); positive
+    /// right side down.
     pub(crate) roll_rad: f64,
+    /// Pitch (rad), about the yawed east axis; positive nose up.
     pub(crate) pitch_rad: f64,
+    /// Yaw (rad), heading of body forward from north about down; positive
+    /// towards east.
     pub yaw_rad: f64,
 }
 

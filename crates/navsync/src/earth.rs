@@ -6,6 +6,7 @@
 //! Inertial, and Multisensor Integrated Navigation*, 2nd ed. (2013),
 //! eqs 2.105–2.106 (radii), 5.41–5.44 (rates in the local frame),
 //! 2.112–2.113 (geodetic/ECEF).
+#![warn(missing_docs)]
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -32,8 +33,11 @@ pub(crate) const GRAVITY_M: f64 = OMEGA_E * OMEGA_E * A * A * B / GM;
 /// in metres.
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct Geodetic {
+    /// Geodetic latitude (rad), positive north.
     pub lat_rad: f64,
+    /// Longitude (rad), positive east.
     pub lon_rad: f64,
+    /// Height above the WGS-84 ellipsoid (m), positive up.
     pub h_m: f64,
 }
 

@@ -3,6 +3,7 @@
 //! Every error names where it happened (file and line, or configuration
 //! key) and what was expected. Problems that lose nothing but the bad record
 //! itself are not errors: they are [`Diagnostic`]s, collected and reported.
+#![warn(missing_docs)]
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -15,30 +16,47 @@ pub enum Error {
     /// A file could not be opened, read or written.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The file that failed.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
     /// A record is malformed and cannot be skipped safely.
     #[error("{}:{line}: {msg}", path.display())]
     Parse {
+        /// The file holding the record.
         path: PathBuf,
+        /// 1-based line number of the record.
         line: usize,
+        /// What is wrong with it and what was expected.
         msg: String,
     },
     /// A configuration is missing a key or holds a bad value.
     #[error("{}: {msg}", path.display())]
-    Config { path: PathBuf, msg: String },
+    Config {
+        /// The configuration file (or sheet) concerned.
+        path: PathBuf,
+        /// The key and what is wrong with its value.
+        msg: String,
+    },
     /// The input holds no usable data.
     #[error("{}: {msg}", path.display())]
-    NoData { path: PathBuf, msg: String },
+    NoData {
+        /// The input that held nothing usable.
+        path: PathBuf,
+        /// Why nothing was usable.
+        msg: String,
+    },
     /// The filter's covariance lost symmetry or positive definiteness.
     #[error("filter covariance broke at GPS time {time}: {msg}")]
     Covariance {
+        /// GPS time of the filter epoch at which it broke.
         time: crate::time::GpsTime,
+        /// Which check failed.
         msg: String,
     },
-    /// Inconsistent options or arguments.
+    /// Inconsistent options or arguments; holds the message.
     #[error("{0}")]
     Invalid(String),
 }

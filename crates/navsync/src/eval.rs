@@ -8,6 +8,7 @@
 //! over outages: the metric of the KF-GINS paper and of Tang, Zhang & Niu 2022 §1.3.3
 //! (Niu et al. 2010, "A proposed evaluation standard for the navigation
 //! results of MEMS INS/GPS integrated systems").
+#![warn(missing_docs)]
 
 use std::path::Path;
 
@@ -24,8 +25,11 @@ use crate::time::{GpsTime, OutageWindow};
 /// RMS, maximum absolute value and mean of one error component.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
 pub struct ErrorStats {
+    /// Root mean square of the errors (NaN when none were compared).
     pub rms: f64,
+    /// Largest absolute error (not the largest signed one).
     pub max: f64,
+    /// Mean (signed) error: the bias of the solution.
     pub mean: f64,
 }
 
@@ -42,36 +46,63 @@ impl From<&Moments> for ErrorStats {
 /// Drift inside one outage window.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct OutageDrift {
+    /// Start of the outage (GPS seconds of week).
     pub start_sow: f64,
+    /// Length of the outage (s).
     pub len_s: f64,
+    /// Solution epochs compared inside the outage, both ends included.
     pub epochs: usize,
+    /// Largest horizontal position error inside the outage (m).
     pub max_horizontal_m: f64,
+    /// Largest 3D position error inside the outage (m).
     pub max_3d_m: f64,
 }
 
 /// The scores of a solution.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct EvalReport {
+    /// Solution epochs with a truth state to compare against.
     pub epochs_compared: usize,
+    /// Solution epochs outside the truth's span or in a truth gap (not
+    /// scored).
     pub epochs_without_truth: usize,
+    /// North position error (m).
     pub pos_north_m: ErrorStats,
+    /// East position error (m).
     pub(crate) pos_east_m: ErrorStats,
+    /// Down position error (m).
     pub(crate) pos_down_m: ErrorStats,
+    /// Horizontal position error, √(N² + E²) (m).
     pub pos_horizontal_m: ErrorStats,
+    /// 3D position error (m).
     pub pos_3d_m: ErrorStats,
+    /// North velocity error (m/s).
     pub(crate) vel_north_mps: ErrorStats,
+    /// East velocity error (m/s).
     pub(crate) vel_east_mps: ErrorStats,
+    /// Down velocity error (m/s).
     pub(crate) vel_down_mps: ErrorStats,
+    /// Horizontal velocity error (m/s).
     pub vel_horizontal_mps: ErrorStats,
+    /// 3D velocity error (m/s).
     pub vel_3d_mps: ErrorStats,
+    /// Roll difference (deg), wrapped to ±180°.
     pub roll_deg: ErrorStats,
+    /// Pitch difference (deg).
     pub pitch_deg: ErrorStats,
+    /// Yaw difference (deg), wrapped to ±180°.
     pub yaw_deg: ErrorStats,
+    /// Drift in each outage window that held at least one compared epoch.
     pub outages: Vec<OutageDrift>,
-    /// RMS over outages of the maximum horizontal drift in each.
+    /// RMS over outages of the maximum horizontal drift in each (m);
+    /// `None` without outages.
     pub outage_rms_max_horizontal_m: Option<f64>,
+    /// RMS over outages of the maximum 3D drift in each (m); `None`
+    /// without outages.
     pub outage_rms_max_3d_m: Option<f64>,
+    /// Largest horizontal drift of any outage (m); `None` without outages.
     pub outage_worst_horizontal_m: Option<f64>,
+    /// Largest 3D drift of any outage (m); `None` without outages.
     pub(crate) outage_worst_3d_m: Option<f64>,
 }
 
@@ -99,8 +130,12 @@ impl EvalReport {
 /// One epoch's errors (solution minus truth).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EpochError {
+    /// The solution epoch (in week 0, as seconds of week, when files are
+    /// matched by seconds of week).
     pub time: GpsTime,
+    /// Position error (m), NED at the truth position.
     pub pos_ned_m: Vector3<f64>,
+    /// Velocity error (m/s), NED.
     pub vel_ned_mps: Vector3<f64>,
     /// roll, pitch, yaw differences (deg), yaw wrapped.
     pub att_deg: Vector3<f64>,
@@ -109,9 +144,13 @@ pub struct EpochError {
 /// A state of the reference trajectory at some epoch.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TruthState {
+    /// Epoch of the state.
     pub time: GpsTime,
+    /// Reference position.
     pub pos: Geodetic,
+    /// Reference velocity (m/s), NED.
     pub vel: Vector3<f64>,
+    /// Reference attitude, body (FRD) to NED.
     pub(crate) q_nb: UnitQuaternion<f64>,
 }
 

@@ -8,6 +8,7 @@
 //! attitude quaternion update with φ_k = Δθ_k + Δθ_{k−1}×Δθ_k/12).
 //!
 //! Each step uses its own interval `dt`; nothing here assumes a fixed rate.
+#![warn(missing_docs)]
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
@@ -62,8 +63,13 @@ impl ImuErrors {
 /// Compensated increments over an interval of `dt` seconds.
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct Increment {
+    /// Angle increment Δθ (rad), body frame, bias, scale factor and
+    /// misalignment removed.
     pub dtheta: Vector3<f64>,
+    /// Specific-force velocity increment Δv (m/s), body frame, bias, scale
+    /// factor and misalignment removed.
     pub dvel: Vector3<f64>,
+    /// Length of the interval (s).
     pub dt: f64,
 }
 

@@ -9,6 +9,7 @@
 //!   in [(N−1)/2, (N+1)/2] (centred) and whole samples of delay added in
 //!   front; its frequency response approximates e^{−jωD} (Laakso et al.,
 //!   "Splitting the unit delay", IEEE Signal Processing Magazine 13(1), 1996).
+#![warn(missing_docs)]
 
 use std::collections::VecDeque;
 

@@ -49,6 +49,7 @@
 //! let end = last.unwrap();
 //! assert!((end.pos.h_m - 300.0).abs() < 0.05 && end.vel.norm() < 0.05);
 //! ```
+#![warn(missing_docs)]
 
 use std::collections::VecDeque;
 
@@ -564,6 +565,7 @@ impl Navigator {
 /// What a finished stream hands back.
 #[derive(Debug)]
 pub struct StreamEnd {
+    /// Epochs and fix counts of the run, for its summary.
     pub counts: StreamCounts,
     /// Every GNSS observation the filter weighed.
     pub fix_records: Vec<FixRecord>,

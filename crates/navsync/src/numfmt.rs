@@ -1,6 +1,7 @@
 //! Number formatting without allocation: the bottom layer under both
 //! [`crate::time`] (`GpsTime::write_sow`) and the text formats
 //! ([`crate::io::text`] re-exports these), so that time does not depend on io.
+#![warn(missing_docs)]
 
 const DIGIT_PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
 2021222324252627282930313233343536373839\

@@ -13,6 +13,7 @@
 //! difference of velocity), so the search needs a drive with accelerations,
 //! braking or turns; it reports nothing until the minimum is sharp and
 //! unique.
+#![warn(missing_docs)]
 
 use std::collections::VecDeque;
 

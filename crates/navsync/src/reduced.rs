@@ -45,6 +45,7 @@
 //! GPS seconds of week like the IMU file) is interpolated linearly to each
 //! odometer update, with a scale-factor state
 //! ([`crate::fusion::OdometerOptions`], [`crate::filter::nhc`]).
+#![warn(missing_docs)]
 
 use std::fmt;
 use std::path::PathBuf;
@@ -61,6 +62,7 @@ use crate::words;
 /// Which inertial sensors exist.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub enum ImuConfig {
+    /// Three gyros and three accelerometers.
     #[default]
     #[serde(rename = "full")]
     Full,
@@ -158,7 +160,10 @@ impl PseudoSignalNoise {
 /// A reduced IMU: the configuration and its pseudo-signal noise.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Serialize)]
 pub struct ReducedImu {
+    /// Which sensors exist; the others are replaced by pseudo-signals.
     pub config: ImuConfig,
+    /// How far the vehicle departs from the pseudo-signals (Niu et al.
+    /// 2007), turned into the pseudo sensors' random walks.
     pub noise: PseudoSignalNoise,
 }
 
@@ -241,7 +246,10 @@ pub struct NhcSettings {
     pub mount_deg: [f64; 3],
     /// Lever arm from the IMU to the constraint point (m, body FRD).
     pub lever_m: [f64; 3],
+    /// σ of the constraint point's lateral and vertical velocity, both
+    /// taken as zero (m/s, vehicle frame).
     pub sd_mps: f64,
+    /// Seconds between constraint updates (0: at every IMU epoch).
     pub interval_s: f64,
 }
 

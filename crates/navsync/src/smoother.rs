@@ -46,6 +46,7 @@
 //! nodes around it (eₖ after node k, eₖ₊₁⁻ before node k+1). Between two
 //! nodes ≤ 1 s apart the error grows by a second-order term of a few mm/s²
 //! · Δt²/8, so the interpolation costs < 1 mm.
+#![warn(missing_docs)]
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};

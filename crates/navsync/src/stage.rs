@@ -16,6 +16,7 @@
 //! The choice is process-wide: [`set_io_threads`], or the environment
 //! variable `NAVSYNC_IO_THREADS=0` read at the first use. Results are the
 //! same either way; only the wall time and the cores used differ.
+#![warn(missing_docs)]
 
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::mpsc;

@@ -4,6 +4,7 @@
 //! The regularized lower incomplete gamma function P(a, x) is evaluated by
 //! its series for x < a + 1 and by Lentz's continued fraction otherwise
 //! (Press et al., *Numerical Recipes*, 3rd ed., §6.2, eqs 6.2.5 and 6.2.7).
+#![warn(missing_docs)]
 
 /// ln Γ(x) for x > 0 (Lanczos approximation, g = 7, n = 9; accurate to
 /// ~1e-15 relative).
@@ -112,10 +113,13 @@ pub fn chi2_quantile(p: f64, dof: f64) -> f64 {
 /// Running mean, RMS and extremes of a series.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Moments {
+    /// Number of values pushed.
     pub n: usize,
     sum: f64,
     sum_sq: f64,
+    /// Smallest value (0 while `n == 0`).
     pub min: f64,
+    /// Largest value (0 while `n == 0`).
     pub max: f64,
     /// Largest absolute value.
     pub max_abs: f64,

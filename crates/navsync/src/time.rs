@@ -6,6 +6,7 @@
 //! epochs compare equal. Files carry week + seconds of week (SOW); KF-GINS
 //! files carry SOW only, and `WeekTracker` turns such a stream into
 //! absolute time across a week rollover.
+#![warn(missing_docs)]
 
 use std::fmt;
 use std::ops::{Add, Sub};
@@ -25,7 +26,9 @@ pub(crate) fn seconds_to_ns(seconds: f64) -> i64 {
 /// A window of GPS time, such as a GNSS outage: its start and length.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct OutageWindow {
+    /// First instant of the window.
     pub start: GpsTime,
+    /// Length of the window (s).
     pub duration_s: f64,
 }
 
@@ -221,8 +224,11 @@ impl WeekTracker {
 /// ```
 #[derive(Copy, Clone, Debug, PartialEq, serde::Serialize)]
 pub struct OutageSchedule {
+    /// Interval (s) from the start of one outage to the start of the next.
     pub period_s: f64,
+    /// Length of each outage (s); an outage covers `[start, start + len_s)`.
     pub len_s: f64,
+    /// Start of the first outage (s after the first IMU epoch).
     pub first_s: f64,
 }
 

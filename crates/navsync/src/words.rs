@@ -1,6 +1,7 @@
 //! Enums written as words: one table of `(variant, word)` pairs serves
 //! both directions (the word of a variant, the variant of a word) and the
 //! list of accepted words in messages.
+#![warn(missing_docs)]
 
 /// The word of `v` (every variant is in its table).
 pub(crate) fn word_of<T: Copy + PartialEq>(table: &[(T, &'static str)], v: T) -> &'static str {

@@ -16,6 +16,7 @@
 //! ([`RateRule::Average`]). Applying the trapezoid to such samples
 //! would average two adjacent windows and delay the data by half an output
 //! interval.
+#![warn(missing_docs)]
 
 use nalgebra::Vector3;
 use serde::Serialize;

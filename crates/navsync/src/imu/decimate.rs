@@ -14,6 +14,7 @@
 //! input (an interval longer than `gap_factor` nominal periods) closes the
 //! current window early: the partial window is emitted, stamped at its
 //! last sample, and counted; nothing is dropped.
+#![warn(missing_docs)]
 
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -496,15 +497,23 @@ pub enum InputKind {
 /// One sample of a log, as read.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub enum InputSample {
+    /// Angular rate (rad/s) and specific force (m/s²) at its time stamp.
     Rate(RateSample),
+    /// Angle (rad) and velocity (m/s) increments over the interval ending
+    /// at its time stamp.
     Increment(ImuSample),
 }
 
 /// How a [`Conditioner`] turns a log into navigation increments.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct ConditionerConfig {
+    /// Whether the log holds increments or rates (and how rates are
+    /// integrated).
     pub input: InputKind,
+    /// Decimation register: output rate = input rate / (DEC_RATE + 1);
+    /// `DecRate(0)` keeps every sample.
     pub dec: DecRate,
+    /// Averaging/accumulation, or naive point decimation (comparison only).
     pub method: DecimationMethod,
     /// Nominal input rate (Hz): gap detection and grid alignment.
     pub input_rate_hz: Option<f64>,

@@ -18,6 +18,7 @@
 //! (or the reverse). Rates and increments are told apart by the specific
 //! force: |f| ≈ g for rates, |Δv| ≈ g·Δt for increments; the geometric mean
 //! g·√Δt separates them for Δt < 0.2 s.
+#![warn(missing_docs)]
 
 use std::collections::VecDeque;
 use std::fs::File;
@@ -63,7 +64,9 @@ impl ImuLogFormat {
 /// 10^`step_exp`).
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct FieldDigits {
+    /// Significant digits written (leading zeros not counted).
     pub(crate) significant: u8,
+    /// Decimal exponent of the last digit written.
     pub(crate) step_exp: i16,
 }
 
@@ -119,6 +122,8 @@ pub struct LogRecord {
     pub values: [f64; 6],
     /// The optional odometer column of a KF-GINS file.
     pub odo: Option<f64>,
+    /// How each of the six values was written (all zero on lines where
+    /// digits were not counted: past line 4096, only every 8th line is).
     pub digits: [FieldDigits; 6],
 }
 

@@ -16,6 +16,7 @@
 //! Vehicle dynamics live far below the cut-off, where τ(ω) ≈ τ(0): the
 //! DC delay is the one compensated, and the report says how much the
 //! delay varies up to a stated dynamics band.
+#![warn(missing_docs)]
 
 use std::path::Path;
 
@@ -31,6 +32,8 @@ use crate::error::Error;
 pub struct LowPassFilter {
     /// A name for reports.
     pub name: String,
+    /// Rate (Hz) of the samples the filter runs on; converts its delay
+    /// from samples to seconds.
     pub sample_rate_hz: f64,
     /// Numerator coefficients b_0, b_1, … (FIR taps).
     pub b: Vec<f64>,
@@ -51,18 +54,27 @@ pub struct LowPassFilter {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LowPassSpec {
+    /// `fir`, `iir`, `moving-average`, `bartlett` or `first-order`.
     pub kind: String,
+    /// Rate (Hz) of the samples the filter runs on.
     pub sample_rate_hz: f64,
+    /// Name for reports; `None` keeps the one derived from the kind.
     #[serde(default)]
     pub name: Option<String>,
+    /// FIR taps b_0, b_1, … (`kind = "fir"`), used as written.
     #[serde(default)]
     pub taps: Option<Vec<f64>>,
+    /// IIR numerator b_0, b_1, … (`kind = "iir"`).
     #[serde(default)]
     pub b: Option<Vec<f64>>,
+    /// IIR denominator a_0, a_1, … (`kind = "iir"`; normalised to a_0 = 1).
     #[serde(default)]
     pub a: Option<Vec<f64>>,
+    /// Taps of the moving average, or of each of the two averages of a
+    /// Bartlett filter (`2n − 1` taps in all).
     #[serde(default)]
     pub n: Option<usize>,
+    /// Cut-off frequency (Hz) of a `first-order` filter.
     #[serde(default)]
     pub cutoff_hz: Option<f64>,
 }

@@ -26,6 +26,7 @@
 //!   simulated GNSS outages, seed 001 §1.3.3) is in `navsync-sim`.
 //! - [`spec`]: datasheet figures of gyro and accelerometer triads and of
 //!   the named IMU presets (the sensor sheet's and the simulator's).
+#![warn(missing_docs)]
 
 pub mod convert;
 pub mod decimate;
@@ -50,6 +51,8 @@ pub use quality::{QualityAnalyzer, QualityConfig, QualityReport, Status, check_f
 /// interval ending at `time`, see [`RateRule`]), body frame FRD.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct RateSample {
+    /// Time stamp: the instant of the rates, or the end of the interval
+    /// they were averaged over.
     pub time: GpsTime,
     /// Angular rate (rad/s).
     pub gyro: Vector3<f64>,

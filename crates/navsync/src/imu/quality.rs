@@ -19,6 +19,7 @@
 //! verdict row per seed 001 criterion. Loss rate = lost / (received +
 //! lost); bad-data rate = bad records / records, both against 1e-5 (§1.5
 //! point 5).
+#![warn(missing_docs)]
 
 use std::path::{Path, PathBuf};
 use std::sync::mpsc;
@@ -61,6 +62,8 @@ pub struct QualityConfig {
     pub max_gap_s: f64,
     /// §1.5 point 5: loss and bad-data rates below 1e-5.
     pub max_loss_rate: f64,
+    /// Largest acceptable bad-data rate: bad records (malformed, duplicate,
+    /// out of order, stale, spiky, saturated, stuck) over records.
     pub max_bad_rate: f64,
     /// navsync's limit on interval jitter (RMS, fraction of the interval);
     /// seed 001 asks for a stable interval without a number.
@@ -73,13 +76,17 @@ pub struct QualityConfig {
     pub stuck_min_s: f64,
     /// Full-scale ranges, when known: samples at ≥ 99.9 % are saturated.
     pub gyro_range_rad_s: Option<f64>,
+    /// Accelerometer full-scale range (m/s²), when known.
     pub accel_range_mps2: Option<f64>,
     /// The low-pass filter the IMU applied, if any (§1.4).
     pub lowpass: Option<LowPassFilter>,
     /// Band of the carrier's dynamics (Hz) for the filter-delay report.
     pub dynamics_band_hz: f64,
-    /// Static detection window (s) and shortest static segment kept (s).
+    /// Static detection window (s): σ and mean are compared window by
+    /// window.
     pub static_window_s: f64,
+    /// Shortest static segment kept (s); the longest one found gets the
+    /// Allan analysis.
     pub min_static_s: f64,
 }
 
@@ -110,10 +117,13 @@ impl Default for QualityConfig {
 #[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Status {
+    /// The criterion is met.
     Pass,
+    /// Information only: not graded, left out of the verdict.
     Info,
     /// Cannot be decided from the log alone, or marginal.
     Warn,
+    /// The criterion is violated.
     Fail,
 }
 
@@ -135,9 +145,13 @@ pub struct Criterion {
     /// Section of Tang, Zhang & Niu 2022 (seed 001), e.g. "§1.5-5"; or
     /// "noise" for the Allan-deviation rows.
     pub section: &'static str,
+    /// The rule, in words.
     pub rule: String,
+    /// Outcome of the rule on this log.
     pub status: Status,
+    /// What the log shows, with units.
     pub measured: String,
+    /// The threshold the measurement was held to.
     pub limit: String,
 }
 
@@ -145,13 +159,25 @@ pub struct Criterion {
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum EventKind {
+    /// A line that did not parse (reported by the reader; no time).
     Malformed,
+    /// An interval longer than `gap_factor` nominal periods.
     Gap,
+    /// A record with the previous record's time stamp (not used).
     Duplicate,
+    /// A record earlier than the previous one (not used).
     OutOfOrder,
+    /// All six values repeat the previous record where the channels'
+    /// repeat rates make that a < 1e-6 chance.
     Stale,
+    /// A channel repeats one value longer than chance allows (at least 20
+    /// samples and `stuck_min_s`).
     Stuck,
+    /// A flat top at a channel's extreme, or samples at ≥ 99.9 % of a
+    /// declared full-scale range.
     Saturation,
+    /// An isolated one-sample excursion (a two-sample one in increments)
+    /// beyond `spike_factor` times the channel's running level.
     Spike,
 }
 
@@ -169,28 +195,50 @@ const KINDS: [EventKind; 8] = [
 /// One finding, located in the file.
 #[derive(Clone, Debug, Serialize)]
 pub struct Event {
+    /// What was found.
     pub kind: EventKind,
+    /// 1-based line of the record (of the first record of a stuck run or
+    /// flat top).
     pub line: usize,
-    /// The time stamp as written (s).
+    /// The time stamp as written (s); NaN for malformed lines and
+    /// saturation.
     pub time_s: f64,
+    /// The channel (`gyro x` … `accel z`); `None` for findings about the
+    /// whole record.
     pub channel: Option<&'static str>,
+    /// What was seen, in words, with values.
     pub detail: String,
 }
 
 /// Counts of findings by kind.
 #[derive(Clone, Debug, Default, Serialize, PartialEq, Eq)]
 pub struct Counts {
+    /// Lines that did not parse (from the reader).
     pub malformed_lines: usize,
+    /// Intervals longer than `gap_factor` nominal periods.
     pub gaps: usize,
+    /// Gaps longer than `max_gap_s`.
     pub(crate) gaps_over_limit: usize,
+    /// Samples missing in the gaps (interval / nominal − 1, at least 1 per
+    /// gap).
     pub(crate) lost_samples: usize,
+    /// Records repeating the previous record's time stamp.
     pub duplicates: usize,
+    /// Records earlier than the previous record.
     pub out_of_order: usize,
+    /// Records whose six values all repeat the previous record beyond
+    /// chance.
     pub stale_records: usize,
+    /// Stuck runs, over all channels.
     pub stuck_segments: usize,
+    /// Samples inside stuck runs (union over channels).
     pub(crate) stuck_samples: usize,
+    /// Flat tops at a channel's extreme, plus one per channel that reached
+    /// a declared full-scale range.
     pub saturation_events: usize,
+    /// Saturated samples, summed over channels.
     pub(crate) saturated_samples: usize,
+    /// Spikes, over all channels.
     pub spikes: usize,
     /// Records with at least one spike.
     pub(crate) spike_records: usize,
@@ -230,11 +278,17 @@ pub struct IntervalStats {
 /// Per-channel findings (values in rate units: rad/s, m/s²).
 #[derive(Clone, Debug, Serialize)]
 pub struct ChannelReport {
+    /// `gyro x`, `gyro y`, `gyro z`, `accel x`, `accel y` or `accel z`.
     pub name: &'static str,
+    /// `rad/s` or `m/s^2`.
     pub(crate) unit: &'static str,
+    /// Mean (rad/s or m/s²; increments divided by the nominal interval).
     pub mean: f64,
+    /// Sample standard deviation (rad/s or m/s²).
     pub std: f64,
+    /// Smallest value (rad/s or m/s²).
     pub min: f64,
+    /// Largest value (rad/s or m/s²).
     pub max: f64,
     /// Fraction of samples equal to the one before.
     pub(crate) repeat_fraction: f64,
@@ -257,8 +311,11 @@ pub struct ChannelReport {
 /// A static segment found in the log.
 #[derive(Clone, Debug, Serialize)]
 pub struct StaticSegment {
+    /// 1-based line of its first record.
     pub(crate) first_line: usize,
+    /// Its first time stamp as written (s).
     pub(crate) start_s: f64,
+    /// Length (s): samples × the nominal interval.
     pub duration_s: f64,
 }
 
@@ -298,23 +355,35 @@ pub struct AllanReport {
 /// The delay of a declared low-pass filter.
 #[derive(Clone, Debug, Serialize)]
 pub struct LowPassReport {
+    /// The filter as declared.
     pub filter: LowPassFilter,
+    /// Its group delay: at DC (the delay compensated) and over the
+    /// dynamics band.
     pub delay: GroupDelay,
+    /// Text for the report: the delay, the advice to turn the filter off,
+    /// and the compensation applied.
     pub warning: String,
 }
 
 /// Everything a check found.
 #[derive(Clone, Debug, Serialize)]
 pub struct QualityReport {
+    /// Path of the log, as given.
     pub file: String,
+    /// `kf-gins` or `rate-csv`.
     pub format: &'static str,
     /// Lines that held a record or tried to (records + malformed).
     pub records: usize,
     /// Records in time order (duplicates and out-of-order excluded).
     pub accepted: usize,
+    /// First accepted time stamp as written (s).
     pub(crate) first_time_s: f64,
+    /// Last accepted time stamp as written (s).
     pub(crate) last_time_s: f64,
+    /// Last minus first accepted time stamp (s).
     pub duration_s: f64,
+    /// Nominal output rate (Hz): declared, or from the median interval of
+    /// the first 64 records.
     pub nominal_rate_hz: f64,
     /// A round rate within 1 % of the nominal one, if any.
     pub(crate) round_rate_hz: Option<f64>,
@@ -322,21 +391,38 @@ pub struct QualityReport {
     pub true_rate_hz: f64,
     /// (round or nominal period / true period − 1) × 1e6.
     pub(crate) rate_error_ppm: f64,
+    /// Statistics of the intervals between accepted records.
     pub intervals: IntervalStats,
+    /// Longest gap (s), 0 without gaps.
     pub(crate) longest_gap_s: f64,
+    /// Line of the record that ends the longest gap.
     pub(crate) longest_gap_line: usize,
+    /// Findings by kind.
     pub counts: Counts,
+    /// Bad records: malformed, duplicate, out of order, stale, spiky,
+    /// saturated and stuck.
     pub(crate) bad_records: usize,
+    /// Lost / (accepted + lost) samples.
     pub(crate) loss_rate: f64,
+    /// Bad records / records.
     pub(crate) bad_data_rate: f64,
+    /// Per-channel findings: gyro x y z, then accelerometer x y z.
     pub channels: Vec<ChannelReport>,
+    /// Every static segment found, in file order.
     pub(crate) static_segments: Vec<StaticSegment>,
+    /// Allan analysis of the longest static segment; `None` when no
+    /// segment of `min_static_s` was found.
     pub allan: Option<AllanReport>,
+    /// Delay of the declared low-pass filter; `None` when none was
+    /// declared.
     pub lowpass: Option<LowPassReport>,
+    /// The verdict rows, one per criterion.
     pub criteria: Vec<Criterion>,
+    /// Worst status among the criteria, `Info` rows left out.
     pub verdict: Status,
     /// Findings (at most 50 of each kind; all are counted in `counts`).
     pub events: Vec<Event>,
+    /// Remarks that fit no criterion (e.g. time stamps in coarse ticks).
     pub notes: Vec<String>,
 }
 

@@ -4,6 +4,7 @@
 //! leaves out from them ([`crate::sensor`]); the simulator
 //! (`navsync-sim`) builds its IMU models on them (its `ImuSpec` adds the
 //! internal chain and the sample clock).
+#![warn(missing_docs)]
 
 use serde::{Deserialize, Serialize};
 
@@ -18,10 +19,16 @@ pub const PRESET_BIAS_CORR_TIME_S: f64 = 3600.0;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct GyroSpec {
+    /// Angle random walk (deg/√h): white rate noise density.
     pub arw_deg_sqrt_h: f64,
+    /// In-run bias instability (deg/h), the flicker floor of the Allan
+    /// deviation (IEEE Std 952); a bias drift, not a constant.
     pub bias_instability_deg_h: f64,
+    /// Turn-on (run-to-run) bias σ (deg/h), constant within a run.
     pub turn_on_bias_deg_h: f64,
+    /// Scale-factor error σ (ppm).
     pub scale_ppm: f64,
+    /// Axis misalignment σ (deg), off-diagonal terms.
     pub misalignment_deg: f64,
     /// Saturation (deg/s), 0 = none.
     pub range_deg_s: f64,
@@ -50,10 +57,17 @@ impl Default for GyroSpec {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct AccelSpec {
+    /// Velocity random walk (m/s/√h): white specific-force noise density.
     pub vrw_mps_sqrt_h: f64,
+    /// In-run bias instability (mGal; 1 mGal = 1e-5 m/s² ≈ 1 µg), the
+    /// flicker floor of the Allan deviation (IEEE Std 952).
     pub bias_instability_mgal: f64,
+    /// Turn-on (run-to-run) bias σ (mGal), constant within a run.
     pub turn_on_bias_mgal: f64,
+    /// Scale-factor error σ (ppm).
     pub scale_ppm: f64,
+    /// Axis misalignment σ (deg), off-diagonal terms; levelling takes it
+    /// for tilt.
     pub misalignment_deg: f64,
     /// Saturation (g), 0 = none.
     pub range_g: f64,

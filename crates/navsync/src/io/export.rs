@@ -9,6 +9,7 @@
 //! heights and UTC times are computed by the caller (the geoid model and
 //! the leap-second table live in `navsync-receivers`) and handed in per
 //! point, so this module only formats.
+#![warn(missing_docs)]
 
 use std::path::Path;
 
@@ -27,10 +28,20 @@ use crate::time::{GpsTime, NS_PER_S, WeekTracker};
 /// Output formats of `navsync export`.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum ExportFormat {
+    /// GPX 1.1: one track, MSL heights, UTC times, position σ as
+    /// extension elements.
     Gpx,
+    /// KML 2.2: a track line and a folder of time-stamped points, absolute
+    /// (MSL) altitudes.
     Kml,
+    /// GeoJSON (RFC 7946): the track and one point per epoch, ellipsoidal
+    /// heights.
     GeoJson,
+    /// CSV with a header naming each column and its unit; ellipsoidal
+    /// heights.
     Csv,
+    /// TUM trajectory (`timestamp tx ty tz qx qy qz qw`) in the NED tangent
+    /// plane at the first epoch.
     Tum,
 }
 
@@ -180,7 +191,10 @@ pub fn decimate(recs: &[NavRecord], every_s: f64) -> Vec<NavRecord> {
 /// One epoch to export, with what the caller could add to it.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct ExportPoint {
+    /// The solution record (nav format).
     pub rec: NavRecord,
+    /// Its standard deviations from `std.txt` ([`sd_at`]); `None` when
+    /// unknown (outside the `std.txt` span, or no file).
     pub sd: Option<SolutionSd>,
     /// Geoid separation N (m): MSL height = h − N (GPX `<ele>`, KML
     /// `altitudeMode` absolute are heights above mean sea level).

@@ -7,6 +7,7 @@
 //! that is bad on its own: too few fields, a field that is not a finite
 //! number, a time that goes backwards or repeats, a GNSS standard deviation
 //! that is not positive. An empty file is an error.
+#![warn(missing_docs)]
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -299,9 +300,13 @@ pub struct NavRecord {
     pub week: i64,
     /// Time (week from the file, or the reader's week when the file has 0).
     pub time: GpsTime,
+    /// Latitude (deg), positive north.
     pub lat_deg: f64,
+    /// Longitude (deg), positive east.
     pub lon_deg: f64,
+    /// Ellipsoidal height (m).
     pub h_m: f64,
+    /// Velocity north, east, down (m/s).
     pub vel: [f64; 3],
     /// roll, pitch, yaw (deg).
     pub att_deg: [f64; 3],

@@ -9,6 +9,7 @@
 //! line into [`Diagnostics`] and skipped: nothing else is lost. So is a last
 //! line without newline (a logger killed mid-write): it may parse and still
 //! be cut short.
+#![warn(missing_docs)]
 
 use std::fs::File;
 use std::io::Read;
@@ -50,7 +51,11 @@ pub enum ImuTiming {
 #[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum RateSampling {
+    /// Samples of the rates at the counter's instant: converted by the
+    /// trapezoid rule.
     Instantaneous,
+    /// Averages over the interval since the previous sample (an averaging
+    /// IMU's output): converted by the rectangle rule.
     IntervalAverage,
 }
 
@@ -85,8 +90,11 @@ pub struct RigGnss {
     pub counter: u64,
     /// Time of validity (GPS).
     pub time: GpsTime,
+    /// Latitude (deg), positive north.
     pub lat_deg: f64,
+    /// Longitude (deg), positive east.
     pub lon_deg: f64,
+    /// Ellipsoidal height (m).
     pub h_m: f64,
     /// Standard deviations N, E, D (m).
     pub sd_m: [f64; 3],
@@ -96,16 +104,30 @@ pub struct RigGnss {
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub enum RigRecord {
     /// Raw counter latched at a 1PPS rising edge.
-    Pps { counter: u64 },
+    Pps {
+        /// Raw counter (not unwrapped) at the edge.
+        counter: u64,
+    },
     /// A GNSS fix and its receive counter.
     Gnss(RigGnss),
     /// Raw counter at the IMU data-ready edge (or receipt) and six values.
-    Imu { counter: u64, values: [f64; 6] },
+    Imu {
+        /// Raw counter (not unwrapped) at the latch (see [`ImuTiming`]).
+        counter: u64,
+        /// Gyro x y z then accelerometer x y z, FRD: rates (rad/s, m/s²) or
+        /// increments (rad, m/s) as the header's [`ImuKind`] says.
+        values: [f64; 6],
+    },
     /// Raw counter latched at an edge that the GNSS receiver time-marked
     /// too (u-blox TIM-TM2 on EXTINT: a camera strobe, an IMU sync pulse
     /// divided down), and the receiver's GPS time of that edge:
     /// `mark,<counter>,<week>,<tow_s>[,…]`.
-    Mark { counter: u64, time: GpsTime },
+    Mark {
+        /// Raw counter (not unwrapped) at the edge.
+        counter: u64,
+        /// The receiver's GPS time of the same edge.
+        time: GpsTime,
+    },
 }
 
 impl RigRecord {

@@ -14,6 +14,7 @@
 //!
 //! Quality flag Q: 1 fix, 2 float, 3 SBAS, 4 DGPS, 5 single, 6 PPP; lines
 //! with Q above `max_q` are skipped and counted (`q_skipped`).
+#![warn(missing_docs)]
 
 use std::fs::File;
 use std::io::Read;

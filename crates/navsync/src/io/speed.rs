@@ -1,5 +1,6 @@
 //! The speed file (`sow speed_mps`, docs/FORMATS.md): an odometer or CAN
 //! speed read as a stream and interpolated at the IMU epochs.
+#![warn(missing_docs)]
 
 use std::path::{Path, PathBuf};
 

@@ -2,6 +2,7 @@
 //! reader that counts lines, a field splitter for "any mix of spaces, tabs
 //! or commas" (FORMATS.md), exact decimal-seconds parsing into nanoseconds,
 //! and fixed-decimal number formatting without allocation.
+#![warn(missing_docs)]
 
 use std::fs::File;
 use std::io::{self, Read};
