@@ -117,6 +117,12 @@ pub struct Moments {
     pub n: usize,
     sum: f64,
     sum_sq: f64,
+    /// Running mean and sum of squared deviations (Welford, "Note on a
+    /// method for calculating corrected sums of squares and products",
+    /// Technometrics 4(3), 1962): the spread of values with a large mean
+    /// (sample intervals, counter readings) without cancellation.
+    running_mean: f64,
+    sum_sq_dev: f64,
     /// Smallest value (0 while `n == 0`).
     pub min: f64,
     /// Largest value (0 while `n == 0`).
@@ -139,6 +145,9 @@ impl Moments {
         self.n += 1;
         self.sum += v;
         self.sum_sq += v * v;
+        let d = v - self.running_mean;
+        self.running_mean += d / self.n as f64;
+        self.sum_sq_dev += d * (v - self.running_mean);
     }
 
     /// Mean of the values (NaN when none).
@@ -164,10 +173,7 @@ impl Moments {
         if self.n < 2 {
             return f64::NAN;
         }
-        let m = self.mean();
-        ((self.sum_sq - self.n as f64 * m * m) / (self.n as f64 - 1.0))
-            .max(0.0)
-            .sqrt()
+        (self.sum_sq_dev / (self.n as f64 - 1.0)).max(0.0).sqrt()
     }
 }
 
@@ -191,6 +197,21 @@ pub fn quantile(values: &mut [f64], q: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The spread of values far from zero: 5 ms intervals jittered by
+    /// ±1 ns (std exactly 1 ns over the alternating pattern, n−1 scaled),
+    /// which Σx² − n·m² loses to cancellation.
+    #[test]
+    fn std_of_values_with_a_large_mean_keeps_its_precision() {
+        let mut m = Moments::default();
+        let n = 1_000_000;
+        for k in 0..n {
+            m.push(5e-3 + if k % 2 == 0 { 1e-9 } else { -1e-9 });
+        }
+        let want = 1e-9 * (n as f64 / (n as f64 - 1.0)).sqrt();
+        assert!((m.std() - want).abs() < 1e-6 * want, "{}", m.std());
+        assert!((m.mean() - 5e-3).abs() < 1e-12);
+    }
 
     #[test]
     fn chi2_quantiles_match_tables() {

@@ -389,7 +389,7 @@ impl LowPassFilter {
     pub fn warning(&self, gd: &GroupDelay) -> String {
         format!(
             "the IMU applied a low-pass filter ({}, {} Hz): it delays the data by {:.3} ms ({:.2} samples at DC{}). \
-             Seed 001 §1.4: turn the filter off (or set its cut-off to the highest); \
+             Tang, Zhang & Niu (\"MEMS IMU raw data acquisition and time synchronization pitfalls\", 2022, §1.4) advise: turn the filter off (or set its cut-off to the highest); \
              navsync shifts the time stamps back by {:.3} ms (the delay varies {:.3}–{:.3} ms up to {:.1} Hz)",
             self.name,
             self.sample_rate_hz,
