@@ -15,7 +15,7 @@ use std::path::Path;
 use nalgebra::{UnitQuaternion, Vector3};
 use serde::Serialize;
 
-use crate::attitude::{Euler, euler_to_quat, quat_to_euler, wrap_180};
+use crate::attitude::{Euler, euler_to_quat, quat_to_euler, wrap_180, wrap_pi};
 use crate::earth::{Geodetic, LocalEarth};
 use crate::error::{Diagnostics, Error};
 use crate::io::kfgins::{NavReader, NavRecord};
@@ -178,7 +178,8 @@ pub(crate) fn interpolate(a: &TruthState, b: &TruthState, t: GpsTime) -> TruthSt
         time: t,
         pos: Geodetic::new(
             lerp(a.pos.lat_rad, b.pos.lat_rad),
-            lerp(a.pos.lon_rad, b.pos.lon_rad),
+            // Across the antimeridian the short way round.
+            wrap_pi(a.pos.lon_rad + wrap_pi(b.pos.lon_rad - a.pos.lon_rad) * u),
             lerp(a.pos.h_m, b.pos.h_m),
         ),
         vel: a.vel + (b.vel - a.vel) * u,
@@ -199,7 +200,7 @@ pub(crate) fn epoch_error(
         time: truth.time,
         pos_ned_m: le.geodetic_delta_to_ned(
             pos.lat_rad - truth.pos.lat_rad,
-            pos.lon_rad - truth.pos.lon_rad,
+            wrap_pi(pos.lon_rad - truth.pos.lon_rad),
             pos.h_m - truth.pos.h_m,
         ),
         vel_ned_mps: vel - truth.vel,
@@ -543,6 +544,34 @@ mod tests {
         };
         let e = epoch_error(&t, &t.pos, &t.vel, &Euler::from_deg(0.0, 0.0, -179.9));
         assert!((e.att_deg.z - 0.2).abs() < 1e-9, "{}", e.att_deg.z);
+    }
+
+    /// Truth and solution on either side of the antimeridian: the east
+    /// error is the short way round, and interpolation does not sweep
+    /// the globe.
+    #[test]
+    fn longitude_across_the_antimeridian() {
+        let state = |sow: f64, lon: f64| TruthState {
+            time: GpsTime::from_week_sow(0, sow),
+            pos: Geodetic::from_deg(0.0, lon, 0.0),
+            vel: Vector3::zeros(),
+            q_nb: euler_to_quat(&Euler::from_deg(0.0, 0.0, 90.0)),
+        };
+        // 1e-5° of longitude at the equator: 1.113 m east.
+        let east_per_step = 1e-5f64.to_radians() * 6_378_137.0;
+        let (a, b) = (state(0.0, 179.999_995), state(1.0, -179.999_995));
+        let mid = interpolate(&a, &b, GpsTime::from_week_sow(0, 0.5));
+        assert!(
+            (wrap_pi(mid.pos.lon_rad - std::f64::consts::PI)).abs() < 1e-12,
+            "{}",
+            mid.pos.lon_rad.to_degrees()
+        );
+        let e = epoch_error(&a, &b.pos, &a.vel, &Euler::from_deg(0.0, 0.0, 90.0));
+        assert!(
+            (e.pos_ned_m.y - east_per_step).abs() < 1e-3,
+            "{}",
+            e.pos_ned_m.y
+        );
     }
 
     #[test]
