@@ -35,7 +35,8 @@ use crate::stats::{Moments, quantile};
 const CHANNELS: [&str; 6] = [
     "gyro x", "gyro y", "gyro z", "accel x", "accel y", "accel z",
 ];
-/// Rates the nominal rate is rounded to when within 1 %.
+/// Round rates: the measured (true) rate is taken as one of them when
+/// within 1 % of it.
 const ROUND_RATES: [f64; 29] = [
     1.0, 2.0, 4.0, 5.0, 8.0, 10.0, 16.0, 20.0, 25.0, 32.0, 40.0, 50.0, 64.0, 100.0, 125.0, 128.0,
     200.0, 250.0, 256.0, 400.0, 500.0, 512.0, 1000.0, 1024.0, 2000.0, 2048.0, 4000.0, 4096.0,
@@ -385,7 +386,7 @@ pub struct QualityReport {
     /// Nominal output rate (Hz): declared, or from the median interval of
     /// the first 64 records.
     pub nominal_rate_hz: f64,
-    /// A round rate within 1 % of the nominal one, if any.
+    /// A round rate within 1 % of the measured one, if any.
     pub(crate) round_rate_hz: Option<f64>,
     /// From a least-squares fit of time on sample index.
     pub true_rate_hz: f64,
