@@ -800,14 +800,27 @@ fn run_inner(
     let mut fc = fusion_config(cfg, opts);
     // Heading-file problems are kept apart from the GNSS file's count.
     let mut heading_diag = Diagnostics::with_cap(1000);
+    let headings = match &opts.heading {
+        Some(h) => crate::io::heading::read_headings(&h.path, opts.week, &mut heading_diag)?,
+        None => Vec::new(),
+    };
+    // Dual-antenna headings are measurements through the drive; a
+    // receiver's vehicle heading only seeds the alignment (it is the
+    // receiver's own filtered estimate: fusing it would count its errors
+    // as new information again and again).
+    let baselines: Vec<crate::io::heading::HeadingObs> = headings
+        .iter()
+        .filter(|h| h.source == crate::io::heading::HeadingSource::Baseline)
+        .copied()
+        .collect();
     if let Some(h) = &opts.heading
-        && !(opts.align.is_some() || !cfg.init_state_given)
+        && !baselines.is_empty()
     {
-        heading_diag.push(
-            &h.path,
-            0,
-            "headings are used by the alignment only, and the configuration gives initatt: not used",
-        );
+        fc.heading = Some(crate::fusion::HeadingOptions {
+            dual_antenna_yaw_rad: h.dual_antenna_yaw_deg.to_radians(),
+            dual_antenna_yaw_sd_rad: h.dual_antenna_yaw_sd_deg.to_radians(),
+            aligned_from_baseline: false,
+        });
     }
     let alignment = if opts.align.is_some() || !cfg.init_state_given {
         let mut ao = opts.align.unwrap_or_default();
@@ -816,14 +829,10 @@ fn run_inner(
         if let Some(n) = &opts.nhc {
             ao.mount_yaw_rad = n.mount_deg[2].to_radians();
         }
-        let headings = match &opts.heading {
-            Some(h) => {
-                ao.dual_antenna_yaw_rad = h.dual_antenna_yaw_deg.to_radians();
-                ao.dual_antenna_yaw_sd_rad = h.dual_antenna_yaw_sd_deg.to_radians();
-                crate::io::heading::read_headings(&h.path, opts.week, &mut heading_diag)?
-            }
-            None => Vec::new(),
-        };
+        if let Some(h) = &opts.heading {
+            ao.dual_antenna_yaw_rad = h.dual_antenna_yaw_deg.to_radians();
+            ao.dual_antenna_yaw_sd_rad = h.dual_antenna_yaw_sd_deg.to_radians();
+        }
         let a = align_from_files(cfg, opts, &ao, fc.init_nav.time, &headings)?;
         diag.note(a.note.clone());
         fc.init_nav = a.nav;
@@ -839,6 +848,13 @@ fn run_inner(
             // misaligned axes' tilt error, uncorrelated with the states.
             fc.init_std.att.x = fc.init_std.att.x.hypot(misalign_sd_rad);
             fc.init_std.att.y = fc.init_std.att.y.hypot(misalign_sd_rad);
+        }
+        if let Some(h) = fc.heading.as_mut() {
+            h.aligned_from_baseline = matches!(
+                a.method,
+                crate::align::AlignMethod::StaticLevellingAndDualAntenna
+                    | crate::align::AlignMethod::InMotionDualAntenna
+            );
         }
         fc.init_std.pos = Vector3::from(a.pos_sd_m);
         fc.init_std.vel = Vector3::from(a.vel_sd_mps);
@@ -889,6 +905,7 @@ fn run_inner(
         "imu-reader",
     )?;
 
+    let mut next_heading = baselines.partition_point(|h| h.time < start);
     let mut fixes_read = usize::from(next_fix.is_some());
     let span = end.map(|e| e.seconds_since(start)).unwrap_or(f64::NAN);
     let mut last_progress = Instant::now();
@@ -914,6 +931,12 @@ fn run_inner(
                 && let Some(v) = sp.at(s.time, &mut diag)?
             {
                 navigator.push_speed(v);
+            }
+            while let Some(h) = baselines.get(next_heading)
+                && h.time <= s.time
+            {
+                navigator.push_heading(*h);
+                next_heading += 1;
             }
             match navigator.push_imu(s, sink) {
                 Ok(Step::Ended) => break 'outer,

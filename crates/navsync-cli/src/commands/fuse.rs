@@ -552,6 +552,12 @@ pub fn execute(
             None => println!(),
         }
     }
+    if opts.heading.is_some() {
+        println!(
+            "  dual-antenna heading updates: {} ({} rejected by the gate)",
+            s.heading_updates, s.heading_rejected
+        );
+    }
     if s.gaps > 0 {
         println!(
             "  IMU gaps: {} ({:.3} s in all, longest {:.3} s)",
