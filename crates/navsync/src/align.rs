@@ -1388,6 +1388,179 @@ mod tests {
         assert!(a.levelling_coupling.is_some());
     }
 
+    /// A baseline azimuth as the receiver measures it: az of C_b^n u^b.
+    fn baseline_az(att: &Euler, alpha: f64) -> f64 {
+        let c = NavState::new(
+            GpsTime::from_week_ns(2300, 0),
+            Geodetic::default(),
+            Vector3::zeros(),
+            att,
+        )
+        .c_nb();
+        let b = c * Vector3::new(alpha.cos(), alpha.sin(), 0.0);
+        b.y.atan2(b.x)
+    }
+
+    /// A tilted vehicle standing still with a dual-antenna baseline at a
+    /// mounting yaw of −70° and 0.2° heading noise (deterministic ±0.2°,
+    /// the worst case of a 1σ draw): aligned one second into the
+    /// standstill, heading within 1° (and within 3σ), from the baseline.
+    #[test]
+    fn a_dual_antenna_heading_aligns_at_a_standstill() {
+        let (roll, pitch, yaw) = (
+            3.0f64.to_radians(),
+            -2.0f64.to_radians(),
+            -150.0f64.to_radians(),
+        );
+        let alpha = -70f64.to_radians();
+        let opts = AlignOptions {
+            dual_antenna_yaw_rad: alpha,
+            ..AlignOptions::default()
+        };
+        let mut al = Aligner::new(opts);
+        let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+        let att = Euler::new(roll, pitch, yaw);
+        let c = NavState::new(GpsTime::from_week_ns(2300, 0), pos, Vector3::zeros(), &att).c_nb();
+        let g = crate::earth::gravity(pos.lat_rad.sin(), pos.h_m);
+        let f_b = c.transpose() * Vector3::new(0.0, 0.0, -g);
+        let az = baseline_az(&att, alpha);
+        let dt = 0.01;
+        let t0 = GpsTime::from_week_sow(2300, 1000.0);
+        let mut out = None;
+        for k in 1..=1000 {
+            let t = t0.add_seconds(k as f64 * dt);
+            al.push_imu(&sample(t, f_b, dt));
+            if k % 20 == 0 {
+                // 5 Hz headings.
+                let noise = if (k / 20) % 2 == 0 { 0.2 } else { -0.2 };
+                al.push_heading(&HeadingObs {
+                    time: t,
+                    heading_rad: az + f64::to_radians(noise),
+                    sd_rad: 0.2f64.to_radians(),
+                    source: HeadingSource::Baseline,
+                });
+            }
+            if k % 100 == 0 {
+                let fix = GnssFix {
+                    time: t,
+                    pos,
+                    pos_sd: Vector3::repeat(0.02),
+                    vel: Some(Vector3::zeros()),
+                    vel_sd: Some(Vector3::repeat(0.02)),
+                };
+                if let Some(a) = al.push_gnss(&fix) {
+                    out = Some((a, t));
+                    break;
+                }
+            }
+        }
+        let (a, at) = out.expect("aligned at the standstill");
+        assert_eq!(a.method, AlignMethod::StaticLevellingAndDualAntenna);
+        assert!(at.seconds_since(t0) <= 2.0 + 1e-9, "aligned at {at}");
+        assert_eq!(
+            a.time,
+            t0.add_seconds(1.0),
+            "the run starts at the first fix"
+        );
+        let e = a.nav.euler();
+        let err = wrap_pi(e.yaw_rad - yaw);
+        assert!(err.abs() < 1f64.to_radians(), "{}°", err.to_degrees());
+        assert!(err.abs() < 3.0 * a.att_sd_rad[2]);
+        // σ: 0.2° from the receiver with the 0.5° mounting allowance.
+        assert!((a.att_sd_rad[2].to_degrees() - 0.2f64.hypot(0.5)).abs() < 1e-9);
+        assert!((e.roll_rad - roll).abs() < 1e-6 && (e.pitch_rad - pitch).abs() < 1e-6);
+        assert!(a.note.contains("dual-antenna baseline"), "{}", a.note);
+    }
+
+    /// Never still long enough nor moving, with one baseline heading: the
+    /// end of the data takes the heading from it, within its σ.
+    #[test]
+    fn a_vehicle_that_never_moves_gets_its_heading_from_the_baseline() {
+        let mut al = Aligner::new(AlignOptions::default());
+        let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+        let yaw = 100f64.to_radians();
+        let t = GpsTime::from_week_sow(2300, 1000.0);
+        al.push_heading(&HeadingObs {
+            time: t,
+            heading_rad: yaw + 0.3f64.to_radians(),
+            sd_rad: 0.3f64.to_radians(),
+            source: HeadingSource::Baseline,
+        });
+        let fix = GnssFix {
+            time: t,
+            pos,
+            pos_sd: Vector3::repeat(0.02),
+            vel: Some(Vector3::zeros()),
+            vel_sd: Some(Vector3::repeat(0.02)),
+        };
+        assert!(al.push_gnss(&fix).is_none());
+        let a = al.finish().expect("a fix was seen");
+        assert_eq!(a.method, AlignMethod::StaticLevellingAndDualAntenna);
+        let err = wrap_pi(a.nav.euler().yaw_rad - yaw);
+        assert!(
+            err.abs() <= a.att_sd_rad[2],
+            "{err} vs σ {}",
+            a.att_sd_rad[2]
+        );
+    }
+
+    /// Moving at 10 m/s after a standstill: a receiver's vehicle heading
+    /// (σ 0.1°) replaces the GNSS course (σ ≈ 0.5°) when they agree, and is
+    /// refused when it is 10° off.
+    #[test]
+    fn a_receiver_vehicle_heading_replaces_the_course_when_it_agrees() {
+        for (offset_deg, expect) in [
+            (0.05f64, AlignMethod::StaticLevellingAndReceiverHeading),
+            (10.0, AlignMethod::StaticLevellingAndCourse),
+        ] {
+            let mut al = Aligner::new(AlignOptions::default());
+            let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+            let dt = 0.01;
+            let t0 = GpsTime::from_week_sow(2300, 1000.0);
+            let psi = 60f64.to_radians();
+            let mut t = t0;
+            let mut out = None;
+            for k in 1..=3000 {
+                t = t0.add_seconds(k as f64 * dt);
+                let moving = k > 1000;
+                let a = if moving { 1.0 } else { 0.0 };
+                al.push_imu(&sample(t, Vector3::new(a, 0.0, -GAMMA_E), dt));
+                if k % 100 == 0 {
+                    let speed = if moving { (k - 1000) as f64 * dt } else { 0.0 };
+                    if moving {
+                        al.push_heading(&HeadingObs {
+                            time: t,
+                            heading_rad: psi + offset_deg.to_radians(),
+                            sd_rad: 0.1f64.to_radians(),
+                            source: HeadingSource::Vehicle,
+                        });
+                    }
+                    let fix = GnssFix {
+                        time: t,
+                        pos,
+                        pos_sd: Vector3::repeat(0.02),
+                        vel: Some(Vector3::new(speed * psi.cos(), speed * psi.sin(), 0.0)),
+                        vel_sd: Some(Vector3::repeat(0.05)),
+                    };
+                    if let Some(x) = al.push_gnss(&fix) {
+                        out = Some(x);
+                        break;
+                    }
+                }
+            }
+            let a = out.expect("aligned");
+            assert_eq!(a.method, expect, "{}", a.note);
+            let err = wrap_pi(a.attitude_deg[2].to_radians() - psi).to_degrees();
+            if offset_deg < 1.0 {
+                assert!((err - offset_deg).abs() < 1e-9, "{err}");
+                assert!((a.att_sd_rad[2].to_degrees() - 0.1).abs() < 1e-9);
+            } else {
+                assert!(err.abs() < 1e-9, "{err}");
+                assert!(a.note.contains("not used"), "{}", a.note);
+            }
+        }
+    }
+
     /// Never moving: levelled, heading unknown with σ 180°.
     #[test]
     fn a_vehicle_that_never_moves_has_an_unknown_heading() {
