@@ -1518,10 +1518,9 @@ mod tests {
             let dt = 0.01;
             let t0 = GpsTime::from_week_sow(2300, 1000.0);
             let psi = 60f64.to_radians();
-            let mut t = t0;
             let mut out = None;
             for k in 1..=3000 {
-                t = t0.add_seconds(k as f64 * dt);
+                let t = t0.add_seconds(k as f64 * dt);
                 let moving = k > 1000;
                 let a = if moving { 1.0 } else { 0.0 };
                 al.push_imu(&sample(t, Vector3::new(a, 0.0, -GAMMA_E), dt));

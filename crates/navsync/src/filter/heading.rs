@@ -71,7 +71,7 @@ mod tests {
         let (az_hat, h) = baseline_azimuth(&nav, alpha);
         let phi = Vector3::new(2e-4, -3e-4, 5e-4);
         // The true state: C = exp(φ×) Ĉ (filter::feedback).
-        let mut truth = nav.clone();
+        let mut truth = nav;
         truth.q_nb = crate::attitude::rotvec_to_quat(&phi) * truth.q_nb;
         let (az, _) = baseline_azimuth(&truth, alpha);
         let predicted = h.dot(&phi);
