@@ -35,7 +35,7 @@ enum Command {
     /// gnss_residuals.txt beside --nav are used unless given).
     Report(commands::report::Args),
     /// Fuse IMU and GNSS files described by a KF-GINS configuration.
-    Fuse(commands::fuse::Args),
+    Fuse(Box<commands::fuse::Args>),
     /// Score a navigation result against a reference trajectory.
     Eval(commands::eval::Args),
     /// Export a navigation solution to GPX, KML, GeoJSON, CSV or TUM (with
@@ -78,7 +78,7 @@ fn main() {
         Command::Process(a) => commands::process::run(a),
         Command::Demo(a) => commands::demo::run(a),
         Command::Report(a) => commands::report::run(a),
-        Command::Fuse(a) => commands::fuse::run(a),
+        Command::Fuse(a) => commands::fuse::run(*a),
         Command::Eval(a) => commands::eval::run(a),
         Command::Export(a) => commands::export::run(a),
         Command::Convert(a) => commands::convert::run(a),

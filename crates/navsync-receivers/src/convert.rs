@@ -29,6 +29,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use navsync::error::{Diagnostics, Error};
 use navsync::filter::gnss::GnssFix;
+use navsync::io::heading::{HeadingObs, HeadingSource, MAX_HEADING_SD_DEG, write_headings};
 use navsync::io::kfgins::{TextWriter, format_gnss_line, format_imu_line};
 use navsync::io::riglog::write as rig_write;
 use navsync::io::text::{
@@ -45,7 +46,7 @@ use crate::imu::{EsfImu, RateIssue, RateSample, RateToIncrement};
 use crate::marks::{Edge, QErrCorrector, TimeMarks, pps_edge_gps};
 use crate::ros2::TopicChoice;
 use crate::stream::{Event, EventKind, StreamReader, StreamStats, gpsd_log_header_len};
-use crate::ubx::UbxMessage;
+use crate::ubx::{NavRelPosNed, UbxMessage};
 
 /// Input formats.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, serde::Serialize)]
@@ -139,6 +140,10 @@ pub struct DropTally {
     pub kept_by: Option<String>,
 }
 
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
+
 /// What a conversion did.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ConvertSummary {
@@ -174,6 +179,12 @@ pub struct ConvertSummary {
     pub pps_without_qerr: usize,
     pub mark_edges: usize,
     pub strobes: usize,
+    /// Headings written to heading.txt (dual-antenna NAV-RELPOSNED, NAV-PVT
+    /// headVeh) and those skipped, by reason.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub headings: usize,
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub heading_drops: BTreeMap<String, u64>,
     pub files: Vec<String>,
     pub diagnostics: Diagnostics,
 }
@@ -413,6 +424,8 @@ struct StreamConverter {
     /// (first, last) ESF tick and GPS time of the latest fix at that point.
     esf_clock: Option<((u64, GpsTime), (u64, GpsTime))>,
     last_fix_time: Option<GpsTime>,
+    /// Receiver headings (heading.txt).
+    headings: Vec<HeadingObs>,
     /// Largest interval between consecutive fix times (s).
     fix_interval_s: f64,
 }
@@ -444,6 +457,7 @@ impl StreamConverter {
             rig: Vec::new(),
             esf_clock: None,
             last_fix_time: None,
+            headings: Vec::new(),
             fix_interval_s: 0.0,
         }
     }
@@ -498,8 +512,26 @@ impl StreamConverter {
                     // is noted on arrival for the sensor-clock check.
                     if let Ok(Some(f)) = nav_pvt_fix(p, &self.ctx) {
                         self.note_fix_time(f.fix.time);
+                        // A dead-reckoning receiver's vehicle heading.
+                        if p.head_veh_valid() && p.gnss_fix_ok() {
+                            let sd_deg = p.head_acc_e5 as f64 * 1e-5;
+                            match heading_problem(sd_deg) {
+                                None => self.headings.push(HeadingObs {
+                                    time: f.fix.time,
+                                    heading_rad: (p.head_veh_e5 as f64 * 1e-5).to_radians(),
+                                    sd_rad: sd_deg.to_radians(),
+                                    source: HeadingSource::Vehicle,
+                                }),
+                                Some(why) => {
+                                    *s.heading_drops
+                                        .entry(format!("NAV-PVT headVeh: {why}"))
+                                        .or_default() += 1;
+                                }
+                            }
+                        }
                     }
                 }
+                UbxMessage::NavRelPosNed(r) => self.push_relposned(r, offset, file, s),
                 UbxMessage::NavSol(_)
                 | UbxMessage::NavPosLlh(_)
                 | UbxMessage::NavHpPosLlh(_)
@@ -562,6 +594,55 @@ impl StreamConverter {
             ),
             EventKind::Corrupt(_) => {
                 diag.push(file, 0, format!("{ev}"));
+            }
+        }
+    }
+
+    /// A dual-antenna heading (moving-base NAV-RELPOSNED): kept when
+    /// gnssFixOK, relPosValid and relPosHeadingValid are set and accHeading
+    /// is in (0, 30]°; otherwise counted and reported with its byte offset.
+    fn push_relposned(
+        &mut self,
+        r: &NavRelPosNed,
+        offset: u64,
+        file: &Path,
+        s: &mut ConvertSummary,
+    ) {
+        let acc = r.acc_heading_deg();
+        let why = if !r.gnss_fix_ok() {
+            Some("gnssFixOK not set".to_string())
+        } else if !r.rel_pos_valid() {
+            Some("relPosValid not set".to_string())
+        } else if !r.rel_pos_heading_valid() {
+            Some("relPosHeadingValid not set".to_string())
+        } else {
+            heading_problem(acc)
+        };
+        let time = self.last_fix_time.map(|last| itow_near(last, r.itow_ms));
+        let why = why.or_else(|| {
+            time.is_none()
+                .then(|| "no GPS week known yet (no fix before it)".into())
+        });
+        match (why, time) {
+            (None, Some(time)) => self.headings.push(HeadingObs {
+                time,
+                heading_rad: r.heading_deg().to_radians(),
+                sd_rad: acc.to_radians(),
+                source: HeadingSource::Baseline,
+            }),
+            (why, _) => {
+                let why = why.unwrap_or_default();
+                s.diagnostics.push(
+                    file,
+                    0,
+                    format!(
+                        "byte {offset}: NAV-RELPOSNED iTOW {} ms: {why}; heading skipped",
+                        r.itow_ms
+                    ),
+                );
+                *s.heading_drops
+                    .entry(format!("NAV-RELPOSNED: {why}"))
+                    .or_default() += 1;
             }
         }
     }
@@ -766,6 +847,15 @@ impl StreamConverter {
                 s,
             )?;
         }
+        if !self.headings.is_empty() {
+            let mut h = std::mem::take(&mut self.headings);
+            h.sort_by_key(|o| (o.time, o.source == HeadingSource::Vehicle));
+            h.dedup_by_key(|o| (o.time, o.source));
+            let path = out_dir.join("heading.txt");
+            write_headings(&path, &h)?;
+            s.headings = h.len();
+            s.files.push(path.display().to_string());
+        }
         if !self.rig.is_empty() {
             let path = out_dir.join("events.rig");
             let mut w = TextWriter::create(&path)?;
@@ -775,6 +865,27 @@ impl StreamConverter {
             s.files.push(path.display().to_string());
         }
         Ok(())
+    }
+}
+
+/// Why a heading σ (deg) is unusable, if it is: not finite, not positive,
+/// or above [`MAX_HEADING_SD_DEG`] (receivers send 180° without one).
+fn heading_problem(sd_deg: f64) -> Option<String> {
+    (!(sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG))
+        .then(|| format!("heading accuracy {sd_deg:.2}° outside (0, {MAX_HEADING_SD_DEG}]°"))
+}
+
+/// The GPS time of an iTOW (ms) in the week of `near`, the week before or
+/// after when iTOW is more than half a week away from it.
+fn itow_near(near: GpsTime, itow_ms: u32) -> GpsTime {
+    let t = GpsTime::from_week_ns(near.week(), itow_ms as i64 * 1_000_000);
+    let half = navsync::time::NS_PER_WEEK / 2;
+    if t.ns() - near.ns() > half {
+        GpsTime::from_week_ns(near.week() - 1, itow_ms as i64 * 1_000_000)
+    } else if near.ns() - t.ns() > half {
+        GpsTime::from_week_ns(near.week() + 1, itow_ms as i64 * 1_000_000)
+    } else {
+        t
     }
 }
 

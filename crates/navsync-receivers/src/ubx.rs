@@ -1,7 +1,8 @@
 //! u-blox UBX binary protocol: frame checksum and encoder, and the messages
 //! navsync reads (NAV-PVT, NAV-TIMEGPS, TIM-TP, TIM-TM2, ESF-MEAS, ESF-RAW,
 //! and the older navigation set NAV-SOL, NAV-POSLLH, NAV-VELNED,
-//! NAV-STATUS, plus the F9 high-precision NAV-HPPOSLLH).
+//! NAV-STATUS, plus the F9 high-precision NAV-HPPOSLLH and the moving-base
+//! NAV-RELPOSNED of a dual-antenna heading setup).
 //!
 //! Written from the u-blox interface descriptions rather than with the
 //! `ublox` crate: 0.10.0 panics in `TimTm2Flags::time_base()` for the GNSS
@@ -19,6 +20,10 @@
 //!   same layouts as the u-blox 6 Receiver Description, GPS.G6-SW-10018,
 //!   for LEA-6/NEO-6 and earlier).
 //! - [F9] §5.14 UBX-NAV-HPPOSLLH (protocol ≥ 27): invalidLlh in `flags`.
+//! - [F9] UBX-NAV-RELPOSNED (0x01 0x3C), version 0x01, 64 bytes: the
+//!   relative position of the rover antenna from the (moving) base,
+//!   relPosHeading and accHeading; also ZED-F9P Integration Manual
+//!   UBX-18010802, "Moving base" (heading of the base→rover vector).
 //! - [F9K] ZED-F9K Integration Manual, §3.2.6 Table 11: ESF data types and
 //!   their scaling.
 //!
@@ -146,6 +151,10 @@ impl MsgId {
         class: 0x01,
         id: 0x12,
     };
+    pub(crate) const NAV_RELPOSNED: MsgId = MsgId {
+        class: 0x01,
+        id: 0x3C,
+    };
     pub(crate) const NAV_TIMEGPS: MsgId = MsgId {
         class: 0x01,
         id: 0x20,
@@ -184,6 +193,7 @@ impl MsgId {
             (0x01, 0x22) => "NAV-CLOCK",
             (0x01, 0x26) => "NAV-TIMELS",
             (0x01, 0x35) => "NAV-SAT",
+            (0x01, 0x3C) => "NAV-RELPOSNED",
             (0x01, 0x3D) => "NAV-EELL",
             (0x01, 0x61) => "NAV-EOE",
             (0x02, 0x13) => "RXM-SFRBX",
@@ -361,6 +371,11 @@ impl NavPvt {
     /// gnssFixOK: a valid fix within the DOP and accuracy masks.
     pub(crate) fn gnss_fix_ok(&self) -> bool {
         self.flags & 0x01 != 0
+    }
+    /// headVehValid: headVeh is the vehicle's heading (dead-reckoning
+    /// receivers); otherwise it repeats the heading of motion.
+    pub fn head_veh_valid(&self) -> bool {
+        self.flags & 0x20 != 0
     }
     /// invalidLlh (protocol ≥ 27): lon, lat, height and hMSL are invalid.
     pub(crate) fn invalid_llh(&self) -> bool {
@@ -1253,6 +1268,124 @@ impl EsfRaw {
     }
 }
 
+// ---------------------------------------------------------- NAV-RELPOSNED
+
+/// UBX-NAV-RELPOSNED (0x01 0x3C), version 0x01, 64-byte payload ([F9]
+/// UBX-NAV-RELPOSNED): the rover antenna's position relative to the base
+/// (in a moving-base setup, the second antenna of the vehicle relative to
+/// the first), with the heading of that baseline. The u-blox 8 (M8P)
+/// version 0x00 is 40 bytes and has no heading: it is not read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NavRelPosNed {
+    /// Message version (0x01).
+    pub version: u8,
+    pub reserved0: u8,
+    pub ref_station_id: u16,
+    pub itow_ms: u32,
+    /// Base→rover vector N, E, D and its length (cm).
+    pub rel_pos_ned_cm: [i32; 3],
+    pub rel_pos_length_cm: i32,
+    /// Heading of the base→rover vector, clockwise from north (1e-5 deg).
+    pub rel_pos_heading_e5: i32,
+    pub reserved1: [u8; 4],
+    /// High-precision parts of N, E, D and length (0.1 mm, −99..99).
+    pub rel_pos_hp_ned: [i8; 3],
+    pub rel_pos_hp_length: i8,
+    /// Accuracy of N, E, D and length (0.1 mm).
+    pub acc_ned: [u32; 3],
+    pub acc_length: u32,
+    /// Accuracy of the heading (1e-5 deg).
+    pub acc_heading_e5: u32,
+    pub reserved2: [u8; 4],
+    /// gnssFixOK (bit 0), diffSoln (1), relPosValid (2), carrSoln (3..4:
+    /// 0 none, 1 float, 2 fixed), isMoving (5), refPosMiss (6), refObsMiss
+    /// (7), relPosHeadingValid (8), relPosNormalized (9).
+    pub flags: u32,
+}
+
+impl NavRelPosNed {
+    pub const LEN: usize = 64;
+
+    pub fn decode(p: &[u8]) -> Result<Self, PayloadError> {
+        if p.len() != Self::LEN {
+            return Err(bad_len(
+                "NAV-RELPOSNED",
+                p.len(),
+                "64 (version 1, u-blox 9; the 40-byte version 0 has no heading)",
+            ));
+        }
+        let r = Rd(p);
+        Ok(NavRelPosNed {
+            version: r.u1(0),
+            reserved0: r.u1(1),
+            ref_station_id: r.u2(2),
+            itow_ms: r.u4(4),
+            rel_pos_ned_cm: [r.i4(8), r.i4(12), r.i4(16)],
+            rel_pos_length_cm: r.i4(20),
+            rel_pos_heading_e5: r.i4(24),
+            reserved1: r.arr(28),
+            rel_pos_hp_ned: [r.i1(32), r.i1(33), r.i1(34)],
+            rel_pos_hp_length: r.i1(35),
+            acc_ned: [r.u4(36), r.u4(40), r.u4(44)],
+            acc_length: r.u4(48),
+            acc_heading_e5: r.u4(52),
+            reserved2: r.arr(56),
+            flags: r.u4(60),
+        })
+    }
+
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Vec::with_capacity(Self::LEN);
+        w.push(self.version);
+        w.push(self.reserved0);
+        w.extend_from_slice(&self.ref_station_id.to_le_bytes());
+        w.extend_from_slice(&self.itow_ms.to_le_bytes());
+        for v in self.rel_pos_ned_cm {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        w.extend_from_slice(&self.rel_pos_length_cm.to_le_bytes());
+        w.extend_from_slice(&self.rel_pos_heading_e5.to_le_bytes());
+        w.extend_from_slice(&self.reserved1);
+        for v in self.rel_pos_hp_ned {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        w.extend_from_slice(&self.rel_pos_hp_length.to_le_bytes());
+        for v in self.acc_ned {
+            w.extend_from_slice(&v.to_le_bytes());
+        }
+        w.extend_from_slice(&self.acc_length.to_le_bytes());
+        w.extend_from_slice(&self.acc_heading_e5.to_le_bytes());
+        w.extend_from_slice(&self.reserved2);
+        w.extend_from_slice(&self.flags.to_le_bytes());
+        w
+    }
+
+    pub fn gnss_fix_ok(&self) -> bool {
+        self.flags & 0x001 != 0
+    }
+    pub fn rel_pos_valid(&self) -> bool {
+        self.flags & 0x004 != 0
+    }
+    /// carrSoln: 0 no carrier-phase solution, 1 float, 2 fixed.
+    pub fn carr_soln(&self) -> u8 {
+        ((self.flags >> 3) & 0x3) as u8
+    }
+    pub fn rel_pos_heading_valid(&self) -> bool {
+        self.flags & 0x100 != 0
+    }
+    /// Heading of the base→rover baseline (deg, clockwise from north).
+    pub fn heading_deg(&self) -> f64 {
+        self.rel_pos_heading_e5 as f64 * 1e-5
+    }
+    pub fn acc_heading_deg(&self) -> f64 {
+        self.acc_heading_e5 as f64 * 1e-5
+    }
+    /// Baseline length (m), high-precision part included.
+    pub fn length_m(&self) -> f64 {
+        self.rel_pos_length_cm as f64 * 1e-2 + self.rel_pos_hp_length as f64 * 1e-4
+    }
+}
+
 // ---------------------------------------------------------------- dispatch
 
 /// A decoded UBX message of a type navsync reads.
@@ -1263,6 +1396,7 @@ pub enum UbxMessage {
     NavPosLlh(NavPosLlh),
     NavHpPosLlh(NavHpPosLlh),
     NavVelNed(NavVelNed),
+    NavRelPosNed(NavRelPosNed),
     NavStatus(NavStatus),
     NavTimeGps(NavTimeGps),
     TimTp(TimTp),
@@ -1281,6 +1415,7 @@ impl UbxMessage {
             MsgId::NAV_POSLLH => UbxMessage::NavPosLlh(NavPosLlh::decode(payload)?),
             MsgId::NAV_HPPOSLLH => UbxMessage::NavHpPosLlh(NavHpPosLlh::decode(payload)?),
             MsgId::NAV_VELNED => UbxMessage::NavVelNed(NavVelNed::decode(payload)?),
+            MsgId::NAV_RELPOSNED => UbxMessage::NavRelPosNed(NavRelPosNed::decode(payload)?),
             MsgId::NAV_STATUS => UbxMessage::NavStatus(NavStatus::decode(payload)?),
             MsgId::NAV_TIMEGPS => UbxMessage::NavTimeGps(NavTimeGps::decode(payload)?),
             MsgId::TIM_TP => UbxMessage::TimTp(TimTp::decode(payload)?),
@@ -1298,6 +1433,7 @@ impl UbxMessage {
             UbxMessage::NavPosLlh(_) => MsgId::NAV_POSLLH,
             UbxMessage::NavHpPosLlh(_) => MsgId::NAV_HPPOSLLH,
             UbxMessage::NavVelNed(_) => MsgId::NAV_VELNED,
+            UbxMessage::NavRelPosNed(_) => MsgId::NAV_RELPOSNED,
             UbxMessage::NavStatus(_) => MsgId::NAV_STATUS,
             UbxMessage::NavTimeGps(_) => MsgId::NAV_TIMEGPS,
             UbxMessage::TimTp(_) => MsgId::TIM_TP,
@@ -1314,6 +1450,7 @@ impl UbxMessage {
             UbxMessage::NavPosLlh(m) => m.encode(),
             UbxMessage::NavHpPosLlh(m) => m.encode(),
             UbxMessage::NavVelNed(m) => m.encode(),
+            UbxMessage::NavRelPosNed(m) => m.encode(),
             UbxMessage::NavStatus(m) => m.encode(),
             UbxMessage::NavTimeGps(m) => m.encode(),
             UbxMessage::TimTp(m) => m.encode(),
@@ -1375,6 +1512,7 @@ mod tests {
                 MsgId::NAV_POSLLH,
                 MsgId::NAV_HPPOSLLH,
                 MsgId::NAV_VELNED,
+                MsgId::NAV_RELPOSNED,
                 MsgId::NAV_STATUS,
                 MsgId::NAV_TIMEGPS,
                 MsgId::TIM_TP,
@@ -1388,6 +1526,43 @@ mod tests {
         assert!(NavPvt::decode(&[0; 84]).is_err());
         assert!(EsfRaw::decode(&[0; 13]).is_err());
         assert!(EsfRaw::decode(&[0; 12]).is_ok());
+        assert!(NavRelPosNed::decode(&[0; 40]).is_err());
+    }
+
+    /// NAV-RELPOSNED write → frame → parse gives the message back, and the
+    /// accessors scale as [F9] UBX-NAV-RELPOSNED says (1e-5 deg, cm + 0.1 mm).
+    #[test]
+    fn nav_relposned_round_trip() {
+        let m = NavRelPosNed {
+            version: 1,
+            reserved0: 0,
+            ref_station_id: 7,
+            itow_ms: 345_678_900,
+            rel_pos_ned_cm: [-52, 85, -3],
+            rel_pos_length_cm: 99,
+            rel_pos_heading_e5: 12_150_000,
+            reserved1: [0; 4],
+            rel_pos_hp_ned: [-12, 34, 5],
+            rel_pos_hp_length: -42,
+            acc_ned: [40, 40, 80],
+            acc_length: 50,
+            acc_heading_e5: 20_000,
+            reserved2: [0; 4],
+            flags: 0x001 | 0x004 | (2 << 3) | 0x020 | 0x100,
+        };
+        let frame = UbxMessage::NavRelPosNed(m.clone()).to_frame().unwrap();
+        assert_eq!(frame.len(), NavRelPosNed::LEN + FRAME_OVERHEAD);
+        assert_eq!((frame[2], frame[3]), (0x01, 0x3C));
+        let back = UbxMessage::decode(MsgId::NAV_RELPOSNED, &frame[6..frame.len() - 2])
+            .unwrap()
+            .unwrap();
+        assert_eq!(back, UbxMessage::NavRelPosNed(m.clone()));
+        assert!((m.heading_deg() - 121.5).abs() < 1e-12);
+        assert!((m.acc_heading_deg() - 0.2).abs() < 1e-12);
+        assert!((m.length_m() - (0.99 - 0.0042)).abs() < 1e-12);
+        assert!(m.gnss_fix_ok() && m.rel_pos_valid() && m.rel_pos_heading_valid());
+        assert_eq!(m.carr_soln(), 2);
+        assert_eq!(MsgId::NAV_RELPOSNED.name(), Some("NAV-RELPOSNED"));
     }
 
     #[test]

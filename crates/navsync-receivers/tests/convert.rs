@@ -275,3 +275,147 @@ fn empty_and_missing_inputs_are_clear_errors() {
     .unwrap_err();
     assert!(e.to_string().contains("missing.csv"), "{e}");
 }
+
+/// 10 s of a moving-base receiver: NAV-TIMEGPS, NAV-PVT and NAV-RELPOSNED
+/// at 1 Hz, heading 10° + k° with accHeading 0.2°, except epoch 3 without
+/// relPosHeadingValid, epoch 5 without gnssFixOK, epoch 7 with an absurd
+/// accHeading of 180° and epoch 8 with accHeading 0. The good epochs go to
+/// heading.txt; each bad one is a diagnostic naming its byte offset and
+/// reason; the fixes are all written.
+#[test]
+fn nav_relposned_to_heading_file_with_bad_epochs_reported() {
+    let mut s = Vec::new();
+    let mut offsets = Vec::new();
+    for k in 0..10i64 {
+        let itow = ((TOW0_S + k) * 1000) as u32;
+        let tg = NavTimeGps {
+            itow_ms: itow,
+            ftow_ns: 0,
+            week: WEEK as i16,
+            leap_s: 18,
+            valid: 7,
+            t_acc_ns: 20,
+        };
+        s.extend(UbxMessage::NavTimeGps(tg).to_frame().unwrap());
+        let mut p = NavPvt::decode(&[0; 92]).unwrap();
+        p.itow_ms = itow;
+        p.valid = 0x04;
+        p.fix_type = 3;
+        p.flags = 1;
+        p.lat_e7 = 300_000_000;
+        p.lon_e7 = 1_140_000_000;
+        p.height_mm = 20_000;
+        p.h_acc_mm = 20;
+        p.v_acc_mm = 30;
+        s.extend(UbxMessage::NavPvt(p).to_frame().unwrap());
+        let mut r = NavRelPosNed::decode(&[0; 64]).unwrap();
+        r.version = 1;
+        r.itow_ms = itow;
+        r.rel_pos_length_cm = 100;
+        r.rel_pos_heading_e5 = ((10 + k) * 100_000) as i32;
+        r.acc_heading_e5 = 20_000;
+        r.flags = 0x001 | 0x004 | (2 << 3) | 0x020 | 0x100;
+        match k {
+            3 => r.flags &= !0x100,
+            5 => r.flags &= !0x001,
+            7 => r.acc_heading_e5 = 18_000_000,
+            8 => r.acc_heading_e5 = 0,
+            _ => {}
+        }
+        offsets.push(s.len());
+        s.extend(UbxMessage::NavRelPosNed(r).to_frame().unwrap());
+    }
+    let dir = tmp("relposned");
+    let input = dir.join("in.ubx");
+    std::fs::write(&input, &s).unwrap();
+    let out = dir.join("out");
+    let sum = convert(InputFormat::Ubx, &input, &out, &ConvertOptions::default()).unwrap();
+    assert_eq!(sum.gnss_fixes, 10);
+    assert_eq!(sum.headings, 6);
+    assert_eq!(sum.frames.get("UBX NAV-RELPOSNED"), Some(&10));
+    let mut d = Diagnostics::default();
+    let h = navsync::io::heading::read_headings(&out.join("heading.txt"), WEEK, &mut d).unwrap();
+    assert!(d.is_empty(), "{:?}", d.items);
+    let kept: Vec<i64> = h
+        .iter()
+        .map(|o| {
+            (o.time
+                .seconds_since(GpsTime::from_week_ns(WEEK, TOW0_S * NS_PER_S))) as i64
+        })
+        .collect();
+    assert_eq!(kept, [0, 1, 2, 4, 6, 9]);
+    for (o, k) in h.iter().zip(&kept) {
+        assert!((o.heading_rad.to_degrees() - (10 + k) as f64).abs() < 1e-6);
+        assert!((o.sd_rad.to_degrees() - 0.2).abs() < 1e-6);
+        assert_eq!(o.source, navsync::io::heading::HeadingSource::Baseline);
+    }
+    let msgs: Vec<&str> = sum
+        .diagnostics
+        .items
+        .iter()
+        .map(|d| d.message.as_str())
+        .filter(|m| m.contains("NAV-RELPOSNED"))
+        .collect();
+    assert_eq!(msgs.len(), 4, "{msgs:?}");
+    for (m, (k, why)) in msgs.iter().zip([
+        (3, "relPosHeadingValid not set"),
+        (5, "gnssFixOK not set"),
+        (7, "180.00°"),
+        (8, "0.00°"),
+    ]) {
+        assert!(
+            m.starts_with(&format!("byte {}:", offsets[k])) && m.contains(why),
+            "{m}"
+        );
+    }
+}
+
+/// The real NEO-M8L log (gpsd regression data, an ADR receiver): every
+/// NAV-PVT has headVehValid, and headVeh repeats headMot to a few 1e-5° at
+/// ground speeds of a few cm/s to a few m/s with a headAcc of ≈ 5°. So its
+/// vehicle heading is the heading of motion there, meaningless at rest:
+/// the alignment takes a vehicle heading only above its minimum speed.
+#[test]
+fn neo_m8l_head_veh_repeats_head_mot() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/gpsd-ublox/ublox-neo-m8l.log");
+    if !path.is_file() {
+        eprintln!("skipped: {} not found", path.display());
+        return;
+    }
+    let out = tmp("m8l-heading");
+    let sum = convert(InputFormat::Ubx, &path, &out, &ConvertOptions::default()).unwrap();
+    assert_eq!(sum.frames.get("UBX NAV-PVT"), Some(&19));
+    assert_eq!(sum.headings, 19);
+    let mut d = Diagnostics::default();
+    let h = navsync::io::heading::read_headings(&out.join("heading.txt"), 0, &mut d).unwrap();
+    assert!(
+        h.iter()
+            .all(|o| o.source == navsync::io::heading::HeadingSource::Vehicle)
+    );
+    assert!(
+        h.iter()
+            .all(|o| (4.0..6.0).contains(&o.sd_rad.to_degrees()))
+    );
+    // headVeh against headMot, straight from the stream.
+    let bytes = std::fs::read(&path).unwrap();
+    let mut n = 0;
+    let mut i = 0;
+    while let Some(j) = bytes[i..]
+        .windows(4)
+        .position(|w| w == [0xB5, 0x62, 0x01, 0x07])
+    {
+        let at = i + j + 6;
+        if let Some(p) = bytes.get(at..at + 92)
+            && let Ok(p) = NavPvt::decode(p)
+        {
+            assert!(p.flags & 0x20 != 0, "headVehValid");
+            // The two differ in the last digits only (the receiver's
+            // rounding): at most 1e-4°, against a headAcc of ≈ 5°.
+            assert!((p.head_veh_e5 - p.head_mot_e5).abs() <= 10, "{p:?}");
+            n += 1;
+        }
+        i = at;
+    }
+    assert_eq!(n, 19);
+}

@@ -24,6 +24,21 @@
 //!   vehicle that reverses moves against its forward axis: the IMU's
 //!   forward specific force then has the opposite sign to the GNSS
 //!   along-track acceleration, and the heading is turned by 180°.
+//! - **Heading from a dual-antenna baseline** when the receiver measures
+//!   one (u-blox moving base, NAV-RELPOSNED relPosHeading): the azimuth of
+//!   the baseline b^n = C_b^n u^b, u^b = (cos α, sin α, 0) at the mounting
+//!   yaw α (`dual_antenna_yaw_rad`). With C_b^n = R_z(ψ) R_y(θ) R_x(φ)
+//!   (Groves eq 2.22), az(b^n) = ψ + atan2(w_y, w_x), w = R_y(θ) R_x(φ) u^b,
+//!   so ψ = az − atan2(sin α cos φ, cos θ cos α + sin θ sin α sin φ) with the
+//!   levelled roll and pitch (Groves §10.2.5, attitude from multiple
+//!   antennas). No motion is needed: over a standstill of a second the run
+//!   starts at once, heading σ from the receiver's accHeading plus the
+//!   mounting allowance. In motion it replaces the GNSS course.
+//! - **A receiver's vehicle heading** (u-blox NAV-PVT headVeh with
+//!   headVehValid, dead-reckoning receivers) above `min_speed_mps`, when
+//!   its σ (headAcc) beats the course's and it agrees with the course
+//!   (turned by 180° when reversing) within 3σ; NAV-PVT's heading of
+//!   motion is the course of the velocity used already and adds nothing.
 //! - **No motion at all**: heading is unobservable (a MEMS gyro cannot
 //!   sense the earth's rotation); the run starts levelled with heading 0
 //!   and σ_ψ = 180°, and says so.
@@ -35,6 +50,7 @@ use crate::attitude::Euler;
 use crate::earth::{GAMMA_E, LocalEarth};
 use crate::filter::gnss::GnssFix;
 use crate::ins::{ImuSample, NavState};
+use crate::io::heading::{HeadingObs, HeadingSource};
 use crate::time::GpsTime;
 
 /// Settings of the alignment.
@@ -57,6 +73,11 @@ pub struct AlignOptions {
     /// Starting in motion: the span of GNSS velocities (s) over which the
     /// tilt and heading are averaged before the run starts at its beginning.
     pub motion_window_s: f64,
+    /// Yaw of a dual-antenna baseline (primary → secondary antenna) in the
+    /// body frame, from x towards y (rad; 0: along body x).
+    pub dual_antenna_yaw_rad: f64,
+    /// σ of that mounting yaw (rad), added to the receiver's heading σ.
+    pub dual_antenna_yaw_sd_rad: f64,
 }
 
 impl Default for AlignOptions {
@@ -70,6 +91,8 @@ impl Default for AlignOptions {
             lever_b: [0.0; 3],
             mount_yaw_rad: 0.0,
             motion_window_s: 5.0,
+            dual_antenna_yaw_rad: 0.0,
+            dual_antenna_yaw_sd_rad: 0.5f64.to_radians(),
         }
     }
 }
@@ -85,7 +108,60 @@ pub enum AlignMethod {
     InMotion,
     /// The vehicle never moved: levelled, heading unknown.
     NoMotion,
+    /// Roll/pitch from a standstill, heading from a dual-antenna baseline.
+    StaticLevellingAndDualAntenna,
+    /// Roll/pitch in motion, heading from a dual-antenna baseline.
+    InMotionDualAntenna,
+    /// Roll/pitch from a standstill, heading from the receiver's vehicle
+    /// heading.
+    StaticLevellingAndReceiverHeading,
+    /// Roll/pitch in motion, heading from the receiver's vehicle heading.
+    InMotionReceiverHeading,
 }
+
+impl AlignMethod {
+    /// The method with the heading taken from `from` instead of the course.
+    fn with_heading(self, from: HeadingFrom) -> Self {
+        let static_levelled = matches!(
+            self,
+            AlignMethod::StaticLevellingAndCourse
+                | AlignMethod::StaticLevellingAndDualAntenna
+                | AlignMethod::StaticLevellingAndReceiverHeading
+        );
+        match (from, static_levelled) {
+            (HeadingFrom::Course, _) => self,
+            (HeadingFrom::Baseline, true) => AlignMethod::StaticLevellingAndDualAntenna,
+            (HeadingFrom::Baseline, false) => AlignMethod::InMotionDualAntenna,
+            (HeadingFrom::Vehicle, true) => AlignMethod::StaticLevellingAndReceiverHeading,
+            (HeadingFrom::Vehicle, false) => AlignMethod::InMotionReceiverHeading,
+        }
+    }
+}
+
+/// Where an aligned heading came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum HeadingFrom {
+    Course,
+    Baseline,
+    Vehicle,
+}
+
+/// Body yaw ψ from a baseline azimuth `az` at roll φ and pitch θ, for a
+/// baseline at yaw α in the body frame: az = ψ + atan2(w_y, w_x) with
+/// w = R_y(θ) R_x(φ) (cos α, sin α, 0) (C_b^n = R_z R_y R_x, Groves eq 2.22).
+pub fn yaw_from_baseline(az: f64, roll: f64, pitch: f64, alpha: f64) -> f64 {
+    let (sa, ca) = alpha.sin_cos();
+    let w_x = pitch.cos() * ca + pitch.sin() * sa * roll.sin();
+    let w_y = sa * roll.cos();
+    wrap_pi(az - w_y.atan2(w_x))
+}
+
+/// How long headings are kept for the alignment to look up (s).
+const HEADING_HISTORY_S: f64 = 15.0;
+/// A heading is used for an epoch when it is at most this far from it (s).
+const HEADING_MATCH_S: f64 = 0.5;
+/// A standstill this long (s) with a dual-antenna heading aligns at once.
+const DUAL_ANTENNA_STILL_S: f64 = 1.0;
 
 /// Levelling in motion: f^b = C_n^b (a^n − g^n), so the vehicle
 /// acceleration `a_n` (NED), expressed in a level frame along `course_rad`
@@ -110,6 +186,15 @@ fn level_in_motion(
     let reversing = checked && (f_rev.norm() - g).abs() < (f_fwd.norm() - g).abs();
     let (roll, pitch) = level(if reversing { &f_rev } else { &f_fwd });
     (roll, pitch, reversing, checked)
+}
+
+/// The alignment note's words on the heading's source.
+fn heading_words(from: HeadingFrom) -> &'static str {
+    match from {
+        HeadingFrom::Course => "GNSS course",
+        HeadingFrom::Baseline => "the dual-antenna baseline",
+        HeadingFrom::Vehicle => "the receiver's vehicle heading",
+    }
 }
 
 /// The alignment note's words on reversing.
@@ -250,6 +335,10 @@ pub(crate) struct Aligner {
     last_corr: Vector3<f64>,
     /// Starting in motion: the window being averaged.
     window: Option<MotionWindow>,
+    /// Headings of the last [`HEADING_HISTORY_S`], and the first baseline
+    /// heading (for a run that never stood still nor moved).
+    headings: std::collections::VecDeque<HeadingObs>,
+    first_baseline: Option<HeadingObs>,
     done: bool,
 }
 
@@ -299,8 +388,97 @@ impl Aligner {
             last_mid: None,
             last_corr: Vector3::zeros(),
             window: None,
+            headings: std::collections::VecDeque::new(),
+            first_baseline: None,
             done: false,
         }
+    }
+
+    /// Pushes a receiver heading (in time order with the fixes: before the
+    /// fix after it).
+    pub(crate) fn push_heading(&mut self, h: &HeadingObs) {
+        if h.source == HeadingSource::Baseline {
+            self.first_baseline.get_or_insert(*h);
+        }
+        while self
+            .headings
+            .front()
+            .is_some_and(|f| h.time.seconds_since(f.time) > HEADING_HISTORY_S)
+        {
+            self.headings.pop_front();
+        }
+        self.headings.push_back(*h);
+    }
+
+    /// The heading of `source` nearest to `t`, within [`HEADING_MATCH_S`].
+    fn heading_near(&self, t: GpsTime, source: HeadingSource) -> Option<HeadingObs> {
+        self.headings
+            .iter()
+            .filter(|h| h.source == source && t.seconds_since(h.time).abs() <= HEADING_MATCH_S)
+            .min_by(|a, b| {
+                t.seconds_since(a.time)
+                    .abs()
+                    .total_cmp(&t.seconds_since(b.time).abs())
+            })
+            .copied()
+    }
+
+    /// The body yaw and its σ from a baseline heading at this roll/pitch.
+    fn baseline_yaw(&self, h: &HeadingObs, roll: f64, pitch: f64) -> (f64, f64) {
+        let o = &self.opts;
+        (
+            yaw_from_baseline(h.heading_rad, roll, pitch, o.dual_antenna_yaw_rad),
+            h.sd_rad.hypot(o.dual_antenna_yaw_sd_rad),
+        )
+    }
+
+    /// The yaw for an epoch at `t` with roll/pitch known: a dual-antenna
+    /// heading when there is one, else the receiver's vehicle heading when
+    /// it beats the course (`course_yaw`, reversing applied) and agrees
+    /// with it, else the course. Returns yaw, σ, source and a note.
+    fn choose_yaw(
+        &self,
+        t: GpsTime,
+        roll: f64,
+        pitch: f64,
+        course_yaw: f64,
+        course_sd: f64,
+    ) -> (f64, f64, HeadingFrom, String) {
+        if let Some(h) = self.heading_near(t, HeadingSource::Baseline) {
+            let (yaw, sd) = self.baseline_yaw(&h, roll, pitch);
+            let d = wrap_pi(yaw - course_yaw);
+            // Sideslip and a wrong mounting yaw show here (3σ, with the
+            // allowance already in course_sd).
+            let note = if d.abs() > 3.0 * sd.hypot(course_sd) {
+                format!(
+                    "; the GNSS course differs by {:.1}° (beyond 3σ: check dual_antenna_yaw_deg and mount_yaw_deg)",
+                    d.to_degrees()
+                )
+            } else {
+                String::new()
+            };
+            return (yaw, sd, HeadingFrom::Baseline, note);
+        }
+        if let Some(h) = self.heading_near(t, HeadingSource::Vehicle) {
+            let yaw = wrap_pi(h.heading_rad - self.opts.mount_yaw_rad);
+            let sd = h.sd_rad;
+            let d = wrap_pi(yaw - course_yaw);
+            if sd < course_sd && d.abs() <= 3.0 * sd.hypot(course_sd) {
+                return (yaw, sd, HeadingFrom::Vehicle, String::new());
+            }
+            if d.abs() > 3.0 * sd.hypot(course_sd) {
+                return (
+                    course_yaw,
+                    course_sd,
+                    HeadingFrom::Course,
+                    format!(
+                        "; the receiver's vehicle heading differs by {:.1}° (beyond 3σ): not used",
+                        d.to_degrees()
+                    ),
+                );
+            }
+        }
+        (course_yaw, course_sd, HeadingFrom::Course, String::new())
     }
 
     pub(crate) fn push_imu(&mut self, s: &ImuSample) {
@@ -423,6 +601,12 @@ impl Aligner {
                     self.still = Sums::default();
                 }
                 self.still_confirmed = self.still;
+                if self.still_confirmed.dt >= DUAL_ANTENNA_STILL_S
+                    && let Some(a) = self.align_still_dual_antenna(fix)
+                {
+                    self.done = true;
+                    return Some(a);
+                }
             } else if let Some(start) = self.still_start.take() {
                 // Only the samples up to the last still fix.
                 let s = std::mem::take(&mut self.still_confirmed);
@@ -459,6 +643,74 @@ impl Aligner {
             self.done = true;
         }
         result
+    }
+
+    /// At a standstill of [`DUAL_ANTENNA_STILL_S`] with dual-antenna
+    /// headings: levelled over it, the heading their weighted circular
+    /// mean, the run starting at the standstill's first fix. The σ is the
+    /// mean of their σ (a baseline's multipath errors are correlated over
+    /// seconds: averaging is not credited) plus the mounting allowance.
+    fn align_still_dual_antenna(&self, fix: &GnssFix) -> Option<Alignment> {
+        let (start, sf) = (self.still_start?, self.still_start_fix?);
+        let s = self.still_confirmed;
+        let o = &self.opts;
+        let (roll, pitch) = level(&s.f());
+        let (mut sn, mut cs, mut sd_sum, mut n) = (0.0, 0.0, 0.0, 0usize);
+        for h in self.headings.iter().filter(|h| {
+            h.source == HeadingSource::Baseline
+                && h.time.seconds_since(start) >= -HEADING_MATCH_S
+                && fix.time.seconds_since(h.time) >= -HEADING_MATCH_S
+        }) {
+            let yaw = yaw_from_baseline(h.heading_rad, roll, pitch, o.dual_antenna_yaw_rad);
+            let w = 1.0 / (h.sd_rad * h.sd_rad);
+            sn += w * yaw.sin();
+            cs += w * yaw.cos();
+            sd_sum += h.sd_rad;
+            n += 1;
+        }
+        if n == 0 {
+            return None;
+        }
+        let yaw = sn.atan2(cs);
+        let yaw_sd = (sd_sum / n as f64).hypot(o.dual_antenna_yaw_sd_rad);
+        let g = crate::earth::gravity(sf.pos.lat_rad.sin(), sf.pos.h_m);
+        let noise_sd = levelling_noise_sd_rad(s.dt);
+        let tilt_sd = (o.accel_bias_sd_mps2 / g).hypot(noise_sd);
+        let mut nav = NavState::new(
+            sf.time,
+            sf.pos,
+            Vector3::zeros(),
+            &Euler::new(roll, pitch, yaw),
+        );
+        antenna_to_imu(&mut nav, &o.lever_b);
+        let standstill_s = fix.time.seconds_since(start);
+        let note = format!(
+            "aligned at a standstill at {:.3} s of week: roll {:.2}°, pitch {:.2}° (levelled over {:.1} s), heading {:.2}° ± {:.2}° from the dual-antenna baseline ({n} headings, baseline yaw {:.2}° in the body)",
+            sf.time.sow(),
+            roll.to_degrees(),
+            pitch.to_degrees(),
+            s.dt,
+            yaw.to_degrees(),
+            yaw_sd.to_degrees(),
+            o.dual_antenna_yaw_rad.to_degrees(),
+        );
+        Some(Alignment {
+            time: nav.time,
+            time_sow: nav.time.sow(),
+            levelling_coupling: Some(levelling_tilt_coupling(&nav.c_nb(), g)),
+            tilt_noise_sd_rad: noise_sd,
+            nav,
+            attitude_deg: [roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()],
+            att_sd_rad: [tilt_sd, tilt_sd, yaw_sd],
+            pos_sd_m: sf.pos_sd.into(),
+            vel_sd_mps: [0.05; 3],
+            method: AlignMethod::StaticLevellingAndDualAntenna,
+            standstill_s,
+            speed_mps: 0.0,
+            reversing: false,
+            reversing_checked: false,
+            note,
+        })
     }
 
     /// σ of the course from one GNSS velocity (rad): the cross-track
@@ -543,11 +795,11 @@ impl Aligner {
         // at 15 m/s).
         let a_sd = (w.v0_sd.norm().hypot(v_sd.norm()) / span_s).hypot(0.002);
         let tilt_sd = o.accel_bias_sd_mps2.hypot(a_sd) / g;
-        let mut yaw = course0 - o.mount_yaw_rad;
+        let mut course_yaw = course0 - o.mount_yaw_rad;
         if reversing {
-            yaw += std::f64::consts::PI;
+            course_yaw += std::f64::consts::PI;
         }
-        let yaw = wrap_pi(yaw);
+        let course_yaw = wrap_pi(course_yaw);
         // Velocities from positions share fixes: independent ones are at
         // most half the fixes, and at most the span over the mean baseline.
         let fixes = w.fixes as f64;
@@ -558,21 +810,24 @@ impl Aligner {
             0.5 * fixes
         };
         let mean_var = fixes / w.heading_info;
-        let yaw_sd = (mean_var / independent)
+        let course_sd = (mean_var / independent)
             .sqrt()
             .hypot(o.heading_allowance_rad);
+        let (yaw, yaw_sd, from, extra) =
+            self.choose_yaw(w.fix0.time, roll, pitch, course_yaw, course_sd);
         let att = Euler::new(roll, pitch, yaw);
         let mut nav = NavState::new(w.fix0.time, w.fix0.pos, w.v0, &att);
         antenna_to_imu(&mut nav, &o.lever_b);
         let speed0 = w.v0.x.hypot(w.v0.y);
         let note = format!(
-            "aligned in motion over {span_s:.1} s of GNSS velocity ({} fixes) from {:.3} s of week, {speed0:.1} m/s: roll {:.2}°, pitch {:.2}°, heading {:.2}° ± {:.2}° from GNSS course{}; the run starts at the window's start (aligned at {:.3} s of week)",
+            "aligned in motion over {span_s:.1} s of GNSS velocity ({} fixes) from {:.3} s of week, {speed0:.1} m/s: roll {:.2}°, pitch {:.2}°, heading {:.2}° ± {:.2}° from {}{}{extra}; the run starts at the window's start (aligned at {:.3} s of week)",
             w.fixes,
             w.fix0.time.sow(),
             roll.to_degrees(),
             pitch.to_degrees(),
             yaw.to_degrees(),
             yaw_sd.to_degrees(),
+            heading_words(from),
             reversing_note(checked, reversing),
             fix.time.sow(),
         );
@@ -588,7 +843,7 @@ impl Aligner {
             att_sd_rad: [tilt_sd, tilt_sd, yaw_sd],
             pos_sd_m: w.fix0.pos_sd.into(),
             vel_sd_mps: w.v0_sd.into(),
-            method: AlignMethod::InMotion,
+            method: AlignMethod::InMotion.with_heading(from),
             standstill_s: 0.0,
             speed_mps: speed0,
             reversing,
@@ -655,14 +910,17 @@ impl Aligner {
             }
         };
         let course = v.y.atan2(v.x);
-        let mut yaw = course - o.mount_yaw_rad;
+        let mut course_yaw = course - o.mount_yaw_rad;
         if reversing {
-            yaw += std::f64::consts::PI;
+            course_yaw += std::f64::consts::PI;
         }
-        let yaw = wrap_pi(yaw);
-        let yaw_sd = self
+        let course_yaw = wrap_pi(course_yaw);
+        let course_sd = self
             .course_sd(v, v_sd, speed)
             .hypot(o.heading_allowance_rad);
+        let (yaw, yaw_sd, from, extra) =
+            self.choose_yaw(fix.time, roll, pitch, course_yaw, course_sd);
+        let method = method.with_heading(from);
         let att = Euler::new(roll, pitch, yaw);
         let mut nav = NavState::new(fix.time, fix.pos, *v, &att);
         // The fix is the antenna's: move to the IMU.
@@ -688,18 +946,19 @@ impl Aligner {
             nav = n0;
         }
         let note = format!(
-            "aligned at {:.3} s of week, {:.1} m/s: roll {:.2}°, pitch {:.2}° ({}), heading {:.2}° ± {:.2}° from GNSS course{}",
+            "aligned at {:.3} s of week, {:.1} m/s: roll {:.2}°, pitch {:.2}° ({}), heading {:.2}° ± {:.2}° from {}{}{extra}",
             fix.time.sow(),
             speed,
             roll.to_degrees(),
             pitch.to_degrees(),
-            match method {
-                AlignMethod::StaticLevellingAndCourse =>
-                    format!("levelled over a {standstill_s:.0} s standstill"),
-                _ => "levelled in motion".into(),
+            if recent_still.is_some() {
+                format!("levelled over a {standstill_s:.0} s standstill")
+            } else {
+                "levelled in motion".into()
             },
             yaw.to_degrees(),
             yaw_sd.to_degrees(),
+            heading_words(from),
             reversing_note(checked, reversing)
         ) + &if start_s > 0.0 {
             format!(
@@ -777,17 +1036,26 @@ impl Aligner {
         } else {
             10f64.to_radians()
         };
+        // A dual-antenna heading needs no motion.
+        let dual = self
+            .first_baseline
+            .map(|h| self.baseline_yaw(&h, roll, pitch));
+        let (yaw, yaw_sd) = dual.unwrap_or((0.0, std::f64::consts::PI));
         let mut nav = NavState::new(
             fix.time,
             fix.pos,
             Vector3::zeros(),
-            &Euler::new(roll, pitch, 0.0),
+            &Euler::new(roll, pitch, yaw),
         );
-        // The fix is the antenna's: move to the IMU with heading 0. The
-        // horizontal part of the lever arm then points anywhere: its length
-        // joins the horizontal σ.
+        // The fix is the antenna's: move to the IMU. With heading 0 for an
+        // unknown one, the horizontal part of the lever arm points
+        // anywhere: its length joins the horizontal σ.
         antenna_to_imu(&mut nav, &self.opts.lever_b);
-        let lever_h_m = (nav.c_nb() * Vector3::from(self.opts.lever_b)).xy().norm();
+        let lever_h_m = if dual.is_some() {
+            0.0
+        } else {
+            (nav.c_nb() * Vector3::from(self.opts.lever_b)).xy().norm()
+        };
         let pos_sd_m = [
             fix.pos_sd.x.hypot(lever_h_m),
             fix.pos_sd.y.hypot(lever_h_m),
@@ -806,19 +1074,37 @@ impl Aligner {
             } else {
                 tilt_sd
             },
-            attitude_deg: [roll.to_degrees(), pitch.to_degrees(), 0.0],
-            att_sd_rad: [tilt_sd, tilt_sd, std::f64::consts::PI],
+            attitude_deg: [roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()],
+            att_sd_rad: [tilt_sd, tilt_sd, yaw_sd],
             pos_sd_m,
             vel_sd_mps: [0.1; 3],
-            method: AlignMethod::NoMotion,
+            method: if dual.is_some() {
+                AlignMethod::StaticLevellingAndDualAntenna
+            } else {
+                AlignMethod::NoMotion
+            },
             standstill_s,
             speed_mps: 0.0,
             reversing: false,
             reversing_checked: false,
-            note: format!(
-                "the vehicle never moved faster than {:.1} m/s: heading is unobservable (a MEMS gyro cannot sense the earth's rotation); levelled, heading set to 0° with σ 180°",
-                self.opts.min_speed_mps
-            ),
+            note: if dual.is_some() {
+                format!(
+                    "the vehicle never moved faster than {:.1} m/s nor stood still for {DUAL_ANTENNA_STILL_S:.0} s: {}, heading {:.2}° ± {:.2}° from the dual-antenna baseline",
+                    self.opts.min_speed_mps,
+                    if standstill_s > 0.0 {
+                        "levelled"
+                    } else {
+                        "not levelled (tilt σ 10°)"
+                    },
+                    yaw.to_degrees(),
+                    yaw_sd.to_degrees()
+                )
+            } else {
+                format!(
+                    "the vehicle never moved faster than {:.1} m/s: heading is unobservable (a MEMS gyro cannot sense the earth's rotation); levelled, heading set to 0° with σ 180°",
+                    self.opts.min_speed_mps
+                )
+            },
         })
     }
 }
@@ -1100,6 +1386,178 @@ mod tests {
         );
         assert!(wrap_pi(e.yaw_rad - yaw).abs() < 3.0 * a.att_sd_rad[2]);
         assert!(a.levelling_coupling.is_some());
+    }
+
+    /// A baseline azimuth as the receiver measures it: az of C_b^n u^b.
+    fn baseline_az(att: &Euler, alpha: f64) -> f64 {
+        let c = NavState::new(
+            GpsTime::from_week_ns(2300, 0),
+            Geodetic::default(),
+            Vector3::zeros(),
+            att,
+        )
+        .c_nb();
+        let b = c * Vector3::new(alpha.cos(), alpha.sin(), 0.0);
+        b.y.atan2(b.x)
+    }
+
+    /// A tilted vehicle standing still with a dual-antenna baseline at a
+    /// mounting yaw of −70° and 0.2° heading noise (deterministic ±0.2°,
+    /// the worst case of a 1σ draw): aligned one second into the
+    /// standstill, heading within 1° (and within 3σ), from the baseline.
+    #[test]
+    fn a_dual_antenna_heading_aligns_at_a_standstill() {
+        let (roll, pitch, yaw) = (
+            3.0f64.to_radians(),
+            -2.0f64.to_radians(),
+            -150.0f64.to_radians(),
+        );
+        let alpha = -70f64.to_radians();
+        let opts = AlignOptions {
+            dual_antenna_yaw_rad: alpha,
+            ..AlignOptions::default()
+        };
+        let mut al = Aligner::new(opts);
+        let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+        let att = Euler::new(roll, pitch, yaw);
+        let c = NavState::new(GpsTime::from_week_ns(2300, 0), pos, Vector3::zeros(), &att).c_nb();
+        let g = crate::earth::gravity(pos.lat_rad.sin(), pos.h_m);
+        let f_b = c.transpose() * Vector3::new(0.0, 0.0, -g);
+        let az = baseline_az(&att, alpha);
+        let dt = 0.01;
+        let t0 = GpsTime::from_week_sow(2300, 1000.0);
+        let mut out = None;
+        for k in 1..=1000 {
+            let t = t0.add_seconds(k as f64 * dt);
+            al.push_imu(&sample(t, f_b, dt));
+            if k % 20 == 0 {
+                // 5 Hz headings.
+                let noise = if (k / 20) % 2 == 0 { 0.2 } else { -0.2 };
+                al.push_heading(&HeadingObs {
+                    time: t,
+                    heading_rad: az + f64::to_radians(noise),
+                    sd_rad: 0.2f64.to_radians(),
+                    source: HeadingSource::Baseline,
+                });
+            }
+            if k % 100 == 0 {
+                let fix = GnssFix {
+                    time: t,
+                    pos,
+                    pos_sd: Vector3::repeat(0.02),
+                    vel: Some(Vector3::zeros()),
+                    vel_sd: Some(Vector3::repeat(0.02)),
+                };
+                if let Some(a) = al.push_gnss(&fix) {
+                    out = Some((a, t));
+                    break;
+                }
+            }
+        }
+        let (a, at) = out.expect("aligned at the standstill");
+        assert_eq!(a.method, AlignMethod::StaticLevellingAndDualAntenna);
+        assert!(at.seconds_since(t0) <= 2.0 + 1e-9, "aligned at {at}");
+        assert_eq!(
+            a.time,
+            t0.add_seconds(1.0),
+            "the run starts at the first fix"
+        );
+        let e = a.nav.euler();
+        let err = wrap_pi(e.yaw_rad - yaw);
+        assert!(err.abs() < 1f64.to_radians(), "{}°", err.to_degrees());
+        assert!(err.abs() < 3.0 * a.att_sd_rad[2]);
+        // σ: 0.2° from the receiver with the 0.5° mounting allowance.
+        assert!((a.att_sd_rad[2].to_degrees() - 0.2f64.hypot(0.5)).abs() < 1e-9);
+        assert!((e.roll_rad - roll).abs() < 1e-6 && (e.pitch_rad - pitch).abs() < 1e-6);
+        assert!(a.note.contains("dual-antenna baseline"), "{}", a.note);
+    }
+
+    /// Never still long enough nor moving, with one baseline heading: the
+    /// end of the data takes the heading from it, within its σ.
+    #[test]
+    fn a_vehicle_that_never_moves_gets_its_heading_from_the_baseline() {
+        let mut al = Aligner::new(AlignOptions::default());
+        let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+        let yaw = 100f64.to_radians();
+        let t = GpsTime::from_week_sow(2300, 1000.0);
+        al.push_heading(&HeadingObs {
+            time: t,
+            heading_rad: yaw + 0.3f64.to_radians(),
+            sd_rad: 0.3f64.to_radians(),
+            source: HeadingSource::Baseline,
+        });
+        let fix = GnssFix {
+            time: t,
+            pos,
+            pos_sd: Vector3::repeat(0.02),
+            vel: Some(Vector3::zeros()),
+            vel_sd: Some(Vector3::repeat(0.02)),
+        };
+        assert!(al.push_gnss(&fix).is_none());
+        let a = al.finish().expect("a fix was seen");
+        assert_eq!(a.method, AlignMethod::StaticLevellingAndDualAntenna);
+        let err = wrap_pi(a.nav.euler().yaw_rad - yaw);
+        assert!(
+            err.abs() <= a.att_sd_rad[2],
+            "{err} vs σ {}",
+            a.att_sd_rad[2]
+        );
+    }
+
+    /// Moving at 10 m/s after a standstill: a receiver's vehicle heading
+    /// (σ 0.1°) replaces the GNSS course (σ ≈ 0.5°) when they agree, and is
+    /// refused when it is 10° off.
+    #[test]
+    fn a_receiver_vehicle_heading_replaces_the_course_when_it_agrees() {
+        for (offset_deg, expect) in [
+            (0.05f64, AlignMethod::StaticLevellingAndReceiverHeading),
+            (10.0, AlignMethod::StaticLevellingAndCourse),
+        ] {
+            let mut al = Aligner::new(AlignOptions::default());
+            let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+            let dt = 0.01;
+            let t0 = GpsTime::from_week_sow(2300, 1000.0);
+            let psi = 60f64.to_radians();
+            let mut out = None;
+            for k in 1..=3000 {
+                let t = t0.add_seconds(k as f64 * dt);
+                let moving = k > 1000;
+                let a = if moving { 1.0 } else { 0.0 };
+                al.push_imu(&sample(t, Vector3::new(a, 0.0, -GAMMA_E), dt));
+                if k % 100 == 0 {
+                    let speed = if moving { (k - 1000) as f64 * dt } else { 0.0 };
+                    if moving {
+                        al.push_heading(&HeadingObs {
+                            time: t,
+                            heading_rad: psi + offset_deg.to_radians(),
+                            sd_rad: 0.1f64.to_radians(),
+                            source: HeadingSource::Vehicle,
+                        });
+                    }
+                    let fix = GnssFix {
+                        time: t,
+                        pos,
+                        pos_sd: Vector3::repeat(0.02),
+                        vel: Some(Vector3::new(speed * psi.cos(), speed * psi.sin(), 0.0)),
+                        vel_sd: Some(Vector3::repeat(0.05)),
+                    };
+                    if let Some(x) = al.push_gnss(&fix) {
+                        out = Some(x);
+                        break;
+                    }
+                }
+            }
+            let a = out.expect("aligned");
+            assert_eq!(a.method, expect, "{}", a.note);
+            let err = wrap_pi(a.attitude_deg[2].to_radians() - psi).to_degrees();
+            if offset_deg < 1.0 {
+                assert!((err - offset_deg).abs() < 1e-9, "{err}");
+                assert!((a.att_sd_rad[2].to_degrees() - 0.1).abs() < 1e-9);
+            } else {
+                assert!(err.abs() < 1e-9, "{err}");
+                assert!(a.note.contains("not used"), "{}", a.note);
+            }
+        }
     }
 
     /// Never moving: levelled, heading unknown with σ 180°.

@@ -413,6 +413,12 @@ impl Navigator {
         self.pending.push_back(fix);
     }
 
+    /// A dual-antenna heading, used at the first IMU sample at or after
+    /// its time.
+    pub fn push_heading(&mut self, h: crate::io::heading::HeadingObs) {
+        self.fusion.push_heading(h);
+    }
+
     /// An odometer/CAN speed (m/s) valid at the next IMU sample.
     pub fn push_speed(&mut self, speed_mps: f64) {
         self.fusion.push_speed(speed_mps);

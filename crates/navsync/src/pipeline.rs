@@ -100,6 +100,21 @@ pub struct FuseOptions {
     /// Detect standstills and apply zero-velocity and zero-angular-rate
     /// updates while stopped ([`crate::filter::standstill`]).
     pub standstill: Option<crate::filter::standstill::StandstillOptions>,
+    /// Receiver headings (a heading file: dual-antenna baseline, receiver
+    /// vehicle heading) for the alignment.
+    pub heading: Option<HeadingOptions>,
+}
+
+/// A heading file and how its dual-antenna baseline sits in the body.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct HeadingOptions {
+    /// `sow heading_deg sd_deg [baseline|vehicle]` ([`crate::io::heading`]).
+    pub path: PathBuf,
+    /// Yaw of the baseline (primary → secondary antenna) in the body frame,
+    /// from x towards y (deg).
+    pub dual_antenna_yaw_deg: f64,
+    /// σ of that yaw (deg).
+    pub dual_antenna_yaw_sd_deg: f64,
 }
 
 /// Settings of the forward–backward smoother ([`crate::smoother`]).
@@ -167,6 +182,7 @@ impl Default for FuseOptions {
             smooth: None,
             align: None,
             standstill: None,
+            heading: None,
         }
     }
 }
@@ -196,6 +212,16 @@ impl FuseOptions {
             return bad(format!(
                 "time-offset σ {} s must be positive (initial value {} s finite)",
                 t.sd_s, t.init_s
+            ));
+        }
+        if let Some(h) = &self.heading
+            && !(h.dual_antenna_yaw_deg.is_finite()
+                && h.dual_antenna_yaw_sd_deg.is_finite()
+                && h.dual_antenna_yaw_sd_deg >= 0.0)
+        {
+            return bad(format!(
+                "dual-antenna yaw {}° must be finite and its σ {}° not negative",
+                h.dual_antenna_yaw_deg, h.dual_antenna_yaw_sd_deg
             ));
         }
         if let Some(o) = &self.odometer
@@ -778,6 +804,30 @@ fn run_inner(
     let started = Instant::now();
     let mut diag = Diagnostics::with_cap(1000);
     let mut fc = fusion_config(cfg, opts);
+    // Heading-file problems are kept apart from the GNSS file's count.
+    let mut heading_diag = Diagnostics::with_cap(1000);
+    let headings = match &opts.heading {
+        Some(h) => crate::io::heading::read_headings(&h.path, opts.week, &mut heading_diag)?,
+        None => Vec::new(),
+    };
+    // Dual-antenna headings are measurements through the drive; a
+    // receiver's vehicle heading only seeds the alignment (it is the
+    // receiver's own filtered estimate: fusing it would count its errors
+    // as new information again and again).
+    let baselines: Vec<crate::io::heading::HeadingObs> = headings
+        .iter()
+        .filter(|h| h.source == crate::io::heading::HeadingSource::Baseline)
+        .copied()
+        .collect();
+    if let Some(h) = &opts.heading
+        && !baselines.is_empty()
+    {
+        fc.heading = Some(crate::fusion::HeadingOptions {
+            dual_antenna_yaw_rad: h.dual_antenna_yaw_deg.to_radians(),
+            dual_antenna_yaw_sd_rad: h.dual_antenna_yaw_sd_deg.to_radians(),
+            aligned_from_baseline: false,
+        });
+    }
     let alignment = if opts.align.is_some() || !cfg.init_state_given {
         let mut ao = opts.align.unwrap_or_default();
         ao.lever_b = cfg.antenna_lever.into();
@@ -785,7 +835,11 @@ fn run_inner(
         if let Some(n) = &opts.nhc {
             ao.mount_yaw_rad = n.mount_deg[2].to_radians();
         }
-        let a = align_from_files(cfg, opts, &ao, fc.init_nav.time)?;
+        if let Some(h) = &opts.heading {
+            ao.dual_antenna_yaw_rad = h.dual_antenna_yaw_deg.to_radians();
+            ao.dual_antenna_yaw_sd_rad = h.dual_antenna_yaw_sd_deg.to_radians();
+        }
+        let a = align_from_files(cfg, opts, &ao, fc.init_nav.time, &headings)?;
         diag.note(a.note.clone());
         fc.init_nav = a.nav;
         fc.init_std.att = Vector3::from(a.att_sd_rad);
@@ -800,6 +854,13 @@ fn run_inner(
             // misaligned axes' tilt error, uncorrelated with the states.
             fc.init_std.att.x = fc.init_std.att.x.hypot(misalign_sd_rad);
             fc.init_std.att.y = fc.init_std.att.y.hypot(misalign_sd_rad);
+        }
+        if let Some(h) = fc.heading.as_mut() {
+            h.aligned_from_baseline = matches!(
+                a.method,
+                crate::align::AlignMethod::StaticLevellingAndDualAntenna
+                    | crate::align::AlignMethod::InMotionDualAntenna
+            );
         }
         fc.init_std.pos = Vector3::from(a.pos_sd_m);
         fc.init_std.vel = Vector3::from(a.vel_sd_mps);
@@ -850,6 +911,7 @@ fn run_inner(
         "imu-reader",
     )?;
 
+    let mut next_heading = baselines.partition_point(|h| h.time < start);
     let mut fixes_read = usize::from(next_fix.is_some());
     let span = end.map(|e| e.seconds_since(start)).unwrap_or(f64::NAN);
     let mut last_progress = Instant::now();
@@ -875,6 +937,12 @@ fn run_inner(
                 && let Some(v) = sp.at(s.time, &mut diag)?
             {
                 navigator.push_speed(v);
+            }
+            while let Some(h) = baselines.get(next_heading)
+                && h.time <= s.time
+            {
+                navigator.push_heading(*h);
+                next_heading += 1;
             }
             match navigator.push_imu(s, sink) {
                 Ok(Step::Ended) => break 'outer,
@@ -936,6 +1004,7 @@ fn run_inner(
     let imu_skipped = imu_diag.total;
     let mut all = imu_diag;
     all.extend(diag);
+    all.extend(heading_diag);
     all.extend(stream.diagnostics);
     let mut fusion = navigator.into_fusion();
     let records = stream.fix_records;
@@ -1115,9 +1184,12 @@ fn align_from_files(
     opts: &FuseOptions,
     ao: &crate::align::AlignOptions,
     start: GpsTime,
+    headings: &[crate::io::heading::HeadingObs],
 ) -> Result<crate::align::Alignment, Error> {
     let mut diag = Diagnostics::with_cap(10);
     let mut aligner = crate::align::Aligner::new(*ao);
+    // Headings go in before the fix at or after their time.
+    let mut hi = headings.partition_point(|h| h.time < start);
     let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
     let mut imu = ImuReader::open(&cfg.imu_path, opts.week)?;
     let mut next_fix = gnss.next_fix(&mut diag)?;
@@ -1128,6 +1200,12 @@ fn align_from_files(
         while let Some(f) = next_fix
             && f.time <= s.time
         {
+            while let Some(h) = headings.get(hi)
+                && h.time <= f.time
+            {
+                aligner.push_heading(h);
+                hi += 1;
+            }
             if f.time >= start
                 && let Some(a) = aligner.push_gnss(&f)
             {
@@ -1136,6 +1214,9 @@ fn align_from_files(
             next_fix = gnss.next_fix(&mut diag)?;
         }
         aligner.push_imu(&s);
+    }
+    for h in headings.get(hi..).unwrap_or_default() {
+        aligner.push_heading(h);
     }
     aligner.finish().ok_or_else(|| Error::NoData {
         path: cfg.gnss_path.clone(),

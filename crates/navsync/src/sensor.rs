@@ -239,10 +239,20 @@ pub struct SensorSheet {
     pub time_offset: Option<TimeOffsetSheet>,
     #[serde(default = "default_gnss_sd")]
     pub gnss_default_sd_m: [f64; 3],
+    /// Dual-antenna heading: the yaw of the baseline (primary → secondary
+    /// antenna) in the IMU's axes, from x towards y (deg), and its σ.
+    #[serde(default)]
+    pub dual_antenna_yaw_deg: f64,
+    #[serde(default = "default_dual_antenna_yaw_sd")]
+    pub dual_antenna_yaw_sd_deg: f64,
 }
 
 fn default_gnss_sd() -> [f64; 3] {
     [5.0, 5.0, 10.0]
+}
+
+fn default_dual_antenna_yaw_sd() -> f64 {
+    0.5
 }
 
 impl SensorSheet {
@@ -385,6 +395,20 @@ impl SensorSheet {
             if v.iter().any(|x| !(x.is_finite() && x.abs() <= lim)) {
                 return bad(k, format!("must hold 3 numbers within ±{lim}, got {v:?}"));
             }
+        }
+        if !(self.dual_antenna_yaw_deg.is_finite() && self.dual_antenna_yaw_deg.abs() <= 360.0) {
+            return bad(
+                "dual_antenna_yaw_deg",
+                format!("must be within ±360°, got {}", self.dual_antenna_yaw_deg),
+            );
+        }
+        if !(self.dual_antenna_yaw_sd_deg.is_finite()
+            && (0.0..=30.0).contains(&self.dual_antenna_yaw_sd_deg))
+        {
+            return bad(
+                "dual_antenna_yaw_sd_deg",
+                format!("must be within 0…30°, got {}", self.dual_antenna_yaw_sd_deg),
+            );
         }
         if self.gnss_default_sd_m.iter().any(|x| *x <= 0.0) {
             return bad(
@@ -573,7 +597,15 @@ pub fn template(preset: &str) -> Result<String, Error> {
          #   sd_s: 0.2\n\
          \n\
          # σ [north, east, down] (m) given to fixes that carry none (NMEA without GST).\n\
-         gnss_default_sd_m: [5.0, 5.0, 10.0]\n",
+         gnss_default_sd_m: [5.0, 5.0, 10.0]\n\
+         \n\
+         # Dual-antenna heading (u-blox moving base: log UBX NAV-RELPOSNED): the yaw\n\
+         # of the baseline from the primary to the secondary antenna in the IMU's axes,\n\
+         # from forward towards right (deg; 0: the second antenna straight ahead of\n\
+         # the first, 90: to its right), and how well it is known (σ, deg). Unused\n\
+         # without dual-antenna headings in the receiver log.\n\
+         dual_antenna_yaw_deg: 0.0\n\
+         dual_antenna_yaw_sd_deg: 0.5\n",
     );
     Ok(y)
 }

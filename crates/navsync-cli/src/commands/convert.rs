@@ -217,6 +217,12 @@ pub fn run(a: Args) -> Result<()> {
             );
         }
     }
+    if s.headings > 0 || !s.heading_drops.is_empty() {
+        println!("heading.txt: {} receiver headings", s.headings);
+        for (why, n) in &s.heading_drops {
+            println!("  {n} skipped: {why}");
+        }
+    }
     if s.pps + s.mark_edges > 0 {
         println!(
             "events.rig: {} PPS ({} without qErr), {} time-mark edges, {} strobes",

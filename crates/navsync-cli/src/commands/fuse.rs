@@ -64,6 +64,24 @@ pub struct Args {
     /// Alignment: take the heading from GNSS velocity from this speed on (m/s).
     #[arg(long, default_value_t = 3.0)]
     pub align_min_speed: f64,
+    /// Receiver headings for the alignment (`sow heading_deg sd_deg
+    /// [baseline|vehicle]`, docs/FORMATS.md; `navsync convert` writes
+    /// heading.txt from UBX NAV-RELPOSNED and NAV-PVT headVeh): a
+    /// dual-antenna heading aligns at a standstill, without motion.
+    #[arg(long)]
+    pub heading: Option<PathBuf>,
+    /// Yaw of the dual-antenna baseline (primary → secondary antenna) in
+    /// the body frame, from x towards y (deg; 0: along body x).
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        requires = "heading",
+        allow_hyphen_values = true
+    )]
+    pub dual_antenna_yaw: f64,
+    /// σ of that mounting yaw (deg), added to the receiver's heading σ.
+    #[arg(long, default_value_t = 0.5, requires = "heading")]
+    pub dual_antenna_yaw_sd: f64,
     /// Detect standstills (IMU quiet and the solution slower than 0.5 m/s)
     /// and apply zero-velocity and zero-angular-rate updates while stopped:
     /// keeps heading and biases alive at traffic lights.
@@ -409,6 +427,11 @@ impl Args {
                 min_speed_mps: self.align_min_speed,
                 ..Default::default()
             }),
+            heading: self.heading.clone().map(|path| pipeline::HeadingOptions {
+                path,
+                dual_antenna_yaw_deg: self.dual_antenna_yaw,
+                dual_antenna_yaw_sd_deg: self.dual_antenna_yaw_sd,
+            }),
             standstill: self
                 .zupt
                 .then_some(navsync::filter::standstill::StandstillOptions {
@@ -528,6 +551,12 @@ pub fn execute(
             Some(k) => println!(", estimated scale error {:+.3} %", 100.0 * k),
             None => println!(),
         }
+    }
+    if opts.heading.is_some() {
+        println!(
+            "  dual-antenna heading updates: {} ({} rejected by the gate)",
+            s.heading_updates, s.heading_rejected
+        );
     }
     if s.gaps > 0 {
         println!(

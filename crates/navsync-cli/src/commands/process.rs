@@ -179,6 +179,9 @@ struct Data {
     /// only: a constant offset remains for the filter to estimate.
     software_timed: bool,
     notes: Vec<String>,
+    /// Receiver headings `convert` wrote (dual-antenna NAV-RELPOSNED,
+    /// NAV-PVT headVeh), for the alignment.
+    heading: Option<PathBuf>,
 }
 
 fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
@@ -228,6 +231,7 @@ fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
         sync_report: Some(dir.join("sync_report.json")),
         software_timed,
         notes: Vec::new(),
+        heading: None,
     })
 }
 
@@ -298,6 +302,8 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
         (g.clone(), None)
     } else {
         let d = dir.join("gnss");
+        // A heading file of an earlier run in this folder is not this log's.
+        let _ = std::fs::remove_file(d.join("heading.txt"));
         let s = convert_one(g, *gk, &d, &opts)?;
         if let Some(m) = s.no_fix_message() {
             bail!("{m}: navsync process needs GNSS positions to align and fuse");
@@ -363,6 +369,7 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
         sync_report: None,
         software_timed,
         notes,
+        heading: Some(dir.join("gnss").join("heading.txt")).filter(|p| p.is_file()),
     })
 }
 
@@ -498,6 +505,14 @@ pub fn run(a: Args) -> Result<()> {
             mount_yaw_rad: sheet.mount_deg[2].to_radians(),
             ..AlignOptions::default()
         }),
+        heading: data
+            .heading
+            .clone()
+            .map(|path| navsync::pipeline::HeadingOptions {
+                path,
+                dual_antenna_yaw_deg: sheet.dual_antenna_yaw_deg,
+                dual_antenna_yaw_sd_deg: sheet.dual_antenna_yaw_sd_deg,
+            }),
         smooth: (!a.no_smooth).then_some(SmoothOptions::default()),
         // Zero-velocity and zero-angular-rate updates at stops.
         standstill: Some(navsync::filter::standstill::StandstillOptions::default()),

@@ -21,6 +21,7 @@
 
 pub mod dense;
 pub mod gnss;
+pub mod heading;
 pub(crate) mod model;
 pub mod nhc;
 pub mod standstill;

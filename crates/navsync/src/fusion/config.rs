@@ -232,6 +232,22 @@ pub struct OdometerOptions {
     pub(crate) scale_sd: Option<f64>,
 }
 
+/// Dual-antenna heading update settings.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct HeadingOptions {
+    /// Yaw of the baseline (primary → secondary antenna) in the body frame,
+    /// from x towards y (rad).
+    pub dual_antenna_yaw_rad: f64,
+    /// σ of that yaw (rad): a Schmidt "consider" state (Schmidt 1966;
+    /// Groves §3.4.3 on consider states), carried in P and never updated,
+    /// so that repeated headings cannot average the constant mounting
+    /// error away.
+    pub dual_antenna_yaw_sd_rad: f64,
+    /// The alignment took its heading from the baseline: the initial yaw
+    /// error holds the mounting error (P starts with their correlation).
+    pub aligned_from_baseline: bool,
+}
+
 /// The IMU–GNSS time-offset state.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct TimeOffsetOptions {
@@ -286,6 +302,8 @@ pub struct FusionConfig {
     pub use_gnss_velocity: bool,
     pub nhc: Option<NhcOptions>,
     pub odometer: Option<OdometerOptions>,
+    /// Dual-antenna heading updates (headings from `Fusion::push_heading`).
+    pub heading: Option<HeadingOptions>,
     pub time_offset: Option<TimeOffsetOptions>,
     pub latency: LatencyMode,
     /// Estimate the 12 axis misalignments of the gyro and accelerometer
@@ -336,6 +354,7 @@ impl FusionConfig {
             use_gnss_velocity: true,
             nhc: None,
             odometer: None,
+            heading: None,
             time_offset: None,
             latency: LatencyMode::Offline,
             misalignment_sd_rad: None,
@@ -361,6 +380,10 @@ pub struct TimeOffsetState {
     pub sd_s: f64,
     /// False while τ̂ is held (unobservable motion).
     pub observable: bool,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// Counters the engine keeps.
@@ -389,6 +412,11 @@ pub struct FusionStats {
     pub gnss_fixes_stale: usize,
     pub nhc_updates: usize,
     pub odometer_updates: usize,
+    /// Dual-antenna heading updates used and rejected by the gate.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub heading_updates: usize,
+    #[serde(skip_serializing_if = "is_zero")]
+    pub heading_rejected: usize,
     /// Standstill: zero-velocity and zero-angular-rate updates, and the
     /// time detected still (s).
     pub zupt_updates: usize,

@@ -89,6 +89,8 @@ struct Core {
     kin: Kinematics,
     odo_scale: f64,
     odo_scale_index: Option<usize>,
+    /// The dual-antenna mounting yaw's consider state.
+    heading_mount_index: Option<usize>,
     tau: f64,
     tau_index: Option<usize>,
     /// Estimated correlated GNSS position error (NED, m) and its first
@@ -141,7 +143,26 @@ impl Core {
                 extra_var.push(m.gm_sd_m[i] * m.gm_sd_m[i]);
             }
         }
+        // The dual-antenna mounting yaw error: a random constant, held.
+        let mut heading_mount_index = None;
+        if let Some(h) = &cfg.heading
+            && h.dual_antenna_yaw_sd_rad > 0.0
+        {
+            heading_mount_index = Some(layout.add("dual_antenna_yaw", 0.0));
+            extra_var.push(h.dual_antenna_yaw_sd_rad * h.dual_antenna_yaw_sd_rad);
+        }
         let mut filter = ErrorStateFilter::new(layout, cfg.noise, &cfg.init_std, &extra_var);
+        // Aligned from the baseline, ψ̂ = az − α̂ with α = α̂ + ε: the yaw
+        // error δψ = ψ̂ − ψ = noise + ε, i.e. φ_D = −δψ = −noise + δx_ε
+        // (δx_ε = ε̂ − ε = −ε), so cov(φ_D, δx_ε) = σ_ε².
+        if let (Some(i), Some(h)) = (heading_mount_index, &cfg.heading)
+            && h.aligned_from_baseline
+        {
+            let v = h.dual_antenna_yaw_sd_rad * h.dual_antenna_yaw_sd_rad;
+            let p = filter.covariance_mut();
+            p.set(crate::filter::idx::ATT + 2, i, v);
+            p.set(i, crate::filter::idx::ATT + 2, v);
+        }
         if let Some(m) = cfg.levelling_coupling {
             use crate::filter::idx;
             // Accelerometer axis misalignment enters the velocity error as
@@ -203,6 +224,7 @@ impl Core {
             kin: Kinematics::default(),
             odo_scale: 0.0,
             odo_scale_index,
+            heading_mount_index,
             tau,
             tau_index,
             gnss_bias: Vector3::zeros(),
@@ -636,6 +658,12 @@ impl Fusion {
         let p = self.core.filter.covariance();
         let i0 = crate::filter::idx::POS;
         nalgebra::Matrix3::from_fn(|r, c| p.get(i0 + r, i0 + c))
+    }
+
+    /// A dual-antenna heading, used at the first IMU epoch at or after its
+    /// time (with `FusionConfig::heading`).
+    pub(crate) fn push_heading(&mut self, h: crate::io::heading::HeadingObs) {
+        self.core.aid.heading.pending = Some(h);
     }
 
     /// Sets the odometer speed (m/s) used at the next odometer update.

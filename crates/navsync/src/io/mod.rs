@@ -2,6 +2,7 @@
 
 pub mod config;
 pub mod export;
+pub mod heading;
 pub mod kfgins;
 pub mod riglog;
 pub mod rtklib;

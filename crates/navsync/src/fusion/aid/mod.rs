@@ -19,6 +19,7 @@
 //! | `nhc.rs` | non-holonomic constraint | KF-GINS §3.7 ODO/NHC (`filter/nhc.rs`); Sun, Petovello & Cannon 2010 |
 //! | `odometer.rs` | odometer speed, scale-factor state | the same |
 //! | `zupt.rs` | standstill: ZUPT and ZARU | Groves §15.3.1, Skog et al. 2010 (`filter/standstill.rs`) |
+//! | `heading.rs` | dual-antenna heading | Groves §10.2.5, §16.3.2 (`filter/heading.rs`) |
 //! | `time_offset.rs` | the IMU–GNSS time offset τ | seed 004 eqs 11–16 (Wang, Guan & Ding 2019) |
 //!
 //! GNSS position and velocity are one source: the velocity row of a fix
@@ -29,13 +30,14 @@
 //! it is a state that file controls, not an [`AidSource`].
 //!
 //! Order at an IMU epoch (the order of [`AidSources::all`]): GNSS
-//! fixes due at the epoch, NHC, ZUPT/ZARU, odometer. Fixes inside the IMU
+//! fixes due at the epoch, NHC, ZUPT/ZARU, odometer, heading. Fixes inside the IMU
 //! interval are fused by the driver where it splits the interval.
 
 use super::*;
 
 mod buffer;
 pub(super) mod gnss;
+mod heading;
 mod nhc;
 mod odometer;
 pub(super) mod time_offset;
@@ -43,6 +45,7 @@ mod zupt;
 
 pub(super) use buffer::{DelayBuffer, Timed};
 use gnss::GnssSource;
+use heading::HeadingAid;
 use nhc::NhcSource;
 use odometer::OdometerSource;
 use zupt::StandstillSource;
@@ -75,6 +78,7 @@ pub(super) struct AidSources {
     pub(super) nhc: NhcSource,
     pub(super) standstill: StandstillSource,
     pub(super) odometer: OdometerSource,
+    pub(super) heading: HeadingAid,
 }
 
 impl AidSources {
@@ -91,6 +95,7 @@ impl AidSources {
                 speed_mps: None,
                 updates: 0,
             },
+            heading: HeadingAid::default(),
         }
     }
 
@@ -101,17 +106,24 @@ impl AidSources {
     }
 
     /// Every source, in the order they are fused at an epoch.
-    fn all(&self) -> [&dyn AidSource; 4] {
-        [&self.gnss, &self.nhc, &self.standstill, &self.odometer]
+    fn all(&self) -> [&dyn AidSource; 5] {
+        [
+            &self.gnss,
+            &self.nhc,
+            &self.standstill,
+            &self.odometer,
+            &self.heading,
+        ]
     }
 
     /// Every source, mutable, in the same order.
-    fn all_mut(&mut self) -> [&mut dyn AidSource; 4] {
+    fn all_mut(&mut self) -> [&mut dyn AidSource; 5] {
         [
             &mut self.gnss,
             &mut self.nhc,
             &mut self.standstill,
             &mut self.odometer,
+            &mut self.heading,
         ]
     }
 
@@ -184,6 +196,15 @@ impl Core {
             &held_yaw[..]
         } else {
             frozen
+        };
+        // The dual-antenna mounting yaw is a consider state: never updated.
+        let held_mount;
+        let frozen = match self.heading_mount_index {
+            Some(i) => {
+                held_mount = [frozen, &[i]].concat();
+                &held_mount[..]
+            }
+            None => frozen,
         };
         let outcome = self
             .filter
