@@ -487,24 +487,23 @@ mod tests {
             late: Vec::new(),
             stamped: 0,
         };
-        let mut take =
-            |outs: Vec<SyncOutput>, own: Option<u64>, seq_k: &Vec<u64>, o: &mut SimOut| {
-                for x in outs {
-                    if let SyncOutput::Imu(s) = x {
-                        assert!(!s.flags.unstamped);
-                        let k = seq_k[s.seq as usize];
-                        o.stamped += 1;
-                        if s.flags.lost_before > 0 {
-                            o.lost_at.push((k, s.flags.lost_before));
-                        }
-                        if own.is_some_and(|own| own != k) {
-                            o.late.push(k);
-                        }
-                        let t = truth[&k] + fastest;
-                        o.err_ns.push((k, (s.time - gps(t)) as f64));
+        let take = |outs: Vec<SyncOutput>, own: Option<u64>, seq_k: &Vec<u64>, o: &mut SimOut| {
+            for x in outs {
+                if let SyncOutput::Imu(s) = x {
+                    assert!(!s.flags.unstamped);
+                    let k = seq_k[s.seq as usize];
+                    o.stamped += 1;
+                    if s.flags.lost_before > 0 {
+                        o.lost_at.push((k, s.flags.lost_before));
                     }
+                    if own.is_some_and(|own| own != k) {
+                        o.late.push(k);
+                    }
+                    let t = truth[&k] + fastest;
+                    o.err_ns.push((k, (s.time - gps(t)) as f64));
                 }
-            };
+            }
+        };
         for (_, rec, k, hint) in ev {
             if let Some(k) = k {
                 seq_k.push(k);
@@ -531,7 +530,7 @@ mod tests {
     /// wait behind it: bytes arrive in order).
     fn delay_ns(k: u64) -> f64 {
         let mut d = 1e5 + ((k * 7919) % 1000) as f64 * 900.0;
-        if k % 50 == 0 {
+        if k.is_multiple_of(50) {
             d += 12e6;
         }
         d
