@@ -8,7 +8,8 @@
 //! - [`serial`]: raw termios ports read with a timeout.
 //! - [`pps`]: the [`pps::PpsSource`] trait, RFC 2783 kernel PPS and an
 //!   injected source.
-//! - [`imu`]: the accepted IMU line formats and the arrival-envelope timing.
+//! - [`imu`]: the accepted IMU line formats, what the line reader tells the
+//!   engine (losses, reopens, lines read together) and the ESF tag timing.
 //! - [`gnss`]: receiver bytes → fixes with their receive time.
 //! - [`live`]: the loop (threads, bounded channel, reopen, status).
 //! - [`files`]: the solution as KF-GINS files.

@@ -1,20 +1,25 @@
 //! The live loop: sources → stamps → synchronization engine → fusion.
 //!
 //! ```text
-//!  IMU port thread ──┐  (lines stamped on arrival, envelope-timed: crate::imu)
+//!  IMU port thread ──┐  (lines stamped on arrival: crate::imu)
 //!  GNSS port thread ─┼─► bounded channel ─► engine thread: SyncEngine (causal,
-//!  PPS thread ───────┘  (host counter ns)     hardware sync) → IncrementBuilder
+//!  PPS thread ───────┘  (host counter ns)     hybrid sync) → IncrementBuilder
 //!                                             → Fusion (delayed-state GNSS) → sink
 //! ```
 //!
 //! Every stamp is the host counter ([`crate::hostclock`]): the engine sees
 //! a rig log whose counter is `CLOCK_MONOTONIC_RAW` at 1 GHz, 64 bits, and
 //! maps it to GPS time from the 1PPS edges labelled by the GNSS fixes
-//! (seed 001 §2.1), with holdover while pulses are missing and relock when
+//! (Tang, Zhang & Niu 2022 §2.1), with holdover while pulses are missing and relock when
 //! they return (seed 002, embodiment step 2: without 1PPS the sample clock
 //! runs on the system clock and is realigned at the next pulses;
-//! [`navsync::timing::clock`]). Without a PPS source it runs software
-//! synchronization from receive times (seed 001 §2.2). GNSS fixes reach the
+//! [`navsync::timing::clock`]). The serial IMU's lines are receive times:
+//! the engine's hybrid sync finds the IMU's own sample clock in them
+//! ([`navsync::timing::sampleclock`], the same code as `navsync sync`), with
+//! a short lookahead (`imu_lookahead_s`) so that solutions are not held
+//! back; ESF samples are stamped by their time tags ([`crate::imu`]) and
+//! synchronized as hardware captures. Without a PPS source it runs
+//! software synchronization from receive times (Tang, Zhang & Niu 2022 §2.2). GNSS fixes reach the
 //! filter at their arrival, a latency after their epoch (seed 002 step 4),
 //! and are fused at their time of validity by the delayed-state update
 //! ([`LatencyMode::DelayedState`], instead of seed 002 step 5's
@@ -50,7 +55,7 @@ use serde::Serialize;
 
 use crate::gnss::{Decoded, GnssDecoder, ReceivedFix};
 use crate::hostclock::{self, COUNTER_HZ};
-use crate::imu::{ArrivalTimer, ImuLineFormat, LineSplitter};
+use crate::imu::{ImuLineFormat, LineFeed, LineSample, LineSplitter, TagTimer};
 use crate::latency::LatencyHistogram;
 use crate::pps::{KernelPps, PpsEdge, PpsSource};
 use crate::record::{RecordCounts, Recorder};
@@ -60,6 +65,10 @@ use crate::serial::SerialPort;
 /// 200 Hz IMU): a stalled engine blocks the readers, whose kernel buffers
 /// then fill; memory does not grow.
 pub const CHANNEL_DEPTH: usize = 4096;
+
+/// Default of [`LiveConfig::imu_lookahead_s`]: three times a USB-serial
+/// adapter's 16 ms latency timer, 10 samples at 200 Hz.
+pub const DEFAULT_IMU_LOOKAHEAD_S: f64 = 0.05;
 
 /// A serial port and its speed.
 #[derive(Clone, Debug)]
@@ -99,6 +108,11 @@ pub struct LiveConfig {
     pub imu_rate_hz: f64,
     /// The IMU's output delay T_c (s), subtracted from its stamps (seed 000).
     pub imu_output_delay_s: f64,
+    /// Receive time the sample clock waits after a late IMU line before it
+    /// decides whether samples were lost before it (s); lines on time are
+    /// stamped at once. Longer: fewer latency excursions taken for losses;
+    /// shorter: late lines' solutions come sooner.
+    pub imu_lookahead_s: f64,
     pub oscillator: Oscillator,
     /// Oldest fix the filter can still fuse at its time of validity (s).
     pub max_gnss_latency_s: f64,
@@ -135,6 +149,7 @@ impl LiveConfig {
             init_from_gnss: true,
             imu_rate_hz,
             imu_output_delay_s: 0.0,
+            imu_lookahead_s: DEFAULT_IMU_LOOKAHEAD_S,
             oscillator: Oscillator::Xo,
             max_gnss_latency_s: 1.5,
             reopen_interval: Duration::from_secs(1),
@@ -171,9 +186,14 @@ impl std::fmt::Display for SourceId {
 /// What the source threads send to the engine thread.
 enum Input {
     Imu {
+        /// When the read returned (latency is measured from it).
         arrival_ns: u64,
-        sample_ns: u64,
+        /// The engine's counter: `arrival_ns` for a line, the tag's
+        /// stamp for an ESF sample.
+        counter: u64,
         values: [f64; 6],
+        /// What the line's reader knew (serial lines).
+        line: Option<LineSample>,
     },
     Gnss(ReceivedFix),
     /// Bytes read from the receiver's port (only when they are recorded).
@@ -435,11 +455,10 @@ fn spawn_imu(
 ) -> io::Result<JoinHandle<()>> {
     let fmt = cfg.imu_format;
     let retry = cfg.reopen_interval;
-    let rate = cfg.imu_rate_hz;
     std::thread::Builder::new()
         .name("live-imu".into())
         .spawn(move || {
-            let timer = std::cell::RefCell::new(ArrivalTimer::new(rate, 10.0));
+            let feed = std::cell::RefCell::new(LineFeed::new());
             let split = std::cell::RefCell::new(LineSplitter::new(512));
             port_loop(
                 port,
@@ -469,20 +488,20 @@ fn spawn_imu(
                             }
                         }
                     });
-                    let mut t = timer.borrow_mut();
+                    let mut t = feed.borrow_mut();
                     let mut behind = items.iter().filter(|i| i.0.is_ok()).count();
                     let mut ok = true;
                     for (item, len) in items {
                         match item {
                             Ok(values) => {
-                                behind -= 1;
-                                t.note_line_len(len);
-                                let sample_ns = t.push(stamp, behind);
+                                behind = behind.saturating_sub(1);
+                                let s = t.sample(len, behind);
                                 ok &= tx
                                     .send(Input::Imu {
                                         arrival_ns: stamp,
-                                        sample_ns,
+                                        counter: stamp,
                                         values,
+                                        line: Some(s),
                                     })
                                     .is_ok();
                             }
@@ -498,7 +517,7 @@ fn spawn_imu(
                     ok
                 },
                 || {
-                    timer.borrow_mut().restart();
+                    feed.borrow_mut().reopen();
                     split.borrow_mut().reset();
                 },
             );
@@ -525,7 +544,7 @@ fn spawn_gnss(
             }
             let dec = std::cell::RefCell::new(d);
             // ESF samples: timed by their tags against message arrivals.
-            let timer = std::cell::RefCell::new((ArrivalTimer::new(rate, 10.0), None::<i64>));
+            let timer = std::cell::RefCell::new((TagTimer::new(rate, 10.0), None::<i64>));
             let mut out = Decoded::default();
             port_loop(
                 port,
@@ -544,8 +563,9 @@ fn spawn_gnss(
                         ok &= tx
                             .send(Input::Imu {
                                 arrival_ns: e.arrival_ns,
-                                sample_ns,
+                                counter: sample_ns,
                                 values: e.values,
+                                line: None,
                             })
                             .is_ok();
                     }
@@ -657,6 +677,17 @@ fn spawn_pps(
     Ok(Some(h))
 }
 
+/// Tells the engine what the reader knew about the next line's record.
+pub(crate) fn hint_engine(e: &mut SyncEngine, l: LineSample) {
+    if l.lost_before > 0 {
+        e.note_imu_lost(l.lost_before);
+    }
+    if l.restart {
+        e.note_imu_restart();
+    }
+    e.note_imu_read_behind(l.behind);
+}
+
 /// Meaning of the IMU values (ESF data are rates).
 fn imu_kind(cfg: &LiveConfig) -> navsync::io::riglog::ImuKind {
     match cfg.esf_tick_s {
@@ -698,8 +729,6 @@ struct Core {
     notes_total: u64,
     first_notes: Vec<String>,
     recorder: Option<Recorder>,
-    /// IMU samples come from ESF messages (recorded at their tag's stamp).
-    esf: bool,
 }
 
 /// The header of a `--record` rig log: the host counter, and what its
@@ -737,19 +766,17 @@ fn record_comments(cfg: &LiveConfig) -> Vec<&'static str> {
 
 impl Core {
     fn new(cfg: &LiveConfig) -> Self {
-        let header = RigHeader {
-            counter_hz: COUNTER_HZ,
-            counter_bits: 64,
-            imu_kind: imu_kind(cfg),
-            imu_rate_hz: Some(cfg.imu_rate_hz),
-            imu_timing: Some(ImuTiming::Receive),
-            imu_output_delay_s: Some(cfg.imu_output_delay_s),
-            imu_rates: None,
-            extra: Vec::new(),
-        };
+        let header = record_header(cfg);
         let hw = !matches!(cfg.pps, PpsInput::None);
         let sync_cfg = SyncConfig {
-            mode: if hw { SyncMode::Hw } else { SyncMode::Sw },
+            // Serial lines are receive times: hybrid sync (the IMU's sample
+            // clock on 1PPS time); ESF samples are sample instants already.
+            mode: match (hw, cfg.esf_tick_s.is_some()) {
+                (false, _) => SyncMode::Sw,
+                (true, true) => SyncMode::Hw,
+                (true, false) => SyncMode::Hybrid,
+            },
+            hybrid_lookahead_s: Some(cfg.imu_lookahead_s),
             causal: true,
             imu_output_delay_s: Some(cfg.imu_output_delay_s),
             oscillator: cfg.oscillator,
@@ -790,7 +817,6 @@ impl Core {
             notes_total: 0,
             first_notes: Vec::new(),
             recorder: None,
-            esf: cfg.esf_tick_s.is_some(),
         }
     }
 
@@ -964,7 +990,7 @@ impl Core {
         LiveStatus {
             elapsed_s: self.elapsed_s(),
             state: self.state,
-            mode: if self.sync_cfg.mode == SyncMode::Hw {
+            mode: if self.sync_cfg.mode != SyncMode::Sw {
                 "pps"
             } else {
                 "receive-time"
@@ -1116,21 +1142,19 @@ fn engine_loop(
         match rx.recv_timeout(wait.min(Duration::from_millis(100))) {
             Ok(Input::Imu {
                 arrival_ns,
-                sample_ns,
+                counter,
                 values,
+                line,
             }) => {
                 imu_up = true;
                 core.counts.imu_lines += 1;
                 core.arrivals.push_back((core.imu_seq, arrival_ns));
                 core.imu_seq += 1;
-                core.record(RigRecord::Imu {
-                    counter: if core.esf { sample_ns } else { arrival_ns },
-                    values,
-                });
-                let rec = RigRecord::Imu {
-                    counter: sample_ns,
-                    values,
-                };
+                let rec = RigRecord::Imu { counter, values };
+                core.record(rec);
+                if let Some(l) = line {
+                    hint_engine(&mut core.engine, l);
+                }
                 core.push(rec, sink).map_err(to_io)?;
             }
             Ok(Input::Gnss(f)) => {

@@ -38,6 +38,8 @@ pub struct SelftestConfig {
     pub record: Option<std::path::PathBuf>,
     /// `--record-gnss`: the receiver's raw bytes.
     pub record_gnss: Option<std::path::PathBuf>,
+    /// [`LiveConfig::imu_lookahead_s`].
+    pub imu_lookahead_s: f64,
 }
 
 impl SelftestConfig {
@@ -54,6 +56,7 @@ impl SelftestConfig {
             output: None,
             record: None,
             record_gnss: None,
+            imu_lookahead_s: live::DEFAULT_IMU_LOOKAHEAD_S,
         }
     }
 }
@@ -230,6 +233,7 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
         lc.esf_tick_s = Some(1e-3);
     }
     lc.imu_rate_hz = r.imu_rate_hz;
+    lc.imu_lookahead_s = cfg.imu_lookahead_s;
     lc.reopen_interval = Duration::from_millis(200);
     lc.record = cfg.record.clone();
     lc.record_gnss = cfg.record_gnss.clone();

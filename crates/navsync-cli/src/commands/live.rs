@@ -56,6 +56,12 @@ pub struct Args {
     /// of vehicle motion parameters").
     #[arg(long, default_value_t = 0.0)]
     pub imu_output_delay: f64,
+    /// Receive time (s) the IMU's sample clock waits after a late line
+    /// before deciding whether samples were lost before it; lines on time
+    /// are stamped at once. Shorter: late lines' solutions come sooner, but
+    /// a latency excursion longer than this is taken for a loss.
+    #[arg(long, default_value_t = navsync_live::live::DEFAULT_IMU_LOOKAHEAD_S)]
+    pub imu_lookahead: f64,
     /// Kernel PPS device (RFC 2783), e.g. /dev/pps0. Without it, the
     /// clock is synchronized from receive times only.
     #[arg(long)]
@@ -250,6 +256,12 @@ pub fn run(args: Args) -> Result<()> {
     cfg.esf_tick_s = esf.then_some(args.esf_tick);
     cfg.imu_rate_hz = args.imu_rate.unwrap_or(kf.imu_rate_hz);
     cfg.imu_output_delay_s = args.imu_output_delay;
+    anyhow::ensure!(
+        args.imu_lookahead.is_finite() && args.imu_lookahead >= 0.0,
+        "--imu-lookahead {} must be a non-negative number of seconds",
+        args.imu_lookahead
+    );
+    cfg.imu_lookahead_s = args.imu_lookahead;
     cfg.oscillator = args.oscillator.into();
     anyhow::ensure!(
         args.status_interval > 0.0,
@@ -350,6 +362,12 @@ fn run_selftest(args: &Args) -> Result<()> {
     };
     cfg.replay.imu_esf = args.selftest_esf;
     cfg.verbose = true;
+    anyhow::ensure!(
+        args.imu_lookahead.is_finite() && args.imu_lookahead >= 0.0,
+        "--imu-lookahead {} must be a non-negative number of seconds",
+        args.imu_lookahead
+    );
+    cfg.imu_lookahead_s = args.imu_lookahead;
     cfg.record = args.record.clone();
     cfg.record_gnss = args.record_gnss.clone();
     cfg.output = args.output.clone();

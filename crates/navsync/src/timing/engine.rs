@@ -7,7 +7,7 @@ use std::collections::VecDeque;
 use super::clock::{ClockConfig, LockState, Oscillator, PpsClock, Rejection, Smoother};
 use super::imu::{ImuFlags, ImuTracker, RateEstimator};
 use super::report::*;
-use super::sampleclock::{SampleClock, SampleClockConfig, Timed};
+use super::sampleclock::{SampleClock, SampleClockConfig, SampleHint, Timed};
 use super::swsync::{SwClock, SwConfig};
 use super::unwrap::{Unwrapped, Unwrapper};
 use crate::error::{Diagnostics, Error};
@@ -55,6 +55,13 @@ pub struct SyncConfig {
     pub auto_wait_s: f64,
     /// Tolerated step back of the counter between records (s).
     pub reorder_tolerance_s: f64,
+    /// Hybrid mode: receive time the sample clock looks ahead before it
+    /// decides that samples were lost before a late one (samples on time
+    /// are decided at once). `None`: 1 s and 100 samples, for
+    /// post-processing; real time wants tens of ms, which decides losses
+    /// on less evidence (a latency excursion longer than this is taken for
+    /// a loss).
+    pub hybrid_lookahead_s: Option<f64>,
     /// File name used in diagnostics.
     pub source: String,
 }
@@ -71,6 +78,7 @@ impl Default for SyncConfig {
             max_lookahead_s: 600.0,
             auto_wait_s: 5.0,
             reorder_tolerance_s: 0.01,
+            hybrid_lookahead_s: None,
             source: String::new(),
         }
     }
@@ -135,6 +143,19 @@ struct PendingImu {
     /// Software sync: sample index and host time.
     k: i64,
     h: f64,
+    /// What the source knew about the sample ([`SyncEngine::note_imu_lost`]).
+    hint: ImuHint,
+}
+
+/// What the source of `imu` records knows beyond their counters.
+#[derive(Copy, Clone, Debug, Default)]
+struct ImuHint {
+    /// Samples known lost just before the record.
+    lost: u32,
+    /// The stream restarted just before the record (a port reopened).
+    restart: bool,
+    /// Sample records read after it together (the same counter).
+    behind: u32,
 }
 
 #[derive(Copy, Clone, Debug)]
@@ -154,7 +175,7 @@ struct PendingMark {
 
 enum Engine {
     /// Auto mode before the decision: raw records buffered.
-    Undecided(Vec<(RigRecord, usize)>),
+    Undecided(Vec<(RigRecord, usize, ImuHint)>),
     Hw,
     Sw,
     Hybrid,
@@ -219,6 +240,11 @@ pub struct SyncEngine {
     first_imu_counters: Vec<u64>,
     /// Why auto mode chose hybrid, when it did.
     hybrid_reason: Option<String>,
+    /// Told by the source, for the next `imu` record.
+    next_hint: ImuHint,
+    /// Hints of records the sample clock passed (duplicates, unstamped),
+    /// for the next sample.
+    carried_hint: ImuHint,
 }
 
 impl SyncEngine {
@@ -244,11 +270,23 @@ impl SyncEngine {
             SyncMode::Hybrid => Engine::Hybrid,
         };
         let nominal_period = header.imu_rate_hz.map(|r| hz / r);
-        let sample_clock = SampleClock::new(SampleClockConfig {
-            nominal_period_s: header.imu_rate_hz.filter(|r| *r > 0.0).map(|r| 1.0 / r),
+        let nominal_period_s = header.imu_rate_hz.filter(|r| *r > 0.0).map(|r| 1.0 / r);
+        let mut sc_cfg = SampleClockConfig {
+            nominal_period_s,
             causal: cfg.causal,
             ..Default::default()
-        });
+        };
+        if let Some(l) = cfg
+            .hybrid_lookahead_s
+            .filter(|l| l.is_finite() && *l >= 0.0)
+        {
+            sc_cfg.lookahead_s = l;
+            // The samples in that time, at least one.
+            sc_cfg.lookahead = nominal_period_s
+                .map_or(1.0, |p| (l / p).ceil())
+                .clamp(1.0, 1e6) as usize;
+        }
+        let sample_clock = SampleClock::new(sc_cfg);
         SyncEngine {
             sw: SwClock::new(cfg.sw.clone(), hz),
             cfg,
@@ -289,7 +327,33 @@ impl SyncEngine {
             hybrid_origin: None,
             first_imu_counters: Vec::new(),
             hybrid_reason: None,
+            next_hint: ImuHint::default(),
+            carried_hint: ImuHint::default(),
         }
+    }
+
+    /// `n` samples are known lost before the next `imu` record (a serial
+    /// reader saw their lines arrive corrupted). Hybrid mode counts them
+    /// there, whatever the timing shows; other modes find losses from
+    /// counters alone.
+    pub fn note_imu_lost(&mut self, n: u32) {
+        self.next_hint.lost = self.next_hint.lost.saturating_add(n);
+    }
+
+    /// The IMU stream restarted before the next `imu` record (its port
+    /// was reopened; the IMU may have restarted its sample clock). Hybrid
+    /// mode starts its sample clock afresh there and counts the samples of
+    /// the gap as lost.
+    pub fn note_imu_restart(&mut self) {
+        self.next_hint.restart = true;
+    }
+
+    /// The next `imu` record was read together with `n` more sample lines
+    /// after it (all with the read's counter). Hybrid mode takes it as
+    /// received `n` periods earlier for the envelope, and counts its
+    /// lookahead from the read.
+    pub fn note_imu_read_behind(&mut self, n: u32) {
+        self.next_hint.behind = n;
     }
 
     /// Current lock state of the hardware clock.
@@ -306,10 +370,12 @@ impl SyncEngine {
 
     /// Pushes one record read at `line`; outputs are appended to `out`.
     pub fn push_into(&mut self, rec: RigRecord, line: usize, out: &mut Vec<SyncOutput>) {
-        if let RigRecord::Imu { counter, .. } = rec
-            && self.first_imu_counters.len() <= JITTER_INTERVALS
-        {
-            self.first_imu_counters.push(counter);
+        let mut hint = ImuHint::default();
+        if let RigRecord::Imu { counter, .. } = rec {
+            hint = std::mem::take(&mut self.next_hint);
+            if self.first_imu_counters.len() <= JITTER_INTERVALS {
+                self.first_imu_counters.push(counter);
+            }
         }
         match rec {
             RigRecord::Imu { .. } => self.counts.imu += 1,
@@ -319,7 +385,7 @@ impl SyncEngine {
         }
         if let Engine::Undecided(buf) = &mut self.state {
             let c = rec.counter();
-            buf.push((rec, line));
+            buf.push((rec, line, hint));
             let first = buf[0].0.counter();
             let span = self.unwrap_span(first, c);
             // Hardware when a pulse came; but wait for 200 imu records
@@ -333,7 +399,7 @@ impl SyncEngine {
             }
             return;
         }
-        self.process(rec, line, out);
+        self.process(rec, line, hint, out);
     }
 
     /// Counter seconds from `a` to `b` (modular, for the auto decision).
@@ -395,8 +461,8 @@ impl SyncEngine {
         let Engine::Undecided(buf) = std::mem::replace(&mut self.state, next) else {
             return;
         };
-        for (rec, line) in buf {
-            self.process(rec, line, out);
+        for (rec, line, hint) in buf {
+            self.process(rec, line, hint, out);
         }
     }
 
@@ -449,7 +515,7 @@ impl SyncEngine {
         }
     }
 
-    fn process(&mut self, rec: RigRecord, line: usize, out: &mut Vec<SyncOutput>) {
+    fn process(&mut self, rec: RigRecord, line: usize, hint: ImuHint, out: &mut Vec<SyncOutput>) {
         let hybrid = matches!(self.state, Engine::Hybrid);
         let hw = matches!(self.state, Engine::Hw) || hybrid;
         let counter = self.unwrap_counter(rec.counter(), line);
@@ -477,6 +543,7 @@ impl SyncEngine {
                         .back()
                         .map(|p| p.h)
                         .unwrap_or(f64::NEG_INFINITY),
+                    hint,
                 });
                 self.drain(out, false);
                 return;
@@ -518,6 +585,7 @@ impl SyncEngine {
                 flags,
                 k,
                 h,
+                hint,
             });
         } else {
             let Some(c) = counter else {
@@ -660,9 +728,16 @@ impl SyncEngine {
                     unstamped: false,
                 };
                 if p.flags.duplicate {
+                    self.carry_hint(p.hint);
                     self.sample_clock.pass(tag, &mut timed);
                 } else {
-                    self.sample_clock.push(tag, rel, &mut timed);
+                    let h = std::mem::take(&mut self.carried_hint);
+                    let hint = SampleHint {
+                        lost_before: h.lost.saturating_add(p.hint.lost),
+                        new_segment: h.restart || p.hint.restart,
+                        read_behind: p.hint.behind,
+                    };
+                    self.sample_clock.push_with(tag, rel, hint, &mut timed);
                 }
                 continue;
             }
@@ -860,6 +935,7 @@ impl SyncEngine {
         out: &mut Vec<SyncOutput>,
     ) {
         if hybrid {
+            self.carry_hint(p.hint);
             let tag = HybridTag {
                 p,
                 bound: f64::INFINITY,
@@ -870,6 +946,13 @@ impl SyncEngine {
         } else {
             self.emit_unstamped(p, out);
         }
+    }
+
+    /// A hint of a record that is not a sample goes to the next sample.
+    fn carry_hint(&mut self, h: ImuHint) {
+        let c = &mut self.carried_hint;
+        c.lost = c.lost.saturating_add(h.lost);
+        c.restart |= h.restart;
     }
 
     fn emit_unstamped(&mut self, p: PendingImu, out: &mut Vec<SyncOutput>) {

@@ -16,12 +16,32 @@
 //!    that keeps every one of them at or above the line; when latencies
 //!    spread over more than a period, the place of the loss among a few
 //!    samples is the most likely one under the observed latency
-//!    distribution, and those samples are flagged `ambiguous`.
+//!    distribution, and those samples are flagged `ambiguous`. Once any
+//!    pending sample arrived less than 3/4 of a period above the line, no
+//!    loss can lie before it (the bound below is then 0): the front is
+//!    decided at once, as a longer lookahead would decide it. Only a late
+//!    sample with no timely one after it yet waits for the lookahead
+//!    (real time cares).
 //! 2. Stamping: the lower envelope of receive time vs index (TICSync:
 //!    one-way delays are only ever positive, Harrison & Newman, "TICSync:
 //!    Knowing when things happened", ICRA 2011; [`EnvelopeFit`]) over a
 //!    long window gives `s_k + μ_min`. `μ_min`, the fastest transport,
 //!    is the one constant receive times cannot observe.
+//!
+//! A caller that knows more tells it with the sample
+//! ([`SampleClock::push_with`]): samples known lost just before it (a
+//! serial reader that saw their lines corrupted), the start of a new
+//! segment (the port was reopened: the IMU may have restarted its clock),
+//! or how many more samples were read together with it (same receive
+//! time): sent at least a period apart, it was received at least that many
+//! periods before the read, so its time is taken that much earlier (still
+//! no earlier than its instant plus the fastest latency) while the
+//! lookahead is counted on the read's time (a stall's burst alone is no
+//! evidence of a loss).
+//! A new segment is also started when a sample arrives half a period
+//! below the fitted line, which a FIFO at a constant rate cannot do: the
+//! rate changed. A segment drops the old envelope and bootstraps a new one;
+//! after a reopen the samples lost in the gap are counted from its length.
 //!
 //! Times are f64 seconds from an origin chosen by the caller (a GPS second).
 
@@ -59,6 +79,17 @@ impl Default for SampleClockConfig {
     }
 }
 
+/// What the caller knows about a sample beyond its receive time.
+#[derive(Copy, Clone, Debug, Default)]
+pub(crate) struct SampleHint {
+    /// Samples known lost just before it.
+    pub(crate) lost_before: u32,
+    /// It starts a new segment (a reopened port).
+    pub(crate) new_segment: bool,
+    /// Samples read after it together (the same receive time).
+    pub(crate) read_behind: u32,
+}
+
 /// A record handed back with its sample instant.
 #[derive(Clone, Debug)]
 pub struct Timed<T> {
@@ -84,7 +115,15 @@ pub struct Timed<T> {
 #[derive(Clone, Debug)]
 struct Item<T> {
     tag: T,
+    /// Receive time, less a period per sample read after it together.
     t: Option<f64>,
+    /// Receive time as given (the lookahead is counted on it).
+    t_raw: f64,
+    /// Samples known lost just before this one (told by the caller).
+    known_lost: u32,
+    /// This sample starts a new segment; `Some(true)`: with a new period
+    /// (the rate changed), `Some(false)`: after a reopen.
+    segment: Option<bool>,
 }
 
 /// Latency density above the envelope: a histogram of committed
@@ -111,6 +150,12 @@ pub struct SampleClock<T> {
     /// Line for index decisions: t ≈ a + p·k (lower envelope of the last
     /// seconds).
     line: Option<(f64, f64)>,
+    /// The line has been fitted (not only bootstrapped) in this segment.
+    line_fitted: bool,
+    /// The current segment's period is not the nominal one (rate changed).
+    free_period: bool,
+    /// Receive time of the last decided sample.
+    last_t: Option<f64>,
     since_fit: usize,
     /// Samples after a loss placed at the front that could have come
     /// before it: flagged ambiguous too.
@@ -133,6 +178,8 @@ pub struct SampleClock<T> {
     pub lost: u64,
     pub gaps: u64,
     pub ambiguous: u64,
+    /// Segments started after the first (reopens, rate changes).
+    pub segments: u64,
     /// Mean receive latency above the envelope of the last fit (s).
     pub(crate) mean_excess_s: f64,
     /// Points of the last stamping fit.
@@ -154,6 +201,9 @@ impl<T: Clone> SampleClock<T> {
             indexed: VecDeque::new(),
             points: VecDeque::new(),
             line: None,
+            line_fitted: false,
+            free_period: false,
+            last_t: None,
             since_fit: 0,
             ambiguous_left: 0,
             ambiguous_post: VecDeque::new(),
@@ -169,6 +219,7 @@ impl<T: Clone> SampleClock<T> {
             lost: 0,
             gaps: 0,
             ambiguous: 0,
+            segments: 0,
             mean_excess_s: f64::NAN,
             fit_points: 0,
             period_s: None,
@@ -177,15 +228,34 @@ impl<T: Clone> SampleClock<T> {
 
     /// A sample received at `t` (s from the origin).
     pub fn push(&mut self, tag: T, t: f64, out: &mut Vec<Timed<T>>) {
+        self.push_with(tag, t, SampleHint::default(), out);
+    }
+
+    /// A sample received at `t`, with what the caller knows about it (see
+    /// the module notes).
+    pub(crate) fn push_with(&mut self, tag: T, t: f64, hint: SampleHint, out: &mut Vec<Timed<T>>) {
         self.latest_t = self.latest_t.max(t);
-        self.pending.push_back(Item { tag, t: Some(t) });
+        let back = self.period().map_or(0.0, |p| hint.read_behind as f64 * p);
+        self.pending.push_back(Item {
+            tag,
+            t: Some(t - back),
+            t_raw: t,
+            known_lost: hint.lost_before,
+            segment: hint.new_segment.then_some(false),
+        });
         self.advance(false, out);
     }
 
     /// A record that is not a sample (a duplicate, an unstamped line):
     /// kept in order, handed back with the previous sample's time.
     pub(crate) fn pass(&mut self, tag: T, out: &mut Vec<Timed<T>>) {
-        self.pending.push_back(Item { tag, t: None });
+        self.pending.push_back(Item {
+            tag,
+            t: None,
+            t_raw: f64::NAN,
+            known_lost: 0,
+            segment: None,
+        });
         self.advance(false, out);
     }
 
@@ -216,13 +286,21 @@ impl<T: Clone> SampleClock<T> {
                 });
                 continue;
             };
+            let (segment, t0_raw) = (front.segment, front.t_raw);
+            if let Some(free) = segment {
+                self.new_segment(free, t0, out);
+            }
             let ahead = self.pending.iter().filter(|i| i.t.is_some()).count();
-            let span = self.latest_t - t0;
-            if !flush && (ahead <= self.cfg.lookahead || span < self.cfg.lookahead_s) {
+            let span = self.latest_t - t0_raw;
+            // A later segment ends this one's lookahead.
+            let seg_end = self.pending.iter().skip(1).any(|i| i.segment.is_some());
+            let waited =
+                flush || seg_end || (ahead > self.cfg.lookahead && span >= self.cfg.lookahead_s);
+            if !waited && !self.front_certain() {
                 break;
             }
             if self.line.is_none() && !self.bootstrap() {
-                if flush {
+                if flush || seg_end {
                     // Too few samples for a period: count them in order.
                     self.bootstrap_plain();
                 } else {
@@ -234,41 +312,125 @@ impl<T: Clone> SampleClock<T> {
         self.stamp(flush, out);
     }
 
-    /// The first line, from the pending samples alone: the period (nominal
-    /// or the median receive interval) and the lowest `t − k·P`.
+    /// Index of the next decided sample when none is lost.
+    fn next_k(&self) -> i64 {
+        self.last_k.map_or(0, |k| k + 1)
+    }
+
+    /// (index offset from [`Self::next_k`] with no loss found by timing,
+    /// receive time) of the pending samples of the current segment: known
+    /// losses included.
+    fn pending_offsets(&self) -> Vec<(f64, f64)> {
+        let mut off = -1.0;
+        let mut v = Vec::with_capacity(self.pending.len());
+        for (j, i) in self.pending.iter().enumerate() {
+            if j > 0 && i.segment.is_some() {
+                break;
+            }
+            if let Some(t) = i.t {
+                off += 1.0 + i.known_lost as f64;
+                v.push((off, t));
+            }
+        }
+        v
+    }
+
+    /// A pending sample (the front or a later one) arrived less than 3/4
+    /// of a period above the line with no loss before it: no loss can be
+    /// placed before the front (the bound on it is 0), whatever comes
+    /// later. The decision is the one a longer lookahead would make.
+    fn front_certain(&self) -> bool {
+        let Some((a, p)) = self.line else {
+            return false;
+        };
+        let next = self.next_k() as f64;
+        let r = self
+            .pending_offsets()
+            .iter()
+            .map(|(j, t)| t - (a + p * (next + j)))
+            .collect::<Vec<f64>>();
+        // The front far below the line is a new segment's business.
+        let Some(&r_front) = r.first() else {
+            return false;
+        };
+        !(self.line_fitted && r_front < -0.5 * p) && r.iter().any(|r| r + 0.25 * p < p)
+    }
+
+    /// Starts a new segment at the front sample (received at `t0`): the
+    /// segment before is stamped with what it had, its envelope dropped.
+    /// After a reopen (`free` false) the gap's samples count as lost (its
+    /// length in periods of the old segment); after a rate change the
+    /// period is measured afresh.
+    fn new_segment(&mut self, free: bool, t0: f64, out: &mut Vec<Timed<T>>) {
+        self.stamp(true, out);
+        let gap = match (free, self.last_t, self.period()) {
+            (false, Some(tl), Some(p)) => ((t0 - tl) / p).round() - 1.0,
+            _ => 0.0,
+        };
+        if let Some(front) = self.pending.front_mut() {
+            front.segment = None;
+            if gap >= 1.0 {
+                front.known_lost = front
+                    .known_lost
+                    .saturating_add(gap.min(u32::MAX as f64) as u32);
+            }
+        }
+        self.free_period = free;
+        self.line = None;
+        self.line_fitted = false;
+        self.points.clear();
+        self.fits.clear();
+        self.since_fit = 0;
+        self.ambiguous_left = 0;
+        self.ambiguous_post.clear();
+        self.segments += 1;
+    }
+
+    /// The first line of a segment, from its pending samples alone: the
+    /// period (nominal, or the median receive interval) and the lowest
+    /// `t − k·P`.
     fn bootstrap(&mut self) -> bool {
-        let ts: Vec<f64> = self.pending.iter().filter_map(|i| i.t).collect();
-        if ts.len() < 20 {
+        let pts = self.pending_offsets();
+        if pts.len() < 20 {
             return false;
         }
-        let p = match self.cfg.nominal_period_s {
+        let p = match self.cfg.nominal_period_s.filter(|_| !self.free_period) {
             Some(p) => p,
             None => {
-                let mut d: Vec<f64> = ts.windows(2).map(|w| w[1] - w[0]).collect();
+                let mut d: Vec<f64> = pts
+                    .windows(2)
+                    .map(|w| (w[1].1 - w[0].1) / (w[1].0 - w[0].0))
+                    .collect();
                 super::fit::median(&mut d)
             }
         };
         if !(p.is_finite() && p > 0.0) {
             return false;
         }
-        let a = ts
+        let next = self.next_k() as f64;
+        let a = pts
             .iter()
-            .enumerate()
-            .map(|(j, t)| t - j as f64 * p)
+            .map(|(j, t)| t - (next + j) * p)
             .fold(f64::INFINITY, f64::min);
         self.line = Some((a, p));
         true
     }
 
     fn bootstrap_plain(&mut self) {
-        let ts: Vec<f64> = self.pending.iter().filter_map(|i| i.t).collect();
+        let pts = self.pending_offsets();
         let p = self
             .cfg
             .nominal_period_s
-            .or_else(|| (ts.len() >= 2).then(|| (ts[ts.len() - 1] - ts[0]) / (ts.len() - 1) as f64))
+            .filter(|_| !self.free_period)
+            .or_else(|| {
+                let (f, l) = (pts.first()?, pts.last()?);
+                (l.0 > f.0).then(|| (l.1 - f.1) / (l.0 - f.0))
+            })
             .filter(|p| *p > 0.0)
             .unwrap_or(1.0);
-        let a = ts.first().copied().unwrap_or(0.0);
+        let a = pts
+            .first()
+            .map_or(0.0, |(j, t)| t - (self.next_k() as f64 + j) * p);
         self.line = Some((a, p));
     }
 
@@ -288,15 +450,25 @@ impl<T: Clone> SampleClock<T> {
     /// Decides the index of the front sample (see the module notes).
     fn decide_front(&mut self) {
         let Some((a, p)) = self.line else { return };
-        let next = self.last_k.map_or(0, |k| k + 1);
-        // Residuals above the line if no sample were lost from here on.
+        // Known losses before the front are taken as given.
+        let known = self.pending.front().map_or(0, |i| i.known_lost);
+        let next = self.next_k() + known as i64;
+        // Residuals above the line if no sample were lost from here on
+        // (but the known losses).
         let r0: Vec<f64> = self
-            .pending
+            .pending_offsets()
             .iter()
-            .filter_map(|i| i.t)
-            .enumerate()
-            .map(|(j, t)| t - (a + p * (next + j as i64) as f64))
+            .map(|(j, t)| t - (a + p * (self.next_k() as f64 + j)))
             .collect();
+        // Half a period below the fitted line: impossible at a constant
+        // rate (FIFO, latency ≥ the fastest); the rate changed.
+        if self.line_fitted
+            && r0.first().is_some_and(|r| *r < -0.5 * p)
+            && let Some(front) = self.pending.front_mut()
+        {
+            front.segment = Some(true);
+            return;
+        }
         // Tolerance below the line: fit error and drift since the last
         // fit are µs; a quarter period keeps a slightly early sample from
         // being taken for a missing one, and a 3/4-period latency step
@@ -399,10 +571,12 @@ impl<T: Clone> SampleClock<T> {
         };
         let t = item.t.unwrap_or(f64::NAN);
         let k = next + lost as i64;
+        let lost = lost.saturating_add(known);
         if lost > 0 {
             self.lost += lost as u64;
             self.gaps += 1;
         }
+        self.last_t = Some(t);
         if ambiguous {
             self.ambiguous += 1;
         }
@@ -458,6 +632,7 @@ impl<T: Clone> SampleClock<T> {
             let p = f.slope(0.0);
             if p.is_finite() && p > 0.0 {
                 self.line = Some((f.eval(0.0), p));
+                self.line_fitted = true;
             }
         }
     }
@@ -490,7 +665,9 @@ impl<T: Clone> SampleClock<T> {
         // temperature (ppm over minutes).
         let span = pts.last()?.1 - pts.first()?.1;
         let deg = if span >= 10.0 { 2 } else { 1 };
-        let f = EnvelopeFit::fit(&pts, deg)?;
+        // A fit that fell back to a constant (the simplex gave up on a
+        // degenerate set) is no sample clock: the decision line serves.
+        let f = EnvelopeFit::fit(&pts, deg).filter(|f| f.degree() >= 1)?;
         self.mean_excess_s = f.mean_excess;
         self.fit_points = pts.len();
         let mid_k = pts[pts.len() / 2].0;
