@@ -561,7 +561,7 @@ impl SyncEngine {
                 if flags.duplicate {
                     (flags, self.pending_imu.back().map(|p| p.k).unwrap_or(0), h)
                 } else {
-                    let (k, lost) = self.sw.push_imu(h);
+                    let (k, lost) = self.sw.push_imu(h, hint.lost);
                     if lost > 0 {
                         flags.lost_before = lost;
                         self.tracker.note_lost(seq, lost);

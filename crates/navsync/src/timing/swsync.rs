@@ -273,14 +273,16 @@ impl SwClock {
         Some(map)
     }
 
-    /// An IMU sample received at host `h`; returns (index, lost before).
-    pub(crate) fn push_imu(&mut self, h: f64) -> (i64, u32) {
+    /// An IMU sample received at host `h`, after `known_lost` samples the
+    /// reader knows were lost (corrupted lines); returns (index, lost
+    /// before).
+    pub(crate) fn push_imu(&mut self, h: f64, known_lost: u32) -> (i64, u32) {
         self.advance(h);
         let k = match (self.last_k, self.live) {
             (None, _) => 0,
-            (Some(prev), None) => prev + 1,
+            (Some(prev), None) => prev + 1 + known_lost as i64,
             (Some(prev), Some((kr, hr, p))) => {
-                let next = prev + 1;
+                let next = prev + 1 + known_lost as i64;
                 let lat1 = h - (hr + (next as f64 - kr) * p);
                 let mut lats: Vec<f64> = self.recent_lat.iter().copied().collect();
                 let hi = lats.iter().copied().fold(f64::NEG_INFINITY, f64::max);
