@@ -298,8 +298,27 @@ fn envelope_simplex(points: &[(f64, f64)], x0: f64, scale: f64, deg: usize) -> O
         // Direction search: maximise g·d subject to a_j·d = 0 (j active,
         // except possibly one released) and a_j·d ≤ 0.
         let dir = if active.len() < p {
-            // Project g onto the null space of the active rows.
-            Some(null_direction(&active, points, &row, &g, p)?)
+            // Project g onto the null space of the active rows. When the
+            // projection vanishes, g lies in their span: with multipliers
+            // ≥ 0 the point is optimal (KKT) though not a vertex (e.g. a
+            // line through the lowest point at the mean x: its slope is
+            // free, and the least-squares start's is kept); otherwise a
+            // negative multiplier's row is released.
+            match null_direction(&active, points, &row, &g, p) {
+                Some(d) => Some(d),
+                None => {
+                    let lam = span_multipliers(&active, points, &row, &g, p)?;
+                    let (worst, &lmin) = lam[..active.len()]
+                        .iter()
+                        .enumerate()
+                        .min_by(|a, b| a.1.total_cmp(b.1))?;
+                    if lmin >= -1e-12 * g[0].abs().max(1.0) {
+                        return Some(c);
+                    }
+                    active.remove(worst);
+                    Some(null_direction(&active, points, &row, &g, p)?)
+                }
+            }
         } else {
             // Vertex: multipliers λ from g = Σ λ_j a_j; release a negative one.
             let lam = solve_active(&active, points, &row, &g, p)?;
@@ -382,6 +401,33 @@ fn null_direction(
     }
     let norm = (0..p).map(|k| d[k] * d[k]).sum::<f64>().sqrt();
     (norm > 1e-12 * g[0].abs().max(1.0)).then_some(d)
+}
+
+/// Least-squares multipliers of `g = Σ λ_j a_j` over fewer than `p`
+/// active rows (one or two), from the normal equations.
+fn span_multipliers(
+    active: &[usize],
+    points: &[(f64, f64)],
+    row: &dyn Fn(f64) -> [f64; 3],
+    g: &[f64; 3],
+    p: usize,
+) -> Option<[f64; 3]> {
+    let dot = |a: &[f64; 3], b: &[f64; 3]| (0..p).map(|k| a[k] * b[k]).sum::<f64>();
+    let rows: Vec<[f64; 3]> = active.iter().map(|&j| row(points[j].0)).collect();
+    match rows.as_slice() {
+        [a] => {
+            let aa = dot(a, a);
+            (aa > 0.0).then(|| [dot(a, g) / aa, 0.0, 0.0])
+        }
+        [a, b] => {
+            let (aa, ab, bb) = (dot(a, a), dot(a, b), dot(b, b));
+            let (ag, bg) = (dot(a, g), dot(b, g));
+            let det = aa * bb - ab * ab;
+            (det.abs() > 1e-14 * aa * bb)
+                .then(|| [(bb * ag - ab * bg) / det, (aa * bg - ab * ag) / det, 0.0])
+        }
+        _ => None,
+    }
 }
 
 /// Solves `Σ λ_j a_j = g` for the `p` active rows.
@@ -509,6 +555,55 @@ mod tests {
         }
         // The mean excess is about half the delay spread.
         assert!((e2.mean_excess - 0.001).abs() < 2e-4, "{}", e2.mean_excess);
+    }
+
+    /// The lowest point at the mean x: the objective Σ aᵢ = (n, 0) is then
+    /// parallel to that point's row, the first projected direction
+    /// vanishes, and the optimum (any line through the point below the
+    /// rest) is already reached by the lowered least-squares start. Also
+    /// randomised windows whose tightest start point may sit at the mean:
+    /// always a degree-1 support line below every point.
+    #[test]
+    fn envelope_with_its_lowest_point_at_the_mean_x_keeps_degree_1() {
+        let pts: Vec<(f64, f64)> = (0..=10)
+            .map(|k| {
+                let x = k as f64;
+                (x, 0.001 * x + if k == 5 { 0.0 } else { 1.0 })
+            })
+            .collect();
+        let e = EnvelopeFit::fit(&pts, 1).unwrap();
+        assert_eq!(e.degree(), 1);
+        assert!((e.eval(5.0) - 0.005).abs() < 1e-12, "{}", e.eval(5.0));
+        assert!((e.slope(5.0) - 0.001).abs() < 1e-9, "{}", e.slope(5.0));
+        let mut s = 99u64;
+        let mut rnd = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for trial in 0..2000 {
+            let n = 3 + (rnd() * 60.0) as usize;
+            let p = 5e-3 * (1.0 + 1e-4 * rnd());
+            let mut pts: Vec<(f64, f64)> = (0..n)
+                .map(|k| (k as f64, p * k as f64 + 0.01 * rnd()))
+                .collect();
+            // Half the trials: the middle point is the fastest.
+            if trial % 2 == 0 {
+                let m = n / 2;
+                pts[m].1 = p * m as f64 - 0.02;
+            }
+            let e = EnvelopeFit::fit(&pts, 1).unwrap();
+            assert_eq!(e.degree(), 1, "trial {trial}, n {n}");
+            let touch = pts
+                .iter()
+                .map(|&(x, y)| y - e.eval(x))
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                touch.abs() < 1e-9 && touch >= -1e-12,
+                "trial {trial}: {touch}"
+            );
+        }
     }
 
     #[test]
