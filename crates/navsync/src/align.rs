@@ -46,7 +46,7 @@
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
-use crate::attitude::Euler;
+use crate::attitude::{Euler, wrap_pi};
 use crate::earth::{GAMMA_E, LocalEarth};
 use crate::filter::gnss::GnssFix;
 use crate::ins::{ImuSample, NavState};
@@ -1114,17 +1114,6 @@ impl Aligner {
 /// rocking and noise; conservative against a MEMS VRW).
 fn levelling_noise_sd_rad(span_s: f64) -> f64 {
     0.001 / span_s.max(1.0).sqrt()
-}
-
-fn wrap_pi(a: f64) -> f64 {
-    let two_pi = 2.0 * std::f64::consts::PI;
-    let mut x = a % two_pi;
-    if x > std::f64::consts::PI {
-        x -= two_pi;
-    } else if x < -std::f64::consts::PI {
-        x += two_pi;
-    }
-    x
 }
 
 #[cfg(test)]
