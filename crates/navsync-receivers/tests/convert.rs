@@ -22,19 +22,24 @@ const TOW0_S: i64 = 100_000;
 /// 20 s of a dead-reckoning receiver at rest-ish: NAV-TIMEGPS + NAV-PVT at
 /// 1 Hz, ESF-RAW at 100 Hz (gyro z 10 deg/s, accel z −9.8 m/s²), TIM-TP
 /// with a known qErr, a camera strobe on EXTINT0 each second.
+/// A NAV-TIMEGPS frame at `itow_ms` of the test week (valid, 18 leap s).
+fn nav_time_gps_frame(itow_ms: u32) -> Vec<u8> {
+    let tg = NavTimeGps {
+        itow_ms,
+        ftow_ns: 0,
+        week: WEEK as i16,
+        leap_s: 18,
+        valid: 7,
+        t_acc_ns: 20,
+    };
+    UbxMessage::NavTimeGps(tg).to_frame().unwrap()
+}
+
 fn receiver_stream() -> Vec<u8> {
     let mut s = b"# generated test stream\n".to_vec();
     for k in 0..20i64 {
         let itow = ((TOW0_S + k) * 1000) as u32;
-        let tg = NavTimeGps {
-            itow_ms: itow,
-            ftow_ns: 0,
-            week: WEEK as i16,
-            leap_s: 18,
-            valid: 7,
-            t_acc_ns: 20,
-        };
-        s.extend(UbxMessage::NavTimeGps(tg).to_frame().unwrap());
+        s.extend(nav_time_gps_frame(itow));
         let mut p = NavPvt::decode(&[0; 92]).unwrap();
         p.itow_ms = itow;
         p.valid = 0x04; // date/time not valid: week from NAV-TIMEGPS
@@ -288,15 +293,7 @@ fn nav_relposned_to_heading_file_with_bad_epochs_reported() {
     let mut offsets = Vec::new();
     for k in 0..10i64 {
         let itow = ((TOW0_S + k) * 1000) as u32;
-        let tg = NavTimeGps {
-            itow_ms: itow,
-            ftow_ns: 0,
-            week: WEEK as i16,
-            leap_s: 18,
-            valid: 7,
-            t_acc_ns: 20,
-        };
-        s.extend(UbxMessage::NavTimeGps(tg).to_frame().unwrap());
+        s.extend(nav_time_gps_frame(itow));
         let mut p = NavPvt::decode(&[0; 92]).unwrap();
         p.itow_ms = itow;
         p.valid = 0x04;
