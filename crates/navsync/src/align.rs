@@ -43,6 +43,8 @@
 //!   sense the earth's rotation); the run starts levelled with heading 0
 //!   and σ_ψ = 180°, and says so.
 
+#![warn(missing_docs)]
+
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
@@ -222,16 +224,22 @@ const BASELINE_HISTORY_S: f64 = 2.0;
 /// The initial state the alignment found.
 #[derive(Clone, Debug, Serialize)]
 pub struct Alignment {
+    /// GPS time of the aligned state.
     #[serde(skip)]
     pub time: GpsTime,
+    /// Seconds of GPS week of the aligned state.
     pub time_sow: f64,
+    /// The initial navigation state of the IMU centre (antenna lever arm
+    /// removed).
     #[serde(skip)]
     pub nav: NavState,
     pub(crate) attitude_deg: [f64; 3],
     /// σ of roll, pitch, yaw (rad).
     pub att_sd_rad: [f64; 3],
     pub(crate) pos_sd_m: [f64; 3],
+    /// σ of the velocity N, E, D (m/s).
     pub vel_sd_mps: [f64; 3],
+    /// How attitude and heading were found.
     pub method: AlignMethod,
     /// Length of the standstill used for levelling (s).
     pub standstill_s: f64,
@@ -241,6 +249,7 @@ pub struct Alignment {
     pub reversing: bool,
     /// Whether the reversing check had enough acceleration to decide.
     pub(crate) reversing_checked: bool,
+    /// One-line account of the alignment for the user.
     pub note: String,
     /// Levelled at the run's start (over a standstill the run starts at, or
     /// in motion): the tilt error is M·δb_a ([`levelling_tilt_coupling`]),
@@ -248,6 +257,8 @@ pub struct Alignment {
     /// accelerometer bias.
     #[serde(skip)]
     pub(crate) levelling_coupling: Option<Matrix3<f64>>,
+    /// σ of the tilt not due to the accelerometer bias (rad); see
+    /// `levelling_coupling`.
     #[serde(skip)]
     pub tilt_noise_sd_rad: f64,
 }

@@ -3,6 +3,8 @@
 //! fuses on the calling thread and writes the 200 Hz navigation file on a
 //! third, holding only a few blocks of each file in memory.
 
+#![warn(missing_docs)]
+
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -42,8 +44,12 @@ pub use crate::time::OutageSchedule;
 pub struct FuseOptions {
     /// Output folder (defaults to the config's `outputpath`).
     pub output_dir: Option<PathBuf>,
+    /// Simulated GNSS outages (`--outage-period/-len/-first`); `None`: no outage.
     pub outages: Option<OutageSchedule>,
+    /// Non-holonomic constraint (`--nhc`); `None`: not applied.
     pub nhc: Option<NhcSettings>,
+    /// 13-column GNSS files in the KF-GINS-Matlab column order (σ before
+    /// velocity) instead of the C++ one (`--gnss-layout matlab`).
     pub gnss_layout_matlab: bool,
     /// GNSS file format (KF-GINS text or RTKLIB `.pos`).
     pub gnss_format: crate::io::rtklib::GnssFormat,
@@ -51,13 +57,19 @@ pub struct FuseOptions {
     pub rtklib_max_q: u8,
     /// Floor for GNSS standard deviations (m, m/s) instead of skipping.
     pub gnss_sd_floor: Option<f64>,
+    /// Covariance propagation step (s); 0 propagates at every IMU sample.
     pub cov_step_s: f64,
+    /// How fixes that disagree with the INS are weighted (`--gnss-weighting`).
     pub gnss_weighting: GnssWeighting,
+    /// How the sample that ends an IMU data gap is treated (`--gap-policy`).
     pub gap_policy: GapPolicy,
+    /// A step longer than this many nominal IMU periods is a gap (> 1).
     pub gap_factor: f64,
     /// Interval of the `imu_err.txt` and `std.txt` lines (s); 0 writes them
     /// at every IMU epoch like KF-GINS.
     pub aux_interval_s: f64,
+    /// Use GNSS velocities when the file carries them (`--no-gnss-velocity`
+    /// clears it).
     pub use_gnss_velocity: bool,
     /// GPS week of the data (KF-GINS files carry none; 0 as KF-GINS writes).
     pub week: i64,
@@ -68,10 +80,12 @@ pub struct FuseOptions {
     /// How fixes are used; with a real-time mode, each fix is delivered to
     /// the engine `gnss_latency_s` after its time tag, as it would arrive.
     pub latency: LatencyMode,
+    /// Emulated GNSS latency for the real-time modes (s, ≥ 0; 0 offline).
     pub gnss_latency_s: f64,
     /// Also write the solution interpolated at these epochs (one per line:
     /// `sow` or `week sow`) with (2n+1)-order Lagrange (seed 000 eq 1).
     pub output_at: Option<PathBuf>,
+    /// n of the (2n+1)-order interpolation (0 linear, 1 cubic, …).
     pub output_at_n: usize,
     /// With the time-offset state: stamp the solution in GNSS time (IMU
     /// time + τ̂) rather than on the IMU's own time base.
@@ -136,17 +150,23 @@ impl Default for SmoothOptions {
 /// What the smoother did (in `summary.json`).
 #[derive(Clone, Debug, Serialize)]
 pub struct SmootherSummary {
+    /// Smoother nodes (see [`SmoothOptions::node_interval_s`]).
     pub nodes: usize,
     /// Nodes whose predicted covariance had to be regularised.
     pub regularised_nodes: usize,
+    /// Forward epochs stored (the epochs smoothed).
     pub epochs: usize,
     /// Size of the temporary files (bytes).
     pub temp_bytes: u64,
+    /// Wall time of the forward pass (s).
     pub forward_s: f64,
+    /// Wall time of the backward pass (s).
     pub backward_s: f64,
+    /// Wall time of writing the smoothed output (s).
     pub output_s: f64,
     /// The smoothed time offset at the start and its σ (s), when estimated.
     pub time_offset_start_s: Option<f64>,
+    /// σ of that offset (s).
     pub time_offset_start_sd_s: Option<f64>,
 }
 
@@ -315,31 +335,44 @@ impl FuseOptions {
 /// What a run did (written as `summary.json`).
 #[derive(Clone, Debug, Serialize)]
 pub struct FuseSummary {
+    /// Always `navsync`.
     pub tool: &'static str,
+    /// The crate version that wrote the summary.
     pub version: &'static str,
+    /// Path of the KF-GINS configuration file.
     pub config: String,
+    /// Path of the IMU file.
     pub imu_file: String,
+    /// Path of the GNSS file.
     pub gnss_file: String,
+    /// Folder the outputs were written to.
     pub output_dir: String,
+    /// Seconds of GPS week of the first IMU epoch of the run.
     pub start_sow: f64,
+    /// Seconds of GPS week of the last solution.
     pub end_sow: f64,
+    /// From the first IMU epoch to the last solution (s).
     pub duration_s: f64,
     pub(crate) imu_records_read: usize,
     pub(crate) imu_lines_skipped: usize,
     pub(crate) gnss_fixes_read: usize,
     pub(crate) gnss_lines_skipped: usize,
+    /// Fixes not fused because a simulated outage covered them.
     pub gnss_fixes_withheld_by_outages: usize,
     pub(crate) gnss_fixes_outside_run: usize,
     /// Outage windows as `sow:len` (the `navsync eval --outages` argument).
     pub outages: String,
     /// Final time-offset estimate (GNSS tag − true validity time), when estimated.
     pub time_offset_s: Option<f64>,
+    /// σ of that estimate (s).
     pub time_offset_sd_s: Option<f64>,
     /// The coarse search's estimate, when it converged.
     pub time_offset_coarse_s: Option<f64>,
     /// Epochs written by `--output-at`, and requested epochs outside the data.
     pub output_at_written: usize,
+    /// Requested epochs outside the data (not written).
     pub output_at_skipped: usize,
+    /// The engine's counters.
     pub stats: FusionStats,
     pub(crate) final_gyro_bias_deg_h: [f64; 3],
     pub(crate) final_accel_bias_mgal: [f64; 3],
@@ -350,6 +383,7 @@ pub struct FuseSummary {
     /// Estimated axis misalignments m₀…m₅ of the gyro and accelerometer
     /// triads (deg), when estimated.
     pub final_gyro_misalign_deg: Option<[f64; 6]>,
+    /// Same for the accelerometer triad (deg).
     pub final_accel_misalign_deg: Option<[f64; 6]>,
     /// GNSS observations that were not used at their stated σ (all of
     /// them are in `gnss_residuals.txt`).
@@ -361,8 +395,11 @@ pub struct FuseSummary {
     /// The configuration's IMU error model (the datasheet figures a report
     /// compares the estimates with).
     pub imu_model: ImuModelSummary,
+    /// The options of the run.
     pub options: FuseOptions,
+    /// Wall time of the run (s).
     pub run_time_s: f64,
+    /// Warnings and skipped lines of the run.
     pub diagnostics: Diagnostics,
 }
 
@@ -372,17 +409,25 @@ pub struct FuseSummary {
 pub struct ImuModelSummary {
     /// Bias instability: steady-state σ of the Gauss–Markov biases.
     pub gyro_bias_sd_deg_h: [f64; 3],
+    /// Accelerometer bias instability (mGal).
     pub accel_bias_sd_mgal: [f64; 3],
+    /// Gyro scale-factor σ (ppm).
     pub gyro_scale_sd_ppm: [f64; 3],
+    /// Accelerometer scale-factor σ (ppm).
     pub accel_scale_sd_ppm: [f64; 3],
+    /// Angular random walk (deg/√h).
     pub arw_deg_sqrt_h: [f64; 3],
+    /// Velocity random walk (m/s/√h).
     pub vrw_mps_sqrt_h: [f64; 3],
     /// Gauss–Markov correlation time (s).
     pub corr_time_s: f64,
     /// Initial biases and their σ.
     pub init_gyro_bias_deg_h: [f64; 3],
+    /// Initial accelerometer bias (mGal).
     pub init_accel_bias_mgal: [f64; 3],
+    /// Initial gyro bias σ (deg/h).
     pub init_gyro_bias_sd_deg_h: [f64; 3],
+    /// Initial accelerometer bias σ (mGal).
     pub init_accel_bias_sd_mgal: [f64; 3],
 }
 
@@ -415,6 +460,7 @@ impl ImuModelSummary {
 pub struct WeightingReport {
     pub(crate) observations: usize,
     pub(crate) down_weighted: Vec<WeightedFix>,
+    /// Observations rejected (not fused).
     pub rejected: Vec<WeightedFix>,
 }
 
@@ -422,8 +468,11 @@ pub struct WeightingReport {
 /// its smallest axis weight.
 #[derive(Clone, Debug, Serialize)]
 pub struct WeightedFix {
+    /// Seconds of GPS week of the observation.
     pub sow: f64,
+    /// `position` or `velocity`.
     pub kind: &'static str,
+    /// Normalised innovation squared at the stated σ (3 degrees of freedom).
     pub nis: f64,
     pub(crate) min_weight: f64,
 }

@@ -12,6 +12,8 @@
 //! same way KF-GINS converts its `imunoise` block (`kf_gins.cpp`,
 //! `loadConfig`).
 
+#![warn(missing_docs)]
+
 use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
@@ -76,32 +78,57 @@ pub(crate) const IMU_KEYS: &[(&str, &str)] = &[
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ImuSheet {
+    /// A named IMU (one of `adis16465`, `icm20602`, `tactical`, `nav`) whose
+    /// figures fill the keys left out.
     pub preset: Option<String>,
+    /// IMU output rate (Hz); measured from the data when `None`.
     pub rate_hz: Option<f64>,
+    /// Gyro angle random walk (deg/√h).
     pub arw_deg_sqrt_h: Option<f64>,
+    /// Accelerometer velocity random walk (m/s/√h).
     pub vrw_mps_sqrt_h: Option<f64>,
+    /// Gyro in-run bias instability (deg/h).
     pub gyro_bias_instability_deg_h: Option<f64>,
+    /// Accelerometer in-run bias instability (mGal; 1 mGal = 1e-5 m/s²).
     pub accel_bias_instability_mgal: Option<f64>,
+    /// Gyro turn-on bias σ (deg/h).
     pub gyro_turn_on_bias_deg_h: Option<f64>,
+    /// Accelerometer turn-on bias σ (mGal).
     pub accel_turn_on_bias_mgal: Option<f64>,
+    /// Gyro scale-factor error σ (ppm).
     pub gyro_scale_ppm: Option<f64>,
+    /// Accelerometer scale-factor error σ (ppm).
     pub accel_scale_ppm: Option<f64>,
+    /// Correlation time of the bias instability (s); 3600 s when `None` and no
+    /// preset gives it.
     pub bias_corr_time_s: Option<f64>,
+    /// Accelerometer axis misalignment σ (deg; cross-axis sensitivity 1 % ≈
+    /// 0.57°); 0 when `None` and no preset gives it.
     pub accel_misalignment_deg: Option<f64>,
 }
 
 /// The IMU's figures, all present (datasheet units).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct ImuFigures {
+    /// Gyro angle random walk (deg/√h).
     pub arw_deg_sqrt_h: f64,
+    /// Accelerometer velocity random walk (m/s/√h).
     pub vrw_mps_sqrt_h: f64,
+    /// Gyro in-run bias instability (deg/h).
     pub gyro_bias_instability_deg_h: f64,
+    /// Accelerometer in-run bias instability (mGal).
     pub accel_bias_instability_mgal: f64,
+    /// Gyro turn-on bias σ (deg/h).
     pub gyro_turn_on_bias_deg_h: f64,
+    /// Accelerometer turn-on bias σ (mGal).
     pub accel_turn_on_bias_mgal: f64,
+    /// Gyro scale-factor error σ (ppm).
     pub gyro_scale_ppm: f64,
+    /// Accelerometer scale-factor error σ (ppm).
     pub accel_scale_ppm: f64,
+    /// Correlation time of the bias instability (s).
     pub bias_corr_time_s: f64,
+    /// Accelerometer axis misalignment σ (deg).
     pub accel_misalignment_deg: f64,
 }
 
@@ -227,22 +254,33 @@ fn default_offset_sd() -> f64 {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorSheet {
+    /// The IMU's figures (`imu:` block).
     pub imu: ImuSheet,
+    /// Lever arm from the IMU to the GNSS antenna phase centre, IMU axes
+    /// [forward, right, down] (m).
     pub antenna_lever_m: [f64; 3],
+    /// IMU-to-vehicle mounting [roll, pitch, yaw] (deg): the rotation from the
+    /// vehicle's axes to the IMU's; 0 when the IMU's x axis points forward.
     #[serde(default)]
     pub mount_deg: [f64; 3],
+    /// Apply the non-holonomic constraint (land vehicle; needs `mount_deg`).
     #[serde(default)]
     pub nhc: bool,
+    /// Wheel or CAN speed updates; `None`: none.
     #[serde(default)]
     pub odometer: Option<OdometerSheet>,
+    /// Estimate the IMU–GNSS time offset; `None`: not estimated.
     #[serde(default)]
     pub time_offset: Option<TimeOffsetSheet>,
+    /// σ [north, east, down] (m) given to fixes that carry none (NMEA without
+    /// GST).
     #[serde(default = "default_gnss_sd")]
     pub gnss_default_sd_m: [f64; 3],
     /// Dual-antenna heading: the yaw of the baseline (primary → secondary
     /// antenna) in the IMU's axes, from x towards y (deg), and its σ.
     #[serde(default)]
     pub dual_antenna_yaw_deg: f64,
+    /// σ of `dual_antenna_yaw_deg` (deg).
     #[serde(default = "default_dual_antenna_yaw_sd")]
     pub dual_antenna_yaw_sd_deg: f64,
 }

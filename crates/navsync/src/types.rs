@@ -9,6 +9,8 @@
 //! the old paths (`ins::ImuSample`, `ins::NavState`,
 //! `filter::gnss::GnssFix`, `filter::ImuNoise`, …) re-export them.
 
+#![warn(missing_docs)]
+
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 use crate::attitude::{Euler, euler_to_quat, quat_to_euler};
@@ -33,7 +35,10 @@ pub struct ImuSample {
 /// The navigation state of the IMU centre.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct NavState {
+    /// GPS time of the state.
     pub time: GpsTime,
+    /// Geodetic position of the IMU centre (latitude, longitude, ellipsoidal
+    /// height).
     pub pos: Geodetic,
     /// Ground velocity in NED (m/s).
     pub vel: Vector3<f64>,
@@ -67,7 +72,9 @@ impl NavState {
 /// `time`, with standard deviations in NED.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct GnssFix {
+    /// Time of validity (GPS time).
     pub time: GpsTime,
+    /// Geodetic position of the antenna phase centre.
     pub pos: Geodetic,
     /// Position standard deviations N, E, D (m).
     pub pos_sd: Vector3<f64>,
@@ -85,9 +92,13 @@ pub struct GnssFix {
 /// M = [[0, m₀, m₁], [m₂, 0, m₃], [m₄, m₅, 0]].
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct ImuErrors {
+    /// Gyro bias b_g (rad/s), body frame.
     pub gyro_bias: Vector3<f64>,
+    /// Accelerometer bias b_a (m/s²), body frame.
     pub accel_bias: Vector3<f64>,
+    /// Gyro scale factors s_g (dimensionless), per body axis.
     pub gyro_scale: Vector3<f64>,
+    /// Accelerometer scale factors s_a (dimensionless), per body axis.
     pub accel_scale: Vector3<f64>,
     /// Off-diagonal terms m₀…m₅ of M_g (rad); zero unless estimated.
     pub gyro_misalign: [f64; 6],
@@ -120,11 +131,18 @@ pub struct ImuNoise {
 /// rad about N, E, D).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InitialStd {
+    /// Position σ N, E, D (m).
     pub pos: Vector3<f64>,
+    /// Velocity σ N, E, D (m/s).
     pub vel: Vector3<f64>,
+    /// Attitude σ about N, E, D (rad).
     pub att: Vector3<f64>,
+    /// Gyro bias σ (rad/s).
     pub gyro_bias: Vector3<f64>,
+    /// Accelerometer bias σ (m/s²).
     pub accel_bias: Vector3<f64>,
+    /// Gyro scale-factor σ (dimensionless).
     pub gyro_scale: Vector3<f64>,
+    /// Accelerometer scale-factor σ (dimensionless).
     pub accel_scale: Vector3<f64>,
 }

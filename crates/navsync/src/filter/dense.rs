@@ -3,11 +3,15 @@
 //! transition and measurement matrices are mostly zeros), Cholesky
 //! factorisation, and symmetrisation. Written for n ≈ 20–30 and m ≤ 10.
 
+#![warn(missing_docs)]
+
 /// A row-major `rows × cols` matrix.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mat {
+    /// Number of rows.
     pub rows: usize,
     pub(crate) cols: usize,
+    /// The entries, row by row (`rows × cols` of them).
     pub data: Vec<f64>,
 }
 

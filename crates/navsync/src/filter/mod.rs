@@ -19,6 +19,8 @@
 //! chi-square innovation gating; the covariance is kept symmetric and its
 //! positive definiteness is checked after every update.
 
+#![warn(missing_docs)]
+
 pub mod dense;
 pub mod gnss;
 pub mod heading;
@@ -204,9 +206,14 @@ impl Window {
 /// Jacobian `h` (m × n, row-major) and noise covariance `r` (m × m).
 #[derive(Clone, Debug)]
 pub struct Observation {
+    /// What is observed (`gnss-position`, `gnss-velocity`, `nhc`, `odometer`,
+    /// `heading`, `zupt`, `zaru`), for messages.
     pub kind: &'static str,
+    /// Innovation, predicted minus measured (m entries).
     pub z: Vec<f64>,
+    /// Jacobian of the observation w.r.t. the error state (m × n).
     pub h: Mat,
+    /// Measurement noise covariance (m × m).
     pub r: Mat,
 }
 

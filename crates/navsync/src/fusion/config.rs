@@ -1,6 +1,8 @@
 //! The engine's settings and the figures it reports: latency modes, GNSS
 //! weighting, vehicle constraints, the time-offset state, statistics.
 
+#![warn(missing_docs)]
+
 use super::*;
 
 /// How to treat the increments of the sample that ends a data gap.
@@ -34,13 +36,20 @@ pub enum LatencyMode {
     /// behind real time so every fix is fused at its time of validity, and
     /// the output is predicted forward to real time by re-integrating the
     /// buffered IMU samples.
-    FixedLag { lag_s: f64 },
+    FixedLag {
+        /// How far the filter runs behind real time (s).
+        lag_s: f64,
+    },
     /// (b) Seed 002 step 5: the fix valid at t_v is used at its receipt
     /// time, moved forward by the INS change over the latency.
     Extrapolate,
     /// (c) Delayed-state update: return to the stored state at t_v, update
     /// there and propagate forward again through the buffered IMU samples.
-    DelayedState { max_latency_s: f64 },
+    DelayedState {
+        /// Oldest fix that can still be fused (s after its time of
+        /// validity): stored states and IMU samples are kept this long.
+        max_latency_s: f64,
+    },
 }
 
 /// How GNSS fixes that disagree with the INS prediction are weighted.
@@ -53,7 +62,10 @@ pub enum GnssWeighting {
     /// unless it agrees with the previous rejected fix (taken as INS drift:
     /// P is inflated), and after `max_consecutive_rejects` rejections the
     /// next fix is accepted without gating.
-    Gate { prob: f64 },
+    Gate {
+        /// Gate probability, within (0, 1) (`--gate-prob`).
+        prob: f64,
+    },
     /// Robust down-weighting (the default); see [`RobustWeighting`].
     Robust(RobustWeighting),
 }
@@ -156,8 +168,11 @@ impl RobustWeighting {
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum FixStatus {
+    /// Fused at its stated σ.
     Used,
+    /// Fused with an inflated R on some axis (robust weighting).
     DownWeighted,
+    /// Not fused (over the gate, or every axis beyond `k1`).
     Rejected,
     /// Accepted after a run of rejections that agreed with each other.
     DriftAccepted,
@@ -167,6 +182,7 @@ pub enum FixStatus {
 /// and the report).
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct FixRecord {
+    /// GPS time tag of the fix.
     #[serde(skip)]
     pub time: GpsTime,
     /// Seconds of the GPS week.
@@ -181,6 +197,7 @@ pub struct FixRecord {
     pub nis: f64,
     /// Weight per axis (R divided by it, memory included).
     pub(crate) weight: [f64; 3],
+    /// What became of it.
     pub status: FixStatus,
 }
 
@@ -282,7 +299,9 @@ pub struct FusionConfig {
     /// are skipped and the first sample at or after it starts the run.
     pub init_nav: NavState,
     pub(crate) init_imu: ImuErrors,
+    /// Initial standard deviations of the filter states.
     pub init_std: InitialStd,
+    /// The IMU's noise and error-process model (KF-GINS `imunoise`).
     pub noise: ImuNoise,
     /// GNSS antenna position in the body frame (m, FRD).
     pub(crate) antenna_lever_b: Vector3<f64>,
@@ -290,6 +309,7 @@ pub struct FusionConfig {
     pub imu_rate_hz: f64,
     /// A step longer than this many nominal periods is a gap.
     pub gap_factor: f64,
+    /// How the sample that ends a gap is treated.
     pub gap_policy: GapPolicy,
     /// Covariance propagation step (s); 0 propagates at every IMU sample.
     pub cov_step_s: f64,
@@ -300,11 +320,15 @@ pub struct FusionConfig {
     pub max_consecutive_rejects: usize,
     /// Use GNSS velocity when a fix carries it.
     pub use_gnss_velocity: bool,
+    /// Non-holonomic constraint; `None`: off.
     pub nhc: Option<NhcOptions>,
+    /// Odometer/CAN speed updates; `None`: off.
     pub odometer: Option<OdometerOptions>,
     /// Dual-antenna heading updates (headings from `Fusion::push_heading`).
     pub heading: Option<HeadingOptions>,
+    /// Estimate the IMU–GNSS time offset as a filter state; `None`: off.
     pub time_offset: Option<TimeOffsetOptions>,
+    /// How GNSS fixes that arrive late are used.
     pub latency: LatencyMode,
     /// Estimate the 12 axis misalignments of the gyro and accelerometer
     /// triads (random constants) with these initial σ (rad): gyro, accel.
@@ -369,14 +393,18 @@ impl FusionConfig {
 /// The solution at one IMU epoch.
 #[derive(Copy, Clone, Debug)]
 pub struct NavOutput {
+    /// The navigation state at the epoch.
     pub nav: NavState,
+    /// The IMU error estimates (biases, scale factors) at the epoch.
     pub imu: ImuErrors,
 }
 
 /// The time-offset estimate at some epoch.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct TimeOffsetState {
+    /// Estimated offset τ̂ = GNSS time tag − true time of validity (s).
     pub offset_s: f64,
+    /// σ of the estimate (s).
     pub sd_s: f64,
     /// False while τ̂ is held (unobservable motion).
     pub observable: bool,
@@ -389,10 +417,14 @@ fn is_zero(n: &usize) -> bool {
 /// Counters the engine keeps.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct FusionStats {
+    /// IMU samples integrated.
     pub imu_samples: usize,
+    /// GNSS positions fused (down-weighted and drift-accepted ones included).
     pub gnss_fixes_used: usize,
+    /// GNSS positions rejected.
     pub gnss_fixes_rejected: usize,
     pub(crate) gnss_fixes_late: usize,
+    /// GNSS velocities fused.
     pub gnss_velocity_used: usize,
     pub(crate) gnss_velocity_rejected: usize,
     pub(crate) gnss_split_intervals: usize,
@@ -403,27 +435,38 @@ pub struct FusionStats {
     pub(crate) gnss_fixes_accepted_consistent: usize,
     /// Robust weighting: fixes used with an inflated R on some axis.
     pub gnss_fixes_downweighted: usize,
+    /// Robust weighting: velocities used with an inflated R on some axis.
     pub gnss_velocity_downweighted: usize,
     /// Fixes refused before use: non-finite values, σ ≤ 0 or beyond
     /// [`MAX_GNSS_SD_M`], a time already seen, or a position repeated
     /// while the vehicle moved (a stale receiver output).
     pub gnss_fixes_invalid: usize,
+    /// Fixes ignored because their time repeats an earlier fix's.
     pub gnss_fixes_duplicate: usize,
+    /// Fixes ignored as stale: position repeated while the solution moved > 1 m.
     pub gnss_fixes_stale: usize,
+    /// Non-holonomic constraint updates applied.
     pub nhc_updates: usize,
+    /// Odometer speed updates applied.
     pub odometer_updates: usize,
     /// Dual-antenna heading updates used and rejected by the gate.
     #[serde(skip_serializing_if = "is_zero")]
     pub heading_updates: usize,
+    /// Heading updates rejected by the gate.
     #[serde(skip_serializing_if = "is_zero")]
     pub heading_rejected: usize,
     /// Standstill: zero-velocity and zero-angular-rate updates, and the
     /// time detected still (s).
     pub zupt_updates: usize,
+    /// Zero-angular-rate updates.
     pub zaru_updates: usize,
+    /// Time detected still (s).
     pub standstill_s: f64,
+    /// IMU data gaps (steps over `gap_factor` nominal periods).
     pub gaps: usize,
+    /// Total duration of the gaps (s).
     pub gap_total_s: f64,
+    /// Longest gap (s).
     pub max_gap_s: f64,
     pub(crate) covariance_propagations: usize,
     pub(crate) time_offset_held_updates: usize,

@@ -30,6 +30,8 @@
 //! see `aid/mod.rs`); `latency.rs` the real-time latency modes, policies
 //! over that buffer; `config.rs` the settings and statistics.
 
+#![warn(missing_docs)]
+
 use std::sync::Arc;
 
 use nalgebra::{Matrix3, Vector3};

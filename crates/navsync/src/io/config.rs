@@ -6,6 +6,8 @@
 //! A missing key is an error naming it and what it should hold; an unknown
 //! key is reported (with the closest known key when it looks misspelled).
 
+#![warn(missing_docs)]
+
 use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
@@ -102,22 +104,32 @@ const NOISE_KEYS: &[(&str, &str)] = &[
 pub struct KfGinsConfig {
     /// The configuration file itself.
     pub path: PathBuf,
+    /// IMU file (`imupath`); relative paths as KF-GINS resolves them, else next
+    /// to the configuration.
     pub imu_path: PathBuf,
+    /// GNSS file (`gnsspath`), resolved like `imu_path`.
     pub gnss_path: PathBuf,
+    /// Output folder (`outputpath`), as written.
     pub output_path: PathBuf,
+    /// IMU data rate (Hz, `imudatarate`).
     pub imu_rate_hz: f64,
     /// Start, seconds of week.
     pub start_sow: f64,
     /// End, seconds of week; `None` for the end of the data.
     pub end_sow: Option<f64>,
+    /// Initial position (`initpos`); zero when absent (alignment finds it).
     pub init_pos: Geodetic,
+    /// Initial velocity N, E, D (m/s, `initvel`); zero when absent.
     pub init_vel: Vector3<f64>,
+    /// Initial attitude (`initatt`, read in deg); zero when absent.
     pub init_att: Euler,
     /// Whether `initpos`, `initvel` and `initatt` were given; without them
     /// the run starts from an alignment ([`crate::align`]).
     pub init_state_given: bool,
     pub(crate) init_imu: ImuErrors,
+    /// Initial σ of the error state (`initposstd` … `initsastd`), SI.
     pub init_std: InitialStd,
+    /// IMU noise model (`imunoise` block), SI.
     pub noise: ImuNoise,
     pub(crate) antenna_lever: Vector3<f64>,
 }

@@ -13,6 +13,8 @@
 //! unknown source, times not increasing) are reported with their file and
 //! line and skipped.
 
+#![warn(missing_docs)]
+
 use std::path::Path;
 
 use crate::error::{Diagnostics, Error};
@@ -34,6 +36,7 @@ pub enum HeadingSource {
 }
 
 impl HeadingSource {
+    /// The word of the heading file's last column (`baseline` or `vehicle`).
     pub fn word(self) -> &'static str {
         match self {
             HeadingSource::Baseline => "baseline",
@@ -45,11 +48,13 @@ impl HeadingSource {
 /// One heading measurement.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HeadingObs {
+    /// GPS time of the measurement.
     pub time: GpsTime,
     /// Clockwise from north (rad).
     pub heading_rad: f64,
     /// σ (rad).
     pub sd_rad: f64,
+    /// What the heading measures.
     pub source: HeadingSource,
 }
 

@@ -1,5 +1,7 @@
 //! File formats: text plumbing, KF-GINS formats, the KF-GINS configuration.
 
+#![warn(missing_docs)]
+
 pub mod config;
 pub mod export;
 pub mod heading;

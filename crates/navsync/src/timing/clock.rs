@@ -22,6 +22,8 @@
 //! messages arrive within a second: the label of pulse 0 is the largest
 //! `ceil(T − ν)` supported by two messages.
 
+#![warn(missing_docs)]
+
 use std::collections::VecDeque;
 
 use super::fit::{PolyFit, median};
@@ -207,12 +209,19 @@ pub(crate) struct LockEvent {
 /// Counts of pulse outcomes.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PulseCounts {
+    /// `pps` edges seen.
     pub received: u64,
+    /// Edges accepted into the clock model.
     pub accepted: u64,
+    /// Rejected: far from any GPS second (> 1 ms), an extra pulse.
     pub rejected_spurious: u64,
+    /// Rejected: near a GPS second but outside the gate.
     pub rejected_displaced: u64,
+    /// Rejected: a second pulse for an already accepted second.
     pub rejected_duplicate: u64,
+    /// Rejected: after a gap, not confirmed by a consistent neighbour.
     pub rejected_unconfirmed: u64,
+    /// Rejected: not on the consistent pulse train during acquisition.
     pub rejected_acquisition: u64,
     /// Times the label offset was corrected after lock (should be 0).
     pub(crate) label_corrections: u64,

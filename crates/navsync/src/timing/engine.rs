@@ -2,6 +2,8 @@
 //! GPS-stamped IMU samples and GNSS fixes out — at once in causal mode,
 //! after a bounded lookahead in post-processing mode.
 
+#![warn(missing_docs)]
+
 use std::collections::VecDeque;
 
 use super::clock::{ClockConfig, LockState, Oscillator, PpsClock, Rejection, Smoother};
@@ -33,6 +35,7 @@ pub enum SyncMode {
 /// Settings of the engine.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct SyncConfig {
+    /// Which synchronization to run (`--mode`).
     pub mode: SyncMode,
     /// Stamp each sample from past data only (real time).
     pub causal: bool,
@@ -96,6 +99,8 @@ pub struct StampedImu {
     pub bound_s: f64,
     /// The six values as logged (rates or increments, FRD).
     pub values: [f64; 6],
+    /// What the timing found about the record (duplicate, losses before it,
+    /// holdover, unstamped…).
     pub flags: ImuFlags,
 }
 
@@ -108,8 +113,11 @@ pub struct StampedGnss {
     pub received: GpsTime,
     /// `received − time` (s): seed 002's latency from the 1PPS edge.
     pub latency_s: f64,
+    /// Latitude (deg), positive north.
     pub lat_deg: f64,
+    /// Longitude (deg), positive east.
     pub lon_deg: f64,
+    /// Ellipsoidal height (m).
     pub h_m: f64,
     pub(crate) sd_m: [f64; 3],
 }
@@ -130,7 +138,9 @@ impl StampedGnss {
 /// One output of the engine.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub enum SyncOutput {
+    /// A GPS-stamped IMU sample.
     Imu(StampedImu),
+    /// A GNSS fix with its receive time.
     Gnss(StampedGnss),
 }
 

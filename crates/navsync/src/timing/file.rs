@@ -5,6 +5,8 @@
 //! threads, or inline in a fleet's single-core tasks; memory stays bounded
 //! by the batch size and the channel depth.
 
+#![warn(missing_docs)]
+
 use std::path::Path;
 
 use super::report::{SyncReport, TruthAccumulator, TruthTimes, format_week_sow};
@@ -17,9 +19,11 @@ use crate::types::ImuSample;
 
 /// What a synchronization run produced.
 pub struct SyncSummary {
+    /// The synchronization report (`sync_report.json`).
     pub report: SyncReport,
     /// Lines skipped while reading the log (and other reading notes).
     pub read_diag: Diagnostics,
+    /// Good records read from the log (all kinds).
     pub records: usize,
 }
 

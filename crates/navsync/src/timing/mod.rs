@@ -15,6 +15,8 @@
 //!   true rate, rate → increment conversion; the output delay T_c of an
 //!   IMU without sync pin is subtracted (seed 000).
 
+#![warn(missing_docs)]
+
 pub mod clock;
 pub mod engine;
 pub mod file;

@@ -1,6 +1,8 @@
 //! The synchronization report (`sync_report.json`) and the comparison of
 //! stamps with a truth file.
 
+#![warn(missing_docs)]
+
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -16,7 +18,9 @@ use crate::time::GpsTime;
 /// A GPS time as week and seconds of week.
 #[derive(Copy, Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct WeekSow {
+    /// GPS week (weeks since 1980-01-06).
     pub week: i64,
+    /// Seconds of GPS week.
     pub sow: f64,
 }
 
@@ -39,8 +43,11 @@ impl WeekSow {
 /// How many records of each kind the log held.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct RecordCounts {
+    /// `imu` records (samples, duplicates included).
     pub imu: u64,
+    /// `pps` records (1PPS edges latched by the counter).
     pub pps: u64,
+    /// `gnss` records (fixes with their receive counter).
     pub gnss: u64,
     /// `mark` records (edges time-marked by the receiver, TIM-TM2).
     #[serde(default)]
@@ -52,12 +59,15 @@ pub struct RecordCounts {
 /// host→GPS map of software sync.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct MarkReport {
+    /// `mark` records in the log.
     pub received: u64,
     /// Marks stamped through the counter and compared with their GPS time.
     pub compared: u64,
     /// Counter-stamped time − the receiver's time of the mark (µs).
     pub residual_mean_us: f64,
+    /// RMS of the residuals (µs).
     pub residual_rms_us: f64,
+    /// Largest absolute residual (µs).
     pub residual_max_abs_us: f64,
     /// Software sync: the marks, not the GNSS receive times, map host time
     /// to GPS time.
@@ -67,8 +77,11 @@ pub struct MarkReport {
 /// Mean, minimum and maximum of a quantity.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RangeStats {
+    /// Mean.
     pub mean: f64,
+    /// Minimum.
     pub min: f64,
+    /// Maximum.
     pub max: f64,
 }
 
@@ -76,7 +89,9 @@ pub struct RangeStats {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CounterReport {
     pub(crate) nominal_hz: f64,
+    /// Counter width (bits) from the log header; it wraps at 2^bits.
     pub bits: u32,
+    /// Counter wraps unwrapped.
     pub wraps: u64,
     /// Records skipped because the counter went back (or jumped) without wrapping.
     pub(crate) went_backwards_or_jumped: u64,
@@ -92,8 +107,12 @@ pub struct CounterReport {
 /// A span of one lock state of the clock model.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LockSpan {
+    /// `acquiring`, `locked` or `holdover` (hardware/hybrid sync); `software` for
+    /// software sync (one span over the whole run).
     pub state: String,
+    /// Start of the span (GPS time): the first IMU stamp or the state change.
     pub start: WeekSow,
+    /// End of the span (GPS time): the next state change or the last IMU stamp.
     pub end: WeekSow,
 }
 
@@ -102,20 +121,26 @@ pub struct LockSpan {
 pub struct HoldoverSpan {
     /// First and last IMU stamp made without a pulse within 1.5 s.
     pub start: WeekSow,
+    /// GPS time of the last stamp in the span.
     pub end: WeekSow,
+    /// From `start` to `end` (s).
     pub duration_s: f64,
     /// Largest error bound of a stamp in the span (µs).
     pub max_bound_us: f64,
+    /// IMU stamps in the span.
     pub samples: u64,
 }
 
 /// The 1PPS edges: counts and the fit of accepted ones.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PpsReport {
+    /// Pulse outcomes (flattened into this object in the JSON).
     #[serde(flatten)]
     pub counts: PulseCounts,
     /// RMS of accepted pulses' innovations against the causal prediction (µs).
     pub innovation_rms_us: Option<f64>,
+    /// Always 0 here; software sync counts ignored `pps` records in
+    /// `software.pps_records_ignored`.
     pub ignored: u64,
 }
 
@@ -128,17 +153,25 @@ pub(crate) struct OddSecond {
 /// The IMU records: rate, losses and stamp quality.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ImuReport {
+    /// `imu` records in the log.
     pub records: u64,
+    /// What the six values are: rates or increments.
     pub kind: ImuKind,
+    /// Rate from the log header's `imu_rate_hz` (Hz); `None` when absent.
     pub nominal_rate_hz: Option<f64>,
     /// The IMU's true mean rate from its stamps (Hz), lost samples counted.
     pub rate_hz: Option<f64>,
     /// Least-squares rate (stamps on sample index) (Hz).
     pub(crate) rate_ls_hz: Option<f64>,
+    /// Samples lost in gaps (sum of the gaps' `lost`).
     pub lost: u64,
+    /// Duplicated records (same counter tick, or identical values in software sync).
     pub duplicated: u64,
+    /// Intervals more than a quarter period off a whole number of periods.
     pub irregular_intervals: u64,
+    /// Samples output without a GPS time (flagged `unstamped`).
     pub unstamped: u64,
+    /// Samples whose counter was below the previous one's (`hw` mode only).
     pub out_of_order: u64,
     /// Gaps (first 1000): record index after the gap, samples lost.
     pub gaps: Vec<ImuGap>,
@@ -164,6 +197,7 @@ pub struct ImuReport {
 pub struct HybridReport {
     /// The IMU's sample period from the envelope (s) and its rate (Hz).
     pub period_s: Option<f64>,
+    /// Rate of the sample clock, `1 / period_s` (Hz).
     pub rate_hz: Option<f64>,
     /// The IMU clock's frequency error against the nominal rate (ppm).
     pub imu_clock_ppm: Option<f64>,
@@ -178,6 +212,8 @@ pub struct HybridReport {
     pub jitter_sd_us: f64,
     /// The constant subtracted as the fastest transport latency (s).
     pub(crate) assumed_fastest_latency_s: f64,
+    /// Explains the constant error receive times cannot observe, and how to
+    /// estimate it.
     pub unobservable: String,
 }
 
@@ -185,17 +221,23 @@ pub struct HybridReport {
 /// the option that fixes it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Implausible {
+    /// The figure and its value.
     pub what: String,
+    /// Its likely cause.
     pub cause: String,
+    /// The option or change that fixes it.
     pub fix: String,
 }
 
 /// Statistics of a latency (ms).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LatencyStats {
+    /// Minimum; `None` without stamped messages.
     pub min: Option<f64>,
+    /// Median.
     pub median: Option<f64>,
     pub(crate) p99: Option<f64>,
+    /// Maximum.
     pub max: Option<f64>,
 }
 
@@ -203,8 +245,11 @@ pub struct LatencyStats {
 /// `[start + i·width, start + (i+1)·width)`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Histogram {
+    /// Lower edge of bin 0.
     pub start: f64,
+    /// Bin width (same unit as the values).
     pub width: f64,
+    /// Values in each bin.
     pub counts: Vec<u64>,
 }
 
@@ -240,7 +285,9 @@ impl Histogram {
 /// The GNSS messages: counts and latencies.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct GnssReport {
+    /// `gnss` records in the log.
     pub messages: u64,
+    /// Messages put on GPS time (the latencies counted).
     pub stamped: u64,
     /// Latency from validity (the 1PPS edge for whole-second fixes) to the
     /// last byte (ms), seed 002.
@@ -255,6 +302,7 @@ pub struct GnssReport {
 /// estimate).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RejectedPulse {
+    /// GPS time of the edge (causal estimate).
     pub time: WeekSow,
     /// `spurious` (far from any GPS second), `displaced` (near one but
     /// outside the gate) or `duplicate`.
@@ -266,11 +314,15 @@ pub struct RejectedPulse {
 pub struct SoftwareReport {
     pub(crate) imu_envelope_mean_delay_ms: f64,
     pub(crate) gnss_envelope_mean_delay_ms: f64,
+    /// Host clock's frequency error against GPS time (ppm); `None` when not
+    /// estimated.
     pub host_clock_error_ppm: Option<f64>,
     /// Estimated standard deviation of the stamps' varying error (ms).
     pub jitter_sd_ms: f64,
     pub(crate) assumed_fastest_gnss_latency_s: f64,
     pub(crate) assumed_fastest_imu_latency_s: f64,
+    /// Explains the constant error receive times cannot observe, and how to
+    /// estimate it.
     pub unobservable: String,
     pub(crate) pps_records_ignored: u64,
 }
@@ -278,16 +330,22 @@ pub struct SoftwareReport {
 /// Mean and maximum of a stamp error bound (µs).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct BoundStats {
+    /// Mean bound (µs); `None` without stamped samples.
     pub mean: Option<f64>,
+    /// Largest bound (µs); `None` without stamped samples.
     pub max: Option<f64>,
 }
 
 /// Stamps compared with the true times.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct TruthComparison {
+    /// Stamps compared (one per `imu` record with a GPS time).
     pub compared: u64,
+    /// RMS of the stamp error, stamp − truth (µs).
     pub rms_us: f64,
+    /// Largest absolute error (µs).
     pub max_abs_us: f64,
+    /// Mean error (µs): the constant part.
     pub mean_us: f64,
     /// Standard deviation about the mean (µs): the jitter.
     pub sd_us: f64,
@@ -295,8 +353,11 @@ pub struct TruthComparison {
     pub within_bound: f64,
     /// Over holdover stamps only.
     pub holdover_compared: u64,
+    /// RMS error of the holdover stamps (µs); 0 without any.
     pub holdover_rms_us: f64,
+    /// Largest absolute error of the holdover stamps (µs).
     pub holdover_max_abs_us: f64,
+    /// Share of holdover stamps within their bound.
     pub holdover_within_bound: f64,
     /// Largest difference between consecutive errors (µs): a jump.
     pub max_step_us: f64,
@@ -305,18 +366,29 @@ pub struct TruthComparison {
 /// Everything `navsync sync` learned.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SyncReport {
+    /// `hw` (1PPS), `hybrid` (1PPS + IMU receive times) or `sw` (receive times
+    /// only).
     pub mode: String,
+    /// Stamps made from past data only (`--causal`).
     pub causal: bool,
+    /// Records of each kind in the log.
     pub records: RecordCounts,
+    /// The counter's width, wraps and faults.
     pub counter: CounterReport,
+    /// Lock states over the run, in time order.
     pub lock_timeline: Vec<LockSpan>,
+    /// The 1PPS edges; `None` in software sync.
     pub pps: Option<PpsReport>,
     /// Rejected pulses after lock (the first 1000).
     #[serde(default)]
     pub rejected_pulses: Vec<RejectedPulse>,
+    /// Holdover spans of the IMU stamps, in time order.
     pub holdover: Vec<HoldoverSpan>,
+    /// The IMU records.
     pub imu: ImuReport,
+    /// The GNSS messages.
     pub gnss: GnssReport,
+    /// Software synchronization; `None` with 1PPS (hw and hybrid).
     pub software: Option<SoftwareReport>,
     /// Hybrid synchronization (1PPS + IMU receive times).
     #[serde(default)]
@@ -329,9 +401,13 @@ pub struct SyncReport {
     pub marks: Option<MarkReport>,
     /// Error bounds of the IMU stamps (µs).
     pub stamp_bound_us: BoundStats,
+    /// GPS time of the first IMU stamp; `None` when nothing was stamped.
     pub first_stamp: Option<WeekSow>,
+    /// GPS time of the last IMU stamp.
     pub last_stamp: Option<WeekSow>,
+    /// Warnings and skipped lines of the run.
     pub diagnostics: Diagnostics,
+    /// Stamps against a truth file (`--truth`); `None` without one.
     pub truth: Option<TruthComparison>,
 }
 

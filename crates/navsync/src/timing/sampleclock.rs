@@ -45,6 +45,8 @@
 //!
 //! Times are f64 seconds from an origin chosen by the caller (a GPS second).
 
+#![warn(missing_docs)]
+
 use std::collections::VecDeque;
 
 use super::fit::EnvelopeFit;
@@ -93,6 +95,7 @@ pub(crate) struct SampleHint {
 /// A record handed back with its sample instant.
 #[derive(Clone, Debug)]
 pub struct Timed<T> {
+    /// The record handed in with the sample.
     pub tag: T,
     /// Sample instant + `μ_min` (s from the origin); for a passed-through
     /// record, the previous sample's.
@@ -174,9 +177,13 @@ pub struct SampleClock<T> {
     fits: Vec<(i64, EnvelopeFit)>,
     latest_t: f64,
     // statistics
+    /// Samples placed on the sample clock.
     pub samples: u64,
+    /// Samples lost (inferred from the receive times, or known from the record).
     pub lost: u64,
+    /// Losses (gaps of one or more samples).
     pub gaps: u64,
+    /// Samples whose place next to a loss was not certain.
     pub ambiguous: u64,
     /// Segments started after the first (reopens, rate changes).
     pub segments: u64,
