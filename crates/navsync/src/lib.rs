@@ -12,6 +12,7 @@
 //! `q_nb`/`c_nb` rotate body to navigation; GPS time as integer nanoseconds
 //! ([`time::GpsTime`]).
 
+#![warn(missing_docs)]
 // Index loops are the clearest form for the small matrix kernels here.
 #![allow(clippy::needless_range_loop)]
 

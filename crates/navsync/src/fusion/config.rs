@@ -437,9 +437,9 @@ pub struct FusionStats {
     pub gnss_fixes_downweighted: usize,
     /// Robust weighting: velocities used with an inflated R on some axis.
     pub gnss_velocity_downweighted: usize,
-    /// Fixes refused before use: non-finite values, σ ≤ 0 or beyond
-    /// [`MAX_GNSS_SD_M`], a time already seen, or a position repeated
-    /// while the vehicle moved (a stale receiver output).
+    /// Fixes refused before use for non-finite values or a σ ≤ 0 or
+    /// beyond [`MAX_GNSS_SD_M`] (repeated times and stale outputs are
+    /// counted below).
     pub gnss_fixes_invalid: usize,
     /// Fixes ignored because their time repeats an earlier fix's.
     pub gnss_fixes_duplicate: usize,

@@ -123,8 +123,9 @@ pub struct KfGinsConfig {
     pub init_vel: Vector3<f64>,
     /// Initial attitude (`initatt`, read in deg); zero when absent.
     pub init_att: Euler,
-    /// Whether `initpos`, `initvel` and `initatt` were given; without them
-    /// the run starts from an alignment ([`crate::align`]).
+    /// Whether `initatt` was given (then `initpos` and `initvel` are
+    /// required too); without it the run starts from an alignment
+    /// ([`crate::align`]), and an `initpos`/`initvel` given is still read.
     pub init_state_given: bool,
     pub(crate) init_imu: ImuErrors,
     /// Initial σ of the error state (`initposstd` … `initsastd`), SI.
