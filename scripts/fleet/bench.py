@@ -5,9 +5,10 @@
    IMU at 200 Hz, 1PPS + drifting counter, 1 Hz RTK, two 30 s outages)
    through ``navsync.fleet.process`` on a Dask LocalCluster of 1 and of 2
    worker processes (1 thread each): wall time, drives per minute,
-   speed-up, peak memory per worker; once with single-core tasks (the
-   fleet's default: each drive's readers and writers inline) and once with
-   threaded tasks (about 1.3 cores per drive);
+   speed-up, peak memory per worker; once with single-core tasks (each
+   drive's readers and writers inline) and once with threaded tasks (the
+   fleet's default: readers and writers on threads of their own, about 1.3
+   cores per drive);
 2. the per-drive cost of the Python layer: the same M drives through
    ``navsync batch --jobs 1`` (the CLI), ``process_drive`` in this
    process, and the 1-worker cluster.
@@ -102,8 +103,8 @@ def main() -> None:
     ap.add_argument(
         "--tasks",
         default="single,threaded",
-        help="comma list of: single (each task on one core: readers and writers inline, "
-        "the fleet default), threaded (readers and writers on threads of their own)",
+        help="comma list, run in this order, of: single (each task on one core: readers and "
+        "writers inline), threaded (the fleet default: readers and writers on threads of their own)",
     )
     a = ap.parse_args()
     skip = set(filter(None, a.skip.split(",")))
