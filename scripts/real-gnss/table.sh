@@ -6,6 +6,8 @@
 # per-outage maximum horizontal drift (m) with 30 s outages every 120 s.
 #
 # Usage (from the repository root): scripts/real-gnss/table.sh [SEED...]
+# EXTRA="--nhc": more fuse options for every run (docs/real-gnss.md's land-
+# vehicle table); WEIGHTINGS="robust off": the weightings to run.
 # Needs: cargo build --release; python3 (for the JSON fields).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -14,6 +16,8 @@ D=../shared/data/kfgins-matlab-dataset2
 W=${WORK:-target/real-gnss}
 SEEDS=${*:-1}
 VEL=${VEL:---no-gnss-velocity}
+EXTRA=${EXTRA:-}
+WEIGHTINGS=${WEIGHTINGS:-robust off gate}
 mkdir -p "$W"
 field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))$2)" "$1"; }
 hrms() { "$B" eval --truth "$1/truth.nav" --nav "$2/navresult.nav" --json "$2/eval.json" >/dev/null; field "$2/eval.json" "$3"; }
@@ -24,13 +28,13 @@ for grade in adis16465 icm20602 nav; do
     "$B" simulate --from-nav "$D/truth.nav" --gnss-real "$D/GNSS-POSVEL.txt" \
       --gnss-real-layout matlab --set 'gnss.lever_arm_m=[-0.37,0.008,0.353]' \
       --gnss-velocity --imu-grade "$grade" --seed "$seed" --quiet --output "$sim"
-    for wt in robust off gate; do
+    for wt in $WEIGHTINGS; do
       out="$sim/$wt"
-      "$B" fuse --config "$sim/kf-gins.yaml" --output "$out" --gnss-weighting "$wt" $VEL >/dev/null 2>&1
+      "$B" fuse --config "$sim/kf-gins.yaml" --output "$out" --gnss-weighting "$wt" $VEL $EXTRA >/dev/null 2>&1
       h=$(hrms "$sim" "$out" "['pos_horizontal_m']['rms']")
       dw=$(field "$out/summary.json" "['stats']['gnss_fixes_downweighted']")
       rj=$(field "$out/summary.json" "['stats']['gnss_fixes_rejected']")
-      "$B" fuse --config "$sim/kf-gins.yaml" --output "$out-outage" --gnss-weighting "$wt" $VEL \
+      "$B" fuse --config "$sim/kf-gins.yaml" --output "$out-outage" --gnss-weighting "$wt" $VEL $EXTRA \
         --outage-period 120 --outage-len 30 --outage-first 60 >/dev/null 2>&1
       o=$(field "$out-outage/summary.json" "['outages']")
       "$B" eval --truth "$sim/truth.nav" --nav "$out-outage/navresult.nav" --outages "$o" \

@@ -153,7 +153,14 @@ impl GnssDecoder {
                                     received_ns: epoch_end,
                                 });
                             }
-                            NmeaOutcome::Fix(_) | NmeaOutcome::NoFix { .. } => {}
+                            // Live fusion takes positions only; headings
+                            // (HDT) are kept in the --record-gnss raw file
+                            // for `convert`.
+                            NmeaOutcome::Fix(_)
+                            | NmeaOutcome::NoFix { .. }
+                            | NmeaOutcome::Heading { .. }
+                            | NmeaOutcome::NoHeading
+                            | NmeaOutcome::HeadingProblem(_) => {}
                             NmeaOutcome::Problem(p) => notes.push(p),
                         }
                     }

@@ -88,7 +88,14 @@ pub struct ConvertOptions {
     pub imu_time_offset_s: f64,
     /// IMU intervals at least this long are reported (seed 001 §1.5).
     pub gap_threshold_s: f64,
+    /// σ (deg) given to NMEA HDT headings, which carry none: the
+    /// receiver's datasheet heading accuracy for its antenna baseline.
+    pub hdt_sd_deg: f64,
 }
+
+/// The default σ of an NMEA HDT heading (deg): dual-antenna receivers
+/// state 0.1–0.3° RMS for a 1 m baseline; 0.5° covers shorter baselines.
+pub const DEFAULT_HDT_SD_DEG: f64 = 0.5;
 
 impl Default for ConvertOptions {
     fn default() -> Self {
@@ -99,6 +106,7 @@ impl Default for ConvertOptions {
             esf_raw_tick_s: 1e-3,
             imu_time_offset_s: 0.0,
             gap_threshold_s: 0.1,
+            hdt_sd_deg: DEFAULT_HDT_SD_DEG,
         }
     }
 }
@@ -727,6 +735,38 @@ impl StreamConverter {
                 NmeaOutcome::Problem(p) => {
                     gga_epochs += 1;
                     nmea_problems += 1;
+                    s.diagnostics.push(input, 0, p);
+                }
+                NmeaOutcome::Heading {
+                    time,
+                    heading_deg,
+                    talker,
+                    from_gnss,
+                } => {
+                    if from_gnss {
+                        self.headings.push(HeadingObs {
+                            time,
+                            heading_rad: heading_deg.to_radians(),
+                            sd_rad: self.opts.hdt_sd_deg.to_radians(),
+                            source: HeadingSource::Baseline,
+                        });
+                    } else {
+                        *s.heading_drops
+                            .entry(format!(
+                                "{talker}HDT: talker {talker} is not a GNSS receiver, so not a dual-antenna baseline heading"
+                            ))
+                            .or_default() += 1;
+                    }
+                }
+                NmeaOutcome::NoHeading => {
+                    *s.heading_drops
+                        .entry("HDT with an empty heading (no baseline solution)".into())
+                        .or_default() += 1;
+                }
+                NmeaOutcome::HeadingProblem(p) => {
+                    *s.heading_drops
+                        .entry("HDT unusable (each one in the problems listed)".into())
+                        .or_default() += 1;
                     s.diagnostics.push(input, 0, p);
                 }
             }

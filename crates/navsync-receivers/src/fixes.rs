@@ -21,7 +21,7 @@ use navsync::time::{GpsTime, NS_PER_S, NS_PER_WEEK};
 
 use crate::geoid::Egm96Grid;
 use crate::gnsstime::{LeapSeconds, LeapSource, UtcTime};
-use crate::nmea::{Date, Gga, Gst, NmeaMessage, TimeOfDayNs};
+use crate::nmea::{Date, Gga, Gst, Hdt, NmeaMessage, TimeOfDayNs};
 use crate::ubx::{
     NavHpPosLlh, NavPosLlh, NavPvt, NavSol, NavStatus, NavTimeGps, NavVelNed, UbxMessage,
     fix_type_name,
@@ -529,6 +529,7 @@ struct NmeaEpoch {
     tod: TimeOfDayNs,
     gga: Option<Gga>,
     gst: Option<Gst>,
+    hdt: Option<Hdt>,
     date: Option<Date>,
 }
 
@@ -558,6 +559,19 @@ pub enum NmeaOutcome {
     /// A GGA that could not be used (no time, date or altitude…), said in
     /// a sentence for the diagnostics.
     Problem(String),
+    /// An epoch's HDT heading (degrees true, in [0, 360)) at the epoch's
+    /// GPS time; `from_gnss`: sent by a GNSS talker (a dual-antenna
+    /// baseline), see [`Hdt::from_gnss`].
+    Heading {
+        time: GpsTime,
+        heading_deg: f64,
+        talker: String,
+        from_gnss: bool,
+    },
+    /// An HDT whose heading field is empty (no baseline solution).
+    NoHeading,
+    /// An HDT that could not be used, said in a sentence.
+    HeadingProblem(String),
 }
 
 /// Why an NMEA epoch gave no fix although nothing was wrong with it.
@@ -601,11 +615,24 @@ impl NmeaFixes {
     }
 
     pub fn push(&mut self, m: &NmeaMessage, ctx: &TimeContext, out: &mut Vec<NmeaOutcome>) {
+        // HDT has no time: it joins the epoch whose timed sentences came
+        // before it (receivers send an epoch's sentences together).
+        if let NmeaMessage::Hdt(h) = m {
+            match self.cur.as_mut() {
+                Some(e) => e.hdt = Some(h.clone()),
+                None => out.push(NmeaOutcome::HeadingProblem(format!(
+                    "{}HDT before any timed sentence (GGA, RMC, GST or ZDA): its time is unknown; skipped",
+                    h.talker
+                ))),
+            }
+            return;
+        }
         let (tod, date) = match m {
             NmeaMessage::Gga(g) => (g.time_of_day_ns, None),
             NmeaMessage::Gst(g) => (g.time_of_day_ns, None),
             NmeaMessage::Rmc(r) => (r.time_of_day_ns, r.date),
             NmeaMessage::Zda(z) => (z.time_of_day_ns, z.date),
+            NmeaMessage::Hdt(_) => return,
         };
         let Some(tod) = tod else {
             if let NmeaMessage::Gga(_) = m {
@@ -640,6 +667,12 @@ impl NmeaFixes {
                     e.tod as f64 * 1e-9
                 )));
             }
+            if e.hdt.is_some() {
+                out.push(NmeaOutcome::HeadingProblem(format!(
+                    "HDT at {} s of day: no date in the stream (needs RMC or ZDA); skipped",
+                    e.tod as f64 * 1e-9
+                )));
+            }
         }
     }
 
@@ -665,8 +698,10 @@ impl NmeaFixes {
             let mut u = u;
             u.date = Some(if u.tod > e.tod { prev_day(date) } else { date });
             out.push(self.epoch_fix(&u, ctx));
+            out.extend(epoch_heading(&u, ctx));
         }
         out.push(self.epoch_fix(&e, ctx));
+        out.extend(epoch_heading(&e, ctx));
     }
 
     fn epoch_fix(&mut self, e: &NmeaEpoch, ctx: &TimeContext) -> NmeaOutcome {
@@ -733,6 +768,36 @@ impl NmeaFixes {
             geoid_from_model,
         })
     }
+}
+
+/// The HDT heading of a dated epoch, at the epoch's GPS time.
+fn epoch_heading(e: &NmeaEpoch, ctx: &TimeContext) -> Option<NmeaOutcome> {
+    let h = e.hdt.as_ref()?;
+    let Some(deg) = h.heading_deg else {
+        return Some(NmeaOutcome::NoHeading);
+    };
+    let when = e.tod as f64 * 1e-9;
+    if !(deg.is_finite() && (0.0..360.0).contains(&deg)) {
+        return Some(NmeaOutcome::HeadingProblem(format!(
+            "{}HDT at {when} s of day: heading {deg}° outside [0, 360); skipped",
+            h.talker
+        )));
+    }
+    let date = e.date?;
+    let utc = UtcTime::from_date_tod(date.year, date.month, date.day, e.tod);
+    if !utc.is_valid() {
+        return Some(NmeaOutcome::HeadingProblem(format!(
+            "{}HDT at {when} s of day: invalid UTC date/time {utc:?}; skipped",
+            h.talker
+        )));
+    }
+    let (time, _) = ctx.leap.utc_to_gps(&utc);
+    Some(NmeaOutcome::Heading {
+        time,
+        heading_deg: deg,
+        talker: h.talker.clone(),
+        from_gnss: h.from_gnss(),
+    })
 }
 
 fn next_day(d: Date) -> Date {
@@ -810,6 +875,94 @@ mod tests {
             time_of_day_ns: None,
             date: None,
         };
+    }
+
+    fn hdt(talker: &str, deg: Option<f64>) -> NmeaMessage {
+        NmeaMessage::Hdt(Hdt {
+            talker: talker.into(),
+            heading_deg: deg,
+        })
+    }
+
+    /// HDT joins the epoch of the timed sentences before it, takes its GPS
+    /// time (dated by the RMC), and is reported when it has no epoch, no
+    /// heading or a heading outside [0, 360).
+    #[test]
+    fn hdt_takes_its_epochs_time_and_bad_ones_are_reported() {
+        let ctx = TimeContext::default();
+        let mut f = NmeaFixes::new(FixOptions::default());
+        let mut out = Vec::new();
+        f.push(&hdt("GN", Some(10.0)), &ctx, &mut out); // no epoch yet
+        let rmc = |tod_s: i64| {
+            NmeaMessage::Rmc(Rmc {
+                talker: "GN".into(),
+                time_of_day_ns: Some(tod_s * NS_PER_S),
+                date: Some(Date {
+                    year: 2026,
+                    month: 12,
+                    day: 3,
+                }),
+                valid: true,
+                lat_deg: None,
+                lon_deg: None,
+                speed_knots: None,
+                course_deg: None,
+            })
+        };
+        for (t, h) in [
+            (100, Some(45.25)),
+            (101, None),
+            (102, Some(360.0)),
+            (103, Some(359.9)),
+        ] {
+            f.push(&gga(t), &ctx, &mut out);
+            f.push(&rmc(t), &ctx, &mut out);
+            f.push(&hdt(if t == 103 { "HE" } else { "GN" }, h), &ctx, &mut out);
+        }
+        f.finish(&ctx, &mut out);
+        let day = utc_to_gps_date(2026, 12, 3);
+        let headings: Vec<_> = out
+            .iter()
+            .filter_map(|o| match o {
+                NmeaOutcome::Heading {
+                    time,
+                    heading_deg,
+                    from_gnss,
+                    ..
+                } => Some((*time, *heading_deg, *from_gnss)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            headings,
+            vec![
+                (day + 100 * NS_PER_S, 45.25, true),
+                (day + 103 * NS_PER_S, 359.9, false)
+            ]
+        );
+        let problems: Vec<_> = out
+            .iter()
+            .filter_map(|o| match o {
+                NmeaOutcome::HeadingProblem(p) => Some(p.as_str()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(problems.len(), 2, "{problems:?}");
+        assert!(problems[0].contains("before any timed sentence"));
+        assert!(problems[1].contains("360") && problems[1].contains("102 s of day"));
+        assert_eq!(
+            out.iter()
+                .filter(|o| matches!(o, NmeaOutcome::NoHeading))
+                .count(),
+            1
+        );
+        // The fixes are untouched by the headings.
+        assert_eq!(
+            out.iter()
+                .filter(|o| matches!(o, NmeaOutcome::Fix(_)))
+                .count(),
+            4
+        );
     }
 
     fn utc_to_gps_date(y: i32, m: u32, d: u32) -> GpsTime {

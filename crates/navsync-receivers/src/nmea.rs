@@ -1,5 +1,6 @@
 //! NMEA 0183 sentences navsync reads: GGA (position), RMC (date, speed,
-//! course), GST (position standard deviations), ZDA (date and time).
+//! course), GST (position standard deviations), ZDA (date and time), HDT
+//! (true heading: a dual-antenna receiver's baseline azimuth).
 //!
 //! The stream reader ([`crate::stream`]) finds sentences and verifies their
 //! checksum (NMEA 0183 v4.10 §5.2.1: XOR of the bytes between `$` and `*`,
@@ -97,6 +98,27 @@ pub struct Zda {
     pub date: Option<Date>,
 }
 
+/// HDT: true heading (degrees). It carries no time: it belongs to the
+/// epoch whose timed sentences came before it. From a GNSS talker (GP, GN,
+/// GL, GA, GB, BD, GI, GQ) it is a dual-antenna (moving-base) receiver's
+/// baseline azimuth; other talkers (HE gyrocompass, IN integrated
+/// navigation) are other instruments.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Hdt {
+    pub talker: String,
+    pub heading_deg: Option<f64>,
+}
+
+impl Hdt {
+    /// Whether the talker is a GNSS receiver (NMEA 0183 v4.11 talker IDs).
+    pub fn from_gnss(&self) -> bool {
+        matches!(
+            self.talker.as_str(),
+            "GP" | "GN" | "GL" | "GA" | "GB" | "BD" | "GI" | "GQ"
+        )
+    }
+}
+
 /// A decoded sentence of a type navsync reads.
 #[derive(Clone, Debug, PartialEq)]
 pub enum NmeaMessage {
@@ -104,6 +126,7 @@ pub enum NmeaMessage {
     Rmc(Rmc),
     Gst(Gst),
     Zda(Zda),
+    Hdt(Hdt),
 }
 
 impl NmeaMessage {
@@ -113,6 +136,7 @@ impl NmeaMessage {
             NmeaMessage::Rmc(_) => "RMC",
             NmeaMessage::Gst(_) => "GST",
             NmeaMessage::Zda(_) => "ZDA",
+            NmeaMessage::Hdt(_) => "HDT",
         }
     }
 }
@@ -135,7 +159,7 @@ pub fn formatter(sentence: &[u8]) -> &[u8] {
 
 /// Whether navsync decodes sentences with this formatter.
 pub(crate) fn is_read(formatter: &[u8]) -> bool {
-    matches!(formatter, b"GGA" | b"RMC" | b"GST" | b"ZDA")
+    matches!(formatter, b"GGA" | b"RMC" | b"GST" | b"ZDA" | b"HDT")
 }
 
 /// Decodes a checksum-verified sentence (`$` to the two checksum digits,
@@ -190,6 +214,10 @@ pub fn decode(sentence: &str) -> Result<Option<NmeaMessage>, String> {
             talker,
             time_of_day_ns: z.utc_time.map(tod_ns),
             date: z.utc_date().map(date),
+        }),
+        nmea::ParseResult::HDT(h) => NmeaMessage::Hdt(Hdt {
+            talker,
+            heading_deg: h.heading.map(f32_decimal),
         }),
         other => return Err(format!("unexpected sentence {other:?}")),
     }))
@@ -356,6 +384,15 @@ impl Zda {
     }
 }
 
+impl Hdt {
+    pub fn to_sentence(&self) -> String {
+        let mut b = format!("{}HDT,", self.talker);
+        fmt_opt(&mut b, self.heading_deg, 2);
+        b.push_str(",T");
+        encode_sentence(&b)
+    }
+}
+
 impl NmeaMessage {
     pub fn to_sentence(&self) -> String {
         match self {
@@ -363,6 +400,7 @@ impl NmeaMessage {
             NmeaMessage::Rmc(m) => m.to_sentence(),
             NmeaMessage::Gst(m) => m.to_sentence(),
             NmeaMessage::Zda(m) => m.to_sentence(),
+            NmeaMessage::Hdt(m) => m.to_sentence(),
         }
     }
 }
@@ -392,5 +430,30 @@ mod tests {
         assert_eq!(g.alt_msl_m, Some(1129.913));
         assert_eq!(g.geoid_sep_m, Some(-21.35));
         assert!((g.ellipsoidal_height_m().unwrap() - 1108.563).abs() < 1e-9);
+    }
+
+    #[test]
+    fn hdt_decodes_round_trips_and_names_its_talker() {
+        // gpsd's example of an HDT from a heading sensor (HE talker).
+        let Some(NmeaMessage::Hdt(he)) = decode("$HEHDT,341.8,T*21").unwrap() else {
+            panic!()
+        };
+        assert_eq!(he.heading_deg, Some(341.8));
+        assert!(!he.from_gnss());
+        let h = Hdt {
+            talker: "GN".into(),
+            heading_deg: Some(123.45),
+        };
+        let line = h.to_sentence();
+        assert_eq!(line, encode_sentence("GNHDT,123.45,T"));
+        let back = decode(line.trim_end()).unwrap();
+        assert_eq!(back, Some(NmeaMessage::Hdt(h.clone())));
+        assert!(h.from_gnss());
+        // No heading (a receiver without a baseline solution): empty field.
+        let empty = encode_sentence("GPHDT,,T");
+        let Some(NmeaMessage::Hdt(e)) = decode(empty.trim_end()).unwrap() else {
+            panic!()
+        };
+        assert_eq!(e.heading_deg, None);
     }
 }

@@ -367,6 +367,124 @@ fn nav_relposned_to_heading_file_with_bad_epochs_reported() {
     }
 }
 
+/// 8 s of a dual-antenna NMEA receiver (a Unicore- or Septentrio-like
+/// stream: GGA, RMC, then HDT each second), heading 200° + k°. Epoch 2's
+/// HDT is empty (no baseline solution), epoch 4's comes from a gyrocompass
+/// talker (HE), epoch 6's is 400°. The good ones go to heading.txt at
+/// their epoch's GPS time, as baseline headings with `hdt_sd_deg`; the rest
+/// are tallied, the 400° one also a diagnostic; the fixes are all written.
+#[test]
+fn nmea_hdt_to_heading_file_at_its_epochs_time() {
+    use navsync_receivers::nmea::{Date, Gga, Hdt, Rmc, encode_sentence};
+    let date = Date {
+        year: 2026,
+        month: 12,
+        day: 3,
+    };
+    let mut text = String::new();
+    // A stray HDT before any epoch: its time is unknown.
+    text.push_str(&encode_sentence("GNHDT,1.00,T"));
+    let tod0_s = 3600 * 10;
+    for k in 0..8i64 {
+        let tod = Some((tod0_s + k) * NS_PER_S);
+        text.push_str(
+            &Gga {
+                talker: "GN".into(),
+                time_of_day_ns: tod,
+                lat_deg: Some(30.5),
+                lon_deg: Some(114.3),
+                quality: 4,
+                num_sv: Some(20),
+                hdop: Some(0.6),
+                alt_msl_m: Some(20.0),
+                geoid_sep_m: Some(-10.0),
+            }
+            .to_sentence(),
+        );
+        text.push_str(
+            &Rmc {
+                talker: "GN".into(),
+                time_of_day_ns: tod,
+                date: Some(date),
+                valid: true,
+                lat_deg: Some(30.5),
+                lon_deg: Some(114.3),
+                speed_knots: Some(0.0),
+                course_deg: None,
+            }
+            .to_sentence(),
+        );
+        let heading = match k {
+            2 => None,
+            6 => Some(400.0),
+            _ => Some(200.0 + k as f64),
+        };
+        let talker = if k == 4 { "HE" } else { "GN" };
+        text.push_str(
+            &Hdt {
+                talker: talker.into(),
+                heading_deg: heading,
+            }
+            .to_sentence(),
+        );
+    }
+    let dir = tmp("nmea-hdt");
+    let input = dir.join("in.nmea");
+    std::fs::write(&input, &text).unwrap();
+    let out = dir.join("out");
+    let opts = ConvertOptions {
+        hdt_sd_deg: 0.3,
+        ..Default::default()
+    };
+    let sum = convert(InputFormat::Nmea, &input, &out, &opts).unwrap();
+    assert_eq!(sum.gnss_fixes, 8);
+    assert_eq!(sum.headings, 5);
+    let t0 = utc_to_gps(&navsync_receivers::gnsstime::UtcTime {
+        year: 2026,
+        month: 12,
+        day: 3,
+        hour: 10,
+        min: 0,
+        sec: 0,
+        nano: 0,
+    });
+    let mut d = Diagnostics::default();
+    let h =
+        navsync::io::heading::read_headings(&out.join("heading.txt"), t0.week(), &mut d).unwrap();
+    assert!(d.is_empty(), "{:?}", d.items);
+    let kept: Vec<i64> = h
+        .iter()
+        .map(|o| o.time.seconds_since(t0).round() as i64)
+        .collect();
+    assert_eq!(kept, [0, 1, 3, 5, 7]);
+    for (o, k) in h.iter().zip(&kept) {
+        assert!((o.heading_rad.to_degrees() - (200 + k) as f64).abs() < 1e-6);
+        assert!((o.sd_rad.to_degrees() - 0.3).abs() < 1e-9);
+        assert_eq!(o.source, navsync::io::heading::HeadingSource::Baseline);
+    }
+    let tallied: u64 = sum.heading_drops.values().sum();
+    assert_eq!(tallied, 4, "{:?}", sum.heading_drops);
+    assert!(sum.heading_drops.keys().any(|k| k.contains("talker HE")));
+    assert!(
+        sum.heading_drops
+            .keys()
+            .any(|k| k.contains("empty heading"))
+    );
+    let msgs: Vec<&str> = sum
+        .diagnostics
+        .items
+        .iter()
+        .map(|d| d.message.as_str())
+        .filter(|m| m.contains("HDT"))
+        .collect();
+    assert_eq!(msgs.len(), 2, "{msgs:?}");
+    assert!(msgs.iter().any(|m| m.contains("before any timed sentence")));
+    assert!(
+        msgs.iter()
+            .any(|m| m.contains("400") && m.contains("36006 s of day"))
+    );
+}
+
 /// The real NEO-M8L log (gpsd regression data, an ADR receiver): every
 /// NAV-PVT has headVehValid, and headVeh repeats headMot to a few 1e-5° at
 /// ground speeds of a few cm/s to a few m/s with a headAcc of ≈ 5°. So its

@@ -61,6 +61,9 @@ pub struct Args {
     /// Report IMU intervals at least this long (Tang, Zhang & Niu 2022: no 0.1 s gap).
     #[arg(long, default_value_t = 0.1)]
     pub gap_s: f64,
+    /// σ (deg) of NMEA HDT headings (dual-antenna receivers; HDT carries no accuracy): the receiver's datasheet heading accuracy for its baseline.
+    #[arg(long, default_value_t = navsync_receivers::convert::DEFAULT_HDT_SD_DEG)]
+    pub hdt_sd: f64,
     /// Keep UBX 3D epochs whose gnssFixOK flag is 0 (outside the receiver's DOP/accuracy masks).
     #[arg(long)]
     pub keep_fix_not_ok: bool,
@@ -105,11 +108,19 @@ pub fn run(a: Args) -> Result<()> {
         esf_raw_tick_s: a.esf_raw_tick_us * 1e-6,
         imu_time_offset_s: a.imu_time_offset_s,
         gap_threshold_s: a.gap_s,
+        hdt_sd_deg: a.hdt_sd,
         ..Default::default()
     };
     opts.fix.default_sd_m = a.default_sd;
     opts.fix.keep_fix_not_ok = a.keep_fix_not_ok;
     opts.fix.keep_2d = a.keep_2d;
+    let max_heading_sd = navsync::io::heading::MAX_HEADING_SD_DEG;
+    if !(a.hdt_sd > 0.0 && a.hdt_sd <= max_heading_sd) {
+        anyhow::bail!(
+            "--hdt-sd: a heading σ in (0, {max_heading_sd}] degrees, got {}",
+            a.hdt_sd
+        );
+    }
     if a.default_sd.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
         anyhow::bail!("--default-sd: standard deviations must be positive");
     }

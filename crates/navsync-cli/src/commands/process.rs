@@ -179,7 +179,7 @@ struct Data {
     /// only: a constant offset remains for the filter to estimate.
     software_timed: bool,
     notes: Vec<String>,
-    /// Receiver headings `convert` wrote (dual-antenna NAV-RELPOSNED,
+    /// Receiver headings `convert` wrote (dual-antenna NAV-RELPOSNED or NMEA HDT,
     /// NAV-PVT headVeh), for the alignment.
     heading: Option<PathBuf>,
 }
