@@ -42,6 +42,9 @@
 //! below the fitted line, which a FIFO at a constant rate cannot do: the
 //! rate changed. A segment drops the old envelope and bootstraps a new one;
 //! after a reopen the samples lost in the gap are counted from its length.
+//! After a rate increase, the fast samples already indexed on the old line
+//! (they lie below it) move to the new segment, so that they do not drag
+//! the old segment's envelope down.
 //!
 //! Times are f64 seconds from an origin chosen by the caller (a GPS second).
 
@@ -369,6 +372,9 @@ impl<T: Clone> SampleClock<T> {
     /// length in periods of the old segment); after a rate change the
     /// period is measured afresh.
     fn new_segment(&mut self, free: bool, t0: f64, out: &mut Vec<Timed<T>>) {
+        if free {
+            self.requeue_faster_samples();
+        }
         self.stamp(true, out);
         let gap = match (free, self.last_t, self.period()) {
             (false, Some(tl), Some(p)) => ((t0 - tl) / p).round() - 1.0,
@@ -391,6 +397,63 @@ impl<T: Clone> SampleClock<T> {
         self.ambiguous_left = 0;
         self.ambiguous_post.clear();
         self.segments += 1;
+    }
+
+    /// After a rate increase: the last samples decided before it was seen
+    /// came at the new rate but were indexed on the old line, below it.
+    /// A FIFO at a constant rate cannot put a sample below its lower
+    /// envelope, so those points would pull the old segment's stamping
+    /// envelope down over a whole window (ms over the last 15 s before
+    /// the change). They go back to the pending queue, in order, to start
+    /// the new segment; the old one is stamped without them.
+    fn requeue_faster_samples(&mut self) {
+        let Some((a, p)) = self.line.filter(|_| self.line_fitted) else {
+            return;
+        };
+        // The sample that revealed the change no longer starts a segment:
+        // the first requeued one does (segment state is reset by the
+        // caller either way).
+        if let Some(front) = self.pending.front_mut() {
+            front.segment = None;
+        }
+        while let Some(back) = self.indexed.back() {
+            let below = back.sample && back.time - (a + p * back.k as f64) < -BELOW_LINE_S;
+            if !below {
+                break;
+            }
+            let Some(it) = self.indexed.pop_back() else {
+                break;
+            };
+            if self
+                .points
+                .back()
+                .is_some_and(|&(k, t)| k == it.k as f64 && t == it.time)
+            {
+                self.points.pop_back();
+            }
+            self.samples -= 1;
+            if it.lost_before > 0 {
+                self.lost -= it.lost_before as u64;
+                self.gaps -= 1;
+            }
+            if it.ambiguous {
+                self.ambiguous -= 1;
+            }
+            self.pending.push_front(Item {
+                tag: it.tag,
+                t: Some(it.time),
+                t_raw: it.time,
+                known_lost: 0,
+                segment: None,
+            });
+        }
+        // The old segment now ends at the last sample kept.
+        if let Some(last) = self.indexed.iter().rev().find(|i| i.sample) {
+            self.last_k = Some(last.k);
+            self.last_t = Some(last.time);
+        }
+        // Fits cached with the requeued points are stale.
+        self.fits.clear();
     }
 
     /// The first line of a segment, from its pending samples alone: the
@@ -880,6 +943,74 @@ mod tests {
 
         fn log_first(k: usize) -> f64 {
             3.0 + k as f64 * 0.005 * (1.0 + 37e-6)
+        }
+    }
+
+    /// The IMU is reconfigured from 200 Hz to 400 Hz mid-run (uniform
+    /// 1–3 ms latency): the first fast samples fall half a period below
+    /// the fitted line, which a FIFO at a constant rate cannot do, so a new
+    /// segment starts with its period measured afresh. No loss is invented
+    /// (the fast samples are no gap), the segment is counted once, and the
+    /// stamps on both sides stay µs-accurate: the fast samples decided on
+    /// the old line before the change showed go to the new segment instead
+    /// of pulling the old envelope down (they did: −1.4 ms in the last
+    /// 2.5 s before the change, ramping from 15 s before it).
+    #[test]
+    fn rate_increase_starts_a_new_segment_without_losses() {
+        let mut r = rng::stream(4, "sampleclock.rate-change");
+        let (p1, p2) = (0.005 * (1.0 + 37e-6), 0.0025 * (1.0 + 37e-6));
+        let mut log: Vec<(i64, f64, f64)> = Vec::new();
+        let mut last = f64::NEG_INFINITY;
+        for k in 0..12_000i64 {
+            let s = if k < 6000 {
+                3.0 + k as f64 * p1
+            } else {
+                3.0 + 6000.0 * p1 + (k - 6000) as f64 * p2
+            };
+            let t = (s + rng::uniform_in(&mut r, 1e-3, 3e-3)).max(last);
+            last = t;
+            log.push((k, s, t));
+        }
+        for causal in [false, true] {
+            let mut c = SampleClock::new(SampleClockConfig {
+                nominal_period_s: Some(0.005),
+                causal,
+                ..Default::default()
+            });
+            let mut out = Vec::new();
+            for (i, &(_, _, t)) in log.iter().enumerate() {
+                c.push(i, t, &mut out);
+            }
+            c.flush(&mut out);
+            assert_eq!(out.len(), log.len());
+            assert_eq!(c.segments, 1, "one rate change, one new segment");
+            let found: u32 = out.iter().map(|o| o.lost_before).sum();
+            assert_eq!(found, 0, "a faster rate is no loss (causal {causal})");
+            // The new period, measured afresh, is the true one.
+            let period = c.current_period_s().expect("a period");
+            assert!((period - p2).abs() < 1e-7, "period {period} against {p2}");
+            // Stamp errors on each side (the causal envelope needs a few
+            // seconds of the new segment): each segment's envelope carries
+            // the same fastest latency (1 ms), so both offsets are that to
+            // the envelope's accuracy, and the spread is µs.
+            let stats = |range: std::ops::Range<usize>| {
+                let e: Vec<f64> = out
+                    .iter()
+                    .filter(|o| range.contains(&o.tag))
+                    .map(|o| o.time - log[o.tag].1)
+                    .collect();
+                let m = e.iter().sum::<f64>() / e.len() as f64;
+                let sd = (e.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / e.len() as f64).sqrt();
+                let worst = e.iter().map(|x| (x - 1e-3).abs()).fold(0.0, f64::max);
+                (m, sd, worst)
+            };
+            for range in [1000..6000, 7000..12_000] {
+                let (m, sd, worst) = stats(range.clone());
+                assert!(
+                    sd < 20e-6 && (m - 1e-3).abs() < 20e-6 && worst < 100e-6,
+                    "causal {causal}, samples {range:?}: mean {m}, sd {sd}, worst {worst}"
+                );
+            }
         }
     }
 }
