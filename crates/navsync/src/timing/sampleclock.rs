@@ -44,7 +44,9 @@
 //! after a reopen the samples lost in the gap are counted from its length.
 //! After a rate increase, the fast samples already indexed on the old line
 //! (they lie below it) move to the new segment, so that they do not drag
-//! the old segment's envelope down.
+//! the old segment's envelope down. A rate drop by an integer factor shows
+//! as the same gap before every sample; a run of them is taken for what it
+//! is, and its losses back.
 //!
 //! Times are f64 seconds from an origin chosen by the caller (a GPS second).
 
@@ -136,6 +138,10 @@ struct Item<T> {
 /// residuals in bins of `BIN_S`, for the place of a loss.
 const BIN_S: f64 = 2.5e-4;
 const BINS: usize = 400;
+/// Consecutive samples each after the same inferred gap that make a rate
+/// drop (see `SampleClock::note_gap_run`): at 1 % random loss, 25 equal
+/// gaps in a row have a probability below 1e-50.
+const RATE_DROP_RUN: usize = 25;
 /// How far below the decision line a receive time may lie (s): the line's
 /// fit error and the drift since its last fit (µs), with a margin.
 const BELOW_LINE_S: f64 = 1e-4;
@@ -170,6 +176,9 @@ pub struct SampleClock<T> {
     ambiguous_post: VecDeque<f64>,
     /// Samples lost at the last loss.
     last_step: f64,
+    /// The current run of consecutive samples each after the same inferred
+    /// gap: (gap, samples).
+    gap_run: (u32, usize),
     last_k: Option<i64>,
     last_time: Option<(f64, i64)>,
     hist: Vec<f64>,
@@ -218,6 +227,7 @@ impl<T: Clone> SampleClock<T> {
             ambiguous_left: 0,
             ambiguous_post: VecDeque::new(),
             last_step: 0.0,
+            gap_run: (0, 0),
             last_k: None,
             last_time: None,
             hist: vec![1.0; BINS],
@@ -675,9 +685,52 @@ impl<T: Clone> SampleClock<T> {
             k_offset: if ambiguous { k_offset } else { 0.0 },
             sample: true,
         });
+        self.note_gap_run((k - next) as u32, known);
         self.since_fit += 1;
         if self.since_fit >= 200 {
             self.refit_line();
+        }
+    }
+
+    /// After a sample decided with `inferred` samples lost before it (and
+    /// `known` told by the caller): [`RATE_DROP_RUN`] consecutive samples
+    /// each after the same inferred gap g ≥ 1 are no losses (random losses
+    /// of a percent cannot line up so) but a slower rate: the IMU now
+    /// samples every g + 1 periods. The run's stamps are right (its samples
+    /// lie on the old line, g + 1 indices apart); its losses are taken
+    /// back where not yet handed out, and the samples after it start a new
+    /// segment whose period is measured afresh.
+    fn note_gap_run(&mut self, inferred: u32, known: u32) {
+        if inferred == 0 || known > 0 {
+            self.gap_run = (0, 0);
+            return;
+        }
+        if self.gap_run.0 == inferred {
+            self.gap_run.1 += 1;
+        } else {
+            self.gap_run = (inferred, 1);
+        }
+        if self.gap_run.1 < RATE_DROP_RUN {
+            return;
+        }
+        let (gap, run) = std::mem::take(&mut self.gap_run);
+        let mut left = run;
+        for it in self.indexed.iter_mut().rev() {
+            if left == 0 {
+                break;
+            }
+            if !it.sample {
+                continue;
+            }
+            if it.lost_before == gap {
+                it.lost_before = 0;
+                self.lost -= gap as u64;
+                self.gaps -= 1;
+            }
+            left -= 1;
+        }
+        if let Some(front) = self.pending.front_mut() {
+            front.segment = Some(true);
         }
     }
 
@@ -1009,6 +1062,63 @@ mod tests {
                 assert!(
                     sd < 20e-6 && (m - 1e-3).abs() < 20e-6 && worst < 100e-6,
                     "causal {causal}, samples {range:?}: mean {m}, sd {sd}, worst {worst}"
+                );
+            }
+        }
+    }
+
+    /// The IMU drops from 200 Hz to 100 Hz mid-run: every later sample
+    /// arrives a period "late", which alone reads as one loss per sample
+    /// (it did: 2998 of 3000). A run of equal gaps is a rate drop: no loss
+    /// is counted in the batch run (at most the run's first samples in the
+    /// causal one, handed out before the run was seen), a new segment
+    /// measures the new period, and the stamps stay µs-accurate.
+    #[test]
+    fn rate_drop_is_no_loss() {
+        let mut r = rng::stream(5, "sampleclock.rate-drop");
+        let (p1, p2) = (0.005 * (1.0 + 37e-6), 0.010 * (1.0 + 37e-6));
+        let mut log: Vec<(i64, f64, f64)> = Vec::new();
+        let mut last = f64::NEG_INFINITY;
+        for k in 0..9000i64 {
+            let s = if k < 6000 {
+                3.0 + k as f64 * p1
+            } else {
+                3.0 + 6000.0 * p1 + (k - 6000) as f64 * p2
+            };
+            let t = (s + rng::uniform_in(&mut r, 1e-3, 3e-3)).max(last);
+            last = t;
+            log.push((k, s, t));
+        }
+        for causal in [false, true] {
+            let mut c = SampleClock::new(SampleClockConfig {
+                nominal_period_s: Some(0.005),
+                causal,
+                ..Default::default()
+            });
+            let mut out = Vec::new();
+            for (i, &(_, _, t)) in log.iter().enumerate() {
+                c.push(i, t, &mut out);
+            }
+            c.flush(&mut out);
+            assert_eq!(out.len(), log.len());
+            assert_eq!(c.segments, 1, "one rate drop, one new segment");
+            let found: u32 = out.iter().map(|o| o.lost_before).sum();
+            let allowed = if causal { RATE_DROP_RUN as u32 } else { 0 };
+            assert!(found <= allowed, "causal {causal}: {found} losses");
+            assert_eq!(c.lost, found as u64, "the count matches the samples'");
+            let period = c.current_period_s().expect("a period");
+            assert!((period - p2).abs() < 1e-7, "period {period} against {p2}");
+            for range in [1000..6000, 7000..9000] {
+                let e: Vec<f64> = out
+                    .iter()
+                    .filter(|o| range.contains(&o.tag))
+                    .map(|o| o.time - log[o.tag].1)
+                    .collect();
+                let m = e.iter().sum::<f64>() / e.len() as f64;
+                let sd = (e.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / e.len() as f64).sqrt();
+                assert!(
+                    sd < 20e-6 && (m - 1e-3).abs() < 20e-6,
+                    "causal {causal}, samples {range:?}: mean {m}, sd {sd}"
                 );
             }
         }
