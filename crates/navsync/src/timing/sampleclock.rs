@@ -426,6 +426,8 @@ impl<T: Clone> SampleClock<T> {
         if let Some(front) = self.pending.front_mut() {
             front.segment = None;
         }
+        // The index of the sample before the earliest requeued one.
+        let mut k_before = None;
         while let Some(back) = self.indexed.back() {
             let below = back.sample && back.time - (a + p * back.k as f64) < -BELOW_LINE_S;
             if !below {
@@ -449,6 +451,7 @@ impl<T: Clone> SampleClock<T> {
             if it.ambiguous {
                 self.ambiguous -= 1;
             }
+            k_before = Some(it.k - it.lost_before as i64 - 1);
             self.pending.push_front(Item {
                 tag: it.tag,
                 t: Some(it.time),
@@ -457,10 +460,10 @@ impl<T: Clone> SampleClock<T> {
                 segment: None,
             });
         }
-        // The old segment now ends at the last sample kept.
-        if let Some(last) = self.indexed.iter().rev().find(|i| i.sample) {
-            self.last_k = Some(last.k);
-            self.last_t = Some(last.time);
+        // The old segment now ends before the earliest requeued sample.
+        if k_before.is_some() {
+            self.last_k = k_before;
+            self.last_t = self.indexed.iter().rev().find(|i| i.sample).map(|i| i.time);
         }
         // Fits cached with the requeued points are stale.
         self.fits.clear();
@@ -907,6 +910,11 @@ mod tests {
     }
 
     fn run(log: &[(i64, f64, f64)], causal: bool) -> Vec<Timed<usize>> {
+        run_clock(log, causal).1
+    }
+
+    /// [`run`], and the clock after it (its counts and period).
+    fn run_clock(log: &[(i64, f64, f64)], causal: bool) -> (SampleClock<usize>, Vec<Timed<usize>>) {
         let mut c = SampleClock::new(SampleClockConfig {
             nominal_period_s: Some(0.005),
             causal,
@@ -917,7 +925,52 @@ mod tests {
             c.push(i, t, &mut out);
         }
         c.flush(&mut out);
-        out
+        (c, out)
+    }
+
+    /// Receive times (uniform 1–3 ms latency, FIFO, +37 ppm) of an IMU
+    /// sampling `n1` times at `period1_s`, then `n2` times at `period2_s`:
+    /// (true index, true time, receive time).
+    fn rate_change_log(
+        n1: i64,
+        n2: i64,
+        period1_s: f64,
+        period2_s: f64,
+        seed: u64,
+    ) -> Vec<(i64, f64, f64)> {
+        let mut r = rng::stream(seed, "sampleclock.rate-change");
+        let (p1, p2) = (period1_s * (1.0 + 37e-6), period2_s * (1.0 + 37e-6));
+        let mut last = f64::NEG_INFINITY;
+        (0..n1 + n2)
+            .map(|k| {
+                let s = if k < n1 {
+                    3.0 + k as f64 * p1
+                } else {
+                    3.0 + n1 as f64 * p1 + (k - n1) as f64 * p2
+                };
+                let t = (s + rng::uniform_in(&mut r, 1e-3, 3e-3)).max(last);
+                last = t;
+                (k, s, t)
+            })
+            .collect()
+    }
+
+    /// Stamp error of the samples in `range` (by tag): mean, sd about it,
+    /// and the largest distance from the 1 ms fastest latency.
+    fn stamp_errors(
+        log: &[(i64, f64, f64)],
+        out: &[Timed<usize>],
+        range: std::ops::Range<usize>,
+    ) -> (f64, f64, f64) {
+        let e: Vec<f64> = out
+            .iter()
+            .filter(|o| range.contains(&o.tag))
+            .map(|o| o.time - log[o.tag].1)
+            .collect();
+        let m = e.iter().sum::<f64>() / e.len() as f64;
+        let sd = (e.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / e.len() as f64).sqrt();
+        let worst = e.iter().map(|x| (x - 1e-3).abs()).fold(0.0, f64::max);
+        (m, sd, worst)
     }
 
     /// Stamp error std over samples; the constant (fastest latency) and
@@ -1010,31 +1063,10 @@ mod tests {
     /// 2.5 s before the change, ramping from 15 s before it).
     #[test]
     fn rate_increase_starts_a_new_segment_without_losses() {
-        let mut r = rng::stream(4, "sampleclock.rate-change");
-        let (p1, p2) = (0.005 * (1.0 + 37e-6), 0.0025 * (1.0 + 37e-6));
-        let mut log: Vec<(i64, f64, f64)> = Vec::new();
-        let mut last = f64::NEG_INFINITY;
-        for k in 0..12_000i64 {
-            let s = if k < 6000 {
-                3.0 + k as f64 * p1
-            } else {
-                3.0 + 6000.0 * p1 + (k - 6000) as f64 * p2
-            };
-            let t = (s + rng::uniform_in(&mut r, 1e-3, 3e-3)).max(last);
-            last = t;
-            log.push((k, s, t));
-        }
+        let log = rate_change_log(6000, 6000, 0.005, 0.0025, 4);
+        let p2 = 0.0025 * (1.0 + 37e-6);
         for causal in [false, true] {
-            let mut c = SampleClock::new(SampleClockConfig {
-                nominal_period_s: Some(0.005),
-                causal,
-                ..Default::default()
-            });
-            let mut out = Vec::new();
-            for (i, &(_, _, t)) in log.iter().enumerate() {
-                c.push(i, t, &mut out);
-            }
-            c.flush(&mut out);
+            let (c, out) = run_clock(&log, causal);
             assert_eq!(out.len(), log.len());
             assert_eq!(c.segments, 1, "one rate change, one new segment");
             let found: u32 = out.iter().map(|o| o.lost_before).sum();
@@ -1046,19 +1078,8 @@ mod tests {
             // seconds of the new segment): each segment's envelope carries
             // the same fastest latency (1 ms), so both offsets are that to
             // the envelope's accuracy, and the spread is µs.
-            let stats = |range: std::ops::Range<usize>| {
-                let e: Vec<f64> = out
-                    .iter()
-                    .filter(|o| range.contains(&o.tag))
-                    .map(|o| o.time - log[o.tag].1)
-                    .collect();
-                let m = e.iter().sum::<f64>() / e.len() as f64;
-                let sd = (e.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / e.len() as f64).sqrt();
-                let worst = e.iter().map(|x| (x - 1e-3).abs()).fold(0.0, f64::max);
-                (m, sd, worst)
-            };
             for range in [1000..6000, 7000..12_000] {
-                let (m, sd, worst) = stats(range.clone());
+                let (m, sd, worst) = stamp_errors(&log, &out, range.clone());
                 assert!(
                     sd < 20e-6 && (m - 1e-3).abs() < 20e-6 && worst < 100e-6,
                     "causal {causal}, samples {range:?}: mean {m}, sd {sd}, worst {worst}"
@@ -1075,31 +1096,10 @@ mod tests {
     /// measures the new period, and the stamps stay µs-accurate.
     #[test]
     fn rate_drop_is_no_loss() {
-        let mut r = rng::stream(5, "sampleclock.rate-drop");
-        let (p1, p2) = (0.005 * (1.0 + 37e-6), 0.010 * (1.0 + 37e-6));
-        let mut log: Vec<(i64, f64, f64)> = Vec::new();
-        let mut last = f64::NEG_INFINITY;
-        for k in 0..9000i64 {
-            let s = if k < 6000 {
-                3.0 + k as f64 * p1
-            } else {
-                3.0 + 6000.0 * p1 + (k - 6000) as f64 * p2
-            };
-            let t = (s + rng::uniform_in(&mut r, 1e-3, 3e-3)).max(last);
-            last = t;
-            log.push((k, s, t));
-        }
+        let log = rate_change_log(6000, 3000, 0.005, 0.010, 5);
+        let p2 = 0.010 * (1.0 + 37e-6);
         for causal in [false, true] {
-            let mut c = SampleClock::new(SampleClockConfig {
-                nominal_period_s: Some(0.005),
-                causal,
-                ..Default::default()
-            });
-            let mut out = Vec::new();
-            for (i, &(_, _, t)) in log.iter().enumerate() {
-                c.push(i, t, &mut out);
-            }
-            c.flush(&mut out);
+            let (c, out) = run_clock(&log, causal);
             assert_eq!(out.len(), log.len());
             assert_eq!(c.segments, 1, "one rate drop, one new segment");
             let found: u32 = out.iter().map(|o| o.lost_before).sum();
@@ -1109,13 +1109,7 @@ mod tests {
             let period = c.current_period_s().expect("a period");
             assert!((period - p2).abs() < 1e-7, "period {period} against {p2}");
             for range in [1000..6000, 7000..9000] {
-                let e: Vec<f64> = out
-                    .iter()
-                    .filter(|o| range.contains(&o.tag))
-                    .map(|o| o.time - log[o.tag].1)
-                    .collect();
-                let m = e.iter().sum::<f64>() / e.len() as f64;
-                let sd = (e.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / e.len() as f64).sqrt();
+                let (m, sd, _) = stamp_errors(&log, &out, range.clone());
                 assert!(
                     sd < 20e-6 && (m - 1e-3).abs() < 20e-6,
                     "causal {causal}, samples {range:?}: mean {m}, sd {sd}"
