@@ -742,11 +742,12 @@ impl NmeaFixes {
                 e.tod as f64 * 1e-9
             ));
         };
-        let utc = UtcTime::from_date_tod(date.year, date.month, date.day, e.tod);
-        if !utc.is_valid() {
-            return NmeaOutcome::Problem(format!("invalid UTC date/time {utc:?}; skipped"));
-        }
-        let (time, src) = ctx.leap.utc_to_gps(&utc);
+        let (time, src) = match epoch_gps_time(date, e.tod, ctx) {
+            Ok(t) => t,
+            Err(utc) => {
+                return NmeaOutcome::Problem(format!("invalid UTC date/time {utc:?}; skipped"));
+            }
+        };
         let gst_sd = e.gst.as_ref().and_then(|s| {
             let v = [s.lat_sd_m?, s.lon_sd_m?, s.alt_sd_m?];
             v.iter().all(|x| x.is_finite() && *x > 0.0).then_some(v)
@@ -770,6 +771,20 @@ impl NmeaFixes {
     }
 }
 
+/// The GPS time of an epoch's UTC date and time of day, and where its leap
+/// seconds came from; the UTC time itself when it is not a valid one.
+fn epoch_gps_time(
+    date: Date,
+    tod: TimeOfDayNs,
+    ctx: &TimeContext,
+) -> Result<(GpsTime, LeapSource), UtcTime> {
+    let utc = UtcTime::from_date_tod(date.year, date.month, date.day, tod);
+    if !utc.is_valid() {
+        return Err(utc);
+    }
+    Ok(ctx.leap.utc_to_gps(&utc))
+}
+
 /// The HDT heading of a dated epoch, at the epoch's GPS time.
 fn epoch_heading(e: &NmeaEpoch, ctx: &TimeContext) -> Option<NmeaOutcome> {
     let h = e.hdt.as_ref()?;
@@ -783,15 +798,15 @@ fn epoch_heading(e: &NmeaEpoch, ctx: &TimeContext) -> Option<NmeaOutcome> {
             h.talker
         )));
     }
-    let date = e.date?;
-    let utc = UtcTime::from_date_tod(date.year, date.month, date.day, e.tod);
-    if !utc.is_valid() {
-        return Some(NmeaOutcome::HeadingProblem(format!(
-            "{}HDT at {when} s of day: invalid UTC date/time {utc:?}; skipped",
-            h.talker
-        )));
-    }
-    let (time, _) = ctx.leap.utc_to_gps(&utc);
+    let (time, _) = match epoch_gps_time(e.date?, e.tod, ctx) {
+        Ok(t) => t,
+        Err(utc) => {
+            return Some(NmeaOutcome::HeadingProblem(format!(
+                "{}HDT at {when} s of day: invalid UTC date/time {utc:?}; skipped",
+                h.talker
+            )));
+        }
+    };
     Some(NmeaOutcome::Heading {
         time,
         heading_deg: deg,
