@@ -536,6 +536,22 @@ fn convert_counts_dropped_epochs_and_fails_without_a_fix() {
         .arg(dir.join("pvt-kept")));
     assert!(ok);
     assert!(stdout.contains("gnss.txt: 4 fixes"), "{stdout}");
+
+    // An HDT σ outside (0, 30]° is refused before anything is read.
+    for bad in ["0", "-1", "45", "NaN"] {
+        let (ok, _, stderr) = run(bin()
+            .args(["convert", "--from", "ubx", &format!("--hdt-sd={bad}")])
+            .arg(&input)
+            .arg("--output")
+            .arg(dir.join("hdt-sd")));
+        assert!(!ok, "--hdt-sd {bad} accepted");
+        assert!(
+            stderr.contains("--hdt-sd: heading accuracy")
+                && stderr.contains("outside (0, 30]°")
+                && !stderr.contains("panicked"),
+            "{stderr}"
+        );
+    }
 }
 
 #[test]

@@ -910,7 +910,8 @@ impl StreamConverter {
 
 /// Why a heading σ (deg) is unusable, if it is: not finite, not positive,
 /// or above [`MAX_HEADING_SD_DEG`] (receivers send 180° without one).
-fn heading_problem(sd_deg: f64) -> Option<String> {
+/// Also the check of a σ given for headings that carry none (`hdt_sd_deg`).
+pub fn heading_problem(sd_deg: f64) -> Option<String> {
     (!(sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG))
         .then(|| format!("heading accuracy {sd_deg:.2}° outside (0, {MAX_HEADING_SD_DEG}]°"))
 }

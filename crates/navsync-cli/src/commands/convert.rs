@@ -114,12 +114,8 @@ pub fn run(a: Args) -> Result<()> {
     opts.fix.default_sd_m = a.default_sd;
     opts.fix.keep_fix_not_ok = a.keep_fix_not_ok;
     opts.fix.keep_2d = a.keep_2d;
-    let max_heading_sd = navsync::io::heading::MAX_HEADING_SD_DEG;
-    if !(a.hdt_sd > 0.0 && a.hdt_sd <= max_heading_sd) {
-        anyhow::bail!(
-            "--hdt-sd: a heading σ in (0, {max_heading_sd}] degrees, got {}",
-            a.hdt_sd
-        );
+    if let Some(why) = convert::heading_problem(a.hdt_sd) {
+        anyhow::bail!("--hdt-sd: {why}");
     }
     if a.default_sd.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
         anyhow::bail!("--default-sd: standard deviations must be positive");
