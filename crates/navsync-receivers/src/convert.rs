@@ -606,9 +606,9 @@ impl StreamConverter {
         }
     }
 
-    /// A dual-antenna heading (moving-base NAV-RELPOSNED): kept when
-    /// gnssFixOK, relPosValid and relPosHeadingValid are set and accHeading
-    /// is in (0, 30]°; otherwise counted and reported with its byte offset.
+    /// A dual-antenna heading (moving-base NAV-RELPOSNED), kept by the
+    /// rules of [`relposned_heading`]; otherwise counted and reported with
+    /// its byte offset.
     fn push_relposned(
         &mut self,
         r: &NavRelPosNed,
@@ -616,30 +616,9 @@ impl StreamConverter {
         file: &Path,
         s: &mut ConvertSummary,
     ) {
-        let acc = r.acc_heading_deg();
-        let why = if !r.gnss_fix_ok() {
-            Some("gnssFixOK not set".to_string())
-        } else if !r.rel_pos_valid() {
-            Some("relPosValid not set".to_string())
-        } else if !r.rel_pos_heading_valid() {
-            Some("relPosHeadingValid not set".to_string())
-        } else {
-            heading_problem(acc)
-        };
-        let time = self.last_fix_time.map(|last| itow_near(last, r.itow_ms));
-        let why = why.or_else(|| {
-            time.is_none()
-                .then(|| "no GPS week known yet (no fix before it)".into())
-        });
-        match (why, time) {
-            (None, Some(time)) => self.headings.push(HeadingObs {
-                time,
-                heading_rad: r.heading_deg().to_radians(),
-                sd_rad: acc.to_radians(),
-                source: HeadingSource::Baseline,
-            }),
-            (why, _) => {
-                let why = why.unwrap_or_default();
+        match relposned_heading(r, self.last_fix_time) {
+            Ok(h) => self.headings.push(h),
+            Err(why) => {
                 s.diagnostics.push(
                     file,
                     0,
@@ -742,22 +721,11 @@ impl StreamConverter {
                     heading_deg,
                     talker,
                     from_gnss,
-                } => {
-                    if from_gnss {
-                        self.headings.push(HeadingObs {
-                            time,
-                            heading_rad: heading_deg.to_radians(),
-                            sd_rad: self.opts.hdt_sd_deg.to_radians(),
-                            source: HeadingSource::Baseline,
-                        });
-                    } else {
-                        *s.heading_drops
-                            .entry(format!(
-                                "{talker}HDT: talker {talker} is not a GNSS receiver, so not a dual-antenna baseline heading"
-                            ))
-                            .or_default() += 1;
-                    }
-                }
+                } => match hdt_heading(time, heading_deg, &talker, from_gnss, self.opts.hdt_sd_deg)
+                {
+                    Ok(h) => self.headings.push(h),
+                    Err(why) => *s.heading_drops.entry(why).or_default() += 1,
+                },
                 NmeaOutcome::NoHeading => {
                     *s.heading_drops
                         .entry("HDT with an empty heading (no baseline solution)".into())
@@ -906,6 +874,61 @@ impl StreamConverter {
         }
         Ok(())
     }
+}
+
+/// The baseline heading of an NMEA HDT epoch, with the σ the user gave
+/// (HDT carries none); an HDT from a talker that is not a GNSS receiver
+/// (HE gyrocompass) is not a dual-antenna heading: why not.
+pub fn hdt_heading(
+    time: GpsTime,
+    heading_deg: f64,
+    talker: &str,
+    from_gnss: bool,
+    sd_deg: f64,
+) -> Result<HeadingObs, String> {
+    if !from_gnss {
+        return Err(format!(
+            "{talker}HDT: talker {talker} is not a GNSS receiver, so not a dual-antenna baseline heading"
+        ));
+    }
+    Ok(HeadingObs {
+        time,
+        heading_rad: heading_deg.to_radians(),
+        sd_rad: sd_deg.to_radians(),
+        source: HeadingSource::Baseline,
+    })
+}
+
+/// The heading of a moving-base NAV-RELPOSNED: used when gnssFixOK,
+/// relPosValid and relPosHeadingValid are set and accHeading is in
+/// (0, 30]°, at the GPS time of its iTOW in the week of `last_fix_time`
+/// (a fix's time: RELPOSNED carries no week); otherwise why not.
+pub fn relposned_heading(
+    r: &NavRelPosNed,
+    last_fix_time: Option<GpsTime>,
+) -> Result<HeadingObs, String> {
+    let acc = r.acc_heading_deg();
+    let why = if !r.gnss_fix_ok() {
+        Some("gnssFixOK not set".to_string())
+    } else if !r.rel_pos_valid() {
+        Some("relPosValid not set".to_string())
+    } else if !r.rel_pos_heading_valid() {
+        Some("relPosHeadingValid not set".to_string())
+    } else {
+        heading_problem(acc)
+    };
+    if let Some(why) = why {
+        return Err(why);
+    }
+    let Some(last) = last_fix_time else {
+        return Err("no GPS week known yet (no fix before it)".into());
+    };
+    Ok(HeadingObs {
+        time: itow_near(last, r.itow_ms),
+        heading_rad: r.heading_deg().to_radians(),
+        sd_rad: acc.to_radians(),
+        source: HeadingSource::Baseline,
+    })
 }
 
 /// Why a heading σ (deg) is unusable, if it is: not finite, not positive,
