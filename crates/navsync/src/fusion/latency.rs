@@ -12,9 +12,20 @@
 //! Each buffer is a [`DelayBuffer`] keyed by GPS time. The delayed-state
 //! log of received fixes (`applied`) stays apart from the core's buffer:
 //! a restored core brings back its buffer as of its time, and the fixes
-//! received since are queued into it again from the log.
+//! received since are queued into it again from the log. Dual-antenna
+//! headings are logged the same way and given again during the re-run,
+//! each at its own time.
 
 use super::*;
+
+/// When a measurement was given to the filter, as an order against stored
+/// states: at filter time `t`, after the sample at `t` (`after_sample`, as
+/// a live heading is pushed) or just before it (fed ahead of the sample in
+/// a re-run). A state stored after the sample at `t` has seen exactly the
+/// measurements of order ≤ `given_order(t, false)`.
+pub(super) fn given_order(t: GpsTime, after_sample: bool) -> i128 {
+    2 * t.ns() as i128 + i128::from(after_sample)
+}
 
 /// The fixed-lag mode's output predictor: the lagged filter state carried
 /// forward through the buffered samples.
@@ -215,6 +226,21 @@ impl Fusion {
         Ok(out)
     }
 
+    /// Forgets the headings every stored state has seen.
+    pub(super) fn forget_old_headings(&mut self) {
+        let Some(oldest) = self.snapshots.iter().next().map(|s| s.nav.time) else {
+            return;
+        };
+        let seen = given_order(oldest, false);
+        while self
+            .headings_received
+            .front()
+            .is_some_and(|(given, _)| *given <= seen)
+        {
+            self.headings_received.pop_front();
+        }
+    }
+
     /// Stores the filter state every [`SNAPSHOT_INTERVAL_NS`] (a delayed fix
     /// replays at most that much more than its latency).
     pub(super) fn maybe_snapshot(&mut self) {
@@ -268,10 +294,36 @@ impl Fusion {
             .copied()
             .collect();
         self.core = core;
+        // Headings given to the filter after the snapshot was stored are
+        // given again, each before the first sample at or after its time
+        // (the restored core never saw them).
+        let stored = given_order(t_snap, false);
+        let mut redo: Vec<usize> = (0..self.headings_received.len())
+            .filter(|&i| self.headings_received[i].0 > stored)
+            .collect();
+        redo.sort_by_key(|&i| self.headings_received[i].1.time);
+        let mut next = 0;
         for s in &replay {
+            while let Some(&i) = redo.get(next)
+                && self.headings_received[i].1.time <= s.time
+            {
+                let entry = &mut self.headings_received[i];
+                entry.0 = given_order(s.time, false);
+                self.core.aid.heading.pending = Some(entry.1);
+                next += 1;
+            }
             self.core.push_imu(s)?;
             self.maybe_snapshot();
         }
+        // Not yet due: pending, given after the last sample.
+        if let Some(&i) = redo.last()
+            && next < redo.len()
+        {
+            let entry = &mut self.headings_received[i];
+            entry.0 = given_order(self.core.nav.time, true);
+            self.core.aid.heading.pending = Some(entry.1);
+        }
+        self.forget_old_headings();
         // The coarse search already saw these steps on the first pass.
         self.core.steps.clear();
         Ok(())

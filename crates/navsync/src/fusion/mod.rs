@@ -484,6 +484,11 @@ pub struct Fusion {
     /// Delayed state: the fixes received within the stored window, in
     /// arrival order (re-queued on a restore).
     applied: DelayBuffer<GnssFix>,
+    /// Delayed state: the dual-antenna headings received within the
+    /// stored window, each with when the filter was last given it
+    /// ([`latency::given_order`]), given again on a restore to a state
+    /// stored before that.
+    headings_received: std::collections::VecDeque<(i128, crate::io::heading::HeadingObs)>,
     predictor: Option<Predictor>,
     replays: usize,
     now: GpsTime,
@@ -510,6 +515,7 @@ impl Fusion {
             snapshots: DelayBuffer::default(),
             imu_buffer: DelayBuffer::default(),
             applied: DelayBuffer::default(),
+            headings_received: std::collections::VecDeque::new(),
             predictor: None,
             replays: 0,
             now,
@@ -666,6 +672,11 @@ impl Fusion {
     /// time (with `FusionConfig::heading`).
     pub(crate) fn push_heading(&mut self, h: crate::io::heading::HeadingObs) {
         self.core.aid.heading.pending = Some(h);
+        if let LatencyMode::DelayedState { .. } = self.cfg().latency {
+            let order = latency::given_order(self.core.nav.time, true);
+            self.headings_received.push_back((order, h));
+            self.forget_old_headings();
+        }
     }
 
     /// Sets the odometer speed (m/s) used at the next odometer update.

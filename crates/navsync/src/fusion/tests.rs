@@ -195,3 +195,81 @@ fn robust_weighting_follows_smooth_drift_and_rejects_a_jump() {
     assert!(stats.gnss_fixes_downweighted >= 5, "{stats:?}");
     assert!(err.abs() < 0.01, "north error {err} m");
 }
+
+#[test]
+fn delayed_state_fuses_each_heading_once_through_restores() {
+    // Live: 10 Hz fixes 100 ms late restore a stored state each time;
+    // 10 Hz dual-antenna headings fused between restores must be given
+    // again on every re-run, and counted once, whether they arrive
+    // before the IMU reaches their time (−30 ms: the IMU waits out its
+    // lookahead), a little after it (40 ms) or after the next fix (300 ms).
+    for heading_latency_s in [0.04, -0.03, 0.3] {
+        headings_through_restores(heading_latency_s);
+    }
+}
+
+/// [`delayed_state_fuses_each_heading_once_through_restores`] with one
+/// heading latency. The yaw starts 2° off while the platform turns at
+/// 0.05 rad/s.
+fn headings_through_restores(heading_latency_s: f64) {
+    let (m, mut cfg) = setup(LatencyMode::DelayedState { max_latency_s: 0.5 });
+    let truth0 = m.state(m.t0);
+    let e = truth0.euler().to_deg();
+    cfg.init_nav = NavState::new(
+        cfg.init_nav.time,
+        cfg.init_nav.pos,
+        cfg.init_nav.vel,
+        &crate::attitude::Euler::from_deg(e[0], e[1], e[2] + 2.0),
+    );
+    cfg.init_std.att.z = 5f64.to_radians();
+    cfg.heading = Some(HeadingOptions {
+        dual_antenna_yaw_rad: 0.0,
+        dual_antenna_yaw_sd_rad: 0.0,
+        aligned_from_baseline: false,
+    });
+    let mut f = Fusion::new(cfg);
+    let dt = 5_000_000;
+    let mut t = m.t0;
+    let (mut next_fix, mut next_heading) = (m.t0.add_seconds(0.1), m.t0.add_seconds(0.1));
+    let (mut pushed, mut last) = (0, None);
+    for _ in 0..(20 * 200) {
+        if t >= next_fix.add_seconds(0.1) {
+            f.push_gnss(GnssFix {
+                time: next_fix,
+                pos: m.state(next_fix).pos,
+                pos_sd: Vector3::repeat(0.02),
+                vel: None,
+                vel_sd: None,
+            })
+            .unwrap();
+            next_fix = next_fix.add_seconds(0.1);
+        }
+        if t >= next_heading.add_seconds(heading_latency_s) {
+            f.push_heading(crate::io::heading::HeadingObs {
+                time: next_heading,
+                heading_rad: m.state(next_heading).euler().yaw_rad,
+                sd_rad: 0.2f64.to_radians(),
+                source: crate::io::heading::HeadingSource::Baseline,
+            });
+            pushed += 1;
+            next_heading = next_heading.add_seconds(0.1);
+        }
+        if let Some(o) = f.push_imu(&m.sample(t + -dt, t)).unwrap() {
+            last = Some(o.nav);
+        }
+        t = t + dt;
+    }
+    let s = f.stats();
+    assert!(
+        s.heading_updates + 1 >= pushed && s.heading_updates <= pushed,
+        "{heading_latency_s} s: {pushed} pushed: {s:?}"
+    );
+    assert_eq!(s.heading_rejected, 0);
+    let nav = last.unwrap();
+    let yaw_err = crate::attitude::wrap_pi(nav.euler().yaw_rad - m.state(nav.time).euler().yaw_rad);
+    assert!(
+        yaw_err.abs() < 0.1f64.to_radians(),
+        "yaw error {}°",
+        yaw_err.to_degrees()
+    );
+}
