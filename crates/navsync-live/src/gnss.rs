@@ -10,13 +10,23 @@
 //! is delivered. Once the port has given a NAV-PVT fix, NMEA fixes are
 //! ignored (the same epochs twice).
 //!
+//! Dual-antenna headings (moving-base UBX NAV-RELPOSNED, or NMEA HDT from
+//! a GNSS talker with the σ of [`GnssDecoder::set_hdt_sd_deg`]) come out
+//! at their epoch's GPS time, by the same rules as `convert`'s heading.txt;
+//! the first heading dropped for each reason is noted, the rest counted.
+//!
 //! With [`GnssDecoder::enable_esf`], the port's UBX ESF-RAW (or, without
 //! it, ESF-MEAS) data of a receiver's own IMU come out as rate samples on
 //! the sensor time-tag axis with the arrival of their message
 //! ([`EsfImu`] pairs the gyro and accelerometer triads; values in the
 //! sensor's axes as sent).
 
+use std::collections::BTreeSet;
+
 use navsync::filter::gnss::GnssFix;
+use navsync::io::heading::HeadingObs;
+use navsync::time::GpsTime;
+use navsync_receivers::convert::{hdt_heading, heading_problem, relposned_heading};
 use navsync_receivers::fixes::{FixOptions, NmeaFixes, NmeaOutcome, TimeContext, nav_pvt_fix};
 use navsync_receivers::imu::{EsfImu, RateSample};
 use navsync_receivers::stream::{EventKind, StreamReader};
@@ -44,6 +54,8 @@ pub(crate) struct EsfSample {
 pub(crate) struct Decoded {
     pub fixes: Vec<ReceivedFix>,
     pub imu: Vec<EsfSample>,
+    /// Dual-antenna (baseline) headings.
+    pub headings: Vec<HeadingObs>,
     /// Problems: corrupt runs, invalid frames, unusable epochs.
     pub notes: Vec<String>,
 }
@@ -66,9 +78,21 @@ pub(crate) struct GnssDecoder {
     last_nmea_ns: Option<u64>,
     seen_pvt: bool,
     esf: Option<Esf>,
+    /// GPS time of the latest fix (NAV-RELPOSNED's week).
+    last_fix_time: Option<GpsTime>,
+    /// σ given to HDT headings (deg): HDT carries none.
+    hdt_sd_deg: f64,
+    /// Reasons a heading was dropped for, already noted once.
+    heading_drop_reasons: BTreeSet<String>,
     /// Fixes delivered.
     pub fixes: u64,
+    /// Headings delivered and dropped.
+    pub headings: u64,
+    pub heading_drops: u64,
 }
+
+/// σ of an HDT heading when none is set (deg), as `convert --hdt-sd`.
+pub(crate) const DEFAULT_HDT_SD_DEG: f64 = 0.5;
 
 impl Default for GnssDecoder {
     fn default() -> Self {
@@ -86,7 +110,31 @@ impl GnssDecoder {
             last_nmea_ns: None,
             seen_pvt: false,
             esf: None,
+            last_fix_time: None,
+            hdt_sd_deg: DEFAULT_HDT_SD_DEG,
+            heading_drop_reasons: BTreeSet::new(),
             fixes: 0,
+            headings: 0,
+            heading_drops: 0,
+        }
+    }
+
+    /// The σ of HDT headings (deg), checked as `convert --hdt-sd`.
+    pub(crate) fn set_hdt_sd_deg(&mut self, sd_deg: f64) -> Result<(), String> {
+        if let Some(why) = heading_problem(sd_deg) {
+            return Err(format!("HDT heading σ: {why}"));
+        }
+        self.hdt_sd_deg = sd_deg;
+        Ok(())
+    }
+
+    /// A heading not used: noted the first time for its reason.
+    fn drop_heading(&mut self, reason: String, notes: &mut Vec<String>) {
+        self.heading_drops += 1;
+        if self.heading_drop_reasons.insert(reason.clone()) {
+            notes.push(format!(
+                "{reason}: heading not used (further ones for this reason only counted)"
+            ));
         }
     }
 
@@ -131,6 +179,7 @@ impl GnssDecoder {
                     Ok(Some(f)) => {
                         self.seen_pvt = true;
                         self.fixes += 1;
+                        self.last_fix_time = Some(f.fix.time);
                         out.fixes.push(ReceivedFix {
                             fix: f.fix,
                             received_ns: arrival_ns,
@@ -139,31 +188,62 @@ impl GnssDecoder {
                     Ok(None) => {}
                     Err(e) => notes.push(format!("{e}; fix skipped")),
                 },
+                EventKind::Ubx(UbxMessage::NavRelPosNed(r)) => {
+                    match relposned_heading(r, self.last_fix_time) {
+                        Ok(h) => {
+                            self.headings += 1;
+                            out.headings.push(h);
+                        }
+                        Err(why) => self.drop_heading(format!("NAV-RELPOSNED: {why}"), notes),
+                    }
+                }
                 EventKind::Ubx(_) | EventKind::Unknown(_) => {}
                 EventKind::Nmea(m) => {
                     let epoch_end = self.last_nmea_ns.unwrap_or(arrival_ns);
                     self.last_nmea_ns = Some(arrival_ns);
-                    self.nmea.push(m, &self.ctx, &mut self.nmea_out);
-                    for o in self.nmea_out.drain(..) {
+                    let mut outcomes = std::mem::take(&mut self.nmea_out);
+                    self.nmea.push(m, &self.ctx, &mut outcomes);
+                    for o in outcomes.drain(..) {
                         match o {
                             NmeaOutcome::Fix(f) if !self.seen_pvt => {
                                 self.fixes += 1;
+                                self.last_fix_time = Some(f.fix.time);
                                 out.fixes.push(ReceivedFix {
                                     fix: f.fix,
                                     received_ns: epoch_end,
                                 });
                             }
-                            // Live fusion takes positions only; headings
-                            // (HDT) are kept in the --record-gnss raw file
-                            // for `convert`.
-                            NmeaOutcome::Fix(_)
-                            | NmeaOutcome::NoFix { .. }
-                            | NmeaOutcome::Heading { .. }
-                            | NmeaOutcome::NoHeading
-                            | NmeaOutcome::HeadingProblem(_) => {}
+                            NmeaOutcome::Fix(_) | NmeaOutcome::NoFix { .. } => {}
+                            NmeaOutcome::Heading {
+                                time,
+                                heading_deg,
+                                talker,
+                                from_gnss,
+                            } => match hdt_heading(
+                                time,
+                                heading_deg,
+                                &talker,
+                                from_gnss,
+                                self.hdt_sd_deg,
+                            ) {
+                                Ok(h) => {
+                                    self.headings += 1;
+                                    out.headings.push(h);
+                                }
+                                Err(why) => self.drop_heading(why, notes),
+                            },
+                            NmeaOutcome::NoHeading => self.drop_heading(
+                                "HDT with an empty heading (no baseline solution)".into(),
+                                notes,
+                            ),
+                            NmeaOutcome::HeadingProblem(p) => {
+                                self.heading_drops += 1;
+                                notes.push(p);
+                            }
                             NmeaOutcome::Problem(p) => notes.push(p),
                         }
                     }
+                    self.nmea_out = outcomes;
                 }
                 EventKind::Invalid { .. } | EventKind::Corrupt(_) => notes.push(ev.to_string()),
             }

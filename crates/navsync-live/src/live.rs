@@ -43,6 +43,7 @@ use std::time::{Duration, Instant};
 
 use navsync::filter::gnss::GnssFix;
 use navsync::fusion::{FusionConfig, LatencyMode, NavOutput};
+use navsync::io::heading::HeadingObs;
 use navsync::io::riglog::{ImuTiming, RigGnss, RigHeader, RigRecord};
 use navsync::navigator::{Navigator, Step};
 use navsync::pipeline::NullSink;
@@ -60,6 +61,10 @@ use crate::latency::LatencyHistogram;
 use crate::pps::{KernelPps, PpsEdge, PpsSource};
 use crate::record::{RecordCounts, Recorder};
 use crate::serial::SerialPort;
+
+/// Headings kept before the fusion starts (a minute at 10 Hz): the fix it
+/// starts from can be seconds old when the clock has just locked.
+const EARLY_HEADINGS: usize = 600;
 
 /// Records waiting between the source threads and the engine (≈ 20 s of a
 /// 200 Hz IMU): a stalled engine blocks the readers, whose kernel buffers
@@ -114,8 +119,12 @@ pub struct LiveConfig {
     /// shorter: late lines' solutions come sooner.
     pub imu_lookahead_s: f64,
     pub oscillator: Oscillator,
-    /// Oldest fix the filter can still fuse at its time of validity (s).
+    /// Oldest fix the filter can still fuse at its time of validity (s);
+    /// older dual-antenna headings are not fused either.
     pub max_gnss_latency_s: f64,
+    /// σ of NMEA HDT headings (deg; HDT carries none). Headings are fused
+    /// when `fusion.heading` is set.
+    pub hdt_sd_deg: f64,
     /// How often a missing device is tried again.
     pub reopen_interval: Duration,
     /// How often [`LiveSink::status`] is called.
@@ -152,6 +161,7 @@ impl LiveConfig {
             imu_lookahead_s: DEFAULT_IMU_LOOKAHEAD_S,
             oscillator: Oscillator::Xo,
             max_gnss_latency_s: 1.5,
+            hdt_sd_deg: crate::gnss::DEFAULT_HDT_SD_DEG,
             reopen_interval: Duration::from_secs(1),
             status_interval: Duration::from_secs(1),
             max_unstamped_s: 60.0,
@@ -196,6 +206,8 @@ enum Input {
         line: Option<LineSample>,
     },
     Gnss(ReceivedFix),
+    /// A dual-antenna heading from the receiver.
+    Heading(HeadingObs),
     /// Bytes read from the receiver's port (only when they are recorded).
     GnssRaw(Vec<u8>),
     Pps(PpsEdge),
@@ -241,6 +253,14 @@ pub struct LiveCounts {
     /// Fixes the filter used (fused at their time of validity).
     pub gnss_fused: u64,
     pub gnss_problems: u64,
+    /// Dual-antenna headings received, fused, rejected by the filter's
+    /// gate, too old to fuse (older than the latency limit), and received
+    /// before the fusion started (kept for its initial yaw).
+    pub gnss_headings: u64,
+    pub headings_fused: u64,
+    pub headings_rejected: u64,
+    pub headings_stale: u64,
+    pub headings_before_start: u64,
     pub pps_edges: u64,
     pub pps_missed: u64,
     pub reopens: u64,
@@ -535,10 +555,13 @@ fn spawn_gnss(
     let period_ns = 1e9 / cfg.imu_rate_hz;
     let rate = cfg.imu_rate_hz;
     let keep_raw = cfg.record_gnss.is_some();
+    let hdt_sd_deg = cfg.hdt_sd_deg;
     std::thread::Builder::new()
         .name("live-gnss".into())
         .spawn(move || {
             let mut d = GnssDecoder::default();
+            // Checked by `run` before the thread starts.
+            let _ = d.set_hdt_sd_deg(hdt_sd_deg);
             if let Some(tick) = esf {
                 d.enable_esf(tick);
             }
@@ -571,6 +594,9 @@ fn spawn_gnss(
                     }
                     for f in out.fixes.drain(..) {
                         ok &= tx.send(Input::Gnss(f)).is_ok();
+                    }
+                    for h in out.headings.drain(..) {
+                        ok &= tx.send(Input::Heading(h)).is_ok();
                     }
                     for msg in out.notes.drain(..) {
                         ok &= note(tx, SourceId::Gnss, msg, None);
@@ -717,6 +743,12 @@ struct Core {
     max_waiting: u64,
     /// Recent fixes by validity time (the engine's record has no velocity).
     recent_fixes: VecDeque<GnssFix>,
+    /// The latest dual-antenna headings before the fusion started (at most
+    /// [`EARLY_HEADINGS`]): its initial yaw when the configuration's is
+    /// unknown.
+    early_headings: VecDeque<HeadingObs>,
+    /// Headings arrived while heading updates are off (noted once).
+    headings_unused_noted: bool,
     out: Vec<SyncOutput>,
     counts: LiveCounts,
     latency: LatencyHistogram,
@@ -806,6 +838,8 @@ impl Core {
             waiting: 0,
             max_waiting: (cfg.max_unstamped_s * cfg.imu_rate_hz).max(1000.0) as u64,
             recent_fixes: VecDeque::new(),
+            early_headings: VecDeque::new(),
+            headings_unused_noted: false,
             out: Vec::new(),
             counts: LiveCounts::default(),
             latency: LatencyHistogram::new(),
@@ -911,7 +945,10 @@ impl Core {
                     let Step::Solution(nav) = f.push_imu(&sample, &mut NullSink)? else {
                         continue;
                     };
-                    self.counts.gnss_fused = f.fusion().stats().gnss_fixes_used as u64;
+                    let stats = f.fusion().stats();
+                    self.counts.gnss_fused = stats.gnss_fixes_used as u64;
+                    self.counts.headings_fused = stats.heading_updates as u64;
+                    self.counts.headings_rejected = stats.heading_rejected as u64;
                     let lat = hostclock::now_ns().saturating_sub(arrival);
                     self.latency.push(lat);
                     self.counts.solutions += 1;
@@ -951,9 +988,10 @@ impl Core {
                         if let Some(v) = fix.vel {
                             fc.init_nav.vel = v;
                         }
+                        let yaw_note = self.yaw_from_first_heading(&mut fc, fix.time);
                         self.navigator = Some(Navigator::new(fc).with_aux_interval(None));
                         let msg = format!(
-                            "fusion started at {} from the GNSS fix ({:.7}°, {:.7}°, {:.2} m)",
+                            "fusion started at {} from the GNSS fix ({:.7}°, {:.7}°, {:.2} m){yaw_note}",
                             fix.time,
                             fix.pos.lat_rad.to_degrees(),
                             fix.pos.lon_rad.to_degrees(),
@@ -969,6 +1007,76 @@ impl Core {
             }
         }
         Ok(())
+    }
+
+    /// A dual-antenna heading: fused at its time when heading updates are
+    /// on and it is not older than the latency limit; before the fusion
+    /// starts, kept for the initial yaw.
+    fn heading(&mut self, h: HeadingObs, sink: &mut dyn LiveSink) {
+        self.counts.gnss_headings += 1;
+        if self.fusion_cfg.heading.is_none() {
+            if !self.headings_unused_noted {
+                self.headings_unused_noted = true;
+                let msg = "the receiver sends dual-antenna headings, but heading updates are off (--heading turns them on)";
+                self.note(sink, SourceId::Gnss, msg);
+            }
+            return;
+        }
+        let stale = self
+            .last_imu_time
+            .is_some_and(|t| t.seconds_since(h.time) > self.max_gnss_latency_s);
+        match self.navigator.as_mut() {
+            _ if stale => self.counts.headings_stale += 1,
+            Some(f) => f.push_heading(h),
+            None => {
+                self.counts.headings_before_start += 1;
+                if self.early_headings.len() == EARLY_HEADINGS {
+                    self.early_headings.pop_front();
+                }
+                self.early_headings.push_back(h);
+            }
+        }
+    }
+
+    /// With heading updates on and the configuration's initial yaw unknown
+    /// (σ > 90°), the initial yaw from the heading nearest `start` in time
+    /// (within 1 s): the body yaw of the baseline azimuth at the configured roll
+    /// and pitch, σ = heading σ ⊕ mounting σ. Returns what it did, for the
+    /// start note.
+    fn yaw_from_first_heading(&self, fc: &mut FusionConfig, start: GpsTime) -> String {
+        let off = |h: &HeadingObs| h.time.seconds_since(start).abs();
+        let nearest = self
+            .early_headings
+            .iter()
+            .min_by(|a, b| off(a).total_cmp(&off(b)))
+            .copied();
+        let (Some(opts), Some(h)) = (fc.heading.as_mut(), nearest) else {
+            return String::new();
+        };
+        if fc.init_std.att.z <= std::f64::consts::FRAC_PI_2 || off(&h) > 1.0 {
+            return String::new();
+        }
+        let [roll, pitch, _] = fc.init_nav.euler().to_deg().map(f64::to_radians);
+        let yaw = navsync::align::yaw_from_baseline(
+            h.heading_rad,
+            roll,
+            pitch,
+            opts.dual_antenna_yaw_rad,
+        );
+        let sd = h.sd_rad.hypot(opts.dual_antenna_yaw_sd_rad);
+        fc.init_nav = navsync::types::NavState::new(
+            fc.init_nav.time,
+            fc.init_nav.pos,
+            fc.init_nav.vel,
+            &navsync::attitude::Euler::new(roll, pitch, yaw),
+        );
+        fc.init_std.att.z = sd;
+        opts.aligned_from_baseline = true;
+        format!(
+            ", heading {:.2}° ± {:.2}° from the dual-antenna baseline",
+            yaw.to_degrees().rem_euclid(360.0),
+            sd.to_degrees()
+        )
     }
 
     fn status(&self, imu_up: bool, gnss_up: bool, pps_up: bool) -> LiveStatus {
@@ -1033,6 +1141,9 @@ pub fn run(cfg: LiveConfig, stop: &AtomicBool, sink: &mut dyn LiveSink) -> io::R
     }
     crate::serial::check_baud(cfg.gnss.baud)
         .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("--gnss-baud: {e}")))?;
+    GnssDecoder::default()
+        .set_hdt_sd_deg(cfg.hdt_sd_deg)
+        .map_err(|e| bad(format!("--hdt-sd: {e}")))?;
     if !(cfg.imu_rate_hz.is_finite() && cfg.imu_rate_hz > 0.0) {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -1178,6 +1289,7 @@ fn engine_loop(
                 core.record(rec);
                 core.push(rec, sink).map_err(to_io)?;
             }
+            Ok(Input::Heading(h)) => core.heading(h, sink),
             Ok(Input::GnssRaw(bytes)) => {
                 if let Some(r) = core.recorder.as_mut() {
                     r.raw_gnss(&bytes);

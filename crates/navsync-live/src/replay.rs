@@ -6,7 +6,9 @@
 //! (`rate` lines: Earth rate + normal gravity + white noise, FRD = NED);
 //! a 10 Hz receiver (UBX NAV-PVT, or NMEA GGA + GST + RMC) whose fixes
 //! arrive `gnss_latency_s` after their epoch; 1PPS edges at every GPS
-//! second. GPS time runs `host_ppm` faster than the host counter, so the
+//! second. With `dual_antenna`, each epoch also carries the azimuth of a
+//! dual-antenna baseline (NAV-RELPOSNED after the NAV-PVT, or HDT after
+//! the NMEA fix). GPS time runs `host_ppm` faster than the host counter, so the
 //! engine has a real frequency error to estimate. The writer knows the
 //! true GPS time of every IMU line, so stamps can be checked.
 
@@ -22,8 +24,8 @@ use navsync::earth::{Geodetic, gravity, omega_ie_n};
 use navsync::io::text::push_f64;
 use navsync::time::{GpsTime, NS_PER_S};
 use navsync_receivers::gnsstime::{UtcTime, gps_to_unix_ns};
-use navsync_receivers::nmea::{Date, Gga, Gst, Rmc};
-use navsync_receivers::ubx::{EsfRaw, EsfRawBlock, NavPvt, encode_frame, esf_type};
+use navsync_receivers::nmea::{Date, Gga, Gst, Hdt, Rmc};
+use navsync_receivers::ubx::{EsfRaw, EsfRawBlock, NavPvt, NavRelPosNed, encode_frame, esf_type};
 use navsync_sim::rng;
 
 use crate::hostclock;
@@ -164,6 +166,10 @@ pub struct ReplayConfig {
     pub imu_esf: bool,
     /// A garbage line on the IMU port after every this many samples.
     pub imu_garbage_every: Option<u64>,
+    /// A dual-antenna heading each epoch: (yaw of the baseline in the body
+    /// frame, σ of its white noise), deg. The vehicle faces north, so the
+    /// true azimuth is the baseline's yaw.
+    pub dual_antenna: Option<(f64, f64)>,
     /// White-noise σ of gyro (rad/s) and accelerometer (m/s²) samples.
     pub gyro_sd: f64,
     pub accel_sd: f64,
@@ -185,6 +191,7 @@ impl Default for ReplayConfig {
             imu_unplug: None,
             imu_esf: false,
             imu_garbage_every: None,
+            dual_antenna: None,
             gyro_sd: 1e-4,
             accel_sd: 2e-3,
             seed: 2,
@@ -332,8 +339,14 @@ fn utc_of(t: GpsTime) -> UtcTime {
     UtcTime::from_unix_ns(gps_to_unix_ns(t))
 }
 
-/// The receiver's bytes for the epoch valid at `t`.
-fn gnss_bytes(cfg: &ReplayConfig, t: GpsTime, noise: [f64; 3]) -> Vec<u8> {
+/// The receiver's bytes for the epoch valid at `t`; `heading_deg` is the
+/// measured baseline azimuth when the scenario has one.
+fn gnss_bytes(
+    cfg: &ReplayConfig,
+    t: GpsTime,
+    noise: [f64; 3],
+    heading_deg: Option<f64>,
+) -> Vec<u8> {
     let (lat, lon, h) = (
         cfg.pos.lat_rad.to_degrees() + noise[0] / 111_320.0,
         cfg.pos.lon_rad.to_degrees() + noise[1] / (111_320.0 * cfg.pos.lat_rad.cos()),
@@ -366,7 +379,20 @@ fn gnss_bytes(cfg: &ReplayConfig, t: GpsTime, noise: [f64; 3]) -> Vec<u8> {
             p.v_acc_mm = 800;
             p.s_acc_mm_s = 100;
             p.p_dop_e2 = 120;
-            encode_frame(0x01, 0x07, &p.encode()).unwrap_or_default()
+            let mut bytes = encode_frame(0x01, 0x07, &p.encode()).unwrap_or_default();
+            if let (Some(deg), Some((_, sd))) = (heading_deg, cfg.dual_antenna)
+                && let Ok(mut r) = NavRelPosNed::decode(&[0u8; NavRelPosNed::LEN])
+            {
+                r.version = 1;
+                r.itow_ms = p.itow_ms;
+                r.rel_pos_length_cm = 100;
+                r.rel_pos_heading_e5 = (deg.rem_euclid(360.0) * 1e5).round() as i32;
+                r.acc_heading_e5 = (sd * 1e5).round() as u32;
+                // gnssFixOK, relPosValid, carrSoln fixed, relPosHeadingValid.
+                r.flags = 0x01 | 0x04 | (2 << 3) | 0x100;
+                bytes.extend(encode_frame(0x01, 0x3C, &r.encode()).unwrap_or_default());
+            }
+            bytes
         }
         GnssKind::Nmea => {
             let tod = (u.hour as i64 * 3600 + u.min as i64 * 60 + u.sec as i64) * NS_PER_S
@@ -407,7 +433,16 @@ fn gnss_bytes(cfg: &ReplayConfig, t: GpsTime, noise: [f64; 3]) -> Vec<u8> {
                 lon_sd_m: Some(0.5),
                 alt_sd_m: Some(0.8),
             };
-            [rmc.to_sentence(), gga.to_sentence(), gst.to_sentence()]
+            let hdt = heading_deg
+                .map(|deg| {
+                    Hdt {
+                        talker: "GN".into(),
+                        heading_deg: Some(deg.rem_euclid(360.0)),
+                    }
+                    .to_sentence()
+                })
+                .unwrap_or_default();
+            [rmc.to_sentence(), gga.to_sentence(), gst.to_sentence(), hdt]
                 .concat()
                 .into_bytes()
         }
@@ -524,7 +559,10 @@ fn write_loop(
                 0.3 * rng::normal(&mut noise),
                 0.5 * rng::normal(&mut noise),
             ];
-            gnss.write(&gnss_bytes(&cfg, valid, n))?;
+            let heading = cfg
+                .dual_antenna
+                .map(|(yaw, sd)| yaw + sd * rng::normal(&mut noise));
+            gnss.write(&gnss_bytes(&cfg, valid, n, heading))?;
             st.gnss_epochs += 1;
             m += 1;
         }

@@ -40,6 +40,8 @@ pub struct SelftestConfig {
     pub record_gnss: Option<std::path::PathBuf>,
     /// [`LiveConfig::imu_lookahead_s`].
     pub imu_lookahead_s: f64,
+    /// [`LiveConfig::hdt_sd_deg`].
+    pub hdt_sd_deg: f64,
 }
 
 impl SelftestConfig {
@@ -57,6 +59,7 @@ impl SelftestConfig {
             record: None,
             record_gnss: None,
             imu_lookahead_s: live::DEFAULT_IMU_LOOKAHEAD_S,
+            hdt_sd_deg: crate::gnss::DEFAULT_HDT_SD_DEG,
         }
     }
 }
@@ -104,6 +107,10 @@ pub struct SelftestReport {
     pub stamp_errors: StampErrors,
     /// Largest position distance from the true position (m) after 5 s of fusion.
     pub max_pos_error_m: f64,
+    /// The last solution's roll, pitch and yaw (deg; the truth is level,
+    /// facing north) and its yaw σ as of the last second (deg).
+    pub final_att_deg: Option<[f64; 3]>,
+    pub final_yaw_sd_deg: Option<f64>,
     pub live: LiveReport,
 }
 
@@ -147,6 +154,8 @@ struct Measure<'a> {
     sum_sq: f64,
     first_solution: Option<u64>,
     max_pos_m: f64,
+    last_att_deg: Option<[f64; 3]>,
+    last_yaw_sd_deg: Option<f64>,
     verbose: bool,
     files: Option<FileSink>,
 }
@@ -164,6 +173,7 @@ impl LiveSink for Measure<'_> {
             self.err.holdover_compared += 1;
             self.err.holdover_max_abs_us = self.err.holdover_max_abs_us.max(e_us.abs());
         }
+        self.last_att_deg = Some(out.nav.euler().to_deg());
         let first = *self.first_solution.get_or_insert(info.seq);
         if info.seq > first + 5 * self.replay.imu_rate_hz as u64 {
             let p = &self.replay.pos;
@@ -179,6 +189,9 @@ impl LiveSink for Measure<'_> {
     }
 
     fn aux(&mut self, out: &NavOutput, sd: &[f64]) -> Result<(), navsync::Error> {
+        // The error state's attitude (φ, θ, ψ) follows position and
+        // velocity: yaw is its 9th element.
+        self.last_yaw_sd_deg = sd.get(8).map(|v| v.to_degrees());
         match self.files.as_mut() {
             Some(f) => f.aux(out, sd),
             None => Ok(()),
@@ -234,6 +247,7 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
     }
     lc.imu_rate_hz = r.imu_rate_hz;
     lc.imu_lookahead_s = cfg.imu_lookahead_s;
+    lc.hdt_sd_deg = cfg.hdt_sd_deg;
     lc.reopen_interval = Duration::from_millis(200);
     lc.record = cfg.record.clone();
     lc.record_gnss = cfg.record_gnss.clone();
@@ -245,6 +259,8 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
         sum_sq: 0.0,
         first_solution: None,
         max_pos_m: 0.0,
+        last_att_deg: None,
+        last_yaw_sd_deg: None,
         verbose: cfg.verbose,
         files: cfg.output.as_deref().map(FileSink::new),
     };
@@ -315,6 +331,8 @@ pub fn run(cfg: &SelftestConfig, dir: &Path) -> io::Result<SelftestReport> {
         holdover_spans_s,
         stamp_errors: m.err,
         max_pos_error_m: m.max_pos_m,
+        final_att_deg: m.last_att_deg,
+        final_yaw_sd_deg: m.last_yaw_sd_deg,
         live: report,
     })
 }

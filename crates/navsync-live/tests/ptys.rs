@@ -125,6 +125,123 @@ fn esf_raw_imu_on_the_receiver_port() {
     assert!(r.max_pos_error_m < 5.0, "{}", r.max_pos_error_m);
 }
 
+/// The self-test's filter facing `yaw_deg` (the truth faces north) with
+/// yaw σ `yaw_sd_deg`, fusing a baseline at `mount_deg` in the body.
+fn heading_fusion(
+    cfg: &SelftestConfig,
+    yaw_deg: f64,
+    yaw_sd_deg: f64,
+    mount_deg: f64,
+) -> navsync::fusion::FusionConfig {
+    let mut f = builtin_fusion(&cfg.replay);
+    let n = &f.init_nav;
+    f.init_nav = navsync::ins::NavState::new(
+        n.time,
+        n.pos,
+        n.vel,
+        &navsync::attitude::Euler::from_deg(0.0, 0.0, yaw_deg),
+    );
+    f.init_std.att.z = yaw_sd_deg.to_radians();
+    f.heading = Some(navsync::fusion::HeadingOptions {
+        dual_antenna_yaw_rad: mount_deg.to_radians(),
+        dual_antenna_yaw_sd_rad: 0.5f64.to_radians(),
+        aligned_from_baseline: false,
+    });
+    f
+}
+
+/// Every heading given to the filter is fused or rejected once (the last
+/// may still wait for its IMU sample), through the delayed-state restores
+/// of every fix.
+fn assert_each_heading_counted_once(c: &navsync_live::live::LiveCounts) {
+    let given = c.gnss_headings - c.headings_before_start - c.headings_stale;
+    let done = c.headings_fused + c.headings_rejected;
+    assert!(done <= given && done + 1 >= given, "{c:?}");
+}
+
+#[test]
+fn dual_antenna_headings_correct_the_yaw_live() {
+    // A standing MEMS IMU cannot find its heading in 8 s (Earth rate is
+    // far below its bias): the yaw that starts 6° off comes right only
+    // through the NAV-RELPOSNED headings (baseline 30° right of forward).
+    let mut cfg = SelftestConfig::new(9.0, 0.0, 0.0);
+    cfg.replay.dual_antenna = Some((30.0, 0.3));
+    cfg.fusion = Some(heading_fusion(&cfg, 6.0, 10.0, 30.0));
+    let dir = tmp("relposned");
+    let r = selftest::run(&cfg, &dir).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let c = &r.live.counts;
+    // The fusion starts when the clock locks (4 pulses); from then on the
+    // heading of every fused fix's epoch is fused too.
+    assert!(c.gnss_headings >= 80, "{c:?}");
+    assert!(c.gnss_fused >= 35, "{c:?}");
+    assert!(
+        c.headings_fused + 2 >= c.gnss_fused,
+        "{c:?} {:#?}",
+        r.live.first_notes
+    );
+    assert_eq!(c.headings_stale, 0, "{c:?}");
+    assert_each_heading_counted_once(c);
+    let yaw = r.final_att_deg.unwrap()[2];
+    eprintln!(
+        "FINAL yaw {yaw} sd {:?} {:?}",
+        r.final_yaw_sd_deg, r.live.counts
+    );
+    assert!(yaw.abs() < 0.5, "yaw {yaw}° (started at 6°)");
+    let sd = r.final_yaw_sd_deg.unwrap();
+    assert!(sd < 1.0, "yaw σ {sd}°");
+}
+
+#[test]
+fn hdt_headings_give_the_initial_yaw_when_it_is_unknown() {
+    // The configuration's yaw is unknown (σ 180°, value 100° off): the
+    // first HDT heading (baseline 90° right of forward) gives it.
+    let mut cfg = SelftestConfig::new(7.0, 0.0, 0.0);
+    cfg.replay.gnss = GnssKind::Nmea;
+    cfg.replay.dual_antenna = Some((90.0, 0.3));
+    cfg.hdt_sd_deg = 0.4;
+    cfg.fusion = Some(heading_fusion(&cfg, 100.0, 180.0, 90.0));
+    let dir = tmp("hdt");
+    let r = selftest::run(&cfg, &dir).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let c = &r.live.counts;
+    assert!(
+        r.live
+            .first_notes
+            .iter()
+            .any(|n| n.contains("from the dual-antenna baseline")),
+        "{:#?}",
+        r.live.first_notes
+    );
+    assert!(c.headings_fused >= 20, "{c:?}");
+    assert!(c.headings_before_start >= 10, "{c:?}");
+    assert_each_heading_counted_once(c);
+    let yaw = r.final_att_deg.unwrap()[2];
+    eprintln!(
+        "FINAL yaw {yaw} sd {:?} {:?}",
+        r.final_yaw_sd_deg, r.live.counts
+    );
+    assert!(yaw.abs() < 0.5, "yaw {yaw}°");
+    let sd = r.final_yaw_sd_deg.unwrap();
+    assert!(sd < 1.0, "yaw σ {sd}°");
+    // A σ of HDT headings that is no σ is refused before anything opens.
+    let mut lc = LiveConfig::new(
+        PortConfig {
+            path: dir.join("none"),
+            baud: 115200,
+        },
+        Some(PortConfig {
+            path: dir.join("none-imu"),
+            baud: 115200,
+        }),
+        PpsInput::None,
+        builtin_fusion(&cfg.replay),
+    );
+    lc.hdt_sd_deg = f64::NAN;
+    let e = navsync_live::run(lc, &AtomicBool::new(false), &mut Collect::default()).unwrap_err();
+    assert!(e.to_string().contains("--hdt-sd"), "{e}");
+}
+
 #[derive(Default)]
 struct Collect {
     notes: Vec<String>,

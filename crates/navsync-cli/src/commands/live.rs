@@ -97,6 +97,26 @@ pub struct Args {
     /// raw.nmea) for `navsync convert`.
     #[arg(long, value_name = "FILE")]
     pub record_gnss: Option<PathBuf>,
+    /// Fuse the receiver's dual-antenna headings (moving-base UBX
+    /// NAV-RELPOSNED, or NMEA HDT). With the configuration's initial yaw
+    /// σ above 90°, the first heading also gives the initial yaw.
+    #[arg(long)]
+    pub heading: bool,
+    /// Yaw of the antenna baseline (primary → secondary) in the body
+    /// frame (deg, from forward towards right).
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        requires = "heading",
+        allow_hyphen_values = true
+    )]
+    pub dual_antenna_yaw: f64,
+    /// σ of that mounting yaw (deg).
+    #[arg(long, default_value_t = 0.5, requires = "heading")]
+    pub dual_antenna_yaw_sd: f64,
+    /// σ of NMEA HDT headings (deg; HDT carries none), as `convert --hdt-sd`.
+    #[arg(long, default_value_t = 0.5, requires = "heading")]
+    pub hdt_sd: f64,
     /// Measure the live loop on pseudo-terminals at real rate (200 Hz IMU,
     /// 10 Hz GNSS, injected PPS with a gap): lost samples, latency, CPU.
     #[arg(long)]
@@ -231,7 +251,19 @@ pub fn run(args: Args) -> Result<()> {
     if !diag.is_empty() {
         print_diagnostics(&diag, 10);
     }
-    let fusion = fusion_config(&kf, &FuseOptions::default());
+    let mut fusion = fusion_config(&kf, &FuseOptions::default());
+    if args.heading {
+        let (yaw, sd) = (args.dual_antenna_yaw, args.dual_antenna_yaw_sd);
+        anyhow::ensure!(
+            yaw.is_finite() && sd.is_finite() && sd >= 0.0,
+            "--dual-antenna-yaw {yaw}° must be finite and --dual-antenna-yaw-sd {sd}° not negative"
+        );
+        fusion.heading = Some(navsync::fusion::HeadingOptions {
+            dual_antenna_yaw_rad: yaw.to_radians(),
+            dual_antenna_yaw_sd_rad: sd.to_radians(),
+            aligned_from_baseline: false,
+        });
+    }
     let pps = match &args.pps {
         Some(p) => PpsInput::Kernel(p.clone()),
         None => {
@@ -272,6 +304,7 @@ pub fn run(args: Args) -> Result<()> {
         anyhow::ensure!(d > 0.0, "--duration must be positive");
         cfg.duration = Some(Duration::from_secs_f64(d));
     }
+    cfg.hdt_sd_deg = args.hdt_sd;
     cfg.record = args.record.clone();
     cfg.record_gnss = args.record_gnss.clone();
     if let Some(dir) = &args.output {
@@ -303,6 +336,12 @@ pub fn run(args: Args) -> Result<()> {
         us(report.latency.max_us),
         report.cpu_percent
     );
+    if c.gnss_headings > 0 {
+        println!(
+            "  dual-antenna headings: {} received, {} fused, {} rejected by the gate, {} too old",
+            c.gnss_headings, c.headings_fused, c.headings_rejected, c.headings_stale
+        );
+    }
     print_recorded(&report.recorded, &args);
     if let Some(dir) = &args.output {
         let p = dir.join("live_report.json");
