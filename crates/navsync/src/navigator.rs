@@ -520,6 +520,12 @@ impl Navigator {
         for o in out.drain(..) {
             match o {
                 SyncOutput::Gnss(g) => self.push_gnss(g.fix()),
+                // A receiver's vehicle heading only seeds an alignment.
+                SyncOutput::Heading(h) => {
+                    if h.source == crate::io::heading::HeadingSource::Baseline {
+                        self.push_heading(h);
+                    }
+                }
                 SyncOutput::Imu(s) => {
                     let Some(sample) = increments.push(s.time, &s.values, &s.flags) else {
                         continue;

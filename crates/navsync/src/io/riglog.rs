@@ -19,6 +19,7 @@ use super::text::{
     LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, plain_number, split_fields,
 };
 use crate::error::{Diagnostics, Error};
+use crate::io::heading::{HeadingObs, HeadingSource, MAX_HEADING_SD_DEG};
 use crate::time::{GpsTime, NS_PER_WEEK};
 use crate::words;
 
@@ -100,6 +101,34 @@ pub struct RigGnss {
     pub sd_m: [f64; 3],
 }
 
+/// One receiver heading as logged (a navsync extension of FORMATS.md §2,
+/// docs/FORMATS.md): valid at `time`, last byte received at `counter`.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct RigHeading {
+    /// Raw counter (not unwrapped) at the last byte.
+    pub counter: u64,
+    /// Time of validity (GPS).
+    pub time: GpsTime,
+    /// Clockwise from north (deg), in [0, 360).
+    pub heading_deg: f64,
+    /// σ (deg), in (0, [`MAX_HEADING_SD_DEG`]].
+    pub sd_deg: f64,
+    /// What it measures.
+    pub source: HeadingSource,
+}
+
+impl RigHeading {
+    /// The heading as a measurement.
+    pub fn obs(&self) -> HeadingObs {
+        HeadingObs {
+            time: self.time,
+            heading_rad: self.heading_deg.to_radians(),
+            sd_rad: self.sd_deg.to_radians(),
+            source: self.source,
+        }
+    }
+}
+
 /// One record of a rig log.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub enum RigRecord {
@@ -128,6 +157,10 @@ pub enum RigRecord {
         /// The receiver's GPS time of the same edge.
         time: GpsTime,
     },
+    /// A receiver heading (dual-antenna baseline or the receiver's vehicle
+    /// heading) and its receive counter:
+    /// `heading,<counter_rx>,<week>,<tow_s>,<heading_deg>,<sd_deg>[,<source>]`.
+    Heading(RigHeading),
 }
 
 impl RigRecord {
@@ -138,6 +171,7 @@ impl RigRecord {
             | RigRecord::Imu { counter, .. }
             | RigRecord::Mark { counter, .. } => *counter,
             RigRecord::Gnss(g) => g.counter,
+            RigRecord::Heading(h) => h.counter,
         }
     }
 }
@@ -229,7 +263,7 @@ impl RigHeader {
 /// a buffer: the simulator, the receiver converter and the sync benchmark
 /// write through these, and [`RigLogReader`] reads every bit back.
 pub mod write {
-    use super::{RigGnss, RigRecord};
+    use super::{RigGnss, RigHeading, RigRecord};
     use crate::numfmt::{push_f64, push_fixed, push_u64};
     use crate::time::GpsTime;
 
@@ -240,7 +274,26 @@ pub mod write {
             RigRecord::Imu { counter, values } => imu(buf, *counter, values),
             RigRecord::Gnss(g) => gnss(buf, g),
             RigRecord::Mark { counter, time } => mark(buf, *counter, *time, &[]),
+            RigRecord::Heading(h) => heading(buf, h),
         }
+    }
+
+    /// `heading,<counter_rx>,<week>,<tow_s>,<heading_deg>,<sd_deg>,<source>`:
+    /// the time of validity to the nanosecond, heading and σ to 1e-6°.
+    pub fn heading(buf: &mut Vec<u8>, h: &RigHeading) {
+        buf.extend_from_slice(b"heading,");
+        push_u64(buf, h.counter);
+        buf.push(b',');
+        push_u64(buf, h.time.week().max(0) as u64);
+        buf.push(b',');
+        h.time.write_sow(buf);
+        for v in [h.heading_deg, h.sd_deg] {
+            buf.push(b',');
+            push_fixed(buf, v, 6);
+        }
+        buf.push(b',');
+        buf.extend_from_slice(h.source.word().as_bytes());
+        buf.push(b'\n');
     }
 
     /// `pps,<counter>`
@@ -845,6 +898,67 @@ fn parse_record(
                 sd_m: [v[3], v[4], v[5]],
             }))
         }
+        b"heading" => {
+            if !(6..=7).contains(&n) {
+                expect(
+                    diag,
+                    6,
+                    "heading,counter_rx,week,tow_s,heading_deg,sd_deg[,baseline|vehicle]",
+                );
+                return None;
+            }
+            let counter = counter_field(f[1], counter_max, no, path, diag)?;
+            let time = gps_time_fields(f[2], f[3], no, path, diag)?;
+            let mut v = [0.0; 2];
+            for k in 0..2 {
+                match parse_f64(f[4 + k]) {
+                    Ok(x) => v[k] = x,
+                    Err(e) => {
+                        diag.push(path, no, format!("field {}: {e}; line skipped", k + 5));
+                        return None;
+                    }
+                }
+            }
+            let [heading_deg, sd_deg] = v;
+            if !(heading_deg.is_finite() && (0.0..360.0).contains(&heading_deg)) {
+                diag.push(
+                    path,
+                    no,
+                    format!("heading {heading_deg}° outside [0, 360); line skipped"),
+                );
+                return None;
+            }
+            if !(sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG) {
+                diag.push(
+                    path,
+                    no,
+                    format!("heading σ {sd_deg}° outside (0, {MAX_HEADING_SD_DEG}]; line skipped"),
+                );
+                return None;
+            }
+            let source = match f.get(6).copied().filter(|_| n == 7) {
+                None | Some(b"baseline") => HeadingSource::Baseline,
+                Some(b"vehicle") => HeadingSource::Vehicle,
+                Some(w) => {
+                    diag.push(
+                        path,
+                        no,
+                        format!(
+                            "heading source '{}' is neither baseline nor vehicle; line skipped",
+                            String::from_utf8_lossy(w)
+                        ),
+                    );
+                    return None;
+                }
+            };
+            Some(RigRecord::Heading(RigHeading {
+                counter,
+                time,
+                heading_deg,
+                sd_deg,
+                source,
+            }))
+        }
         b"mark" => {
             if n < 4 {
                 expect(diag, 4, "mark,counter,week,tow_s");
@@ -1057,6 +1171,69 @@ mod tests {
         assert!(msgs[0].contains(":7:") && msgs[0].contains("mark,counter,week,tow_s"));
         assert!(msgs[1].contains(":8:") && msgs[1].contains("time of week"));
         assert!(msgs[2].contains(":9:") && msgs[2].contains("field 2"));
+    }
+
+    #[test]
+    fn heading_records_round_trip_and_bad_ones_are_skipped() {
+        let good = [
+            RigHeading {
+                counter: 4095479611,
+                time: GpsTime::from_week_ns(2300, 100_000_100_000_000),
+                heading_deg: 359.123456,
+                sd_deg: 0.25,
+                source: HeadingSource::Baseline,
+            },
+            RigHeading {
+                counter: 12,
+                time: GpsTime::from_week_ns(2300, 100_000_512_299_985),
+                heading_deg: 0.0,
+                sd_deg: 30.0,
+                source: HeadingSource::Vehicle,
+            },
+        ];
+        let mut text = HEAD.to_string().into_bytes();
+        for h in &good {
+            write::record(&mut text, &RigRecord::Heading(*h));
+        }
+        // Without the source column: a baseline heading.
+        text.extend_from_slice(b"heading,13,2300,100000.2,10.5,0.5\n");
+        for bad in [
+            "heading,14,2300,100000.3,10.5\n",
+            "heading,15,2300,100000.3,360,0.5\n",
+            "heading,16,2300,100000.3,nan,0.5\n",
+            "heading,17,2300,100000.3,10,0\n",
+            "heading,18,2300,100000.3,10,45\n",
+            "heading,19,2300,100000.3,10,0.5,compass\n",
+        ] {
+            text.extend_from_slice(bad.as_bytes());
+        }
+        let (r, diag) = read(std::str::from_utf8(&text).unwrap());
+        let v = r.unwrap();
+        let third = RigHeading {
+            counter: 13,
+            time: GpsTime::from_week_ns(2300, 100_000_200_000_000),
+            heading_deg: 10.5,
+            sd_deg: 0.5,
+            source: HeadingSource::Baseline,
+        };
+        let want: Vec<RigRecord> = good
+            .iter()
+            .chain([&third])
+            .map(|h| RigRecord::Heading(*h))
+            .collect();
+        assert_eq!(v, want);
+        let msgs: Vec<String> = diag.items.iter().map(|d| d.to_string()).collect();
+        assert_eq!(msgs.len(), 6, "{msgs:?}");
+        for (m, what) in msgs.iter().zip([
+            "heading,counter_rx,week,tow_s,heading_deg,sd_deg",
+            "outside [0, 360)",
+            "field 5",
+            "outside (0, 30]",
+            "outside (0, 30]",
+            "neither baseline nor vehicle",
+        ]) {
+            assert!(m.contains(what), "{m} lacks {what}");
+        }
     }
 
     #[test]

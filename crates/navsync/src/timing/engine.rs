@@ -13,7 +13,8 @@ use super::sampleclock::{SampleClock, SampleClockConfig, SampleHint, Timed};
 use super::swsync::{SwClock, SwConfig};
 use super::unwrap::{Unwrapped, Unwrapper};
 use crate::error::{Diagnostics, Error};
-use crate::io::riglog::{RigGnss, RigHeader, RigRecord};
+use crate::io::heading::HeadingObs;
+use crate::io::riglog::{RigGnss, RigHeader, RigHeading, RigRecord};
 use crate::time::GpsTime;
 
 /// Which synchronization to run.
@@ -142,6 +143,10 @@ pub enum SyncOutput {
     Imu(StampedImu),
     /// A GNSS fix with its receive time.
     Gnss(StampedGnss),
+    /// A receiver heading (`heading` record): already on GPS time, passed
+    /// through in order with the fixes, once its receive counter is
+    /// stamped.
+    Heading(HeadingObs),
 }
 
 #[derive(Copy, Clone, Debug)]
@@ -172,7 +177,14 @@ struct ImuHint {
 struct PendingGnss {
     counter: u64,
     h: f64,
-    fix: RigGnss,
+    what: GnssRecord,
+}
+
+/// A receiver record waiting for its receive counter to be stamped.
+#[derive(Copy, Clone, Debug)]
+enum GnssRecord {
+    Fix(RigGnss),
+    Heading(RigHeading),
 }
 
 /// A receiver time mark waiting to be stamped through the counter.
@@ -392,6 +404,7 @@ impl SyncEngine {
             RigRecord::Pps { .. } => self.counts.pps += 1,
             RigRecord::Gnss(_) => self.counts.gnss += 1,
             RigRecord::Mark { .. } => self.counts.marks += 1,
+            RigRecord::Heading(_) => self.counts.headings += 1,
         }
         if let Engine::Undecided(buf) = &mut self.state {
             let c = rec.counter();
@@ -624,7 +637,17 @@ impl SyncEngine {
                     self.pending_gnss.push_back(PendingGnss {
                         counter: c,
                         h,
-                        fix: g,
+                        what: GnssRecord::Fix(g),
+                    });
+                }
+                RigRecord::Heading(hd) => {
+                    // Not a clock observation: its receive time only
+                    // orders it among the fixes.
+                    let h = if hw { 0.0 } else { self.sw.host(c) };
+                    self.pending_gnss.push_back(PendingGnss {
+                        counter: c,
+                        h,
+                        what: GnssRecord::Heading(hd),
                     });
                 }
                 RigRecord::Mark { time, .. } => {
@@ -775,8 +798,13 @@ impl SyncEngine {
                 break;
             }
             self.pending_gnss.pop_front();
-            if let Some((rx, _, _)) = self.hw_time(g.counter) {
-                self.emit_gnss(g.fix, rx, out);
+            match g.what {
+                GnssRecord::Fix(fix) => {
+                    if let Some((rx, _, _)) = self.hw_time(g.counter) {
+                        self.emit_gnss(fix, rx, out);
+                    }
+                }
+                GnssRecord::Heading(hd) => out.push(SyncOutput::Heading(hd.obs())),
             }
         }
         while let Some(m) = self.pending_marks.front().copied() {
@@ -835,9 +863,14 @@ impl SyncEngine {
                 break;
             }
             self.pending_gnss.pop_front();
-            if let Some(lat) = self.sw.gnss_latency(g.h, g.fix.time, causal) {
-                let rx = g.fix.time.add_seconds(lat);
-                self.emit_gnss(g.fix, rx, out);
+            match g.what {
+                GnssRecord::Fix(fix) => {
+                    if let Some(lat) = self.sw.gnss_latency(g.h, fix.time, causal) {
+                        let rx = fix.time.add_seconds(lat);
+                        self.emit_gnss(fix, rx, out);
+                    }
+                }
+                GnssRecord::Heading(hd) => out.push(SyncOutput::Heading(hd.obs())),
             }
         }
         while let Some(m) = self.pending_marks.front().copied() {

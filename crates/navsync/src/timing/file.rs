@@ -7,11 +7,12 @@
 
 #![warn(missing_docs)]
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::report::{SyncReport, TruthAccumulator, TruthTimes, format_week_sow};
 use super::{IncrementBuilder, RateRule, SyncConfig, SyncEngine, SyncOutput};
 use crate::error::{Diagnostics, Error};
+use crate::io::heading::{HeadingObs, write_headings};
 use crate::io::kfgins::{TextWriter, format_gnss_line};
 use crate::io::riglog::{RigLogReader, RigRecord};
 use crate::stage::{Consumer, Drain, Producer, Source, fill_batch};
@@ -60,6 +61,9 @@ struct SyncFiles {
     buf_times: Vec<u8>,
     buf_gnss: Vec<u8>,
     truth_short: bool,
+    /// Receiver headings, written to `heading_path` at the end.
+    headings: Vec<HeadingObs>,
+    heading_path: PathBuf,
 }
 
 impl Consumer for SyncFiles {
@@ -92,6 +96,7 @@ impl Consumer for SyncFiles {
                 SyncOutput::Gnss(g) => {
                     format_gnss_line(&mut self.buf_gnss, &g.fix());
                 }
+                SyncOutput::Heading(h) => self.headings.push(h),
             }
         }
         self.imu_w.write(&self.buf_imu)?;
@@ -106,12 +111,24 @@ impl Consumer for SyncFiles {
         self.imu_w.finish()?;
         self.gnss_w.finish()?;
         self.times_w.finish()?;
+        // Without headings, no heading file (nor one of an earlier run).
+        if self.headings.is_empty() {
+            match std::fs::remove_file(&self.heading_path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(Error::io(&self.heading_path, e));
+                }
+                _ => {}
+            }
+        } else {
+            write_headings(&self.heading_path, &self.headings)?;
+        }
         Ok((self.truth.map(|(_, acc)| acc), self.truth_short))
     }
 }
 
 /// Reads `rig`, synchronizes it, and writes `imu.txt`, `gnss.txt`,
-/// `imu_times.txt` and `sync_report.json` into `out_dir`. Rates become
+/// `imu_times.txt` and `sync_report.json` into `out_dir`, and
+/// `heading.txt` when the log has `heading` records. Rates become
 /// increments by `rule`, or by what the header's `imu_rates` says. With
 /// `truth` (a `week sow` line per `imu` record), stamps are compared with
 /// it.
@@ -154,6 +171,8 @@ pub fn sync_file(
             buf_times: Vec::with_capacity(1 << 18),
             buf_gnss: Vec::with_capacity(1 << 12),
             truth_short: false,
+            headings: Vec::new(),
+            heading_path: out_dir.join("heading.txt"),
         },
         "sync-writer",
     )?;

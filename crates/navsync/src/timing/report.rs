@@ -52,6 +52,14 @@ pub struct RecordCounts {
     /// `mark` records (edges time-marked by the receiver, TIM-TM2).
     #[serde(default)]
     pub marks: u64,
+    /// `heading` records (receiver headings, passed through on their GPS
+    /// time); absent when there are none.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub headings: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// Receiver time marks (`mark` records) against the clock model: with

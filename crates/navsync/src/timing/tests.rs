@@ -6,7 +6,8 @@ use super::clock::{ClockConfig, PpsClock};
 use super::engine::{StampedGnss, StampedImu, SyncConfig, SyncEngine, SyncMode, SyncOutput};
 use super::report::{SyncReport, TruthAccumulator, TruthComparison};
 use super::testsim::{Generated, Scenario, generate};
-use crate::io::riglog::RigRecord;
+use crate::io::heading::HeadingSource;
+use crate::io::riglog::{RigHeading, RigRecord};
 use crate::time::GpsTime;
 
 fn run(
@@ -26,6 +27,7 @@ fn run(
         match o {
             SyncOutput::Imu(s) => imu.push(s),
             SyncOutput::Gnss(s) => gnss.push(s),
+            SyncOutput::Heading(_) => {}
         }
     }
     Ok((imu, gnss, report))
@@ -597,7 +599,7 @@ fn software_sync_takes_the_readers_known_losses() {
         .into_iter()
         .filter_map(|o| match o {
             SyncOutput::Imu(s) => Some(s),
-            SyncOutput::Gnss(_) => None,
+            SyncOutput::Gnss(_) | SyncOutput::Heading(_) => None,
         })
         .collect();
     println!(
@@ -608,4 +610,72 @@ fn software_sync_takes_the_readers_known_losses() {
     let tc = compare_after(&imu, &g.truth.imu_times, 60.0);
     show("sw causal, reader's losses (after 60 s)", &tc);
     assert!(tc.sd_us <= 300.0, "sd {} µs", tc.sd_us);
+}
+
+#[test]
+fn heading_records_pass_through_in_order_with_the_fixes() {
+    // A dual-antenna receiver logs a heading just after each fix (same
+    // epoch, 1 ms later). With 1PPS (hardware, batch and causal) and
+    // without (software), every heading comes out once, unchanged, after
+    // its epoch's fix and before the next one; none is a clock
+    // observation, so the IMU stamps are those of the log without them.
+    for pps in [true, false] {
+        let s = Scenario {
+            duration_s: 60.0,
+            pps,
+            seed: 11,
+            ..Default::default()
+        };
+        let g = generate(&s);
+        let ms = (g.header.counter_hz / 1000.0) as u64;
+        let mut with = Vec::new();
+        let mut sent = Vec::new();
+        for r in &g.records {
+            with.push(*r);
+            if let RigRecord::Gnss(f) = r {
+                let h = RigHeading {
+                    counter: f.counter + ms,
+                    time: f.time,
+                    heading_deg: (f.time.sow() * 7.0).rem_euclid(360.0),
+                    sd_deg: 0.3,
+                    source: HeadingSource::Baseline,
+                };
+                sent.push(h.obs());
+                with.push(RigRecord::Heading(h));
+            }
+        }
+        for causal in [false, true] {
+            let mut e = SyncEngine::new(&g.header, cfg(causal));
+            let mut out = Vec::new();
+            for (i, r) in with.iter().enumerate() {
+                e.push_into(*r, i + 1, &mut out);
+            }
+            let (rest, rep) = e.finish().unwrap();
+            out.extend(rest);
+            assert_eq!(rep.records.headings, sent.len() as u64);
+            let mut got = Vec::new();
+            let mut last_fix = None;
+            for o in &out {
+                match o {
+                    SyncOutput::Gnss(f) => last_fix = Some(f.time),
+                    SyncOutput::Heading(h) => {
+                        assert_eq!(last_fix, Some(h.time), "pps {pps} causal {causal}");
+                        got.push(*h);
+                    }
+                    SyncOutput::Imu(_) => {}
+                }
+            }
+            assert_eq!(got, sent, "pps {pps} causal {causal}");
+            let (imu_without, _, _) = run(&g, cfg(causal)).unwrap();
+            let imu_with: Vec<GpsTime> = out
+                .iter()
+                .filter_map(|o| match o {
+                    SyncOutput::Imu(s) => Some(s.time),
+                    _ => None,
+                })
+                .collect();
+            let without: Vec<GpsTime> = imu_without.iter().map(|s| s.time).collect();
+            assert_eq!(imu_with, without, "pps {pps} causal {causal}");
+        }
+    }
 }
