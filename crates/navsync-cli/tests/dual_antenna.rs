@@ -234,3 +234,89 @@ fn never_moving_drive_gets_its_heading_within_its_sigma() {
     }
     assert!(worst < 0.5, "worst heading error {worst}°");
 }
+
+/// A logger that writes the receiver's headings into its rig log
+/// (`heading` records, as `live --record` does): `process` takes them
+/// through `sync` (heading.txt) and aligns the vehicle that never moves
+/// from the baseline, where without them its heading is unobservable.
+#[test]
+fn process_takes_heading_records_from_a_rig_log() {
+    let d = temp_dir("dual-rig");
+    let sim = simulate(&d, "static", "60");
+    let h = d.join("heading.txt");
+    heading_file(&sim.join("truth.nav"), &h, &[]);
+    // One heading per fix: the one of the fix's epoch, received 1 µs after it.
+    let headings: Vec<(f64, String)> = std::fs::read_to_string(&h)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            (f[0].parse().unwrap(), format!("{},{},{}", f[1], f[2], f[3]))
+        })
+        .collect();
+    let mut rig = String::new();
+    let mut added = 0;
+    for line in std::fs::read_to_string(sim.join("rig.csv"))
+        .unwrap()
+        .lines()
+    {
+        rig.push_str(line);
+        rig.push('\n');
+        let f: Vec<&str> = line.split(',').collect();
+        if f[0] != "gnss" {
+            continue;
+        }
+        let (counter, week, tow): (u64, &str, f64) =
+            (f[1].parse().unwrap(), f[2], f[3].parse().unwrap());
+        if let Some((_, rest)) = headings.iter().find(|(t, _)| (t - tow).abs() < 1e-6) {
+            rig.push_str(&format!("heading,{},{week},{},{rest}\n", counter + 1, f[3]));
+            added += 1;
+        }
+    }
+    assert!(added >= 50, "{added} headings");
+    let rig_path = d.join("rig-with-headings.csv");
+    std::fs::write(&rig_path, rig).unwrap();
+    let sensor = d.join("sensor.yaml");
+    let (ok, out, err) = run(bin()
+        .args(["init", "--preset", "adis16465", "--output"])
+        .arg(&sensor));
+    assert!(ok, "{out}{err}");
+    let text = std::fs::read_to_string(&sensor)
+        .unwrap()
+        .replace(
+            "antenna_lever_m: [0.0, 0.0, 0.0]",
+            "antenna_lever_m: [0.1, 0.5, -1.2]",
+        )
+        .replace(
+            "dual_antenna_yaw_deg: 0.0",
+            &format!("dual_antenna_yaw_deg: {MOUNT_YAW_DEG}"),
+        );
+    std::fs::write(&sensor, text).unwrap();
+    let out = d.join("out");
+    let (ok, stdout, err) = run(bin()
+        .arg("process")
+        .arg(&rig_path)
+        .arg("--sensor")
+        .arg(&sensor)
+        .arg("--output")
+        .arg(&out)
+        .arg("--no-smooth"));
+    assert!(ok, "{stdout}{err}");
+    assert!(stdout.contains("heading.txt"), "{stdout}");
+    let synced = std::fs::read_to_string(out.join("sync/heading.txt")).unwrap();
+    assert_eq!(
+        synced.lines().filter(|l| !l.starts_with('#')).count(),
+        added
+    );
+    let p = json(&out.join("process.json"));
+    assert_eq!(
+        p["alignment"]["method"], "static-levelling-and-dual-antenna",
+        "{p}"
+    );
+    let truth = attitudes(&sim.join("truth.nav"));
+    let nav = attitudes(&out.join("fuse/navresult.nav"));
+    let (n, t) = (nav.last().unwrap(), truth.last().unwrap());
+    let e = wrap180(n.3 - t.3);
+    assert!(e.abs() < 1.0, "final heading error {e}°");
+}

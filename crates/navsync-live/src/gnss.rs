@@ -54,8 +54,9 @@ pub(crate) struct EsfSample {
 pub(crate) struct Decoded {
     pub fixes: Vec<ReceivedFix>,
     pub imu: Vec<EsfSample>,
-    /// Dual-antenna (baseline) headings.
-    pub headings: Vec<HeadingObs>,
+    /// Dual-antenna (baseline) headings and the host counter (ns) at which
+    /// their last byte arrived.
+    pub headings: Vec<(HeadingObs, u64)>,
     /// Problems: corrupt runs, invalid frames, unusable epochs.
     pub notes: Vec<String>,
 }
@@ -192,7 +193,7 @@ impl GnssDecoder {
                     match relposned_heading(r, self.last_fix_time) {
                         Ok(h) => {
                             self.headings += 1;
-                            out.headings.push(h);
+                            out.headings.push((h, arrival_ns));
                         }
                         Err(why) => self.drop_heading(format!("NAV-RELPOSNED: {why}"), notes),
                     }
@@ -228,7 +229,7 @@ impl GnssDecoder {
                             ) {
                                 Ok(h) => {
                                     self.headings += 1;
-                                    out.headings.push(h);
+                                    out.headings.push((h, arrival_ns));
                                 }
                                 Err(why) => self.drop_heading(why, notes),
                             },

@@ -44,7 +44,7 @@ use std::time::{Duration, Instant};
 use navsync::filter::gnss::GnssFix;
 use navsync::fusion::{FusionConfig, LatencyMode, NavOutput};
 use navsync::io::heading::HeadingObs;
-use navsync::io::riglog::{ImuTiming, RigGnss, RigHeader, RigRecord};
+use navsync::io::riglog::{ImuTiming, RigGnss, RigHeader, RigHeading, RigRecord};
 use navsync::navigator::{Navigator, Step};
 use navsync::pipeline::NullSink;
 use navsync::time::GpsTime;
@@ -206,8 +206,9 @@ enum Input {
         line: Option<LineSample>,
     },
     Gnss(ReceivedFix),
-    /// A dual-antenna heading from the receiver.
-    Heading(HeadingObs),
+    /// A dual-antenna heading from the receiver, and the host counter (ns)
+    /// at which its last byte arrived.
+    Heading(HeadingObs, u64),
     /// Bytes read from the receiver's port (only when they are recorded).
     GnssRaw(Vec<u8>),
     Pps(PpsEdge),
@@ -595,8 +596,8 @@ fn spawn_gnss(
                     for f in out.fixes.drain(..) {
                         ok &= tx.send(Input::Gnss(f)).is_ok();
                     }
-                    for h in out.headings.drain(..) {
-                        ok &= tx.send(Input::Heading(h)).is_ok();
+                    for (h, received_ns) in out.headings.drain(..) {
+                        ok &= tx.send(Input::Heading(h, received_ns)).is_ok();
                     }
                     for msg in out.notes.drain(..) {
                         ok &= note(tx, SourceId::Gnss, msg, None);
@@ -783,7 +784,7 @@ pub fn record_header(cfg: &LiveConfig) -> RigHeader {
 fn record_comments(cfg: &LiveConfig) -> Vec<&'static str> {
     let mut c = vec![
         "recorded by navsync live, counter = the host's CLOCK_MONOTONIC_RAW in ns",
-        "gnss counters are the arrival of the fix's last byte",
+        "gnss and heading counters are the arrival of their last byte",
     ];
     c.push(if cfg.esf_tick_s.is_some() {
         "imu counters are the ESF time tags mapped to the host counter by the arrival envelope"
@@ -968,6 +969,9 @@ impl Core {
                     }
                     self.last = Some((nav, info));
                 }
+                // Headings reach the filter from the port directly
+                // ([`Core::heading`]); the engine is given none.
+                SyncOutput::Heading(_) => {}
                 SyncOutput::Gnss(g) => {
                     let mut fix = g.fix();
                     if let Some(full) = self.recent_fixes.iter().find(|f| f.time == g.time) {
@@ -1289,7 +1293,18 @@ fn engine_loop(
                 core.record(rec);
                 core.push(rec, sink).map_err(to_io)?;
             }
-            Ok(Input::Heading(h)) => core.heading(h, sink),
+            Ok(Input::Heading(h, received_ns)) => {
+                // Recorded on its GPS time (`sync` passes it through to
+                // heading.txt); the filter takes it from here.
+                core.record(RigRecord::Heading(RigHeading {
+                    counter: received_ns,
+                    time: h.time,
+                    heading_deg: h.heading_rad.to_degrees().rem_euclid(360.0),
+                    sd_deg: h.sd_rad.to_degrees(),
+                    source: h.source,
+                }));
+                core.heading(h, sink);
+            }
             Ok(Input::GnssRaw(bytes)) => {
                 if let Some(r) = core.recorder.as_mut() {
                     r.raw_gnss(&bytes);

@@ -76,6 +76,8 @@ pub struct RecordCounts {
     pub imu: u64,
     pub gnss: u64,
     pub pps: u64,
+    /// Receiver headings (`heading` records).
+    pub headings: u64,
     /// Records that came after a later-stamped one had been written (they
     /// are written anyway; `sync` skips those more than 10 ms back).
     pub late: u64,
@@ -138,6 +140,7 @@ impl Recorder {
             RigRecord::Imu { .. } => self.counts.imu += 1,
             RigRecord::Gnss(_) => self.counts.gnss += 1,
             RigRecord::Pps { .. } => self.counts.pps += 1,
+            RigRecord::Heading(_) => self.counts.headings += 1,
             RigRecord::Mark { .. } => {}
         }
         let c = r.counter();

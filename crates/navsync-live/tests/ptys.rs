@@ -168,9 +168,35 @@ fn dual_antenna_headings_correct_the_yaw_live() {
     cfg.replay.dual_antenna = Some((30.0, 0.3));
     cfg.fusion = Some(heading_fusion(&cfg, 6.0, 10.0, 30.0));
     let dir = tmp("relposned");
+    cfg.record = Some(dir.join("rig.csv"));
     let r = selftest::run(&cfg, &dir).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
     let c = &r.live.counts;
+    // The recording keeps every heading on its GPS time, and `sync` puts
+    // them in heading.txt beside gnss.txt.
+    assert_eq!(r.live.recorded.as_ref().unwrap().headings, c.gnss_headings);
+    let synced = navsync::timing::file::sync_file(
+        &dir.join("rig.csv"),
+        &dir.join("sync"),
+        navsync::timing::SyncConfig::default(),
+        None,
+        None,
+    )
+    .unwrap();
+    assert_eq!(synced.report.records.headings, c.gnss_headings);
+    let mut diag = navsync::error::Diagnostics::default();
+    let headings =
+        navsync::io::heading::read_headings(&dir.join("sync/heading.txt"), 2400, &mut diag)
+            .unwrap();
+    assert_eq!(headings.len() as u64, c.gnss_headings, "{diag:?}");
+    assert!(
+        headings
+            .iter()
+            .all(|h| (h.heading_rad.to_degrees() - 30.0).abs() < 2.0
+                && h.time.ns() % 100_000_000 == 0),
+        "{:?}",
+        &headings[..3]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
     // The fusion starts when the clock locks (4 pulses); from then on the
     // heading of every fused fix's epoch is fused too.
     assert!(c.gnss_headings >= 80, "{c:?}");

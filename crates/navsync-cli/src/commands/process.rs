@@ -231,7 +231,8 @@ fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
         sync_report: Some(dir.join("sync_report.json")),
         software_timed,
         notes: Vec::new(),
-        heading: None,
+        // The log's `heading` records, when it has any.
+        heading: Some(dir.join("heading.txt")).filter(|p| p.is_file()),
     })
 }
 

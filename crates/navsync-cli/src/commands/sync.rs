@@ -175,7 +175,13 @@ pub fn run(args: Args) -> Result<()> {
         } else {
             // No silent garbage: the time-stamped files are withdrawn; the
             // report stays for diagnosis.
-            for f in ["imu.txt", "gnss.txt", "imu_times.txt", "kf-gins.yaml"] {
+            for f in [
+                "imu.txt",
+                "gnss.txt",
+                "imu_times.txt",
+                "heading.txt",
+                "kf-gins.yaml",
+            ] {
                 let p = out_dir.join(f);
                 if p.exists() {
                     let _ = std::fs::remove_file(&p);
@@ -321,8 +327,13 @@ pub fn print_summary(r: &SyncReport, wall: f64) {
 
 /// The files `sync` leaves (printed once they are known to stay).
 pub fn print_wrote(out_dir: &Path) {
+    let heading = if out_dir.join("heading.txt").is_file() {
+        ", heading.txt"
+    } else {
+        ""
+    };
     println!(
-        "  wrote {}/imu.txt, gnss.txt, imu_times.txt, sync_report.json",
+        "  wrote {}/imu.txt, gnss.txt, imu_times.txt{heading}, sync_report.json",
         out_dir.display()
     );
 }
