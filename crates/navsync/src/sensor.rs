@@ -283,6 +283,10 @@ pub struct SensorSheet {
     /// σ of `dual_antenna_yaw_deg` (deg).
     #[serde(default = "default_dual_antenna_yaw_sd")]
     pub dual_antenna_yaw_sd_deg: f64,
+    /// σ given to NMEA HDT headings (deg), which carry none: the
+    /// receiver's datasheet heading accuracy for the baseline's length.
+    #[serde(default = "default_hdt_sd")]
+    pub hdt_sd_deg: f64,
 }
 
 fn default_gnss_sd() -> [f64; 3] {
@@ -290,6 +294,10 @@ fn default_gnss_sd() -> [f64; 3] {
 }
 
 fn default_dual_antenna_yaw_sd() -> f64 {
+    0.5
+}
+
+fn default_hdt_sd() -> f64 {
     0.5
 }
 
@@ -446,6 +454,16 @@ impl SensorSheet {
             return bad(
                 "dual_antenna_yaw_sd_deg",
                 format!("must be within 0…30°, got {}", self.dual_antenna_yaw_sd_deg),
+            );
+        }
+        if !(self.hdt_sd_deg > 0.0 && self.hdt_sd_deg <= crate::io::heading::MAX_HEADING_SD_DEG) {
+            return bad(
+                "hdt_sd_deg",
+                format!(
+                    "must be within (0, {}]°, got {}",
+                    crate::io::heading::MAX_HEADING_SD_DEG,
+                    self.hdt_sd_deg
+                ),
             );
         }
         if self.gnss_default_sd_m.iter().any(|x| *x <= 0.0) {
@@ -643,7 +661,11 @@ pub fn template(preset: &str) -> Result<String, Error> {
          # the first, 90: to its right), and how well it is known (σ, deg). Unused\n\
          # without dual-antenna headings in the receiver log.\n\
          dual_antenna_yaw_deg: 0.0\n\
-         dual_antenna_yaw_sd_deg: 0.5\n",
+         dual_antenna_yaw_sd_deg: 0.5\n\
+         # NMEA HDT (Unicore, Septentrio, Hemisphere dual-antenna receivers) carries no\n\
+         # accuracy: the σ (deg) its headings get; take the receiver's datasheet\n\
+         # heading accuracy for your baseline's length.\n\
+         hdt_sd_deg: 0.5\n",
     );
     Ok(y)
 }
@@ -788,6 +810,33 @@ mod tests {
             e.contains("s.yaml") && e.contains("'imu.accel_misalignment_deg' must be at most 10"),
             "{e}"
         );
+    }
+
+    /// The HDT heading σ defaults to 0.5° and is checked like a heading σ.
+    #[test]
+    fn hdt_sd_defaults_and_is_checked() {
+        let parse = |t: &str| SensorSheet::parse(t, Path::new("s.yaml")).map_err(|e| e.to_string());
+        let t = template("adis16465").unwrap();
+        let without: String = t
+            .lines()
+            .filter(|l| !l.starts_with("hdt_sd_deg"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        assert_eq!(parse(&without).unwrap().hdt_sd_deg, 0.5);
+        assert_eq!(
+            parse(&t.replace("hdt_sd_deg: 0.5", "hdt_sd_deg: 0.2"))
+                .unwrap()
+                .hdt_sd_deg,
+            0.2
+        );
+        for bad in ["0", "-1", "45", ".nan"] {
+            let e =
+                parse(&t.replace("hdt_sd_deg: 0.5", &format!("hdt_sd_deg: {bad}"))).unwrap_err();
+            assert!(
+                e.contains("s.yaml") && e.contains("'hdt_sd_deg' must be within (0, 30]"),
+                "{bad}: {e}"
+            );
+        }
     }
 
     #[test]

@@ -298,6 +298,7 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
     println!("[1/4] convert → {}", dir.display());
     let mut opts = ConvertOptions::default();
     opts.fix.default_sd_m = sheet.gnss_default_sd_m;
+    opts.hdt_sd_deg = sheet.hdt_sd_deg;
     let mut notes = Vec::new();
     let (gnss, receipt) = if *gk == FileKind::KfginsGnss {
         (g.clone(), None)
