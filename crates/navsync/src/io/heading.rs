@@ -43,6 +43,23 @@ impl HeadingSource {
             HeadingSource::Vehicle => "vehicle",
         }
     }
+
+    /// The source a word names (`baseline` or `vehicle`).
+    pub fn from_word(word: &[u8]) -> Option<Self> {
+        match word {
+            b"baseline" => Some(HeadingSource::Baseline),
+            b"vehicle" => Some(HeadingSource::Vehicle),
+            _ => None,
+        }
+    }
+}
+
+/// Why a heading σ (deg) is unusable, if it is: not within
+/// (0, [`MAX_HEADING_SD_DEG`]].
+pub fn sd_problem(sd_deg: f64) -> Option<String> {
+    (!(sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG)).then(|| {
+        format!("heading σ {sd_deg}° is outside (0, {MAX_HEADING_SD_DEG}]°: no usable heading")
+    })
 }
 
 /// One heading measurement.
@@ -103,20 +120,15 @@ pub fn read_headings(
             continue;
         }
         let [heading_deg, sd_deg] = vals;
-        if !(sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG) {
-            diag.push(
-                path,
-                no,
-                format!(
-                    "heading σ {sd_deg}° is outside (0, {MAX_HEADING_SD_DEG}]°: no usable heading; line skipped"
-                ),
-            );
+        if let Some(why) = sd_problem(sd_deg) {
+            diag.push(path, no, format!("{why}; line skipped"));
             continue;
         }
-        let source = match (n >= 4).then(|| f[3]) {
-            None | Some(b"baseline") => HeadingSource::Baseline,
-            Some(b"vehicle") => HeadingSource::Vehicle,
-            Some(w) => {
+        let word = (n >= 4).then(|| f[3]);
+        let source = match word.map(|w| (w, HeadingSource::from_word(w))) {
+            None => HeadingSource::Baseline,
+            Some((_, Some(s))) => s,
+            Some((w, None)) => {
                 diag.push(
                     path,
                     no,

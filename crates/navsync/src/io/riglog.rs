@@ -19,7 +19,7 @@ use super::text::{
     LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, plain_number, split_fields,
 };
 use crate::error::{Diagnostics, Error};
-use crate::io::heading::{HeadingObs, HeadingSource, MAX_HEADING_SD_DEG};
+use crate::io::heading::{HeadingObs, HeadingSource, sd_problem};
 use crate::time::{GpsTime, NS_PER_WEEK};
 use crate::words;
 
@@ -111,7 +111,7 @@ pub struct RigHeading {
     pub time: GpsTime,
     /// Clockwise from north (deg), in [0, 360).
     pub heading_deg: f64,
-    /// σ (deg), in (0, [`MAX_HEADING_SD_DEG`]].
+    /// σ (deg), in (0, [`crate::io::heading::MAX_HEADING_SD_DEG`]].
     pub sd_deg: f64,
     /// What it measures.
     pub source: HeadingSource,
@@ -928,18 +928,15 @@ fn parse_record(
                 );
                 return None;
             }
-            if !(sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG) {
-                diag.push(
-                    path,
-                    no,
-                    format!("heading σ {sd_deg}° outside (0, {MAX_HEADING_SD_DEG}]; line skipped"),
-                );
+            if let Some(why) = sd_problem(sd_deg) {
+                diag.push(path, no, format!("{why}; line skipped"));
                 return None;
             }
-            let source = match f.get(6).copied().filter(|_| n == 7) {
-                None | Some(b"baseline") => HeadingSource::Baseline,
-                Some(b"vehicle") => HeadingSource::Vehicle,
-                Some(w) => {
+            let word = (n == 7).then(|| f[6]);
+            let source = match word.map(|w| (w, HeadingSource::from_word(w))) {
+                None => HeadingSource::Baseline,
+                Some((_, Some(s))) => s,
+                Some((w, None)) => {
                     diag.push(
                         path,
                         no,
@@ -1228,8 +1225,8 @@ mod tests {
             "heading,counter_rx,week,tow_s,heading_deg,sd_deg",
             "outside [0, 360)",
             "field 5",
-            "outside (0, 30]",
-            "outside (0, 30]",
+            "outside (0, 30]°",
+            "outside (0, 30]°",
             "neither baseline nor vehicle",
         ]) {
             assert!(m.contains(what), "{m} lacks {what}");
