@@ -320,3 +320,73 @@ fn process_takes_heading_records_from_a_rig_log() {
     let e = wrap180(n.3 - t.3);
     assert!(e.abs() < 1.0, "final heading error {e}°");
 }
+
+/// `simulate --dual-antenna YAW,SD`: a heading with every fix, in
+/// heading.txt and as rig-log records, from the truth's attitude; `sync`
+/// gives back the same headings, bit for bit.
+#[test]
+fn simulated_dual_antenna_headings_follow_the_truth() {
+    let d = temp_dir("dual-sim");
+    let sim = d.join("sim");
+    let (ok, _, err) = run(bin()
+        .args([
+            "simulate",
+            "--quiet",
+            "--internal-rate",
+            "0",
+            "--scenario",
+            "static",
+        ])
+        .args([
+            "--duration",
+            "30",
+            "--imu-grade",
+            "adis16465",
+            "--seed",
+            "3",
+        ])
+        .args([
+            "--dual-antenna",
+            &format!("{MOUNT_YAW_DEG},{NOISE_SD_DEG}"),
+            "--output",
+        ])
+        .arg(&sim));
+    assert!(ok, "{err}");
+    let rows = |p: &Path| -> Vec<Vec<f64>> {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(|l| {
+                l.split_whitespace()
+                    .filter_map(|x| x.parse().ok())
+                    .collect()
+            })
+            .collect()
+    };
+    let headings = rows(&sim.join("heading.txt"));
+    let fixes = rows(&sim.join("gnss.txt"));
+    assert_eq!(headings.len(), fixes.len());
+    // The static vehicle faces its truth yaw: the baseline is 30° right of it.
+    let truth = attitudes(&sim.join("truth.nav"));
+    let yaw = truth[0].3;
+    let errs: Vec<f64> = headings
+        .iter()
+        .map(|h| wrap180(h[1] - (yaw + MOUNT_YAW_DEG)))
+        .collect();
+    let rms = (errs.iter().map(|e| e * e).sum::<f64>() / errs.len() as f64).sqrt();
+    assert!(
+        (0.1..0.35).contains(&rms),
+        "heading noise RMS {rms}° (σ 0.2°)"
+    );
+    let (ok, out, err) = run(bin()
+        .arg("sync")
+        .arg(sim.join("rig.csv"))
+        .arg("--output")
+        .arg(d.join("sync")));
+    assert!(ok && out.contains("heading.txt"), "{out}{err}");
+    assert_eq!(
+        std::fs::read_to_string(d.join("sync/heading.txt")).unwrap(),
+        std::fs::read_to_string(sim.join("heading.txt")).unwrap()
+    );
+}

@@ -16,6 +16,7 @@ use super::rng::{self, SimRng};
 use super::truth::{TruthGenerator, TruthPoint};
 use navsync::earth::{Geodetic, LocalEarth};
 use navsync::filter::gnss::GnssFix;
+use navsync::io::heading::{HeadingObs, HeadingSource};
 use navsync::time::GpsTime;
 
 /// Solution type; sets the default noise.
@@ -74,6 +75,21 @@ pub struct GnssSpec {
     pub real_fixes: Option<String>,
     /// Column order of a 13-column `real_fixes` file: `cpp` or `matlab`.
     pub real_layout: RealLayout,
+    /// A dual-antenna (moving-base) receiver: a baseline heading with
+    /// every fix.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dual_antenna: Option<DualAntennaSpec>,
+}
+
+/// The antenna baseline of a dual-antenna receiver.
+#[derive(Copy, Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DualAntennaSpec {
+    /// Yaw of the baseline (primary → secondary antenna) in the body frame,
+    /// from x towards y (deg).
+    pub mount_yaw_deg: f64,
+    /// White noise of the measured azimuth (deg), also its stated σ.
+    pub sd_deg: f64,
 }
 
 /// Column order of a 13-column real GNSS file (FORMATS.md §1).
@@ -114,6 +130,7 @@ impl Default for GnssSpec {
             time_offset_s: 0.0,
             real_fixes: None,
             real_layout: RealLayout::Cpp,
+            dual_antenna: None,
         }
     }
 }
@@ -205,6 +222,9 @@ pub struct GnssEpoch {
     pub error_ned: Vector3<f64>,
     pub outlier: bool,
     pub in_outage: bool,
+    /// The measured azimuth of the antenna baseline (with
+    /// [`GnssSpec::dual_antenna`]), at `valid`.
+    pub heading: Option<HeadingObs>,
 }
 
 /// Streams GNSS epochs in time order.
@@ -222,6 +242,7 @@ pub struct GnssSim<'a> {
     gm_rng: SimRng,
     vel_rng: SimRng,
     outlier_rng: SimRng,
+    heading_rng: SimRng,
     /// Real fixes replayed in place of the noise model, and the next one.
     replay: Option<(Vec<ReplayFix>, usize)>,
 }
@@ -251,6 +272,7 @@ impl<'a> GnssSim<'a> {
             gm_rng,
             vel_rng: rng::stream(seed, "gnss.vel"),
             outlier_rng: rng::stream(seed, "gnss.outlier"),
+            heading_rng: rng::stream(seed, "gnss.heading"),
             spec,
             replay: None,
         }
@@ -292,6 +314,23 @@ impl<'a> GnssSim<'a> {
         (pos, vel)
     }
 
+    /// The baseline's measured azimuth at `t` from the truth attitude: the
+    /// direction of C_b^n (cos α, sin α, 0) in the horizontal plane
+    /// (Groves §10.2.5), plus the spec's white noise (own stream: the
+    /// other streams are those of a run without it).
+    fn heading_at(&mut self, t: GpsTime, p: &TruthPoint) -> Option<HeadingObs> {
+        let d = self.spec.dual_antenna?;
+        let a = d.mount_yaw_deg.to_radians();
+        let u = p.kin.c_nb * Vector3::new(a.cos(), a.sin(), 0.0);
+        let az = u.y.atan2(u.x) + d.sd_deg.to_radians() * rng::normal(&mut self.heading_rng);
+        Some(HeadingObs {
+            time: t.add_seconds(self.spec.time_offset_s),
+            heading_rad: az.rem_euclid(std::f64::consts::TAU),
+            sd_rad: d.sd_deg.to_radians(),
+            source: HeadingSource::Baseline,
+        })
+    }
+
     /// The next epoch.
     pub fn next_epoch(&mut self) -> Option<GnssEpoch> {
         let t = self.peek_time()?;
@@ -328,6 +367,8 @@ impl<'a> GnssSim<'a> {
         let in_outage = s.outages.iter().any(|o| rel >= o[0] && rel < o[0] + o[1]);
         let le = LocalEarth::new(&pos, &vel);
         let d = le.ned_to_geodetic_delta(&err);
+        let heading = self.heading_at(t, &p);
+        let s = &self.spec;
         let fix = GnssFix {
             time: t.add_seconds(s.time_offset_s),
             pos: Geodetic::new(pos.lat_rad + d.x, pos.lon_rad + d.y, pos.h_m + d.z),
@@ -343,6 +384,7 @@ impl<'a> GnssSim<'a> {
             error_ned: err,
             outlier,
             in_outage,
+            heading,
         })
     }
 }
@@ -402,6 +444,7 @@ impl GnssSim<'_> {
             .outages
             .iter()
             .any(|o| rel >= o[0] && rel < o[0] + o[1]);
+        let heading = self.heading_at(t, &p);
         let fix = GnssFix {
             time: t.add_seconds(self.spec.time_offset_s),
             pos: Geodetic::new(pos.lat_rad + d.x, pos.lon_rad + d.y, pos.h_m + d.z),
@@ -417,6 +460,7 @@ impl GnssSim<'_> {
             error_ned: real.pos_error_ned,
             outlier: false,
             in_outage,
+            heading,
         }
     }
 }

@@ -305,6 +305,8 @@ pub enum RigRecord {
     Gnss(Box<GnssFix>),
     /// A time-marked edge and the receiver's GPS time of it.
     Mark(GpsTime),
+    /// A dual-antenna heading, sent right after its epoch's fix.
+    Heading(navsync::io::heading::HeadingObs),
 }
 
 #[derive(Debug)]

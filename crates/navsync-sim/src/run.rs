@@ -39,12 +39,13 @@ use navsync::earth::{Geodetic, LocalEarth};
 use navsync::error::{Diagnostics, Error};
 use navsync::filter::gnss::GnssFix;
 use navsync::ins::{ImuErrors, ImuSample, NavState};
+use navsync::io::heading::{HEADING_FILE_HEADER, HeadingObs, heading_line};
 use navsync::io::kfgins::{
     GnssLayout, GnssReader, NavReader, format_gnss_line, format_imu_err_line, format_imu_line,
     format_nav_line,
 };
 use navsync::io::riglog::{
-    ImuKind, ImuTiming, RateSampling, RigGnss, RigHeader, write as rig_write,
+    ImuKind, ImuTiming, RateSampling, RigGnss, RigHeader, RigHeading, write as rig_write,
 };
 use navsync::io::text::{plain_number, push_u64};
 use navsync::time::GpsTime;
@@ -309,7 +310,7 @@ impl Simulation {
         let mut pending = PendingRecords::default();
 
         let record_kind = rig.imu_record.unwrap_or(imu_spec.output);
-        let files = Files::create(dir, scn.output.rig_log)?;
+        let files = Files::create(dir, scn.output.rig_log, gnss_spec.dual_antenna.is_some())?;
         let rig_log = scn.output.rig_log;
         let (tx, rx) = sync_channel::<Vec<Out>>(4);
         let writer = std::thread::Builder::new()
@@ -477,6 +478,11 @@ impl Simulation {
                 latency = [latency[0].min(l), latency[1].max(l), latency[2] + l];
                 report.gnss_messages += 1;
                 pending.push(latch, RigRecord::Gnss(Box::new(ep.fix)));
+                // The heading of the same epoch: the next message, latched
+                // with it (equal counters keep their order).
+                if let Some(h) = ep.heading {
+                    pending.push(latch, RigRecord::Heading(h));
+                }
             }
             if let Some(src) = &mut pps {
                 while src.peek_s().is_some_and(|t| t <= t_k + lookahead_s) {
@@ -847,6 +853,9 @@ fn gnss_epoch(ep: &GnssEpoch, sink: &mut Sink, report: &mut SimReport) {
     }
     report.gnss_fixes += 1;
     sink.push(Out::Gnss { fix: ep.fix });
+    if let Some(obs) = ep.heading {
+        sink.push(Out::Heading { obs });
+    }
 }
 
 fn flush_pending(
@@ -864,6 +873,7 @@ fn flush_pending(
                 fix: *fix,
             },
             RigRecord::Mark(time) => Out::RigMark { counter: c, time },
+            RigRecord::Heading(obs) => Out::RigHeading { counter: c, obs },
         });
     }
 }
@@ -901,6 +911,15 @@ enum Out {
     RigGnss {
         counter: u64,
         fix: GnssFix,
+    },
+    /// A dual-antenna heading: `heading.txt` …
+    Heading {
+        obs: HeadingObs,
+    },
+    /// … and its rig-log record.
+    RigHeading {
+        counter: u64,
+        obs: HeadingObs,
     },
     RigImu {
         counter: u64,
@@ -994,10 +1013,11 @@ struct Files {
     imu_err: Chunked,
     rig: Option<Chunked>,
     times: Option<Chunked>,
+    heading: Option<Chunked>,
 }
 
 impl Files {
-    fn create(dir: &Path, rig_log: bool) -> Result<Self, Error> {
+    fn create(dir: &Path, rig_log: bool, headings: bool) -> Result<Self, Error> {
         let w = |n: &str| Chunked::create(dir.join(n));
         Ok(Files {
             imu: w("imu.txt")?,
@@ -1008,6 +1028,13 @@ impl Files {
             rig: if rig_log { Some(w("rig.csv")?) } else { None },
             times: if rig_log {
                 Some(w("imu_times_truth.txt")?)
+            } else {
+                None
+            },
+            heading: if headings {
+                let mut c = w("heading.txt")?;
+                c.buf.extend_from_slice(HEADING_FILE_HEADER.as_bytes());
+                Some(c)
             } else {
                 None
             },
@@ -1053,6 +1080,27 @@ fn write_files(rx: Receiver<Vec<Out>>, mut f: Files) -> Result<Vec<String>, Erro
                 Out::RigHeader(h) => {
                     if let Some(r) = &mut f.rig {
                         r.buf.extend_from_slice(h.as_bytes());
+                    }
+                }
+                Out::Heading { obs } => {
+                    if let Some(h) = &mut f.heading {
+                        h.buf.extend_from_slice(heading_line(&obs).as_bytes());
+                        h.done_line()?;
+                    }
+                }
+                Out::RigHeading { counter, obs } => {
+                    if let Some(r) = &mut f.rig {
+                        rig_write::heading(
+                            &mut r.buf,
+                            &RigHeading {
+                                counter,
+                                time: obs.time,
+                                heading_deg: obs.heading_rad.to_degrees().rem_euclid(360.0),
+                                sd_deg: obs.sd_rad.to_degrees(),
+                                source: obs.source,
+                            },
+                        );
+                        r.done_line()?;
                     }
                 }
                 Out::RigPps { counter } => {
@@ -1116,6 +1164,7 @@ fn write_files(rx: Receiver<Vec<Out>>, mut f: Files) -> Result<Vec<String>, Erro
     let mut all = vec![f.imu, f.truth, f.gnss, f.gnss_posvel, f.imu_err];
     all.extend(f.rig);
     all.extend(f.times);
+    all.extend(f.heading);
     for mut c in all {
         c.flush()?;
         c.file.flush().map_err(|e| Error::io(&c.path, e))?;

@@ -109,6 +109,12 @@ pub struct Args {
     /// Point the KF-GINS configuration at the 13-column GNSS file.
     #[arg(long)]
     pub gnss_velocity: bool,
+    /// A dual-antenna receiver: the baseline's yaw in the body frame (deg,
+    /// from forward towards right) and the heading noise σ (deg), e.g.
+    /// "30,0.2". A heading comes with every fix: heading.txt, and
+    /// `heading` records in rig.csv.
+    #[arg(long, value_name = "YAW_DEG,SD_DEG", allow_hyphen_values = true)]
+    pub dual_antenna: Option<String>,
     /// GNSS outages "start:len,start:len" (s after the start).
     #[arg(long)]
     pub outages: Option<String>,
@@ -270,6 +276,24 @@ pub fn scenario_from_args(a: &Args) -> Result<Scenario> {
     if a.gnss_velocity {
         set("gnss.velocity", json!(true))?;
     }
+    if let Some(d) = &a.dual_antenna {
+        let v: Vec<f64> = d
+            .split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| anyhow::anyhow!("--dual-antenna {d:?}: {e}"))?;
+        let [yaw, sd] = v[..] else {
+            anyhow::bail!("--dual-antenna {d:?}: expected YAW_DEG,SD_DEG");
+        };
+        anyhow::ensure!(
+            yaw.is_finite() && yaw.abs() <= 360.0 && sd > 0.0 && sd <= 30.0,
+            "--dual-antenna {d:?}: the yaw within ±360° and the σ within (0, 30]°"
+        );
+        set(
+            "gnss.dual_antenna",
+            json!({"mount_yaw_deg": yaw, "sd_deg": sd}),
+        )?;
+    }
     if let Some(o) = &a.outages {
         set("gnss.outages", windows(o, "--outages")?)?;
     }
@@ -412,6 +436,7 @@ fn bench(args: &Args) -> Result<()> {
         gnss_rate: args.gnss_rate,
         gnss_mode: args.gnss_mode,
         gnss_velocity: args.gnss_velocity,
+        dual_antenna: args.dual_antenna.clone(),
         outages: args.outages.clone(),
         pps_dropout: args.pps_dropout.clone(),
         counter_ppm: args.counter_ppm,

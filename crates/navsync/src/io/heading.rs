@@ -173,20 +173,27 @@ pub fn read_headings(
 /// Writes headings in the heading-file format (`sow heading_deg sd_deg
 /// source`).
 pub fn write_headings(path: &Path, obs: &[HeadingObs]) -> Result<(), Error> {
-    use std::fmt::Write as _;
-    let mut s =
-        String::from("# navsync heading file: sow heading_deg sd_deg source (baseline|vehicle)\n");
+    let mut s = String::from(HEADING_FILE_HEADER);
     for o in obs {
-        let _ = writeln!(
-            s,
-            "{:.3} {:.5} {:.5} {}",
-            o.time.sow(),
-            o.heading_rad.to_degrees().rem_euclid(360.0),
-            o.sd_rad.to_degrees(),
-            o.source.word()
-        );
+        s.push_str(&heading_line(o));
     }
     std::fs::write(path, s).map_err(|e| Error::io(path, e))
+}
+
+/// The first line of a heading file navsync writes.
+pub const HEADING_FILE_HEADER: &str =
+    "# navsync heading file: sow heading_deg sd_deg source (baseline|vehicle)\n";
+
+/// One line of a heading file: seconds of week to the millisecond,
+/// heading and σ to 1e-5°, the source word.
+pub fn heading_line(o: &HeadingObs) -> String {
+    format!(
+        "{:.3} {:.5} {:.5} {}\n",
+        o.time.sow(),
+        o.heading_rad.to_degrees().rem_euclid(360.0),
+        o.sd_rad.to_degrees(),
+        o.source.word()
+    )
 }
 
 #[cfg(test)]

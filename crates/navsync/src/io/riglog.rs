@@ -279,7 +279,8 @@ pub mod write {
     }
 
     /// `heading,<counter_rx>,<week>,<tow_s>,<heading_deg>,<sd_deg>,<source>`:
-    /// the time of validity to the nanosecond, heading and σ to 1e-6°.
+    /// the time of validity to the nanosecond, heading and σ in their
+    /// shortest round-trip form (no bit lost).
     pub fn heading(buf: &mut Vec<u8>, h: &RigHeading) {
         buf.extend_from_slice(b"heading,");
         push_u64(buf, h.counter);
@@ -289,7 +290,7 @@ pub mod write {
         h.time.write_sow(buf);
         for v in [h.heading_deg, h.sd_deg] {
             buf.push(b',');
-            push_fixed(buf, v, 6);
+            push_f64(buf, v);
         }
         buf.push(b',');
         buf.extend_from_slice(h.source.word().as_bytes());
