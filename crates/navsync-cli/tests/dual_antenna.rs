@@ -12,11 +12,17 @@ const NOISE_SD_DEG: f64 = 0.2;
 const MOUNT_YAW_DEG: f64 = 30.0;
 
 fn simulate(dir: &Path, scenario: &str, duration_s: &str) -> PathBuf {
+    simulate_with(dir, scenario, duration_s, &[])
+}
+
+/// [`simulate`] with more `simulate` options.
+fn simulate_with(dir: &Path, scenario: &str, duration_s: &str, extra: &[&str]) -> PathBuf {
     let sim = dir.join("sim");
     let (ok, _, err) = run(bin()
         .args(["simulate", "--quiet", "--internal-rate", "0", "--scenario"])
         .arg(scenario)
         .args(["--duration", duration_s, "--imu-grade", "adis16465"])
+        .args(extra)
         .args(["--seed", "3", "--output"])
         .arg(&sim));
     assert!(ok, "{err}");
@@ -327,31 +333,8 @@ fn process_takes_heading_records_from_a_rig_log() {
 #[test]
 fn simulated_dual_antenna_headings_follow_the_truth() {
     let d = temp_dir("dual-sim");
-    let sim = d.join("sim");
-    let (ok, _, err) = run(bin()
-        .args([
-            "simulate",
-            "--quiet",
-            "--internal-rate",
-            "0",
-            "--scenario",
-            "static",
-        ])
-        .args([
-            "--duration",
-            "30",
-            "--imu-grade",
-            "adis16465",
-            "--seed",
-            "3",
-        ])
-        .args([
-            "--dual-antenna",
-            &format!("{MOUNT_YAW_DEG},{NOISE_SD_DEG}"),
-            "--output",
-        ])
-        .arg(&sim));
-    assert!(ok, "{err}");
+    let mount = format!("{MOUNT_YAW_DEG},{NOISE_SD_DEG}");
+    let sim = simulate_with(&d, "static", "30", &["--dual-antenna", &mount]);
     let rows = |p: &Path| -> Vec<Vec<f64>> {
         std::fs::read_to_string(p)
             .unwrap()
