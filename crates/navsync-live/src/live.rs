@@ -1296,13 +1296,7 @@ fn engine_loop(
             Ok(Input::Heading(h, received_ns)) => {
                 // Recorded on its GPS time (`sync` passes it through to
                 // heading.txt); the filter takes it from here.
-                core.record(RigRecord::Heading(RigHeading {
-                    counter: received_ns,
-                    time: h.time,
-                    heading_deg: h.heading_rad.to_degrees().rem_euclid(360.0),
-                    sd_deg: h.sd_rad.to_degrees(),
-                    source: h.source,
-                }));
+                core.record(RigRecord::Heading(RigHeading::from_obs(received_ns, &h)));
                 core.heading(h, sink);
             }
             Ok(Input::GnssRaw(bytes)) => {

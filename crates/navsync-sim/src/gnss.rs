@@ -16,6 +16,7 @@ use super::rng::{self, SimRng};
 use super::truth::{TruthGenerator, TruthPoint};
 use navsync::earth::{Geodetic, LocalEarth};
 use navsync::filter::gnss::GnssFix;
+use navsync::filter::heading::baseline_azimuth;
 use navsync::io::heading::{HeadingObs, HeadingSource};
 use navsync::time::GpsTime;
 
@@ -314,15 +315,14 @@ impl<'a> GnssSim<'a> {
         (pos, vel)
     }
 
-    /// The baseline's measured azimuth at `t` from the truth attitude: the
-    /// direction of C_b^n (cos α, sin α, 0) in the horizontal plane
-    /// (Groves §10.2.5), plus the spec's white noise (own stream: the
-    /// other streams are those of a run without it).
+    /// The baseline's measured azimuth at `t`: the filter's model of it
+    /// ([`baseline_azimuth`], Groves §10.2.5) at the truth attitude, plus
+    /// the spec's white noise (own stream: the other streams are those of
+    /// a run without it).
     fn heading_at(&mut self, t: GpsTime, p: &TruthPoint) -> Option<HeadingObs> {
         let d = self.spec.dual_antenna?;
-        let a = d.mount_yaw_deg.to_radians();
-        let u = p.kin.c_nb * Vector3::new(a.cos(), a.sin(), 0.0);
-        let az = u.y.atan2(u.x) + d.sd_deg.to_radians() * rng::normal(&mut self.heading_rng);
+        let (truth_az, _) = baseline_azimuth(&p.nav, d.mount_yaw_deg.to_radians());
+        let az = truth_az + d.sd_deg.to_radians() * rng::normal(&mut self.heading_rng);
         Some(HeadingObs {
             time: t.add_seconds(self.spec.time_offset_s),
             heading_rad: az.rem_euclid(std::f64::consts::TAU),

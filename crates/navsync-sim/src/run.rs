@@ -1090,16 +1090,7 @@ fn write_files(rx: Receiver<Vec<Out>>, mut f: Files) -> Result<Vec<String>, Erro
                 }
                 Out::RigHeading { counter, obs } => {
                     if let Some(r) = &mut f.rig {
-                        rig_write::heading(
-                            &mut r.buf,
-                            &RigHeading {
-                                counter,
-                                time: obs.time,
-                                heading_deg: obs.heading_rad.to_degrees().rem_euclid(360.0),
-                                sd_deg: obs.sd_rad.to_degrees(),
-                                source: obs.source,
-                            },
-                        );
+                        rig_write::heading(&mut r.buf, &RigHeading::from_obs(counter, &obs));
                         r.done_line()?;
                     }
                 }

@@ -118,6 +118,17 @@ pub struct RigHeading {
 }
 
 impl RigHeading {
+    /// The record of a measurement received at `counter`.
+    pub fn from_obs(counter: u64, obs: &HeadingObs) -> Self {
+        RigHeading {
+            counter,
+            time: obs.time,
+            heading_deg: obs.heading_rad.to_degrees().rem_euclid(360.0),
+            sd_deg: obs.sd_rad.to_degrees(),
+            source: obs.source,
+        }
+    }
+
     /// The heading as a measurement.
     pub fn obs(&self) -> HeadingObs {
         HeadingObs {
