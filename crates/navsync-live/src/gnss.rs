@@ -26,7 +26,7 @@ use std::collections::BTreeSet;
 use navsync::filter::gnss::GnssFix;
 use navsync::io::heading::HeadingObs;
 use navsync::time::GpsTime;
-use navsync_receivers::convert::{hdt_heading, heading_problem, relposned_heading};
+use navsync_receivers::convert::{hdt_heading, relposned_heading};
 use navsync_receivers::fixes::{FixOptions, NmeaFixes, NmeaOutcome, TimeContext, nav_pvt_fix};
 use navsync_receivers::imu::{EsfImu, RateSample};
 use navsync_receivers::stream::{EventKind, StreamReader};
@@ -120,13 +120,10 @@ impl GnssDecoder {
         }
     }
 
-    /// The σ of HDT headings (deg), checked as `convert --hdt-sd`.
-    pub(crate) fn set_hdt_sd_deg(&mut self, sd_deg: f64) -> Result<(), String> {
-        if let Some(why) = heading_problem(sd_deg) {
-            return Err(format!("HDT heading σ: {why}"));
-        }
+    /// The σ of HDT headings (deg), checked by the caller with
+    /// [`navsync_receivers::convert::heading_problem`] (as `convert --hdt-sd`).
+    pub(crate) fn set_hdt_sd_deg(&mut self, sd_deg: f64) {
         self.hdt_sd_deg = sd_deg;
-        Ok(())
     }
 
     /// A heading not used: noted the first time for its reason.

@@ -562,7 +562,7 @@ fn spawn_gnss(
         .spawn(move || {
             let mut d = GnssDecoder::default();
             // Checked by `run` before the thread starts.
-            let _ = d.set_hdt_sd_deg(hdt_sd_deg);
+            d.set_hdt_sd_deg(hdt_sd_deg);
             if let Some(tick) = esf {
                 d.enable_esf(tick);
             }
@@ -1145,9 +1145,9 @@ pub fn run(cfg: LiveConfig, stop: &AtomicBool, sink: &mut dyn LiveSink) -> io::R
     }
     crate::serial::check_baud(cfg.gnss.baud)
         .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, format!("--gnss-baud: {e}")))?;
-    GnssDecoder::default()
-        .set_hdt_sd_deg(cfg.hdt_sd_deg)
-        .map_err(|e| bad(format!("--hdt-sd: {e}")))?;
+    if let Some(why) = navsync_receivers::convert::heading_problem(cfg.hdt_sd_deg) {
+        return Err(bad(format!("--hdt-sd: HDT heading σ: {why}")));
+    }
     if !(cfg.imu_rate_hz.is_finite() && cfg.imu_rate_hz > 0.0) {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
