@@ -935,7 +935,7 @@ pub fn relposned_heading(
 /// or above [`MAX_HEADING_SD_DEG`] (receivers send 180° without one).
 /// Also the check of a σ given for headings that carry none (`hdt_sd_deg`).
 pub fn heading_problem(sd_deg: f64) -> Option<String> {
-    (!(sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG))
+    (!navsync::io::heading::usable_sd(sd_deg))
         .then(|| format!("heading accuracy {sd_deg:.2}° outside (0, {MAX_HEADING_SD_DEG}]°"))
 }
 

@@ -456,7 +456,7 @@ impl SensorSheet {
                 format!("must be within 0…30°, got {}", self.dual_antenna_yaw_sd_deg),
             );
         }
-        if !(self.hdt_sd_deg > 0.0 && self.hdt_sd_deg <= crate::io::heading::MAX_HEADING_SD_DEG) {
+        if !crate::io::heading::usable_sd(self.hdt_sd_deg) {
             return bad(
                 "hdt_sd_deg",
                 format!(

@@ -54,10 +54,15 @@ impl HeadingSource {
     }
 }
 
-/// Why a heading σ (deg) is unusable, if it is: not within
-/// (0, [`MAX_HEADING_SD_DEG`]].
+/// Whether a heading σ (deg) carries information: within
+/// (0, [`MAX_HEADING_SD_DEG`]] (so not NaN).
+pub fn usable_sd(sd_deg: f64) -> bool {
+    sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG
+}
+
+/// Why a heading σ (deg) is unusable, if it is: not [`usable_sd`].
 pub fn sd_problem(sd_deg: f64) -> Option<String> {
-    (!(sd_deg > 0.0 && sd_deg <= MAX_HEADING_SD_DEG)).then(|| {
+    (!usable_sd(sd_deg)).then(|| {
         format!("heading σ {sd_deg}° is outside (0, {MAX_HEADING_SD_DEG}]°: no usable heading")
     })
 }
