@@ -13,6 +13,41 @@ use navsync::pipeline::{self, FuseOptions, KfGinsSink, NhcSettings, OutageSchedu
 
 use super::{parse_triplet, print_diagnostics};
 
+/// How a dual-antenna baseline sits in the body: `fuse --heading FILE`
+/// and `live --heading` (both need `--heading`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct DualAntennaArgs {
+    /// Yaw of the dual-antenna baseline (primary → secondary antenna) in
+    /// the body frame, from x towards y (deg; 0: along body x).
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        requires = "heading",
+        allow_hyphen_values = true
+    )]
+    pub dual_antenna_yaw: f64,
+    /// σ of that mounting yaw (deg), added to the receiver's heading σ.
+    #[arg(long, default_value_t = 0.5, requires = "heading")]
+    pub dual_antenna_yaw_sd: f64,
+}
+
+impl DualAntennaArgs {
+    /// The filter's heading-update settings, checked as the pipeline
+    /// checks a heading file's (finite yaw, σ not negative).
+    pub fn fusion_options(&self) -> Result<navsync::fusion::HeadingOptions> {
+        let (yaw, sd) = (self.dual_antenna_yaw, self.dual_antenna_yaw_sd);
+        anyhow::ensure!(
+            yaw.is_finite() && sd.is_finite() && sd >= 0.0,
+            "--dual-antenna-yaw {yaw}° must be finite and --dual-antenna-yaw-sd {sd}° not negative"
+        );
+        Ok(navsync::fusion::HeadingOptions {
+            dual_antenna_yaw_rad: yaw.to_radians(),
+            dual_antenna_yaw_sd_rad: sd.to_radians(),
+            aligned_from_baseline: false,
+        })
+    }
+}
+
 #[derive(clap::Args)]
 pub struct Args {
     /// KF-GINS YAML configuration (read unchanged).
@@ -70,18 +105,8 @@ pub struct Args {
     /// dual-antenna heading aligns at a standstill, without motion.
     #[arg(long)]
     pub heading: Option<PathBuf>,
-    /// Yaw of the dual-antenna baseline (primary → secondary antenna) in
-    /// the body frame, from x towards y (deg; 0: along body x).
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        requires = "heading",
-        allow_hyphen_values = true
-    )]
-    pub dual_antenna_yaw: f64,
-    /// σ of that mounting yaw (deg), added to the receiver's heading σ.
-    #[arg(long, default_value_t = 0.5, requires = "heading")]
-    pub dual_antenna_yaw_sd: f64,
+    #[command(flatten)]
+    pub dual_antenna: DualAntennaArgs,
     /// Detect standstills (IMU quiet and the solution slower than 0.5 m/s)
     /// and apply zero-velocity and zero-angular-rate updates while stopped:
     /// keeps heading and biases alive at traffic lights.
@@ -429,8 +454,8 @@ impl Args {
             }),
             heading: self.heading.clone().map(|path| pipeline::HeadingOptions {
                 path,
-                dual_antenna_yaw_deg: self.dual_antenna_yaw,
-                dual_antenna_yaw_sd_deg: self.dual_antenna_yaw_sd,
+                dual_antenna_yaw_deg: self.dual_antenna.dual_antenna_yaw,
+                dual_antenna_yaw_sd_deg: self.dual_antenna.dual_antenna_yaw_sd,
             }),
             standstill: self
                 .zupt

@@ -102,18 +102,8 @@ pub struct Args {
     /// σ above 90°, the first heading also gives the initial yaw.
     #[arg(long)]
     pub heading: bool,
-    /// Yaw of the antenna baseline (primary → secondary) in the body
-    /// frame (deg, from forward towards right).
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        requires = "heading",
-        allow_hyphen_values = true
-    )]
-    pub dual_antenna_yaw: f64,
-    /// σ of that mounting yaw (deg).
-    #[arg(long, default_value_t = 0.5, requires = "heading")]
-    pub dual_antenna_yaw_sd: f64,
+    #[command(flatten)]
+    pub dual_antenna: super::fuse::DualAntennaArgs,
     /// σ of NMEA HDT headings (deg; HDT carries none), as `convert --hdt-sd`.
     #[arg(long, default_value_t = 0.5, requires = "heading")]
     pub hdt_sd: f64,
@@ -253,16 +243,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let mut fusion = fusion_config(&kf, &FuseOptions::default());
     if args.heading {
-        let (yaw, sd) = (args.dual_antenna_yaw, args.dual_antenna_yaw_sd);
-        anyhow::ensure!(
-            yaw.is_finite() && sd.is_finite() && sd >= 0.0,
-            "--dual-antenna-yaw {yaw}° must be finite and --dual-antenna-yaw-sd {sd}° not negative"
-        );
-        fusion.heading = Some(navsync::fusion::HeadingOptions {
-            dual_antenna_yaw_rad: yaw.to_radians(),
-            dual_antenna_yaw_sd_rad: sd.to_radians(),
-            aligned_from_baseline: false,
-        });
+        fusion.heading = Some(args.dual_antenna.fusion_options()?);
     }
     let pps = match &args.pps {
         Some(p) => PpsInput::Kernel(p.clone()),
