@@ -823,6 +823,34 @@ fn torn_line(line: &[u8], no: usize, path: &Path, diag: &mut Diagnostics) {
     );
 }
 
+/// `N` numbers from fields `from..from + N` (0-based; reported 1-based);
+/// the first that does not parse is reported and gives `None`.
+#[inline]
+fn number_fields<const N: usize>(
+    f: &[&[u8]],
+    from: usize,
+    parse: impl Fn(&[u8]) -> Result<f64, String>,
+    no: usize,
+    path: &Path,
+    diag: &mut Diagnostics,
+) -> Option<[f64; N]> {
+    let mut v = [0.0; N];
+    for (k, x) in v.iter_mut().enumerate() {
+        match parse(f[from + k]) {
+            Ok(n) => *x = n,
+            Err(e) => {
+                diag.push(
+                    path,
+                    no,
+                    format!("field {}: {e}; line skipped", from + k + 1),
+                );
+                return None;
+            }
+        }
+    }
+    Some(v)
+}
+
 /// Parses one record line; reports and returns `None` when it is bad.
 fn parse_record(
     line: &[u8],
@@ -848,16 +876,7 @@ fn parse_record(
                 return None;
             }
             let counter = counter_field(f[1], counter_max, no, path, diag)?;
-            let mut values = [0.0; 6];
-            for k in 0..6 {
-                match parse_number(f[2 + k]) {
-                    Ok(v) => values[k] = v,
-                    Err(e) => {
-                        diag.push(path, no, format!("field {}: {e}; line skipped", k + 3));
-                        return None;
-                    }
-                }
-            }
+            let values = number_fields::<6>(&f, 2, parse_number, no, path, diag)?;
             Some(RigRecord::Imu { counter, values })
         }
         b"pps" => {
@@ -879,16 +898,7 @@ fn parse_record(
             }
             let counter = counter_field(f[1], counter_max, no, path, diag)?;
             let time = gps_time_fields(f[2], f[3], no, path, diag)?;
-            let mut v = [0.0; 6];
-            for k in 0..6 {
-                match parse_f64(f[4 + k]) {
-                    Ok(x) => v[k] = x,
-                    Err(e) => {
-                        diag.push(path, no, format!("field {}: {e}; line skipped", k + 5));
-                        return None;
-                    }
-                }
-            }
+            let v = number_fields::<6>(&f, 4, parse_f64, no, path, diag)?;
             if !(-90.0..=90.0).contains(&v[0]) || !(-180.0..=360.0).contains(&v[1]) {
                 diag.push(path, no, "latitude or longitude out of range; line skipped");
                 return None;
@@ -921,17 +931,7 @@ fn parse_record(
             }
             let counter = counter_field(f[1], counter_max, no, path, diag)?;
             let time = gps_time_fields(f[2], f[3], no, path, diag)?;
-            let mut v = [0.0; 2];
-            for k in 0..2 {
-                match parse_f64(f[4 + k]) {
-                    Ok(x) => v[k] = x,
-                    Err(e) => {
-                        diag.push(path, no, format!("field {}: {e}; line skipped", k + 5));
-                        return None;
-                    }
-                }
-            }
-            let [heading_deg, sd_deg] = v;
+            let [heading_deg, sd_deg] = number_fields::<2>(&f, 4, parse_f64, no, path, diag)?;
             if !(heading_deg.is_finite() && (0.0..360.0).contains(&heading_deg)) {
                 diag.push(
                     path,
