@@ -12,10 +12,12 @@ use super::{parse_triplet, print_diagnostics};
 #[derive(Copy, Clone, Debug, clap::ValueEnum)]
 pub enum From {
     /// u-blox stream: UBX (NAV-PVT, or NAV-SOL/POSLLH/HPPOSLLH/VELNED/STATUS
-    /// epochs; NAV-TIMEGPS, TIM-TP, TIM-TM2, ESF-MEAS, ESF-RAW), possibly
-    /// mixed with NMEA and RTCM3 (skipped); gpsd `#` header lines skipped.
+    /// epochs; NAV-RELPOSNED headings; NAV-TIMEGPS, TIM-TP, TIM-TM2,
+    /// ESF-MEAS, ESF-RAW), possibly mixed with NMEA and RTCM3 (skipped);
+    /// gpsd `#` header lines skipped.
     Ubx,
-    /// NMEA 0183 stream (GGA, RMC, GST, ZDA), possibly mixed with UBX.
+    /// NMEA 0183 stream (GGA, RMC, GST, ZDA; HDT headings), possibly mixed
+    /// with UBX.
     Nmea,
     /// Rate-form IMU CSV: time s, gyro x y z rad/s, accel x y z m/s².
     RateCsv,
