@@ -20,7 +20,7 @@ use crate::earth::{Geodetic, LocalEarth};
 use crate::error::{Diagnostics, Error};
 use crate::io::kfgins::{NavReader, NavRecord};
 use crate::stats::Moments;
-use crate::time::{GpsTime, OutageWindow};
+use crate::time::{GpsTime, NS_PER_WEEK, OutageWindow};
 
 /// RMS, maximum absolute value and mean of one error component.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
@@ -343,12 +343,18 @@ pub fn parse_outages(text: &str, week: i64) -> Result<Vec<OutageWindow>, Error> 
 
 /// Streams a truth file and interpolates it at increasing epochs. Records
 /// are matched by seconds of week when either file has week 0 (KF-GINS
-/// writes week 0).
+/// writes week 0), and then across a week rollover too: each side counts
+/// time from the start of its first week, the two starts placed in the
+/// same week.
 pub(crate) struct TruthStream {
     reader: NavReader,
     prev: Option<TruthState>,
     next: Option<TruthState>,
     week: Option<i64>,
+    /// By seconds of week: the start (ns) of the truth's first week, and
+    /// of the week of the first epoch asked for, aligned with it.
+    truth_week_start_ns: i64,
+    query_week_start_ns: Option<i64>,
     /// Largest truth gap bridged by interpolation (s).
     pub(crate) max_gap_s: f64,
 }
@@ -360,6 +366,8 @@ impl TruthStream {
             prev: None,
             next: None,
             week: None,
+            truth_week_start_ns: 0,
+            query_week_start_ns: None,
             max_gap_s: 1.0,
         })
     }
@@ -368,9 +376,33 @@ impl TruthStream {
         Ok(self.reader.next_record(diag)?.map(|r| {
             if self.week.is_none() {
                 self.week = Some(r.week);
+                self.truth_week_start_ns = GpsTime::from_week_ns(r.time.week(), 0).ns();
             }
             TruthState::from(&r)
         }))
+    }
+
+    /// Where `t` falls on the truth's time line when matching by seconds
+    /// of week: its time since the start of the first asked-for week,
+    /// that week taken as the truth's first week, or the one after or
+    /// before when the two first epochs are more than half a week apart
+    /// (one side starts after a rollover the other crosses).
+    fn query_key_ns(&mut self, t: GpsTime, truth_first: Option<GpsTime>) -> i64 {
+        let start = *self.query_week_start_ns.get_or_insert_with(|| {
+            let own = GpsTime::from_week_ns(t.week(), 0).ns();
+            let Some(first) = truth_first else {
+                return own;
+            };
+            let lead = t.ns_of_week() - first.ns_of_week();
+            if lead > NS_PER_WEEK / 2 {
+                own + NS_PER_WEEK
+            } else if lead < -NS_PER_WEEK / 2 {
+                own - NS_PER_WEEK
+            } else {
+                own
+            }
+        });
+        t.ns() - start
     }
 
     /// The truth at `t`, or `None` when `t` is outside the truth's span or
@@ -381,7 +413,16 @@ impl TruthStream {
         by_sow: bool,
         diag: &mut Diagnostics,
     ) -> Result<Option<TruthState>, Error> {
-        let key = |x: GpsTime| if by_sow { x.ns_of_week() } else { x.ns() };
+        if self.next.is_none() && self.prev.is_none() {
+            self.next = self.fetch(diag)?;
+        }
+        let (truth_start, query) = if by_sow {
+            let first = self.prev.or(self.next).map(|s| s.time);
+            (self.truth_week_start_ns, self.query_key_ns(t, first))
+        } else {
+            (0, t.ns())
+        };
+        let key = |x: GpsTime| x.ns() - truth_start;
         if self.next.is_none() {
             self.next = self.fetch(diag)?;
         }
@@ -389,14 +430,14 @@ impl TruthStream {
             let Some(n) = self.next else {
                 return Ok(None);
             };
-            if key(n.time) >= key(t) {
+            if key(n.time) >= query {
                 break;
             }
             self.prev = Some(n);
             self.next = self.fetch(diag)?;
         }
         let n = self.next.expect("checked");
-        if key(n.time) == key(t) {
+        if key(n.time) == query {
             return Ok(Some(TruthState { time: t, ..n }));
         }
         let Some(p) = self.prev else {
@@ -410,7 +451,7 @@ impl TruthStream {
         let mut s = interpolate(
             &TruthState { time: pk, ..p },
             &TruthState { time: nk, ..n },
-            GpsTime::from_ns(key(t)),
+            GpsTime::from_ns(query),
         );
         s.time = t;
         Ok(Some(s))
@@ -486,26 +527,23 @@ pub fn eval_files_with(
             // Match by seconds of week when either side has no week.
             let truth_week = truth.week(diag)?;
             by_sow = rec.week == 0 || truth_week == Some(0);
-            let week = rec.week;
-            // Outage windows are given in sow; place them in the matching week.
+            // Outage windows are given in sow: place each in the solution's
+            // first week, or the next when it starts more than half a week
+            // before the first epoch (after a rollover).
+            let first_week = rec.time.week();
+            let first_ns = rec.time.ns_of_week();
             let o: Vec<OutageWindow> = outages
                 .iter()
                 .map(|w| {
-                    OutageWindow::new(
-                        GpsTime::from_week_ns(if by_sow { 0 } else { week }, w.start.ns_of_week()),
-                        w.duration_s,
-                    )
+                    let ns = w.start.ns_of_week();
+                    let week = first_week + i64::from(ns + NS_PER_WEEK / 2 < first_ns);
+                    OutageWindow::new(GpsTime::from_week_ns(week, ns), w.duration_s)
                 })
                 .collect();
             ev = Some(Evaluator::new(&o));
         }
         let e = ev.as_mut().expect("set on first record");
-        let t = if by_sow {
-            GpsTime::from_ns(rec.time.ns_of_week())
-        } else {
-            rec.time
-        };
-        match truth.at(t, by_sow, diag)? {
+        match truth.at(rec.time, by_sow, diag)? {
             Some(ts) => {
                 let pos = Geodetic::from_deg(rec.lat_deg, rec.lon_deg, rec.h_m);
                 let att = Euler::from_deg(rec.att_deg[0], rec.att_deg[1], rec.att_deg[2]);
@@ -613,5 +651,95 @@ mod tests {
         assert_eq!(o[0].duration_s, 60.0);
         assert!(parse_outages("100120", 0).is_err());
         assert!(parse_outages("1:-5", 0).is_err());
+    }
+
+    /// Writes an 11-column nav file: `(week, sow, east offset m)` per line,
+    /// on a meridian at 30° N moving east.
+    fn write_nav(path: &Path, rows: &[(i64, f64, f64)]) {
+        let mut text = String::new();
+        for (week, sow, east_m) in rows {
+            let lon = 114.0 + east_m / 96_486.0;
+            text.push_str(&format!(
+                "{week} {sow:.3} 30.0 {lon:.12} 20.0 0 1 0 0 0 90\n"
+            ));
+        }
+        std::fs::write(path, text).unwrap();
+    }
+
+    #[test]
+    fn a_drive_across_the_week_rollover_is_scored_whole() {
+        let dir =
+            std::env::temp_dir().join(format!("navsync-eval-rollover-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // 1 Hz from 604790 s of week 2300 to 10 s into week 2301.
+        let secs: Vec<f64> = (0..=20).map(|k| 604_790.0 + k as f64).collect();
+        let sow = |t: f64| if t >= 604_800.0 { t - 604_800.0 } else { t };
+        let truth = dir.join("truth.nav");
+        let with_weeks: Vec<_> = secs
+            .iter()
+            .map(|&t| {
+                (
+                    if t >= 604_800.0 { 2301 } else { 2300 },
+                    sow(t),
+                    t - 604_790.0,
+                )
+            })
+            .collect();
+        write_nav(&truth, &with_weeks);
+        // The solution as KF-GINS writes it: week 0, seconds of week wrapping;
+        // 1 m east of the truth from 604 805 s (5 s after the rollover).
+        let nav = dir.join("nav.nav");
+        let rows: Vec<_> = secs
+            .iter()
+            .map(|&t| {
+                (
+                    0,
+                    sow(t),
+                    t - 604_790.0 + if t >= 604_805.0 { 1.0 } else { 0.0 },
+                )
+            })
+            .collect();
+        write_nav(&nav, &rows);
+        let mut diag = Diagnostics::default();
+        let outage = parse_outages("5:3", 0).unwrap();
+        let r = eval_files(&truth, &nav, &outage, &mut diag).unwrap();
+        assert!(diag.is_empty(), "{diag:?}");
+        assert_eq!(r.epochs_compared, 21);
+        assert_eq!(r.epochs_without_truth, 0);
+        // Six epochs (604 805..=604 810) 1 m off.
+        assert!(
+            (r.pos_horizontal_m.max - 1.0).abs() < 1e-3,
+            "{:?}",
+            r.pos_horizontal_m
+        );
+        assert!((r.pos_horizontal_m.rms - (6.0f64 / 21.0).sqrt()).abs() < 1e-3);
+        // The window at 5 s of week is after the rollover, not 604 795 s
+        // before it: it sees the 1 m error.
+        assert_eq!(r.outages.len(), 1);
+        assert_eq!(r.outages[0].epochs, 4);
+        assert!((r.outages[0].max_horizontal_m - 1.0).abs() < 1e-3);
+
+        // The truth may start after the rollover the solution crosses.
+        write_nav(&truth, &with_weeks[12..]);
+        let r = eval_files(&truth, &nav, &[], &mut diag).unwrap();
+        assert_eq!(r.epochs_compared, 9);
+        assert_eq!(r.epochs_without_truth, 12);
+
+        // A time far back in mid-week is a bad line, not a new week: it is
+        // reported and the rest of the file is kept.
+        let mut bad = rows[..5].to_vec();
+        bad.push((0, 1000.0, 0.0));
+        bad.extend_from_slice(&rows[5..]);
+        write_nav(&nav, &bad);
+        let mut diag = Diagnostics::default();
+        let r = eval_files(&truth, &nav, &[], &mut diag).unwrap();
+        assert_eq!(r.epochs_compared, 9);
+        assert_eq!(diag.total, 1, "{diag:?}");
+        assert_eq!(diag.items[0].line, 6);
+        assert!(
+            diag.items[0].message.contains("time goes backwards"),
+            "{diag:?}"
+        );
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

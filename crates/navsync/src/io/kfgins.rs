@@ -298,7 +298,8 @@ impl GnssReader {
 pub struct NavRecord {
     /// Week as written in the file (0 when unknown, as KF-GINS writes).
     pub week: i64,
-    /// Time (week from the file, or the reader's week when the file has 0).
+    /// Time: in the file's week, or, when it has 0, in week 0 and then 1
+    /// after a rollover.
     pub time: GpsTime,
     /// Latitude (deg), positive north.
     pub lat_deg: f64,
@@ -312,12 +313,18 @@ pub struct NavRecord {
     pub att_deg: [f64; 3],
 }
 
+/// The longest step (s) a week-0 navigation file may take across a week
+/// rollover.
+const MAX_ROLLOVER_STEP_S: f64 = 600.0;
+
 /// Streams an 11-column navigation file (result or truth).
 pub struct NavReader {
     lines: LineReader<File>,
     path: std::path::PathBuf,
     last: Option<GpsTime>,
     count: usize,
+    /// Follows records of week 0 across a week rollover.
+    weeks: WeekTracker,
 }
 
 impl NavReader {
@@ -328,6 +335,7 @@ impl NavReader {
             path: path.to_path_buf(),
             last: None,
             count: 0,
+            weeks: WeekTracker::new(0),
         })
     }
 
@@ -336,8 +344,10 @@ impl NavReader {
         &self.path
     }
 
-    /// The next good record. Weeks of 0 are kept as 0 (time is then
-    /// seconds of week only); bad lines are reported and skipped.
+    /// The next good record; bad lines are reported and skipped. A record
+    /// of week 0 (KF-GINS writes no week) is timed in week 0, and in week
+    /// 1 after its seconds of week roll over (fall back by more than half
+    /// a week), so that a drive across the rollover keeps going forward.
     pub fn next_record(&mut self, diag: &mut Diagnostics) -> Result<Option<NavRecord>, Error> {
         loop {
             let mut f: [&[u8]; 12] = [b""; 12];
@@ -400,10 +410,26 @@ impl NavReader {
                 diag.push(&self.path, line_no, msg);
                 continue;
             }
-            let time = GpsTime::from_week_ns(week, ns);
+            let mut time = if week == 0 {
+                self.weeks.peek(ns)
+            } else {
+                GpsTime::from_week_ns(week, ns)
+            };
+            // A rollover is a step from the week's end to its start; a
+            // time far back in mid-week is a bad line, not a new week.
+            if let Some(last) = self.last
+                && time.week() > last.week()
+                && week == 0
+                && time.seconds_since(last) > MAX_ROLLOVER_STEP_S
+            {
+                time = GpsTime::from_week_ns(last.week(), ns);
+            }
             if let Some(why) = time_order_problem(self.last, time) {
                 diag.push(&self.path, line_no, format!("{why}; line skipped"));
                 continue;
+            }
+            if week == 0 {
+                self.weeks.resolve(ns);
             }
             self.last = Some(time);
             self.count += 1;
