@@ -309,19 +309,17 @@ impl Fusion {
             {
                 let entry = &mut self.headings_received[i];
                 entry.0 = given_order(s.time, false);
-                self.core.aid.heading.pending = Some(entry.1);
+                self.core.aid.heading.give(entry.1);
                 next += 1;
             }
             self.core.push_imu(s)?;
             self.maybe_snapshot();
         }
-        // Not yet due: pending, given after the last sample.
-        if let Some(&i) = redo.last()
-            && next < redo.len()
-        {
+        // Not yet due: queued, given after the last sample.
+        for &i in &redo[next..] {
             let entry = &mut self.headings_received[i];
             entry.0 = given_order(self.core.nav.time, true);
-            self.core.aid.heading.pending = Some(entry.1);
+            self.core.aid.heading.give(entry.1);
         }
         self.forget_old_headings();
         // The coarse search already saw these steps on the first pass.

@@ -671,7 +671,10 @@ impl Fusion {
     /// A dual-antenna heading, used at the first IMU epoch at or after its
     /// time (with `FusionConfig::heading`).
     pub(crate) fn push_heading(&mut self, h: crate::io::heading::HeadingObs) {
-        self.core.aid.heading.pending = Some(h);
+        if self.cfg().heading.is_none() {
+            return;
+        }
+        self.core.aid.heading.give(h);
         if let LatencyMode::DelayedState { .. } = self.cfg().latency {
             let order = latency::given_order(self.core.nav.time, true);
             self.headings_received.push_back((order, h));

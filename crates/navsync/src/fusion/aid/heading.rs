@@ -8,32 +8,48 @@
 
 use super::*;
 use crate::io::heading::HeadingObs;
+use std::collections::VecDeque;
 
 /// Consecutive rejections after which a heading is used ungated.
 const MAX_HEADING_REJECTS: usize = 5;
 /// Rejections reported one by one; later ones are only counted.
 const REPORTED_REJECTS: usize = 10;
 
+/// Headings waiting for the solution to reach their time, at most (a
+/// filter running a lag behind real time holds a few; beyond this the
+/// oldest is dropped).
+const MAX_PENDING_HEADINGS: usize = 1000;
+
 /// Control state of the heading source.
 #[derive(Clone, Default)]
 pub(in crate::fusion) struct HeadingAid {
-    /// The latest heading not yet used.
-    pub(in crate::fusion) pending: Option<HeadingObs>,
+    /// Headings not yet used, in time order.
+    pending: VecDeque<HeadingObs>,
     pub(in crate::fusion) updates: usize,
     pub(in crate::fusion) rejected: usize,
     consecutive_rejects: usize,
 }
 
-impl AidSource for HeadingAid {
-    fn due(&self, core: &Core) -> bool {
-        core.cfg.heading.is_some()
-            && self
-                .pending
-                .is_some_and(|h| core.nav.time >= h.time && !core.heading_unknown)
+impl HeadingAid {
+    /// Queues a heading for the first IMU epoch at or after its time.
+    pub(in crate::fusion) fn give(&mut self, h: HeadingObs) {
+        let at = self.pending.partition_point(|p| p.time <= h.time);
+        self.pending.insert(at, h);
+        if self.pending.len() > MAX_PENDING_HEADINGS {
+            self.pending.pop_front();
+        }
     }
 
-    fn fuse(&mut self, core: &mut Core) -> Result<(), Error> {
-        let (Some(opts), Some(h)) = (core.cfg.heading, self.pending.take()) else {
+    /// The earliest queued heading, when the solution reached its time.
+    fn next_due(&self, core: &Core) -> Option<HeadingObs> {
+        let h = *self.pending.front()?;
+        (core.cfg.heading.is_some() && core.nav.time >= h.time && !core.heading_unknown)
+            .then_some(h)
+    }
+
+    /// Fuses one heading.
+    fn fuse_one(&mut self, core: &mut Core, h: HeadingObs) -> Result<(), Error> {
+        let Some(opts) = core.cfg.heading else {
             return Ok(());
         };
         // The azimuth turned since the measurement: the body's yaw rate
@@ -72,6 +88,27 @@ impl AidSource for HeadingAid {
                     outcome.nis
                 ));
             }
+        }
+        Ok(())
+    }
+}
+
+impl AidSource for HeadingAid {
+    fn due(&self, core: &Core) -> bool {
+        self.next_due(core).is_some()
+    }
+
+    fn fuse(&mut self, core: &mut Core) -> Result<(), Error> {
+        // Headings fall due one at a time as the solution moves on; several
+        // at once only waited (for the heading to become known, or through
+        // an IMU gap), and the latest supersedes the older ones.
+        let mut latest = None;
+        while let Some(h) = self.next_due(core) {
+            self.pending.pop_front();
+            latest = Some(h);
+        }
+        if let Some(h) = latest {
+            self.fuse_one(core, h)?;
         }
         Ok(())
     }
