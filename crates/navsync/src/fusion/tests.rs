@@ -196,6 +196,36 @@ fn robust_weighting_follows_smooth_drift_and_rejects_a_jump() {
     assert!(err.abs() < 0.01, "north error {err} m");
 }
 
+/// Robust weighting against fixes that leave the INS faster than its
+/// model allows for the whole run: an acceleration of 0.2 m/s² (a 1.2°
+/// tilt error) or a growing one. One covariance inflation is not enough
+/// (the model cannot hold the drift) and the cooldown forbids a second,
+/// so the INS used to be left to drift 160–640 m from 2 cm fixes.
+#[test]
+fn robust_weighting_follows_a_drift_its_model_cannot_hold() {
+    let robust = GnssWeighting::default();
+    type Shift = fn(f64) -> f64;
+    let drifts: [(&str, Shift); 3] = [
+        ("0.2 m/s²", |t| 0.1 * (t - 20.0).max(0.0).powi(2)),
+        ("0.1 m/s² growing 0.02 m/s³", |t| {
+            let u = (t - 20.0).max(0.0);
+            0.05 * u * u + 0.003 * u.powi(3)
+        }),
+        ("0.06 m/s³", |t| 0.01 * (t - 20.0).max(0.0).powi(3)),
+    ];
+    for (name, shift) in drifts {
+        let (err, stats) = run_shifted(robust, shift);
+        assert!(
+            err.abs() < 0.1,
+            "{name}: north error against the fixes {err} m; {stats:?}"
+        );
+        assert!(
+            stats.gnss_fixes_accepted_consistent >= 2,
+            "{name}: {stats:?}"
+        );
+    }
+}
+
 #[test]
 fn delayed_state_fuses_each_heading_once_through_restores() {
     // Live: 10 Hz fixes 100 ms late restore a stored state each time;

@@ -9,11 +9,14 @@
 
 use super::*;
 
-/// A GNSS position fix the gate rejected: its innovation and noise, and the
-/// NIS ratio (NIS / gate) of the first rejection of its run.
+/// A GNSS position fix the gate rejected (or robust weighting rejected or
+/// down-weighted): its innovation and noise, and the NIS ratio (NIS /
+/// gate) of the first rejection of its run.
 #[derive(Clone)]
 struct RejectedFix {
     time: GpsTime,
+    /// Innovation; for a fix that was used down-weighted, what was left of
+    /// it after the update (z⁺ = R' S⁻¹ z).
     z: Vec<f64>,
     r: Mat,
     first_ratio: f64,
@@ -113,6 +116,36 @@ impl RejectedFix {
     }
 }
 
+/// Whether `obs` (time `time`, innovation covariance `s`) continues the
+/// straight line through the two earlier fixes' innovations `a` and `b`:
+/// the INS's velocity drifted (its position error grows linearly), which
+/// consecutive innovations that agree with each other cannot show. The
+/// difference from the extrapolation z_b + α(z_b − z_a),
+/// α = (t − t_b)/(t_b − t_a), passes the χ² `threshold` with covariance
+/// S + (1+α)² R_b + α² R_a.
+fn extrapolation_agrees(
+    a: &RejectedFix,
+    b: &RejectedFix,
+    obs: &Observation,
+    time: GpsTime,
+    s: &Mat,
+    threshold: f64,
+) -> bool {
+    let span = b.time.seconds_since(a.time);
+    if a.z.len() != obs.z.len() || b.z.len() != obs.z.len() || span <= 0.0 {
+        return false;
+    }
+    let alpha = time.seconds_since(b.time) / span;
+    let mut c = s.clone();
+    for ((x, rb), ra) in c.data.iter_mut().zip(&b.r.data).zip(&a.r.data) {
+        *x += (1.0 + alpha).powi(2) * rb + alpha * alpha * ra;
+    }
+    let d: Vec<f64> = (0..obs.z.len())
+        .map(|i| obs.z[i] - (b.z[i] + alpha * (b.z[i] - a.z[i])))
+        .collect();
+    nis_of(&c, &d).is_some_and(|chi2| chi2 <= threshold)
+}
+
 /// The covariance inflation that makes an innovation's size match its
 /// covariance, λ = (zᵀz − tr R) / tr(H P Hᵀ) (the moment estimate of an
 /// adaptive fading factor, Xia et al. 1994), within [1, MAX_INFLATION].
@@ -142,6 +175,14 @@ const CONSISTENCY_COOLDOWN_S: f64 = 60.0;
 /// consistent that long cannot be told from drift; KF-GINS would have
 /// followed it from the start).
 const LONG_DRIFT_RUN: usize = 10;
+/// Robust weighting: this many fixes in a row (none more than
+/// [`CONSISTENCY_MAX_GAP_S`] apart) down-weighted or rejected, agreeing
+/// with each other or not, are taken as an INS that left its model (a
+/// drift that accelerates, a wrong initial attitude or error model),
+/// even within the cooldown: a GNSS fault that long is one KF-GINS would
+/// have followed from the start, while an INS left alone against a stream
+/// of good fixes drifts without bound.
+const PERSISTENT_DISAGREEMENT: usize = 10;
 /// Largest covariance inflation of one drift acceptance.
 const MAX_INFLATION: f64 = 100.0;
 
@@ -159,6 +200,9 @@ pub(in crate::fusion) struct GnssSource {
     last_drift_accept: Option<GpsTime>,
     /// Robust weighting: the run of fixes rejected on every axis.
     rejected_run: Vec<RejectedFix>,
+    /// Robust weighting: consecutive down-weighted or rejected fixes,
+    /// whether they agree or not, and the last one's time.
+    disagreeing_streak: (usize, Option<GpsTime>),
     /// Robust weighting: the inverse-gamma posterior (α, β) of the noise
     /// scale of each axis of position and velocity, and when it was set.
     noise_scale: [([(f64, f64); 3], GpsTime); 2],
@@ -549,6 +593,7 @@ impl GnssSource {
                 drift = self.robust_drift_check(core, &obs, &s_stated, time, rw)?;
             } else {
                 self.rejected_run.clear();
+                self.disagreeing_streak = (0, None);
             }
         }
         if drift {
@@ -596,19 +641,31 @@ impl GnssSource {
                 r_stated,
             }
         });
+        // A down-weighted fix of the drift run moved the state: the next
+        // fix is compared with what is left of this one's innovation.
+        if slot == 0
+            && record.status == FixStatus::DownWeighted
+            && let (Some(last), Some(memo)) = (self.rejected_run.last_mut(), self.last_residual[0])
+            && last.time == time
+        {
+            last.z = memo.residual.iter().copied().collect();
+        }
         core.fix_log.push(record);
         Ok(record.status)
     }
 
     /// After a position fix that was down-weighted or rejected: when the last
-    /// `drift_run` such fixes agree with each other (consecutive
-    /// innovations differ by no more than their covariances allow) and the
-    /// run began just past k1 (at most 2·k1: a fault jumps), or when
-    /// [`LONG_DRIFT_RUN`] of them agree, the INS drifted beyond its
-    /// covariance, as after a long outage, and P is
-    /// inflated by the moment estimate λ = (zᵀz − tr R)/tr(HPHᵀ) (an
-    /// adaptive fading factor, Xia et al. 1994), capped at
-    /// [`MAX_INFLATION`], at most once per [`CONSISTENCY_COOLDOWN_S`].
+    /// `drift_run` such fixes agree with each other (each innovation
+    /// differs from the previous fix's, or from the straight line through
+    /// the two before, by no more than their covariances allow; a
+    /// down-weighted fix counts by its posterior residual, since it moved
+    /// the state) and the run began just past k1 (at most 2·k1: a fault
+    /// jumps), or when [`LONG_DRIFT_RUN`] of them agree, the INS drifted
+    /// beyond its covariance, as after a long outage, and P is inflated by
+    /// the moment estimate λ = (zᵀz − tr R)/tr(HPHᵀ) (an adaptive fading
+    /// factor, Xia et al. 1994), capped at [`MAX_INFLATION`], at most once
+    /// per [`CONSISTENCY_COOLDOWN_S`] — unless
+    /// [`PERSISTENT_DISAGREEMENT`] fixes in a row disagree with the INS.
     /// Returns whether P was inflated.
     fn robust_drift_check(
         &mut self,
@@ -620,8 +677,11 @@ impl GnssSource {
     ) -> Result<bool, Error> {
         let threshold = chi2_quantile(0.9999, obs.dim() as f64);
         if let Some(prev) = self.rejected_run.last() {
+            let n = self.rejected_run.len();
+            let trend = n >= 2
+                && extrapolation_agrees(&self.rejected_run[n - 2], prev, obs, time, s, threshold);
             let agrees = time.seconds_since(prev.time) <= CONSISTENCY_MAX_GAP_S
-                && prev.agrees_with(obs, s, threshold);
+                && (prev.agrees_with(obs, s, threshold) || trend);
             if !agrees {
                 self.rejected_run.clear();
             }
@@ -637,13 +697,24 @@ impl GnssSource {
             r: obs.r.clone(),
             first_ratio: ratio,
         });
-        let cooled = self
-            .last_drift_accept
-            .is_none_or(|t| time.seconds_since(t) >= CONSISTENCY_COOLDOWN_S);
+        let (streak, last) = self.disagreeing_streak;
+        let streak = if last.is_some_and(|t| time.seconds_since(t) <= CONSISTENCY_MAX_GAP_S) {
+            streak + 1
+        } else {
+            1
+        };
+        self.disagreeing_streak = (streak, Some(time));
+        let persistent = streak >= PERSISTENT_DISAGREEMENT;
+        let cooled = persistent
+            || self
+                .last_drift_accept
+                .is_none_or(|t| time.seconds_since(t) >= CONSISTENCY_COOLDOWN_S);
         // A drifting INS crosses k1 gradually; a fault jumps far past it.
         let smooth_start = self.rejected_run[0].first_ratio <= SMOOTH_START_RATIO;
         let run = self.rejected_run.len();
-        if !cooled || !((run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN) {
+        if !cooled
+            || !((run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN || persistent)
+        {
             return Ok(false);
         }
         let Some(factor) = moment_inflation(obs, s) else {
@@ -656,6 +727,7 @@ impl GnssSource {
         core.filter.inflate(factor);
         self.last_drift_accept = Some(time);
         self.rejected_run.clear();
+        self.disagreeing_streak = (0, None);
         Ok(true)
     }
 
