@@ -7,7 +7,9 @@
 #
 # Usage (from the repository root): scripts/real-gnss/table.sh [SEED...]
 # EXTRA="--nhc": more fuse options for every run (docs/real-gnss.md's land-
-# vehicle table); WEIGHTINGS="robust off": the weightings to run.
+# vehicle table); WEIGHTINGS="robust off": the weightings to run;
+# GRADES="icm20602": the simulated IMUs; SIM_EXTRA="--set …": more
+# simulate options (another IMU error model).
 # Needs: cargo build --release; python3 (for the JSON fields).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -18,16 +20,18 @@ SEEDS=${*:-1}
 VEL=${VEL:---no-gnss-velocity}
 EXTRA=${EXTRA:-}
 WEIGHTINGS=${WEIGHTINGS:-robust off gate}
+GRADES=${GRADES:-adis16465 icm20602 nav}
+SIM_EXTRA=${SIM_EXTRA:-}
 mkdir -p "$W"
 field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))$2)" "$1"; }
 hrms() { "$B" eval --truth "$1/truth.nav" --nav "$2/navresult.nav" --json "$2/eval.json" >/dev/null; field "$2/eval.json" "$3"; }
 printf "%-10s %-5s %-9s %10s %10s %6s %6s\n" imu seed weighting horiz_rms outage_rms downw rej
-for grade in adis16465 icm20602 nav; do
+for grade in $GRADES; do
   for seed in $SEEDS; do
     sim="$W/$grade-$seed"
     "$B" simulate --from-nav "$D/truth.nav" --gnss-real "$D/GNSS-POSVEL.txt" \
       --gnss-real-layout matlab --set 'gnss.lever_arm_m=[-0.37,0.008,0.353]' \
-      --gnss-velocity --imu-grade "$grade" --seed "$seed" --quiet --output "$sim"
+      --gnss-velocity --imu-grade "$grade" --seed "$seed" --quiet --output "$sim" $SIM_EXTRA
     for wt in $WEIGHTINGS; do
       out="$sim/$wt"
       "$B" fuse --config "$sim/kf-gins.yaml" --output "$out" --gnss-weighting "$wt" $VEL $EXTRA >/dev/null 2>&1
