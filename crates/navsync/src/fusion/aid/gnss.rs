@@ -8,6 +8,7 @@
 //! only after its position was used, with the same held states.
 
 use super::*;
+use std::collections::VecDeque;
 
 /// A GNSS position fix the gate rejected (or robust weighting rejected or
 /// down-weighted): its innovation and noise, and the NIS ratio (NIS /
@@ -183,6 +184,9 @@ const LONG_DRIFT_RUN: usize = 10;
 /// have followed from the start, while an INS left alone against a stream
 /// of good fixes drifts without bound.
 const PERSISTENT_DISAGREEMENT: usize = 10;
+/// Fixes whose overconfidence ratios are kept; their median is the
+/// robust weighting's INS σ scale.
+const OVERCONFIDENCE_WINDOW: usize = 15;
 /// Largest covariance inflation of one drift acceptance.
 const MAX_INFLATION: f64 = 100.0;
 
@@ -200,6 +204,9 @@ pub(in crate::fusion) struct GnssSource {
     last_drift_accept: Option<GpsTime>,
     /// Robust weighting: the run of fixes rejected on every axis.
     rejected_run: Vec<RejectedFix>,
+    /// Robust weighting: the INS's overconfidence as seen by the last
+    /// [`OVERCONFIDENCE_WINDOW`] fixes sharper than it after a gap.
+    overconfidence: VecDeque<f64>,
     /// Robust weighting: consecutive down-weighted or rejected fixes,
     /// whether they agree or not, and the last one's time.
     disagreeing_streak: (usize, Option<GpsTime>),
@@ -532,6 +539,11 @@ impl GnssSource {
         let mut hph =
             Matrix3::from_fn(|r, c| s_stated.get(r, c)) - Matrix3::from_diagonal(&r_stated);
         let z = Vector3::new(obs.z[0], obs.z[1], obs.z[2]);
+        let ins_scale = if slot == 0 {
+            self.ins_overconfidence(time, &z, &hph, &r_stated)
+        } else {
+            1.0
+        };
 
         // 1. Forgetting toward the prior, then the differenced innovation.
         let prior = 0.5 * rw.prior_fixes;
@@ -550,8 +562,9 @@ impl GnssSource {
             && time.seconds_since(prev.time) <= PAIR_MAX_GAP_S
         {
             for i in 0..3 {
-                let var =
-                    (hph[(i, i)] - prev.hph_post[i]).max(0.0) + r_stated[i] + prev.r_stated[i];
+                let var = ins_scale * (hph[(i, i)] - prev.hph_post[i]).max(0.0)
+                    + r_stated[i]
+                    + prev.r_stated[i];
                 let d = z[i] - prev.residual[i];
                 jump_sq[i] = d * d / var;
                 // A jump too large for any noise scale is a gross error,
@@ -567,7 +580,7 @@ impl GnssSource {
         //    (a receiver's faults are not confined to one axis).
         let mut w = [1.0; 3];
         for i in 0..3 {
-            let s_ii = hph[(i, i)] + scale[i] * r_stated[i];
+            let s_ii = ins_scale * hph[(i, i)] + scale[i] * r_stated[i];
             w[i] = rw.weight(z[i] / s_ii.max(f64::MIN_POSITIVE).sqrt());
         }
         if w.contains(&0.0) {
@@ -652,6 +665,50 @@ impl GnssSource {
         }
         core.fix_log.push(record);
         Ok(record.status)
+    }
+
+    /// The robust weighting's scale λ of the INS's predicted spread HPHᵀ:
+    /// how much larger than predicted its errors have been. A MEMS filter
+    /// whose model leaves errors out (flicker, misalignment, a vibrating
+    /// mount) drifts through GNSS gaps at several times its σ, and would
+    /// then take good fixes for bad ones. The first fix after a gap of more
+    /// than [`PAIR_MAX_GAP_S`] that is sharper than the INS (tr R < tr HPHᵀ)
+    /// measures it: q = (zᵀz − tr R)/tr(HPHᵀ), the moment estimate of an
+    /// adaptive fading factor (Xia, Rao, Ying & Shen, "Adaptive fading
+    /// Kalman filter with an application", Automatica 30(8), 1994), whose
+    /// mean is 1 for a consistent filter. λ is the median q of the last
+    /// [`OVERCONFIDENCE_WINDOW`] such fixes, within [1, MAX_INFLATION]; it
+    /// scales HPHᵀ only where fixes are judged (noise scale and IGG-III
+    /// weights), never in the update itself. Returns λ for this fix, from
+    /// the fixes before it.
+    fn ins_overconfidence(
+        &mut self,
+        time: GpsTime,
+        z: &Vector3<f64>,
+        hph: &Matrix3<f64>,
+        r_stated: &Vector3<f64>,
+    ) -> f64 {
+        let lambda = if self.overconfidence.is_empty() {
+            1.0
+        } else {
+            let mut q: Vec<f64> = self.overconfidence.iter().copied().collect();
+            q.sort_by(f64::total_cmp);
+            q[q.len() / 2].clamp(1.0, MAX_INFLATION)
+        };
+        let after_gap =
+            self.last_residual[0].is_none_or(|prev| time.seconds_since(prev.time) > PAIR_MAX_GAP_S);
+        let tr_r = r_stated.sum();
+        let tr_hph = hph.trace();
+        if after_gap && tr_r < tr_hph && tr_hph > 0.0 {
+            let q = (z.norm_squared() - tr_r) / tr_hph;
+            if q.is_finite() {
+                if self.overconfidence.len() == OVERCONFIDENCE_WINDOW {
+                    self.overconfidence.pop_front();
+                }
+                self.overconfidence.push_back(q.max(0.0));
+            }
+        }
+        lambda
     }
 
     /// After a position fix that was down-weighted or rejected: when the last
