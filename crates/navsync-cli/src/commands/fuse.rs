@@ -135,9 +135,10 @@ pub struct Args {
     #[arg(long)]
     pub no_gnss_velocity: bool,
     /// How GNSS fixes that disagree with the INS are weighted: robust
-    /// (IGG-III down-weighting per axis, remembered over correlated error
-    /// episodes; real fixes need it), gate (a chi-square gate, the first
-    /// version's rule) or off (every fix at its stated σ, as KF-GINS).
+    /// (fixes that jump from their neighbours or disagree with the INS
+    /// beyond its demonstrated spread are down-weighted per axis, IGG-III;
+    /// real fixes need it), gate (a chi-square gate, the first version's
+    /// rule) or off (every fix at its stated σ, as KF-GINS).
     #[arg(long, value_enum, default_value_t = Weighting::Robust)]
     pub gnss_weighting: Weighting,
     /// Gate probability of --gnss-weighting gate (implies it).
@@ -300,7 +301,8 @@ pub enum Latency {
 
 #[derive(Copy, Clone, clap::ValueEnum)]
 pub enum Weighting {
-    /// IGG-III down-weighting per axis with a memory of recent episodes.
+    /// IGG-III down-weighting per axis, judged against the INS's
+    /// demonstrated spread and the fixes' jumps from their neighbours.
     Robust,
     /// Chi-square gate (probability 0.9999 unless --gate-prob).
     Gate,
