@@ -87,11 +87,15 @@ impl Fusion {
         lag_s: f64,
     ) -> Result<Option<NavOutput>, Error> {
         self.imu_buffer.push_back(*sample);
+        if let Some(v) = self.speed_for_next.take() {
+            self.speeds_given.push_back((sample.time, v));
+        }
         let horizon = sample.time.add_seconds(-lag_s);
         while let Some(s) = self.imu_buffer.front().copied()
             && s.time <= horizon
         {
             self.imu_buffer.pop_front();
+            self.give_speeds_through(s.time);
             self.core.push_imu(&s)?;
         }
         if !self.core.started {
@@ -208,9 +212,13 @@ impl Fusion {
         sample: &ImuSample,
         max_latency_s: f64,
     ) -> Result<Option<NavOutput>, Error> {
+        let speed = self.speed_for_next.take();
         let out = self.core.push_imu(sample)?;
         if out.is_some() {
             self.imu_buffer.push_back(*sample);
+            if let Some(v) = speed {
+                self.speeds_given.push_back((sample.time, v));
+            }
             self.maybe_snapshot();
             let oldest = sample.time.add_seconds(-max_latency_s);
             while self.snapshots.len() > 1 && self.snapshots[1].nav.time <= oldest {
@@ -222,8 +230,27 @@ impl Fusion {
                 .map(|s| s.nav.time)
                 .unwrap_or(sample.time);
             self.imu_buffer.drop_through(keep_from);
+            while self
+                .speeds_given
+                .front()
+                .is_some_and(|(t, _)| *t <= keep_from)
+            {
+                self.speeds_given.pop_front();
+            }
         }
         Ok(out)
+    }
+
+    /// Gives the core the odometer speeds recorded ahead of the samples up
+    /// to `t` (the latest wins, as when they were pushed), and forgets
+    /// them (fixed lag: the filter reached `t`).
+    fn give_speeds_through(&mut self, t: GpsTime) {
+        while let Some(&(at, v)) = self.speeds_given.front()
+            && at <= t
+        {
+            self.core.aid.odometer.speed_mps = Some(v);
+            self.speeds_given.pop_front();
+        }
     }
 
     /// Forgets the headings every stored state has seen.
@@ -303,7 +330,15 @@ impl Fusion {
             .collect();
         redo.sort_by_key(|&i| self.headings_received[i].1.time);
         let mut next = 0;
+        let mut next_speed = self.speeds_given.partition_point(|(t, _)| *t <= t_snap);
         for s in &replay {
+            // Odometer speeds as they were given ahead of this sample.
+            while let Some(&(at, v)) = self.speeds_given.get(next_speed)
+                && at <= s.time
+            {
+                self.core.aid.odometer.speed_mps = Some(v);
+                next_speed += 1;
+            }
             while let Some(&i) = redo.get(next)
                 && self.headings_received[i].1.time <= s.time
             {
@@ -314,6 +349,10 @@ impl Fusion {
             }
             self.core.push_imu(s)?;
             self.maybe_snapshot();
+        }
+        // A speed given after the last sample: the restored core lost it.
+        if let Some(v) = self.speed_for_next {
+            self.core.aid.odometer.speed_mps = Some(v);
         }
         // Not yet due: queued, given after the last sample.
         for &i in &redo[next..] {

@@ -489,6 +489,13 @@ pub struct Fusion {
     /// ([`latency::given_order`]), given again on a restore to a state
     /// stored before that.
     headings_received: std::collections::VecDeque<(i128, crate::io::heading::HeadingObs)>,
+    /// Fixed lag and delayed state: odometer speeds, each with the time of
+    /// the buffered IMU sample it was given before (fed to the lagged
+    /// filter, or given again in a re-run, just ahead of that sample).
+    speeds_given: std::collections::VecDeque<(GpsTime, f64)>,
+    /// A speed given after the last IMU sample, to be recorded with the
+    /// next one.
+    speed_for_next: Option<f64>,
     predictor: Option<Predictor>,
     replays: usize,
     now: GpsTime,
@@ -516,6 +523,8 @@ impl Fusion {
             imu_buffer: DelayBuffer::default(),
             applied: DelayBuffer::default(),
             headings_received: std::collections::VecDeque::new(),
+            speeds_given: std::collections::VecDeque::new(),
+            speed_for_next: None,
             predictor: None,
             replays: 0,
             now,
@@ -682,9 +691,19 @@ impl Fusion {
         }
     }
 
-    /// Sets the odometer speed (m/s) used at the next odometer update.
+    /// Sets the odometer speed (m/s) used at the next odometer update. A
+    /// filter running a lag behind gets it with the next sample, when it
+    /// reaches that sample; a delayed-state filter gets it now and again
+    /// in every re-run through that sample.
     pub(crate) fn push_speed(&mut self, speed_mps: f64) {
-        self.core.aid.odometer.speed_mps = Some(speed_mps);
+        match self.cfg().latency {
+            LatencyMode::FixedLag { .. } => self.speed_for_next = Some(speed_mps),
+            LatencyMode::DelayedState { .. } => {
+                self.core.aid.odometer.speed_mps = Some(speed_mps);
+                self.speed_for_next = Some(speed_mps);
+            }
+            _ => self.core.aid.odometer.speed_mps = Some(speed_mps),
+        }
     }
 
     fn drain_notes(&mut self) {

@@ -229,6 +229,65 @@ fn robust_weighting_follows_a_drift_its_model_cannot_hold() {
     }
 }
 
+/// Odometer updates of a 30 s run at rest (10 Hz speeds of 0 m/s, 10 Hz
+/// fixes 100 ms late) in `mode`.
+fn odometer_updates(mode: LatencyMode) -> usize {
+    let (m, mut cfg) = setup(mode);
+    cfg.odometer = Some(OdometerOptions {
+        vehicle: crate::filter::nhc::VehicleConstraint::new(
+            &crate::attitude::Euler::from_deg(0.0, 0.0, 0.0),
+            Vector3::zeros(),
+            0.1,
+        ),
+        sd_mps: 0.05,
+        interval_s: 0.1,
+        scale_sd: None,
+    });
+    let mut f = Fusion::new(cfg);
+    let dt = 5_000_000;
+    let mut t = m.t0;
+    let mut next_fix = m.t0.add_seconds(0.1);
+    for k in 0..(30 * 200) {
+        if t >= next_fix.add_seconds(0.1) {
+            f.push_gnss(GnssFix {
+                time: next_fix,
+                pos: m.state(next_fix).pos,
+                pos_sd: Vector3::repeat(0.02),
+                vel: None,
+                vel_sd: None,
+            })
+            .unwrap();
+            next_fix = next_fix.add_seconds(0.1);
+        }
+        if k % 20 == 0 {
+            f.push_speed(0.0);
+        }
+        f.push_imu(&m.sample(t + -dt, t)).unwrap();
+        t = t + dt;
+    }
+    f.stats().odometer_updates
+}
+
+#[test]
+fn odometer_speeds_survive_restores_and_wait_for_a_lagged_filter() {
+    // Every late fix restores a state stored before it and re-runs the
+    // samples since: the speeds given in that window must be given again,
+    // or the re-run loses their updates.
+    let offline = odometer_updates(LatencyMode::Offline);
+    assert!(offline >= 295, "{offline}");
+    let delayed = odometer_updates(LatencyMode::DelayedState { max_latency_s: 0.5 });
+    assert!(
+        delayed.abs_diff(offline) <= 1,
+        "delayed state {delayed}, offline {offline}"
+    );
+    // A filter 0.5 s behind reaches all but the last 0.5 s of speeds.
+    let lagged = odometer_updates(LatencyMode::FixedLag { lag_s: 0.5 });
+    assert!(
+        lagged.abs_diff(offline - 5) <= 1,
+        "fixed lag {lagged}, offline {offline}"
+    );
+}
+
 #[test]
 fn delayed_state_fuses_each_heading_once_through_restores() {
     // Live: 10 Hz fixes 100 ms late restore a stored state each time;
