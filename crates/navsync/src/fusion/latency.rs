@@ -14,7 +14,8 @@
 //! a restored core brings back its buffer as of its time, and the fixes
 //! received since are queued into it again from the log. Dual-antenna
 //! headings are logged the same way and given again during the re-run,
-//! each at its own time.
+//! each at its own time, and odometer speeds with the sample each preceded
+//! (which is also how a fixed-lag filter gets them when it reaches it).
 
 use super::*;
 
