@@ -229,6 +229,22 @@ fn robust_weighting_follows_a_drift_its_model_cannot_hold() {
     }
 }
 
+/// 10 Hz fixes on the true track, each pushed 100 ms after its time:
+/// pushes the fix `next_fix` when `t` reached that, and moves it on.
+fn push_fix_100ms_late(f: &mut Fusion, m: &TurningAtRest, t: GpsTime, next_fix: &mut GpsTime) {
+    if t >= next_fix.add_seconds(0.1) {
+        f.push_gnss(GnssFix {
+            time: *next_fix,
+            pos: m.state(*next_fix).pos,
+            pos_sd: Vector3::repeat(0.02),
+            vel: None,
+            vel_sd: None,
+        })
+        .unwrap();
+        *next_fix = next_fix.add_seconds(0.1);
+    }
+}
+
 /// Odometer updates of a 30 s run at rest (10 Hz speeds of 0 m/s, 10 Hz
 /// fixes 100 ms late) in `mode`.
 fn odometer_updates(mode: LatencyMode) -> usize {
@@ -248,17 +264,7 @@ fn odometer_updates(mode: LatencyMode) -> usize {
     let mut t = m.t0;
     let mut next_fix = m.t0.add_seconds(0.1);
     for k in 0..(30 * 200) {
-        if t >= next_fix.add_seconds(0.1) {
-            f.push_gnss(GnssFix {
-                time: next_fix,
-                pos: m.state(next_fix).pos,
-                pos_sd: Vector3::repeat(0.02),
-                vel: None,
-                vel_sd: None,
-            })
-            .unwrap();
-            next_fix = next_fix.add_seconds(0.1);
-        }
+        push_fix_100ms_late(&mut f, &m, t, &mut next_fix);
         if k % 20 == 0 {
             f.push_speed(0.0);
         }
@@ -338,17 +344,7 @@ fn headings_fused(mode: LatencyMode, heading_latency_s: f64) {
     let (mut next_fix, mut next_heading) = (m.t0.add_seconds(0.1), m.t0.add_seconds(0.1));
     let (mut pushed, mut last) = (0, None);
     for _ in 0..(20 * 200) {
-        if t >= next_fix.add_seconds(0.1) {
-            f.push_gnss(GnssFix {
-                time: next_fix,
-                pos: m.state(next_fix).pos,
-                pos_sd: Vector3::repeat(0.02),
-                vel: None,
-                vel_sd: None,
-            })
-            .unwrap();
-            next_fix = next_fix.add_seconds(0.1);
-        }
+        push_fix_100ms_late(&mut f, &m, t, &mut next_fix);
         if t >= next_heading.add_seconds(heading_latency_s) {
             f.push_heading(crate::io::heading::HeadingObs {
                 time: next_heading,
