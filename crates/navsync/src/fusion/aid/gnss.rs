@@ -777,9 +777,15 @@ impl GnssSource {
         let Some(factor) = moment_inflation(obs, s) else {
             return Ok(false);
         };
+        let why = if (run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN {
+            format!(
+                "{run} consecutive disagreeing fixes agree with each other, so the INS drifted beyond its covariance"
+            )
+        } else {
+            format!("{streak} consecutive fixes disagreed with the INS, so it left its error model")
+        };
         core.notes.push(format!(
-            "GNSS fix at {time}: {} consecutive disagreeing fixes agree with each other, so the INS drifted beyond its covariance; covariance inflated x{factor:.2}",
-            self.rejected_run.len()
+            "GNSS fix at {time}: {why}; covariance inflated x{factor:.2}"
         ));
         core.filter.inflate(factor);
         self.last_drift_accept = Some(time);
@@ -824,5 +830,53 @@ impl GnssSource {
             return None;
         }
         moment_inflation(obs, &s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The INS overconfidence scale: the median moment ratio of fixes
+    /// sharper than the INS after a gap, from the fixes before.
+    #[test]
+    fn overconfidence_is_the_median_ratio_of_sharp_fixes_after_gaps() {
+        let mut g = GnssSource::default();
+        let t0 = GpsTime::from_week_sow(2300, 1000.0);
+        let hph = Matrix3::from_diagonal(&Vector3::repeat(0.01));
+        let r = Vector3::repeat(0.0001);
+        // zᵀz − tr R = q · tr HPHᵀ (HPHᵀ 0.01 m² per axis, R 1 cm²), for
+        // q = 4, 9, 1.
+        let fix = |q: f64| Vector3::repeat(((q * 0.03 + 0.0003) / 3.0).sqrt());
+        assert_eq!(g.ins_overconfidence(t0, &fix(4.0), &hph, &r), 1.0);
+        let lambda = g.ins_overconfidence(t0.add_seconds(10.0), &fix(9.0), &hph, &r);
+        assert!((lambda - 4.0).abs() < 1e-9, "{lambda}");
+        g.ins_overconfidence(t0.add_seconds(20.0), &fix(1.0), &hph, &r);
+        let lambda = g.ins_overconfidence(t0.add_seconds(30.0), &fix(1.0), &hph, &r);
+        assert!((lambda - 4.0).abs() < 1e-9, "median of 4, 9, 1: {lambda}");
+        // A fix less sharp than the INS measures nothing; a consistent
+        // filter (q below 1) never makes the INS look sharper than it says.
+        let dull = Vector3::repeat(1.0);
+        g.ins_overconfidence(t0.add_seconds(40.0), &dull, &hph, &dull);
+        assert_eq!(g.overconfidence.len(), 4);
+        for k in 0..OVERCONFIDENCE_WINDOW {
+            g.ins_overconfidence(t0.add_seconds(50.0 + 10.0 * k as f64), &fix(0.2), &hph, &r);
+        }
+        assert_eq!(g.overconfidence.len(), OVERCONFIDENCE_WINDOW);
+        assert_eq!(
+            g.ins_overconfidence(t0.add_seconds(500.0), &fix(0.2), &hph, &r),
+            1.0
+        );
+        // A fix a second after a used one measures nothing: the INS had no
+        // gap to drift through.
+        let before = g.overconfidence.clone();
+        g.last_residual[0] = Some(ResidualMemo {
+            time: t0.add_seconds(599.0),
+            residual: Vector3::zeros(),
+            hph_post: Vector3::zeros(),
+            r_stated: r,
+        });
+        g.ins_overconfidence(t0.add_seconds(600.0), &fix(50.0), &hph, &r);
+        assert_eq!(g.overconfidence, before);
     }
 }
