@@ -413,7 +413,7 @@ impl TruthStream {
         by_sow: bool,
         diag: &mut Diagnostics,
     ) -> Result<Option<TruthState>, Error> {
-        if self.next.is_none() && self.prev.is_none() {
+        if self.next.is_none() {
             self.next = self.fetch(diag)?;
         }
         let (truth_start, query) = if by_sow {
@@ -423,9 +423,6 @@ impl TruthStream {
             (0, t.ns())
         };
         let key = |x: GpsTime| x.ns() - truth_start;
-        if self.next.is_none() {
-            self.next = self.fetch(diag)?;
-        }
         loop {
             let Some(n) = self.next else {
                 return Ok(None);

@@ -96,7 +96,8 @@ impl Fusion {
             && s.time <= horizon
         {
             self.imu_buffer.pop_front();
-            self.give_speeds_through(s.time);
+            let given = self.give_speeds(0, s.time);
+            self.speeds_given.drain(..given);
             self.core.push_imu(&s)?;
         }
         if !self.core.started {
@@ -242,16 +243,18 @@ impl Fusion {
         Ok(out)
     }
 
-    /// Gives the core the odometer speeds recorded ahead of the samples up
-    /// to `t` (the latest wins, as when they were pushed), and forgets
-    /// them (fixed lag: the filter reached `t`).
-    fn give_speeds_through(&mut self, t: GpsTime) {
-        while let Some(&(at, v)) = self.speeds_given.front()
+    /// Gives the core the recorded odometer speeds from index `from` on
+    /// that were given ahead of samples up to `t` (the latest wins, as
+    /// when they were pushed); returns the index after the last given.
+    fn give_speeds(&mut self, from: usize, t: GpsTime) -> usize {
+        let mut next = from;
+        while let Some(&(at, v)) = self.speeds_given.get(next)
             && at <= t
         {
             self.core.aid.odometer.speed_mps = Some(v);
-            self.speeds_given.pop_front();
+            next += 1;
         }
+        next
     }
 
     /// Forgets the headings every stored state has seen.
@@ -334,12 +337,7 @@ impl Fusion {
         let mut next_speed = self.speeds_given.partition_point(|(t, _)| *t <= t_snap);
         for s in &replay {
             // Odometer speeds as they were given ahead of this sample.
-            while let Some(&(at, v)) = self.speeds_given.get(next_speed)
-                && at <= s.time
-            {
-                self.core.aid.odometer.speed_mps = Some(v);
-                next_speed += 1;
-            }
+            next_speed = self.give_speeds(next_speed, s.time);
             while let Some(&i) = redo.get(next)
                 && self.headings_received[i].1.time <= s.time
             {

@@ -52,6 +52,15 @@ impl HeadingSource {
             _ => None,
         }
     }
+
+    /// An optional source field: absent means a baseline; an unknown word
+    /// is returned (as text) for the caller's message.
+    pub fn from_field(word: Option<&[u8]>) -> Result<Self, String> {
+        match word {
+            None => Ok(HeadingSource::Baseline),
+            Some(w) => Self::from_word(w).ok_or_else(|| String::from_utf8_lossy(w).into_owned()),
+        }
+    }
 }
 
 /// Whether a heading σ (deg) carries information: within
@@ -129,17 +138,14 @@ pub fn read_headings(
             diag.push(path, no, format!("{why}; line skipped"));
             continue;
         }
-        let word = (n >= 4).then(|| f[3]);
-        let source = match word.map(|w| (w, HeadingSource::from_word(w))) {
-            None => HeadingSource::Baseline,
-            Some((_, Some(s))) => s,
-            Some((w, None)) => {
+        let source = match HeadingSource::from_field((n >= 4).then(|| f[3])) {
+            Ok(s) => s,
+            Err(w) => {
                 diag.push(
                     path,
                     no,
                     format!(
-                        "field 4 (source) is `{}`, expected `baseline` or `vehicle`; line skipped",
-                        String::from_utf8_lossy(w)
+                        "field 4 (source) is `{w}`, expected `baseline` or `vehicle`; line skipped"
                     ),
                 );
                 continue;

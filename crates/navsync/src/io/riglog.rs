@@ -944,17 +944,14 @@ fn parse_record(
                 diag.push(path, no, format!("{why}; line skipped"));
                 return None;
             }
-            let word = (n == 7).then(|| f[6]);
-            let source = match word.map(|w| (w, HeadingSource::from_word(w))) {
-                None => HeadingSource::Baseline,
-                Some((_, Some(s))) => s,
-                Some((w, None)) => {
+            let source = match HeadingSource::from_field((n == 7).then(|| f[6])) {
+                Ok(s) => s,
+                Err(w) => {
                     diag.push(
                         path,
                         no,
                         format!(
-                            "heading source '{}' is neither baseline nor vehicle; line skipped",
-                            String::from_utf8_lossy(w)
+                            "heading source '{w}' is neither baseline nor vehicle; line skipped"
                         ),
                     );
                     return None;
