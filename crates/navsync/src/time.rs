@@ -165,13 +165,30 @@ impl fmt::Display for GpsTime {
     }
 }
 
+/// A week rollover whose forward step (from the last line to the new one)
+/// is longer than this is taken only when the next line confirms it.
+const MAX_UNCONFIRMED_ROLLOVER_STEP_NS: i64 = 600 * NS_PER_S;
+
 /// Turns a stream of seconds-of-week without week numbers (KF-GINS files)
 /// into absolute [`GpsTime`], adding a week whenever SOW falls back by more
 /// than half a week (a week rollover), so that time stays monotonic.
+///
+/// A fall-back that would make a forward step of more than ten minutes is
+/// what one corrupt line looks like (a small SOW in mid-week), so it is not
+/// taken for a rollover at once: that line reads as going backwards and is
+/// skipped by the reader, and it is the next line, if it goes on from it
+/// within ten minutes, that starts the new week. A real rollover after a long
+/// gap thus costs one line; a corrupt line costs only itself.
+///
+/// Readers call [`WeekTracker::peek`] once per line, then
+/// [`WeekTracker::resolve`] for the lines they keep.
 #[derive(Clone, Debug)]
 pub(crate) struct WeekTracker {
     week: i64,
     last_ns_of_week: Option<i64>,
+    /// SOW (ns) of the last line peeked that was a rollover too far forward
+    /// to take unconfirmed.
+    unconfirmed_rollover_ns: Option<i64>,
 }
 
 impl WeekTracker {
@@ -180,29 +197,50 @@ impl WeekTracker {
         WeekTracker {
             week,
             last_ns_of_week: None,
+            unconfirmed_rollover_ns: None,
         }
     }
 
-    /// Absolute time of a seconds-of-week value given in nanoseconds.
+    /// The week of a SOW after the last kept line, and whether the SOW is a
+    /// rollover too far forward to take without confirmation (`None` when
+    /// it is no rollover at all).
+    fn week_of(&self, ns_of_week: i64) -> (i64, Option<bool>) {
+        let Some(last) = self.last_ns_of_week else {
+            return (self.week, None);
+        };
+        if last - ns_of_week <= NS_PER_WEEK / 2 {
+            return (self.week, None);
+        }
+        let step_ns = ns_of_week + NS_PER_WEEK - last;
+        let confirmed = self.unconfirmed_rollover_ns.is_some_and(|previous| {
+            ns_of_week > previous && ns_of_week - previous <= MAX_UNCONFIRMED_ROLLOVER_STEP_NS
+        });
+        if step_ns <= MAX_UNCONFIRMED_ROLLOVER_STEP_NS || confirmed {
+            (self.week + 1, Some(false))
+        } else {
+            (self.week, Some(true))
+        }
+    }
+
+    /// Absolute time of a line's seconds-of-week (ns), before the reader
+    /// checks its order; the tracker advances only on [`Self::resolve`].
+    pub(crate) fn peek(&mut self, ns_of_week: i64) -> GpsTime {
+        let (week, rollover) = self.week_of(ns_of_week);
+        match rollover {
+            Some(true) => self.unconfirmed_rollover_ns = Some(ns_of_week),
+            // A confirmed rollover keeps what confirmed it for `resolve`.
+            Some(false) => {}
+            None => self.unconfirmed_rollover_ns = None,
+        }
+        GpsTime::from_week_ns(week, ns_of_week)
+    }
+
+    /// Absolute time of a line the reader keeps; advances the tracker.
     pub(crate) fn resolve(&mut self, ns_of_week: i64) -> GpsTime {
-        if let Some(last) = self.last_ns_of_week
-            && last - ns_of_week > NS_PER_WEEK / 2
-        {
-            self.week += 1;
-        }
+        let (week, _) = self.week_of(ns_of_week);
+        self.week = week;
         self.last_ns_of_week = Some(ns_of_week);
-        GpsTime::from_week_ns(self.week, ns_of_week)
-    }
-
-    /// Absolute time without advancing the tracker (for look-ups such as
-    /// `starttime` in a configuration).
-    pub(crate) fn peek(&self, ns_of_week: i64) -> GpsTime {
-        let mut week = self.week;
-        if let Some(last) = self.last_ns_of_week
-            && last - ns_of_week > NS_PER_WEEK / 2
-        {
-            week += 1;
-        }
+        self.unconfirmed_rollover_ns = None;
         GpsTime::from_week_ns(week, ns_of_week)
     }
 }
@@ -318,5 +356,37 @@ mod tests {
         // a small step back (bad data) does not invent a week
         let c = w.resolve(1_000_000);
         assert_eq!(c.week(), 2301);
+    }
+
+    #[test]
+    fn one_corrupt_mid_week_line_is_not_a_rollover_but_a_long_gap_across_one_is() {
+        const S: i64 = NS_PER_S;
+        let mut w = WeekTracker::new(2300);
+        w.peek(500_000 * S);
+        w.resolve(500_000 * S);
+        // A corrupt SOW of 12 s: far back, and as a rollover a 29 h step.
+        let corrupt = w.peek(12 * S);
+        assert_eq!(corrupt.week(), 2300, "read as going backwards");
+        // The reader skips it; the file goes on in the same week.
+        let next = w.peek(500_001 * S);
+        assert_eq!(next.week(), 2300);
+        assert_eq!(w.resolve(500_001 * S).week(), 2300);
+
+        // A logger that stopped 2 h before the week's end and resumed 1 h
+        // into the next: the first line back cannot be told from a corrupt
+        // one; the second, within ten minutes of it, confirms the new week.
+        let mut w = WeekTracker::new(2300);
+        w.peek((SECONDS_PER_WEEK - 7200) * S);
+        w.resolve((SECONDS_PER_WEEK - 7200) * S);
+        assert_eq!(w.peek(3600 * S).week(), 2300);
+        assert_eq!(w.peek(3601 * S).week(), 2301);
+        assert_eq!(w.resolve(3601 * S).week(), 2301);
+        assert_eq!(w.peek(3602 * S).week(), 2301);
+
+        // Within ten minutes a rollover needs no confirmation.
+        let mut w = WeekTracker::new(2300);
+        w.resolve((SECONDS_PER_WEEK - 300) * S);
+        assert_eq!(w.peek(290 * S).week(), 2301);
+        assert_eq!(w.resolve(290 * S).week(), 2301);
     }
 }

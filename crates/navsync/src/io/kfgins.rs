@@ -313,10 +313,6 @@ pub struct NavRecord {
     pub att_deg: [f64; 3],
 }
 
-/// The longest step (s) a week-0 navigation file may take across a week
-/// rollover.
-const MAX_ROLLOVER_STEP_S: f64 = 600.0;
-
 /// Streams an 11-column navigation file (result or truth).
 pub struct NavReader {
     lines: LineReader<File>,
@@ -410,20 +406,13 @@ impl NavReader {
                 diag.push(&self.path, line_no, msg);
                 continue;
             }
-            let mut time = if week == 0 {
+            // Week 0: a time far back in mid-week is a bad line, not a new
+            // week (see `WeekTracker`).
+            let time = if week == 0 {
                 self.weeks.peek(ns)
             } else {
                 GpsTime::from_week_ns(week, ns)
             };
-            // A rollover is a step from the week's end to its start; a
-            // time far back in mid-week is a bad line, not a new week.
-            if let Some(last) = self.last
-                && time.week() > last.week()
-                && week == 0
-                && time.seconds_since(last) > MAX_ROLLOVER_STEP_S
-            {
-                time = GpsTime::from_week_ns(last.week(), ns);
-            }
             if let Some(why) = time_order_problem(self.last, time) {
                 diag.push(&self.path, line_no, format!("{why}; line skipped"));
                 continue;
@@ -709,6 +698,24 @@ mod tests {
         );
         assert!(msgs[3].contains(":7: duplicate epoch"), "{}", msgs[3]);
         assert!(msgs[4].contains(":8: time goes backwards"), "{}", msgs[4]);
+    }
+
+    #[test]
+    fn a_corrupt_mid_week_time_costs_its_own_line_only() {
+        // 500 000 s of week, one line's SOW garbled to 12 s: not a week
+        // rollover (that would jump 29 h ahead and strand every later
+        // line behind it).
+        let content = "500000.000 0 0 0 0 0 -0.049\n\
+            500000.005 0 0 0 0 0 -0.049\n\
+            12.010 0 0 0 0 0 -0.049\n\
+            500000.015 0 0 0 0 0 -0.049\n\
+            500000.020 0 0 0 0 0 -0.049\n";
+        let (res, d) = read_imu(content);
+        let samples = res.unwrap();
+        assert_eq!(samples.len(), 4, "{samples:?}");
+        assert!(samples.iter().all(|s| s.time.week() == 0));
+        assert_eq!(d.total, 1, "{d:?}");
+        assert!(d.items[0].to_string().contains(":3: time goes backwards"));
     }
 
     #[test]
