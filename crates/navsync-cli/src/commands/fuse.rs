@@ -556,6 +556,12 @@ pub fn execute(
         s.gnss_velocity_used,
         s.gnss_velocity_downweighted
     );
+    if let Some(o) = s.gnss_ins_overconfidence {
+        println!(
+            "  INS σ scale where fixes are judged: {:.2} (from {} fixes after gaps)",
+            o.scale, o.fixes
+        );
+    }
     let refused = s.gnss_fixes_invalid + s.gnss_fixes_duplicate + s.gnss_fixes_stale;
     if refused > 0 {
         println!(

@@ -414,6 +414,17 @@ fn is_zero(n: &usize) -> bool {
     *n == 0
 }
 
+/// The robust weighting's measure of how far the INS's position error
+/// runs past its σ after gaps.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct InsOverconfidence {
+    /// The σ scale in use at the end (HPHᵀ is multiplied by it where fixes
+    /// are judged).
+    pub scale: f64,
+    /// Fixes that measured it, over the run.
+    pub fixes: usize,
+}
+
 /// Counters the engine keeps.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct FusionStats {
@@ -437,6 +448,12 @@ pub struct FusionStats {
     pub gnss_fixes_downweighted: usize,
     /// Robust weighting: velocities used with an inflated R on some axis.
     pub gnss_velocity_downweighted: usize,
+    /// Robust weighting: the INS overconfidence scale at the end of the run
+    /// (the median ratio of actual to predicted innovation of the last
+    /// fixes sharper than the INS after a gap, within [1, 100]), and how
+    /// many such fixes it has seen; absent when none was seen.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gnss_ins_overconfidence: Option<InsOverconfidence>,
     /// Fixes refused before use for non-finite values or a σ ≤ 0 or
     /// beyond [`MAX_GNSS_SD_M`] (repeated times and stale outputs are
     /// counted below).

@@ -233,6 +233,8 @@ pub(in crate::fusion) struct GnssCounts {
     velocity_downweighted: usize,
     gate_reopened: usize,
     stale: usize,
+    /// Fixes that measured the INS overconfidence.
+    overconfidence_fixes: usize,
 }
 
 impl GnssSource {
@@ -285,6 +287,11 @@ impl AidSource for GnssSource {
         stats.gnss_velocity_downweighted = c.velocity_downweighted;
         stats.gate_reopened = c.gate_reopened;
         stats.gnss_fixes_stale = c.stale;
+        stats.gnss_ins_overconfidence =
+            (c.overconfidence_fixes > 0).then(|| crate::fusion::InsOverconfidence {
+                scale: self.overconfidence_scale(),
+                fixes: c.overconfidence_fixes,
+            });
     }
 }
 
@@ -667,6 +674,17 @@ impl GnssSource {
         Ok(record.status)
     }
 
+    /// The median of the kept overconfidence ratios, within
+    /// [1, MAX_INFLATION]; 1 before any.
+    fn overconfidence_scale(&self) -> f64 {
+        if self.overconfidence.is_empty() {
+            return 1.0;
+        }
+        let mut q: Vec<f64> = self.overconfidence.iter().copied().collect();
+        q.sort_by(f64::total_cmp);
+        q[q.len() / 2].clamp(1.0, MAX_INFLATION)
+    }
+
     /// The robust weighting's scale λ of the INS's predicted spread HPHᵀ:
     /// how much larger than predicted its errors have been. A MEMS filter
     /// whose model leaves errors out (flicker, misalignment, a vibrating
@@ -688,13 +706,7 @@ impl GnssSource {
         hph: &Matrix3<f64>,
         r_stated: &Vector3<f64>,
     ) -> f64 {
-        let lambda = if self.overconfidence.is_empty() {
-            1.0
-        } else {
-            let mut q: Vec<f64> = self.overconfidence.iter().copied().collect();
-            q.sort_by(f64::total_cmp);
-            q[q.len() / 2].clamp(1.0, MAX_INFLATION)
-        };
+        let lambda = self.overconfidence_scale();
         let after_gap =
             self.last_residual[0].is_none_or(|prev| time.seconds_since(prev.time) > PAIR_MAX_GAP_S);
         let tr_r = r_stated.sum();
@@ -706,6 +718,7 @@ impl GnssSource {
                     self.overconfidence.pop_front();
                 }
                 self.overconfidence.push_back(q.max(0.0));
+                self.counts.overconfidence_fixes += 1;
             }
         }
         lambda
@@ -878,5 +891,16 @@ mod tests {
         });
         g.ins_overconfidence(t0.add_seconds(600.0), &fix(50.0), &hph, &r);
         assert_eq!(g.overconfidence, before);
+
+        // The summary reports the scale in use and every fix that measured
+        // it (4 + 15 + 1 = 20), not only those still in the window.
+        let mut stats = FusionStats::default();
+        g.counters(&mut stats);
+        let o = stats.gnss_ins_overconfidence.expect("measured");
+        assert_eq!(o.fixes, 20);
+        assert_eq!(o.scale, 1.0);
+        let mut stats = FusionStats::default();
+        GnssSource::default().counters(&mut stats);
+        assert!(stats.gnss_ins_overconfidence.is_none());
     }
 }
