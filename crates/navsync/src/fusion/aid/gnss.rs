@@ -187,6 +187,8 @@ const PERSISTENT_DISAGREEMENT: usize = 10;
 /// Fixes whose overconfidence ratios are kept; their median is the
 /// robust weighting's INS σ scale.
 const OVERCONFIDENCE_WINDOW: usize = 15;
+/// Ratios needed before the overconfidence scale is used.
+const MIN_OVERCONFIDENCE_FIXES: usize = 3;
 /// Largest covariance inflation of one drift acceptance.
 const MAX_INFLATION: f64 = 100.0;
 
@@ -512,7 +514,8 @@ impl GnssSource {
     /// Weights one 3-axis GNSS observation (`slot` 0 position, 1 velocity)
     /// and applies it unless every axis is rejected.
     ///
-    /// 1. Noise scale. Over a second the INS is a far better relative
+    /// 1. Noise scale (when `RobustWeighting::noise_scale`; the posterior
+    ///    is kept either way). Over a second the INS is a far better relative
     ///    reference than a degraded fix, so the change between this
     ///    innovation and the previous fix's posterior residual,
     ///    Δz = z_k − z⁺_{k−1} = (δr_k − δr⁺_{k−1}) − (e_k − e_{k−1}),
@@ -581,7 +584,11 @@ impl GnssSource {
                 post[i].1 += 0.5 * u;
             }
         }
-        let scale = post.map(|(a, b)| (b / a).max(1.0));
+        let scale = if rw.noise_scale {
+            post.map(|(a, b)| (b / a).max(1.0))
+        } else {
+            [1.0; 3]
+        };
 
         // 2. Gross errors: beyond k1 on any axis, the whole fix is wrong
         //    (a receiver's faults are not confined to one axis).
@@ -675,9 +682,10 @@ impl GnssSource {
     }
 
     /// The median of the kept overconfidence ratios, within
-    /// [1, MAX_INFLATION]; 1 before any.
+    /// [1, MAX_INFLATION]; 1 before [`MIN_OVERCONFIDENCE_FIXES`] of them
+    /// (the median of two is the larger: one bad fix would set it).
     fn overconfidence_scale(&self) -> f64 {
-        if self.overconfidence.is_empty() {
+        if self.overconfidence.len() < MIN_OVERCONFIDENCE_FIXES {
             return 1.0;
         }
         let mut q: Vec<f64> = self.overconfidence.iter().copied().collect();
@@ -862,9 +870,11 @@ mod tests {
         // q = 4, 9, 1.
         let fix = |q: f64| Vector3::repeat(((q * 0.03 + 0.0003) / 3.0).sqrt());
         assert_eq!(g.ins_overconfidence(t0, &fix(4.0), &hph, &r), 1.0);
+        // Fewer than three ratios set nothing (one bad fix would).
         let lambda = g.ins_overconfidence(t0.add_seconds(10.0), &fix(9.0), &hph, &r);
-        assert!((lambda - 4.0).abs() < 1e-9, "{lambda}");
-        g.ins_overconfidence(t0.add_seconds(20.0), &fix(1.0), &hph, &r);
+        assert_eq!(lambda, 1.0);
+        let lambda = g.ins_overconfidence(t0.add_seconds(20.0), &fix(1.0), &hph, &r);
+        assert_eq!(lambda, 1.0, "median of 4, 9 is not used");
         let lambda = g.ins_overconfidence(t0.add_seconds(30.0), &fix(1.0), &hph, &r);
         assert!((lambda - 4.0).abs() < 1e-9, "median of 4, 9, 1: {lambda}");
         // A fix less sharp than the INS measures nothing; a consistent
