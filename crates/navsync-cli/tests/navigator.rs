@@ -115,7 +115,7 @@ fn streamed_rig_records_navigate_like_the_batch_chain() {
     );
     // Causal stamps (µs) and a delayed-state update (exact) lose nothing
     // that matters against offline synchronization and fusion: measured
-    // 0.268 m against 0.267 m.
+    // 0.260 m against 0.259 m.
     assert!(
         rms <= 1.1 * batch_rms,
         "streamed {rms:.3} m vs batch {batch_rms:.3} m"

@@ -80,3 +80,23 @@ fn robust_weighting_does_not_leave_good_fixes_for_an_overconfident_ins() {
         std::fs::remove_dir_all(&dir).ok();
     }
 }
+
+/// The presets as they are, on the real drive: the default weighting must
+/// not cost a MEMS IMU against KF-GINS's rule (every fix at its σ). The
+/// jump-based noise scale, the default until 2026-12-03, cost ADIS16465
+/// seed 1 8 % (0.595 against 0.549 m) and ICM-20602 seed 2 8 %; without
+/// it they measure 1.00 and 1.03, and 1.00–1.04 over seeds 1–8. 5 % is
+/// that spread with room for the platform's rounding.
+#[test]
+fn robust_weighting_costs_mems_imus_nothing_on_real_fixes() {
+    for (grade, seed) in [("adis16465", "1"), ("icm20602", "2")] {
+        let dir = temp_dir(&format!("presets-{grade}-{seed}"));
+        let (robust, off) = robust_and_off(&dir, grade, seed, &[]);
+        eprintln!("{grade} seed {seed}: robust {robust:.3} m, every fix {off:.3} m");
+        assert!(
+            robust <= 1.05 * off,
+            "{grade} seed {seed}: robust {robust:.3} m, every fix {off:.3} m"
+        );
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -1055,7 +1055,7 @@ fn gnss_weighting_section(
     let n_down = fixes.iter().filter(|x| x.status != "used").count();
     let inside = fixes.iter().filter(|x| x.nis <= q95).count();
     let note = format!(
-        "{} position fixes; {} ({:.1} %) within the 95 % NIS bound (95 % expected when the stated σ and the filter's covariance are right); {} not used at their stated σ (gnss_residuals.txt has every fix). Robust weighting (navsync fuse --gnss-weighting robust): IGG-III weights on the standardised innovation (Yang, Song & Xu, Journal of Geodesy 76, 2002) and a noise scale from the jump between consecutive fixes.",
+        "{} position fixes; {} ({:.1} %) within the 95 % NIS bound (95 % expected when the stated σ and the filter's covariance are right); {} not used at their stated σ (gnss_residuals.txt has every fix). Robust weighting (navsync fuse --gnss-weighting robust): IGG-III weights on the standardised innovation (Yang, Song & Xu, Journal of Geodesy 76, 2002), judged against the INS's measured spread.",
         fixes.len(),
         inside,
         100.0 * inside as f64 / fixes.len().max(1) as f64,
