@@ -514,9 +514,9 @@ impl GnssSource {
     /// Weights one 3-axis GNSS observation (`slot` 0 position, 1 velocity)
     /// and applies it unless every axis is rejected.
     ///
-    /// 1. Noise scale (when `RobustWeighting::noise_scale`; the posterior
-    ///    is kept either way). Over a second the INS is a far better relative
-    ///    reference than a degraded fix, so the change between this
+    /// 1. Noise scale (when `RobustWeighting::noise_scale`, else 1). Over
+    ///    a second the INS is a far better relative reference than a
+    ///    degraded fix, so the change between this
     ///    innovation and the previous fix's posterior residual,
     ///    Δz = z_k − z⁺_{k−1} = (δr_k − δr⁺_{k−1}) − (e_k − e_{k−1}),
     ///    measures the fixes' own errors e while a smooth INS drift cancels
@@ -555,36 +555,36 @@ impl GnssSource {
             1.0
         };
 
-        // 1. Forgetting toward the prior, then the differenced innovation.
-        let prior = 0.5 * rw.prior_fixes;
-        let (mut post, last) = self.noise_scale[slot];
-        let rho = if rw.memory_s > 0.0 {
-            (-time.seconds_since(last).max(0.0) / rw.memory_s).exp()
-        } else {
-            0.0
-        };
-        for (a, b) in post.iter_mut() {
-            *a = prior + (*a - prior) * rho;
-            *b = prior + (*b - prior) * rho;
-        }
-        let mut jump_sq = [0.0; 3];
-        if let Some(prev) = self.last_residual[slot]
-            && time.seconds_since(prev.time) <= PAIR_MAX_GAP_S
-        {
-            for i in 0..3 {
-                let var = ins_scale * (hph[(i, i)] - prev.hph_post[i]).max(0.0)
-                    + r_stated[i]
-                    + prev.r_stated[i];
-                let d = z[i] - prev.residual[i];
-                jump_sq[i] = d * d / var;
-                // A jump too large for any noise scale is a gross error,
-                // left to step 2 (it must not inflate the scale for long).
-                let u = jump_sq[i].min(rw.k1 * rw.k1);
-                post[i].0 += 0.5;
-                post[i].1 += 0.5 * u;
-            }
-        }
+        // 1. The noise scale of the fixes' stated σ: forgetting toward the
+        //    prior, then the differenced innovation.
         let scale = if rw.noise_scale {
+            let prior = 0.5 * rw.prior_fixes;
+            let (mut post, last) = self.noise_scale[slot];
+            let rho = if rw.memory_s > 0.0 {
+                (-time.seconds_since(last).max(0.0) / rw.memory_s).exp()
+            } else {
+                0.0
+            };
+            for (a, b) in post.iter_mut() {
+                *a = prior + (*a - prior) * rho;
+                *b = prior + (*b - prior) * rho;
+            }
+            if let Some(prev) = self.last_residual[slot]
+                && time.seconds_since(prev.time) <= PAIR_MAX_GAP_S
+            {
+                for i in 0..3 {
+                    let var = ins_scale * (hph[(i, i)] - prev.hph_post[i]).max(0.0)
+                        + r_stated[i]
+                        + prev.r_stated[i];
+                    let d = z[i] - prev.residual[i];
+                    // A jump too large for any noise scale is a gross error,
+                    // left to step 2 (it must not inflate the scale for long).
+                    let u = (d * d / var).min(rw.k1 * rw.k1);
+                    post[i].0 += 0.5;
+                    post[i].1 += 0.5 * u;
+                }
+            }
+            self.noise_scale[slot] = (post, time);
             post.map(|(a, b)| (b / a).max(1.0))
         } else {
             [1.0; 3]
@@ -611,7 +611,6 @@ impl GnssSource {
             weight: [0.0; 3],
             status: FixStatus::Used,
         };
-        self.noise_scale[slot] = (post, time);
         // A disagreement that persists smoothly (down-weighted or rejected
         // fixes that agree with each other) is the INS drifting.
         let mut drift = false;
@@ -790,15 +789,14 @@ impl GnssSource {
         // A drifting INS crosses k1 gradually; a fault jumps far past it.
         let smooth_start = self.rejected_run[0].first_ratio <= SMOOTH_START_RATIO;
         let run = self.rejected_run.len();
-        if !cooled
-            || !((run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN || persistent)
-        {
+        let agreeing_run = (run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN;
+        if !cooled || !(agreeing_run || persistent) {
             return Ok(false);
         }
         let Some(factor) = moment_inflation(obs, s) else {
             return Ok(false);
         };
-        let why = if (run >= rw.drift_run && smooth_start) || run >= LONG_DRIFT_RUN {
+        let why = if agreeing_run {
             format!(
                 "{run} consecutive disagreeing fixes agree with each other, so the INS drifted beyond its covariance"
             )
