@@ -169,6 +169,17 @@ impl fmt::Display for GpsTime {
 /// is longer than this is taken only when the next line confirms it.
 const MAX_UNCONFIRMED_ROLLOVER_STEP_NS: i64 = 600 * NS_PER_S;
 
+/// How a line's SOW stands to the last kept one's, for [`WeekTracker`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Rollover {
+    /// No fall-back of more than half a week: the same week.
+    No,
+    /// A week rollover, taken.
+    Taken,
+    /// A rollover too far forward to take before the next line confirms it.
+    Unconfirmed,
+}
+
 /// Turns a stream of seconds-of-week without week numbers (KF-GINS files)
 /// into absolute [`GpsTime`], adding a week whenever SOW falls back by more
 /// than half a week (a week rollover), so that time stays monotonic.
@@ -201,24 +212,23 @@ impl WeekTracker {
         }
     }
 
-    /// The week of a SOW after the last kept line, and whether the SOW is a
-    /// rollover too far forward to take without confirmation (`None` when
-    /// it is no rollover at all).
-    fn week_of(&self, ns_of_week: i64) -> (i64, Option<bool>) {
+    /// The week of a SOW after the last kept line, and what kind of step
+    /// it is.
+    fn week_of(&self, ns_of_week: i64) -> (i64, Rollover) {
         let Some(last) = self.last_ns_of_week else {
-            return (self.week, None);
+            return (self.week, Rollover::No);
         };
         if last - ns_of_week <= NS_PER_WEEK / 2 {
-            return (self.week, None);
+            return (self.week, Rollover::No);
         }
         let step_ns = ns_of_week + NS_PER_WEEK - last;
         let confirmed = self.unconfirmed_rollover_ns.is_some_and(|previous| {
             ns_of_week > previous && ns_of_week - previous <= MAX_UNCONFIRMED_ROLLOVER_STEP_NS
         });
         if step_ns <= MAX_UNCONFIRMED_ROLLOVER_STEP_NS || confirmed {
-            (self.week + 1, Some(false))
+            (self.week + 1, Rollover::Taken)
         } else {
-            (self.week, Some(true))
+            (self.week, Rollover::Unconfirmed)
         }
     }
 
@@ -227,10 +237,11 @@ impl WeekTracker {
     pub(crate) fn peek(&mut self, ns_of_week: i64) -> GpsTime {
         let (week, rollover) = self.week_of(ns_of_week);
         match rollover {
-            Some(true) => self.unconfirmed_rollover_ns = Some(ns_of_week),
-            // A confirmed rollover keeps what confirmed it for `resolve`.
-            Some(false) => {}
-            None => self.unconfirmed_rollover_ns = None,
+            Rollover::Unconfirmed => self.unconfirmed_rollover_ns = Some(ns_of_week),
+            // A rollover taken on confirmation keeps what confirmed it for
+            // `resolve`.
+            Rollover::Taken => {}
+            Rollover::No => self.unconfirmed_rollover_ns = None,
         }
         GpsTime::from_week_ns(week, ns_of_week)
     }
