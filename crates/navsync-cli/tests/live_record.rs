@@ -166,7 +166,6 @@ fn a_recording_killed_with_sigkill_holds_what_was_sent_until_a_second_before() {
         fixes >= kept[1],
         "{fixes} fixes from raw.ubx, {kept:?} in the rig log"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 fn rows(path: &Path) -> Vec<Vec<f64>> {
@@ -313,5 +312,4 @@ fn a_recording_synced_and_fused_offline_matches_the_live_solution() {
     assert!(dt_max < 200e-6, "stamps differ by {dt_max} s");
     assert!(pos_max < 0.15, "positions differ by {pos_max} m");
     assert!(att_max < 0.05, "attitude differs by {att_max}°");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -302,6 +302,7 @@ antlever: [ 0.0, 0.0, 0.0 ]
         );
         let g = earth::gravity(30f64.to_radians().sin(), 20.0);
         assert!((first.dvel.z + g * 0.04).abs() < 1e-15);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -343,5 +344,6 @@ antlever: [ 0.0, 0.0, 0.0 ]
             .unwrap_err()
             .to_string();
         assert!(err.contains("not a whole number"), "{err}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

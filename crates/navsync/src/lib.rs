@@ -40,6 +40,8 @@ pub mod smoother;
 pub mod stage;
 pub mod stats;
 #[cfg(test)]
+mod testfiles;
+#[cfg(test)]
 mod testutil;
 pub mod time;
 pub mod timing;

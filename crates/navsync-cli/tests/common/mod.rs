@@ -10,8 +10,41 @@ pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_navsync"))
 }
 
-/// A fresh directory `navsync-<test file>-<pid>-<name>` in the temp dir.
-pub fn temp_dir(name: &str) -> PathBuf {
+/// A test's own directory, removed when the test passes. A failing test
+/// (dropped while panicking) leaves it in place to be looked at; its path
+/// is in the failure's output wherever the test printed it.
+pub struct TestDir(PathBuf);
+
+impl std::ops::Deref for TestDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TestDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TestDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TestDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+/// A fresh directory `navsync-<test file>-<pid>-<name>` in the temp dir,
+/// removed again when the returned guard is dropped (see [`TestDir`]).
+pub fn temp_dir(name: &str) -> TestDir {
     let d = std::env::temp_dir().join(format!(
         "navsync-{}-{}-{name}",
         env!("CARGO_CRATE_NAME"),
@@ -19,7 +52,7 @@ pub fn temp_dir(name: &str) -> PathBuf {
     ));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    TestDir(d)
 }
 
 /// Runs `cmd`: (success, stdout, stderr).

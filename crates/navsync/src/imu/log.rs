@@ -663,20 +663,9 @@ impl TimeOrder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::io::Write;
 
-    pub(crate) fn temp_file(name: &str, content: &str) -> PathBuf {
-        use std::sync::atomic::{AtomicUsize, Ordering};
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let k = N.fetch_add(1, Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!("navsync-imulog-{}-{k}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        std::fs::File::create(&p)
-            .unwrap()
-            .write_all(content.as_bytes())
-            .unwrap();
-        p
+    pub(crate) fn temp_file(name: &str, content: &str) -> crate::testfiles::TempFile {
+        crate::testfiles::temp_file("imulog", name, content)
     }
 
     fn read_all(

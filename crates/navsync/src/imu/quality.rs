@@ -2210,7 +2210,11 @@ mod tests {
             .collect()
     }
 
-    fn write_rows(name: &str, rows: &[(i64, [f64; 6])], extra: &[(usize, &str)]) -> PathBuf {
+    fn write_rows(
+        name: &str,
+        rows: &[(i64, [f64; 6])],
+        extra: &[(usize, &str)],
+    ) -> crate::testfiles::TempFile {
         let mut s = String::from("time,gx,gy,gz,ax,ay,az\n");
         for (k, (t, v)) in rows.iter().enumerate() {
             for (at, line) in extra {
@@ -2225,11 +2229,7 @@ mod tests {
             }
             s.push('\n');
         }
-        let dir = std::env::temp_dir().join(format!("navsync-quality-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        std::fs::write(&p, s).unwrap();
-        p
+        crate::testfiles::temp_file("quality", name, s)
     }
 
     fn check(p: &Path) -> Result<QualityReport, Error> {
@@ -2411,10 +2411,7 @@ mod tests {
                 crate::io::kfgins::format_imu_line(&mut buf, &inc);
             }
         }
-        let dir = std::env::temp_dir().join(format!("navsync-quality-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join("inc.txt");
-        std::fs::write(&p, buf).unwrap();
+        let p = crate::testfiles::temp_file("quality", "inc.txt", buf);
         let mut d = Diagnostics::default();
         let cfg = QualityConfig {
             lowpass: Some(LowPassFilter::bartlett(4, 2000.0).unwrap()),
@@ -2460,10 +2457,7 @@ mod tests {
             }
             s.push('\n');
         }
-        let dir = std::env::temp_dir().join(format!("navsync-quality-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join("trunc.txt");
-        std::fs::write(&p, s).unwrap();
+        let p = crate::testfiles::temp_file("quality", "trunc.txt", s);
         let r = check(&p).unwrap();
         let gx = &r.channels[0];
         assert_eq!(gx.print_step, 1e-3);

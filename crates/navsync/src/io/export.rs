@@ -834,18 +834,15 @@ mod tests {
 
     #[test]
     fn std_is_read_interpolated_and_bad_lines_reported() {
-        let dir = std::env::temp_dir().join(format!("navsync-export-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join("std.txt");
-        std::fs::write(
-            &p,
+        let p = crate::testfiles::temp_file(
+            "export",
+            "std.txt",
             "100.0 1 2 3 0.1 0.2 0.3 0.01 0.02 0.03 9 9 9\n\
              101.0 3 2 1\n\
              101.0 3 2 1 0.3 0.2 0.1 0.03 0.02 0.01\n\
              101.5 3 2 -1 0.3 0.2 0.1 0.03 0.02 0.01\n\
              100.5 3 2 1 0.3 0.2 0.1 0.03 0.02 0.01\n",
-        )
-        .unwrap();
+        );
         let mut d = Diagnostics::default();
         let sd = read_std(&p, 2300, &mut d).unwrap();
         assert_eq!(sd.len(), 2);

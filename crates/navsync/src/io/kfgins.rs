@@ -642,16 +642,8 @@ impl TextWriter {
 mod tests {
     use super::*;
 
-    fn temp_file(name: &str, content: &str) -> std::path::PathBuf {
-        use std::sync::atomic::{AtomicUsize, Ordering};
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let k = N.fetch_add(1, Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!("navsync-kfgins-{}-{k}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        let mut f = File::create(&p).unwrap();
-        f.write_all(content.as_bytes()).unwrap();
-        p
+    fn temp_file(name: &str, content: &str) -> crate::testfiles::TempFile {
+        crate::testfiles::temp_file("kfgins", name, content)
     }
 
     fn read_imu(content: &str) -> (Result<Vec<ImuSample>, Error>, Diagnostics) {

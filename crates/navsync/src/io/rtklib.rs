@@ -472,12 +472,8 @@ mod tests {
     use super::*;
     use crate::earth::geodetic_to_ecef;
 
-    fn temp(name: &str, content: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("navsync-rtklib-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        std::fs::write(&p, content).unwrap();
-        p
+    fn temp(name: &str, content: &str) -> crate::testfiles::TempFile {
+        crate::testfiles::temp_file("rtklib", name, content)
     }
 
     fn read(
