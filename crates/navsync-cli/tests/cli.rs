@@ -386,7 +386,6 @@ fn live_refuses_bad_settings_and_survives_missing_devices() {
         out.contains("clock acquiring") && out.contains("0 solutions"),
         "{out}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -749,6 +748,7 @@ fn hybrid_sync_recovers_sample_instants_and_implausible_logs_fail_loudly() {
     let r = report(&sim, "auto");
     assert_eq!(r["mode"], "hybrid");
     assert!(r["implausible"].as_array().unwrap().is_empty());
+    assert_eq!(r["hybrid"]["clock_segments"], 0, "one run, no restart");
     // Every injected loss is found and none is invented.
     let scn: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(sim.join("scenario.json")).unwrap()).unwrap();
@@ -793,6 +793,28 @@ fn hybrid_sync_recovers_sample_instants_and_implausible_logs_fail_loudly() {
     assert!(err.contains("IMPLAUSIBLE"), "{err}");
     assert!(sim.join("hw_forced/imu.txt").exists());
 
+    // The report page says how the stamps were made, and what was wrong.
+    let page = |out: &str| -> String {
+        let html = sim.join(out).join("report.html");
+        let (ok, _, err) = run(bin()
+            .args(["report", "--nav"])
+            .arg(sim.join("truth.nav"))
+            .arg("--sync-report")
+            .arg(sim.join(out).join("sync_report.json"))
+            .arg("--output")
+            .arg(&html));
+        assert!(ok, "{err}");
+        std::fs::read_to_string(html).unwrap()
+    };
+    let hybrid = page("auto");
+    assert!(
+        hybrid.contains("hybrid sync") && hybrid.contains("clock restarted 0×"),
+        "the hybrid section is missing from the page"
+    );
+    assert!(!hybrid.contains("<td>implausible</td>"));
+    let forced = page("hw_forced");
+    assert!(forced.contains("<td>implausible</td>"));
+
     // A hardware-captured log with 5 % of its frames lost fails loudly;
     // its clean twin passes silently.
     let hw_args = ["--sync", "hw", "--duration", "120"];
@@ -809,7 +831,6 @@ fn hybrid_sync_recovers_sample_instants_and_implausible_logs_fail_loudly() {
     let r = report(&clean, "sync");
     assert_eq!(r["mode"], "hw");
     assert!(f(&r["truth"]["rms_us"]) < 0.4, "{}", r["truth"]);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// No initpos/initvel/initatt in the configuration: the run aligns itself

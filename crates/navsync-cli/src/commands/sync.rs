@@ -273,12 +273,16 @@ pub fn print_summary(r: &SyncReport, wall: f64) {
     }
     if let Some(h) = &r.hybrid {
         println!(
-            "  hybrid sync: IMU sample clock {:.6} Hz ({:+.2} ppm), receive latency above the fastest {:.3} ms mean, stamp jitter ≈ {:.2} µs (1σ), {} samples next to a loss of uncertain place",
+            "  hybrid sync: IMU sample clock {:.6} Hz ({:+.2} ppm), receive latency above the fastest {:.3} ms mean, stamp jitter ≈ {:.2} µs (1σ), {} samples next to a loss of uncertain place{}",
             h.rate_hz.unwrap_or(f64::NAN),
             h.imu_clock_ppm.unwrap_or(f64::NAN),
             h.mean_latency_above_fastest_ms,
             h.jitter_sd_us,
-            h.ambiguous_samples
+            h.ambiguous_samples,
+            match h.clock_segments {
+                0 => String::new(),
+                n => format!(", the clock restarted {n}× (port reopened or rate changed)"),
+            }
         );
         println!("  constant offset unobservable: {}", h.unobservable);
     }

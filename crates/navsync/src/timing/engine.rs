@@ -1217,6 +1217,7 @@ impl SyncEngine {
                 mean_latency_above_fastest_ms: sc.mean_excess_s * 1e3,
                 envelope_points: sc.fit_points,
                 ambiguous_samples: sc.ambiguous,
+                clock_segments: sc.segments,
                 jitter_sd_us: self.hybrid_sd() * 1e6,
                 assumed_fastest_latency_s: tc,
                 unobservable: format!(

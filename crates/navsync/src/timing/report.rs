@@ -216,6 +216,11 @@ pub struct HybridReport {
     /// Samples whose place next to a loss was not certain (may be one
     /// period off).
     pub ambiguous_samples: u64,
+    /// Sample-clock segments started after the first: the port reopened,
+    /// or the IMU's rate changed. Each starts its envelope afresh, so its
+    /// first second is stamped from fewer receive times.
+    #[serde(default)]
+    pub clock_segments: u64,
     /// Estimated 1σ of the stamps' varying error (µs), constant excluded.
     pub jitter_sd_us: f64,
     /// The constant subtracted as the fastest transport latency (s).
