@@ -420,50 +420,16 @@ fn sync_tables(html: &mut String, s: &SyncReport, t0_sow: f64) {
             s.imu.unstamped
         ),
     );
-    let ppm = |v: Option<f64>| v.map_or("unknown".into(), |p| format!("{p:+.2} ppm"));
     if let Some(sw) = &s.software {
-        kv(
-            "software sync",
-            format!(
-                "stamp jitter ≈ {:.4} ms (1σ), host clock {}",
-                sw.jitter_sd_ms,
-                ppm(sw.host_clock_error_ppm)
-            ),
-        );
+        kv("software sync", escape(&sw.describe()));
         kv("not observable", escape(&sw.unobservable));
     }
     if let Some(h) = &s.hybrid {
-        kv(
-            "hybrid sync",
-            format!(
-                "IMU sample clock {:.6} Hz ({}), receive latency above the fastest {:.3} ms mean, stamp jitter ≈ {:.2} µs (1σ); {} samples next to a loss of uncertain place; clock restarted {}× (port reopened or rate changed)",
-                h.rate_hz.unwrap_or(f64::NAN),
-                ppm(h.imu_clock_ppm),
-                h.mean_latency_above_fastest_ms,
-                h.jitter_sd_us,
-                h.ambiguous_samples,
-                h.clock_segments
-            ),
-        );
+        kv("hybrid sync", escape(&h.describe()));
         kv("not observable", escape(&h.unobservable));
     }
     if let Some(m) = &s.marks {
-        kv(
-            "receiver time marks",
-            format!(
-                "{} received, {} compared: counter-stamped − receiver time mean {:.3} µs, RMS {:.3} µs, max {:.3} µs{}",
-                m.received,
-                m.compared,
-                m.residual_mean_us,
-                m.residual_rms_us,
-                m.residual_max_abs_us,
-                if m.used_as_clock_reference {
-                    "; they map host time to GPS time"
-                } else {
-                    ""
-                }
-            ),
-        );
+        kv("receiver time marks", escape(&m.describe()));
     }
     for f in &s.implausible {
         kv(

@@ -265,41 +265,17 @@ pub fn print_summary(r: &SyncReport, wall: f64) {
     );
     if let Some(sw) = &r.software {
         println!(
-            "  software sync: jitter ≈ {:.4} ms (1σ), host clock {:.2} ppm; constant offset unobservable: {}",
-            sw.jitter_sd_ms,
-            sw.host_clock_error_ppm.unwrap_or(f64::NAN),
+            "  software sync: {}; constant offset unobservable: {}",
+            sw.describe(),
             sw.unobservable
         );
     }
     if let Some(h) = &r.hybrid {
-        println!(
-            "  hybrid sync: IMU sample clock {:.6} Hz ({:+.2} ppm), receive latency above the fastest {:.3} ms mean, stamp jitter ≈ {:.2} µs (1σ), {} samples next to a loss of uncertain place{}",
-            h.rate_hz.unwrap_or(f64::NAN),
-            h.imu_clock_ppm.unwrap_or(f64::NAN),
-            h.mean_latency_above_fastest_ms,
-            h.jitter_sd_us,
-            h.ambiguous_samples,
-            match h.clock_segments {
-                0 => String::new(),
-                n => format!(", the clock restarted {n}× (port reopened or rate changed)"),
-            }
-        );
+        println!("  hybrid sync: {}", h.describe());
         println!("  constant offset unobservable: {}", h.unobservable);
     }
     if let Some(m) = &r.marks {
-        println!(
-            "  receiver time marks: {} ({} compared): counter-stamped − receiver time mean {:.3} µs, RMS {:.3} µs, max {:.3} µs{}",
-            m.received,
-            m.compared,
-            m.residual_mean_us,
-            m.residual_rms_us,
-            m.residual_max_abs_us,
-            if m.used_as_clock_reference {
-                "; they map host time to GPS time"
-            } else {
-                ""
-            }
-        );
+        println!("  receiver time marks: {}", m.describe());
     }
     println!(
         "  stamp bound: mean {:.3} µs, max {:.3} µs",

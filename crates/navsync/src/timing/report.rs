@@ -538,6 +538,62 @@ pub(crate) const IMPLAUSIBLE_RATE: f64 = 0.01;
 /// to tens of µs).
 pub(crate) const RECEIVE_JITTER_US: f64 = 100.0;
 
+fn ppm_text(ppm: Option<f64>) -> String {
+    ppm.map_or_else(|| "unknown".into(), |p| format!("{p:+.2} ppm"))
+}
+
+impl SoftwareReport {
+    /// One line for people: stamp jitter and host clock error.
+    pub fn describe(&self) -> String {
+        format!(
+            "stamp jitter ≈ {:.4} ms (1σ), host clock {}",
+            self.jitter_sd_ms,
+            ppm_text(self.host_clock_error_ppm)
+        )
+    }
+}
+
+impl HybridReport {
+    /// One line for people: the IMU's sample clock and the stamps' quality
+    /// (restarts only when there were some).
+    pub fn describe(&self) -> String {
+        let mut s = format!(
+            "IMU sample clock {:.6} Hz ({}), receive latency above the fastest {:.3} ms mean, stamp jitter ≈ {:.2} µs (1σ), {} samples next to a loss of uncertain place",
+            self.rate_hz.unwrap_or(f64::NAN),
+            ppm_text(self.imu_clock_ppm),
+            self.mean_latency_above_fastest_ms,
+            self.jitter_sd_us,
+            self.ambiguous_samples
+        );
+        if self.clock_segments > 0 {
+            s += &format!(
+                ", the clock restarted {}× (port reopened or rate changed)",
+                self.clock_segments
+            );
+        }
+        s
+    }
+}
+
+impl MarkReport {
+    /// One line for people: the marks' residuals against the counter.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({} compared): counter-stamped − receiver time mean {:.3} µs, RMS {:.3} µs, max {:.3} µs{}",
+            self.received,
+            self.compared,
+            self.residual_mean_us,
+            self.residual_rms_us,
+            self.residual_max_abs_us,
+            if self.used_as_clock_reference {
+                "; they map host time to GPS time"
+            } else {
+                ""
+            }
+        )
+    }
+}
+
 impl SyncReport {
     /// The implausible figures of this report (see [`IMPLAUSIBLE_SHARE`]).
     pub(crate) fn check_plausible(&self) -> Vec<Implausible> {
