@@ -1,19 +1,18 @@
 //! `convert` end to end on generated inputs whose truth is known, read back
 //! with navsync's own KF-GINS readers.
 
-use std::path::PathBuf;
 
 use navsync::Diagnostics;
 use navsync::io::kfgins::{GnssLayout, GnssReader, ImuReader};
+use navsync::testfiles::TestDir;
 use navsync::time::{GpsTime, NS_PER_S};
 use navsync_receivers::convert::{ConvertOptions, InputFormat, convert};
 use navsync_receivers::gnsstime::utc_to_gps;
 use navsync_receivers::ubx::*;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("navsync-rx-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A directory of this test, removed when it passes.
+fn tmp(name: &str) -> TestDir {
+    TestDir::new(&format!("rx-{name}"))
 }
 
 const WEEK: i64 = 2300;

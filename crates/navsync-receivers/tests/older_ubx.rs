@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
 use navsync::earth::{Geodetic, c_ne, geodetic_to_ecef, ned_offset};
+use navsync::testfiles::TestDir;
 use navsync::time::GpsTime;
 use navsync_receivers::convert::{ConvertOptions, ConvertSummary, InputFormat, convert};
 use navsync_receivers::fixes::{
@@ -19,11 +20,9 @@ use navsync_receivers::nmea::encode_sentence;
 use navsync_receivers::stream::{EventKind, gpsd_log_header_len, read_all};
 use navsync_receivers::ubx::*;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("navsync-rx17-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A directory of this test, removed when it passes.
+fn tmp(name: &str) -> TestDir {
+    TestDir::new(&format!("rx17-{name}"))
 }
 
 fn shared_log(name: &str) -> PathBuf {
@@ -38,12 +37,15 @@ fn shared_log(name: &str) -> PathBuf {
     p
 }
 
-fn run(name: &str, bytes: &[u8], opts: &ConvertOptions) -> (ConvertSummary, PathBuf) {
+/// The conversion and its output directory (removed with the test's
+/// directory when dropped).
+fn run(name: &str, bytes: &[u8], opts: &ConvertOptions) -> (ConvertSummary, TestDir) {
     let dir = tmp(name);
     let input = dir.join("in.log");
     std::fs::write(&input, bytes).unwrap();
     let out = dir.join("out");
-    (convert(InputFormat::Ubx, &input, &out, opts).unwrap(), out)
+    let summary = convert(InputFormat::Ubx, &input, &out, opts).unwrap();
+    (summary, dir.at("out"))
 }
 
 const WEEK: i16 = 2300;

@@ -2,19 +2,18 @@
 //! crate's writer and the CDR encoder of `testbag` (independent of the
 //! decoder under test), holding a known IMU rotation and known fixes.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use navsync::testfiles::TestDir;
 use navsync_receivers::convert::{
     ConvertOptions, ConvertSummary, InputFormat, convert_with_topics,
 };
 use navsync_receivers::ros2::TopicChoice;
 use navsync_receivers::testbag::{FIX, IMU, Msg, TWIST, fix_msg, imu_msg, twist_msg, write_bag};
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("navsync-ros2-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A directory of this test, removed when it passes.
+fn tmp(name: &str) -> TestDir {
+    TestDir::new(&format!("ros2-{name}"))
 }
 
 /// 2024-01-01T00:00:00Z (Monday): GPS week 2295, 86 400 s + 18 leap s.
@@ -63,7 +62,9 @@ fn drive(lag_ns: i64) -> Vec<Msg> {
     v
 }
 
-fn run(bag: &[u8], name: &str, topics: &TopicChoice) -> (Result<ConvertSummary, String>, PathBuf) {
+/// The conversion and its output directory (removed with the test's
+/// directory when dropped).
+fn run(bag: &[u8], name: &str, topics: &TopicChoice) -> (Result<ConvertSummary, String>, TestDir) {
     let dir = tmp(name);
     let input = dir.join("bag.mcap");
     std::fs::write(&input, bag).unwrap();
@@ -76,7 +77,7 @@ fn run(bag: &[u8], name: &str, topics: &TopicChoice) -> (Result<ConvertSummary, 
         topics,
     )
     .map_err(|e| e.to_string());
-    (r, out)
+    (r, dir.at("out"))
 }
 
 fn rows(path: &Path) -> Vec<Vec<f64>> {

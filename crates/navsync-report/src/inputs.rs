@@ -292,10 +292,8 @@ pub(crate) fn read_gnss(
 mod tests {
     use super::*;
 
-    fn temp(name: &str, text: &str) -> PathBuf {
-        let p = std::env::temp_dir().join(format!("navsync-report-{}-{name}", std::process::id()));
-        std::fs::write(&p, text).unwrap();
-        p
+    fn temp(name: &str, text: &str) -> navsync::testfiles::TestDir {
+        navsync::testfiles::temp_file("report", name, text)
     }
 
     #[test]

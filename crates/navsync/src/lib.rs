@@ -39,8 +39,8 @@ pub mod sensor;
 pub mod smoother;
 pub mod stage;
 pub mod stats;
-#[cfg(test)]
-mod testfiles;
+#[doc(hidden)]
+pub mod testfiles;
 #[cfg(test)]
 mod testutil;
 pub mod time;

@@ -2,7 +2,7 @@
 //! crate and uses a part of them).
 #![allow(dead_code)]
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 /// The `navsync` binary under test.
@@ -10,49 +10,13 @@ pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_navsync"))
 }
 
-/// A test's own directory, removed when the test passes. A failing test
-/// (dropped while panicking) leaves it in place to be looked at; its path
-/// is in the failure's output wherever the test printed it.
-pub struct TestDir(PathBuf);
+pub use navsync::testfiles::TestDir;
 
-impl std::ops::Deref for TestDir {
-    type Target = Path;
-    fn deref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl AsRef<Path> for TestDir {
-    fn as_ref(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl AsRef<std::ffi::OsStr> for TestDir {
-    fn as_ref(&self) -> &std::ffi::OsStr {
-        self.0.as_os_str()
-    }
-}
-
-impl Drop for TestDir {
-    fn drop(&mut self) {
-        if !std::thread::panicking() {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
-}
-
-/// A fresh directory `navsync-<test file>-<pid>-<name>` in the temp dir,
-/// removed again when the returned guard is dropped (see [`TestDir`]).
+/// A fresh directory `navsync-<test file>-<name>-<pid>-<n>` in the temp
+/// dir, removed when the test passes and kept when it fails (see
+/// [`TestDir`]).
 pub fn temp_dir(name: &str) -> TestDir {
-    let d = std::env::temp_dir().join(format!(
-        "navsync-{}-{}-{name}",
-        env!("CARGO_CRATE_NAME"),
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    TestDir(d)
+    TestDir::new(&format!("{}-{name}", env!("CARGO_CRATE_NAME")))
 }
 
 /// Runs `cmd`: (success, stdout, stderr).

@@ -664,7 +664,7 @@ impl TimeOrder {
 mod tests {
     use super::*;
 
-    pub(crate) fn temp_file(name: &str, content: &str) -> crate::testfiles::TempFile {
+    pub(crate) fn temp_file(name: &str, content: &str) -> crate::testfiles::TestDir {
         crate::testfiles::temp_file("imulog", name, content)
     }
 

@@ -2214,7 +2214,7 @@ mod tests {
         name: &str,
         rows: &[(i64, [f64; 6])],
         extra: &[(usize, &str)],
-    ) -> crate::testfiles::TempFile {
+    ) -> crate::testfiles::TestDir {
         let mut s = String::from("time,gx,gy,gz,ax,ay,az\n");
         for (k, (t, v)) in rows.iter().enumerate() {
             for (at, line) in extra {

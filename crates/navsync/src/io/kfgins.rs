@@ -642,7 +642,7 @@ impl TextWriter {
 mod tests {
     use super::*;
 
-    fn temp_file(name: &str, content: &str) -> crate::testfiles::TempFile {
+    fn temp_file(name: &str, content: &str) -> crate::testfiles::TestDir {
         crate::testfiles::temp_file("kfgins", name, content)
     }
 

@@ -472,7 +472,7 @@ mod tests {
     use super::*;
     use crate::earth::geodetic_to_ecef;
 
-    fn temp(name: &str, content: &str) -> crate::testfiles::TempFile {
+    fn temp(name: &str, content: &str) -> crate::testfiles::TestDir {
         crate::testfiles::temp_file("rtklib", name, content)
     }
 
