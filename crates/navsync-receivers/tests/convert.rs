@@ -1,7 +1,6 @@
 //! `convert` end to end on generated inputs whose truth is known, read back
 //! with navsync's own KF-GINS readers.
 
-
 use navsync::Diagnostics;
 use navsync::io::kfgins::{GnssLayout, GnssReader, ImuReader};
 use navsync::testfiles::TestDir;
