@@ -401,7 +401,8 @@ pub struct QualityReport {
     /// Findings by kind.
     pub counts: Counts,
     /// Bad records: malformed, duplicate, out of order, stale, spiky,
-    /// saturated and stuck.
+    /// saturated and stuck (a record saturated or stuck in several
+    /// channels counts once).
     pub(crate) bad_records: usize,
     /// Lost / (accepted + lost) samples.
     pub(crate) loss_rate: f64,
@@ -465,6 +466,60 @@ impl Reservoir {
     }
 }
 
+/// Samples covered by `ranges` (`[start, end)` sample indices, in any
+/// order, overlapping or not).
+fn union_len(mut ranges: Vec<(usize, usize)>) -> usize {
+    ranges.sort_unstable();
+    let mut total = 0;
+    let mut cur: Option<(usize, usize)> = None;
+    for (a, b) in ranges {
+        cur = match cur {
+            Some((ca, cb)) if a <= cb => Some((ca, cb.max(b))),
+            Some((ca, cb)) => {
+                total += cb - ca;
+                Some((a, b))
+            }
+            None => Some((a, b)),
+        };
+    }
+    total + cur.map_or(0, |(a, b)| b - a)
+}
+
+/// Sample-index ranges `[start, end)` of flagged samples, consecutive
+/// indices merged; at most `MAX_FLAGGED_RANGES`, after which `overflow`
+/// says the ranges are incomplete (the bad-record count then falls back
+/// to the plain count).
+#[derive(Clone, Debug, Default)]
+struct IndexRanges {
+    ranges: Vec<(usize, usize)>,
+    overflow: bool,
+}
+
+/// Enough for any real clipping episode list; bounds memory on
+/// pathological inputs (every other sample at the extreme).
+const MAX_FLAGGED_RANGES: usize = 4096;
+
+impl IndexRanges {
+    /// Flags samples `[start, end)`, merged with the last range when they
+    /// touch it.
+    fn add(&mut self, start: usize, end: usize) {
+        if let Some(last) = self.ranges.last_mut()
+            && (last.0..=last.1).contains(&start)
+        {
+            last.1 = last.1.max(end);
+        } else if self.ranges.len() < MAX_FLAGGED_RANGES {
+            self.ranges.push((start, end));
+        } else {
+            self.overflow = true;
+        }
+    }
+
+    fn clear(&mut self) {
+        self.ranges.clear();
+        self.overflow = false;
+    }
+}
+
 /// The extreme (max or min) of a channel and the flat tops at it.
 #[derive(Clone, Debug, Default)]
 struct Extreme {
@@ -475,11 +530,14 @@ struct Extreme {
     longest_line: usize,
     /// Samples at the extreme inside runs of two or more.
     in_runs: usize,
+    /// Those samples' indices.
+    runs: IndexRanges,
 }
 
 impl Extreme {
+    /// Sample `x` (accepted sample `idx`, file line `line`).
     #[inline]
-    fn push(&mut self, x: f64, line: usize, is_max: bool) {
+    fn push(&mut self, x: f64, line: usize, idx: usize, is_max: bool) {
         match self.value {
             Some(v) if x == v => {
                 self.run += 1;
@@ -488,8 +546,10 @@ impl Extreme {
                 }
                 if self.run == 2 {
                     self.in_runs += 2;
+                    self.runs.add(idx.saturating_sub(1), idx + 1);
                 } else if self.run > 2 {
                     self.in_runs += 1;
+                    self.runs.add(idx, idx + 1);
                 }
                 if self.run > self.longest {
                     self.longest = self.run;
@@ -498,14 +558,13 @@ impl Extreme {
             }
             Some(v) if (is_max && x < v) || (!is_max && x > v) => self.run = 0,
             _ => {
-                *self = Extreme {
-                    value: Some(x),
-                    run: 1,
-                    run_line: line,
-                    longest: 1,
-                    longest_line: line,
-                    in_runs: 0,
-                };
+                self.value = Some(x);
+                self.run = 1;
+                self.run_line = line;
+                self.longest = 1;
+                self.longest_line = line;
+                self.in_runs = 0;
+                self.runs.clear();
             }
         }
     }
@@ -532,6 +591,8 @@ struct ChannelState {
     min: Extreme,
     range_hits: usize,
     range_first_line: usize,
+    /// Indices of the samples at the declared full scale.
+    range_runs: IndexRanges,
     // Spike test: the two previous rate values (contiguous).
     /// The last three values (oldest first), their lines and times.
     hist: [f64; 3],
@@ -571,6 +632,7 @@ impl ChannelState {
             min: Extreme::default(),
             range_hits: 0,
             range_first_line: 0,
+            range_runs: IndexRanges::default(),
             hist: [0.0; 3],
             hist_line: [0; 3],
             hist_ns: [0; 3],
@@ -1186,8 +1248,8 @@ impl QualityAnalyzer {
                 }
             }
             st.prev_raw = Some(raw);
-            st.max.push(x, rec.line, true);
-            st.min.push(x, rec.line, false);
+            st.max.push(x, rec.line, idx, true);
+            st.min.push(x, rec.line, idx, false);
             let range = if c < 3 {
                 self.cfg.gyro_range_rad_s
             } else {
@@ -1200,6 +1262,7 @@ impl QualityAnalyzer {
                     st.range_first_line = rec.line;
                 }
                 st.range_hits += 1;
+                st.range_runs.add(idx, idx + 1);
             }
             q[c] = if st.min_step.is_finite() {
                 st.min_step
@@ -1373,23 +1436,7 @@ impl QualityAnalyzer {
             }
         }
         // Union of stuck sample ranges over channels.
-        stuck_ranges.sort();
-        let mut stuck_samples = 0;
-        let mut cur: Option<(usize, usize)> = None;
-        for (a, b) in stuck_ranges {
-            match cur {
-                Some((ca, cb)) if a <= cb => cur = Some((ca, cb.max(b))),
-                Some((ca, cb)) => {
-                    stuck_samples += cb - ca;
-                    cur = Some((a, b));
-                }
-                None => cur = Some((a, b)),
-            }
-        }
-        if let Some((a, b)) = cur {
-            stuck_samples += b - a;
-        }
-        self.counts.stuck_samples = stuck_samples;
+        self.counts.stuck_samples = union_len(stuck_ranges.clone());
         for c in 0..6 {
             let st = &self.ch[c];
             if st.range_hits > 0 {
@@ -1437,6 +1484,29 @@ impl QualityAnalyzer {
             e.time_s = f64::NAN;
         }
         self.counts.saturated_samples = channel_sat.iter().sum();
+        // Records stuck or saturated, each counted once however many of
+        // its channels are (a shock clips three axes at once).
+        let mut flagged = stuck_ranges;
+        let mut unranged = 0;
+        for c in 0..6 {
+            let st = &self.ch[c];
+            let mut take = |r: &IndexRanges, n: usize| {
+                if r.overflow {
+                    unranged += n;
+                } else {
+                    flagged.extend_from_slice(&r.ranges);
+                }
+            };
+            if st.range_hits > 0 {
+                take(&st.range_runs, st.range_hits);
+            }
+            for ext in [&st.max, &st.min] {
+                if ext.value.is_some_and(|v| sat_values[c].contains(&v)) {
+                    take(&ext.runs, ext.in_runs);
+                }
+            }
+        }
+        let stuck_or_saturated_records = union_len(flagged) + unranged;
 
         // Intervals.
         let hist_total: u64 = self.hist.iter().map(|&h| h as u64).sum();
@@ -1634,8 +1704,7 @@ impl QualityAnalyzer {
             + c.out_of_order
             + c.stale_records
             + c.spike_records
-            + c.saturated_samples
-            + c.stuck_samples;
+            + stuck_or_saturated_records;
         let records = self.records + malformed;
         let loss_rate = c.lost_samples as f64 / (n_acc + c.lost_samples) as f64;
         let bad_rate = bad as f64 / records.max(1) as f64;
@@ -2396,6 +2465,39 @@ mod tests {
         // Loss: 36 of 24 000 expected; bad data: 3 + 2 + 1 + 1 + 5 + 10 + 199.
         assert!((r.loss_rate - 36.0 / 24_000.0).abs() < 1e-12);
         assert_eq!(r.bad_records, 221);
+    }
+
+    /// A shock clips the three accelerometer axes at once for 10 samples,
+    /// the last 5 of a stuck gyro's 200: three saturation findings of 10
+    /// samples each (30 channel samples, as `saturated_samples` counts
+    /// them) and 199 stuck samples, but 204 bad records (the stuck ones
+    /// and the 5 shock records after them), not 229.
+    #[test]
+    fn a_record_bad_in_several_channels_counts_once() {
+        let clean = clean_rows();
+        let rows: Vec<(i64, [f64; 6])> = clean
+            .iter()
+            .enumerate()
+            .map(|(k, row)| {
+                let mut row = *row;
+                if (20095..20105).contains(&k) {
+                    row.1[3] = 39.2266;
+                    row.1[4] = -39.2266;
+                    row.1[5] = 39.2266;
+                }
+                // Gyro y stuck for 1 s up to the middle of the shock.
+                if (19900..20100).contains(&k) {
+                    row.1[1] = clean[19900].1[1];
+                }
+                row
+            })
+            .collect();
+        let p = write_rows("shock.csv", &rows, &[]);
+        let r = check(&p).unwrap();
+        assert_eq!(r.counts.saturation_events, 3, "{:#?}", r.events);
+        assert_eq!(r.counts.saturated_samples, 30);
+        assert_eq!(r.counts.stuck_samples, 199);
+        assert_eq!(r.bad_records, 204);
     }
 
     #[test]
