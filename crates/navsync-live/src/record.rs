@@ -203,9 +203,7 @@ mod tests {
 
     #[test]
     fn records_leave_in_counter_order_and_existing_files_are_refused() {
-        let dir = std::env::temp_dir().join(format!("navsync-record-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = navsync::testfiles::TestDir::new("record");
         let p = dir.join("rig.csv");
         let h = RigHeader::new(1e9, 64, ImuKind::Rate);
         let mut r = Recorder::create(Some(&p), None, &h, &["a comment"]).unwrap();
@@ -242,6 +240,5 @@ mod tests {
         assert_eq!(r.counts.late, 1);
         let e = Recorder::create(Some(&p), None, &h, &[]).err().unwrap();
         assert!(e.to_string().contains("never overwritten"), "{e}");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -7,17 +7,16 @@ use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use navsync::fusion::NavOutput;
+use navsync::testfiles::TestDir;
 use navsync::timing::LockState;
 use navsync_live::live::{NavInfo, SourceId};
 use navsync_live::replay::GnssKind;
 use navsync_live::selftest::{self, SelftestConfig, builtin_fusion};
 use navsync_live::{LiveConfig, LiveSink, LiveStatus, PortConfig, PpsInput};
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("navsync-live-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A directory of this test, removed when it passes.
+fn tmp(name: &str) -> TestDir {
+    TestDir::new(&format!("live-{name}"))
 }
 
 #[test]
@@ -41,7 +40,6 @@ fn ubx_with_a_pps_gap_loses_nothing_holds_over_and_relocks() {
     assert!(rows[0].starts_with("2400 "), "{}", rows[0]);
     let std_lines = std::fs::read_to_string(dir.join("out/std.txt")).unwrap();
     assert!((4..=8).contains(&std_lines.lines().count()), "{std_lines}");
-    let _ = std::fs::remove_dir_all(&dir);
     let c = &r.live.counts;
     assert!(r.imu_written >= 2090, "{r:#?}");
     assert_eq!(r.imu_received, r.imu_written, "{:#?}", r.live.first_notes);
@@ -83,7 +81,6 @@ fn nmea_fixes_and_an_unplugged_imu_port() {
     cfg.replay.imu_unplug = Some((5.2, 1.0));
     let dir = tmp("nmea");
     let r = selftest::run(&cfg, &dir).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
     let c = &r.live.counts;
     assert!(c.reopens >= 1, "{:#?}", r.live.first_notes);
     assert!(
@@ -107,7 +104,6 @@ fn esf_raw_imu_on_the_receiver_port() {
     cfg.replay.imu_esf = true;
     let dir = tmp("esf");
     let r = selftest::run(&cfg, &dir).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
     let c = &r.live.counts;
     // The replay writes 5 samples a message; the last message may still
     // be in flight: at most one message short.
@@ -196,7 +192,6 @@ fn dual_antenna_headings_correct_the_yaw_live() {
         "{:?}",
         &headings[..3]
     );
-    let _ = std::fs::remove_dir_all(&dir);
     // The fusion starts when the clock locks (4 pulses); from then on the
     // heading of every fused fix's epoch is fused too.
     assert!(c.gnss_headings >= 80, "{c:?}");
@@ -229,7 +224,6 @@ fn hdt_headings_give_the_initial_yaw_when_it_is_unknown() {
     cfg.fusion = Some(heading_fusion(&cfg, 100.0, 180.0, 90.0));
     let dir = tmp("hdt");
     let r = selftest::run(&cfg, &dir).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
     let c = &r.live.counts;
     assert!(
         r.live

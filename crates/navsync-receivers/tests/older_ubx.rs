@@ -40,12 +40,10 @@ fn shared_log(name: &str) -> PathBuf {
 /// The conversion and its output directory (removed with the test's
 /// directory when dropped).
 fn run(name: &str, bytes: &[u8], opts: &ConvertOptions) -> (ConvertSummary, TestDir) {
-    let dir = tmp(name);
-    let input = dir.join("in.log");
+    let out = tmp(name).at("out");
+    let input = out.root().join("in.log");
     std::fs::write(&input, bytes).unwrap();
-    let out = dir.join("out");
-    let summary = convert(InputFormat::Ubx, &input, &out, opts).unwrap();
-    (summary, dir.at("out"))
+    (convert(InputFormat::Ubx, &input, &out, opts).unwrap(), out)
 }
 
 const WEEK: i16 = 2300;

@@ -65,10 +65,9 @@ fn drive(lag_ns: i64) -> Vec<Msg> {
 /// The conversion and its output directory (removed with the test's
 /// directory when dropped).
 fn run(bag: &[u8], name: &str, topics: &TopicChoice) -> (Result<ConvertSummary, String>, TestDir) {
-    let dir = tmp(name);
-    let input = dir.join("bag.mcap");
+    let out = tmp(name).at("out");
+    let input = out.root().join("bag.mcap");
     std::fs::write(&input, bag).unwrap();
-    let out = dir.join("out");
     let r = convert_with_topics(
         InputFormat::Mcap,
         &input,
@@ -77,7 +76,7 @@ fn run(bag: &[u8], name: &str, topics: &TopicChoice) -> (Result<ConvertSummary, 
         topics,
     )
     .map_err(|e| e.to_string());
-    (r, dir.at("out"))
+    (r, out)
 }
 
 fn rows(path: &Path) -> Vec<Vec<f64>> {

@@ -545,11 +545,11 @@ mod tests {
         let mut layer = base_layer("demo").unwrap();
         crate::scenario::set_path(&mut layer, "duration_s", serde_json::json!(200.0)).unwrap();
         let scn = Scenario::from_layer(layer).unwrap();
-        let dir = std::env::temp_dir().join(format!("navsync-mc-test-{}", std::process::id()));
+        let dir = navsync::testfiles::TestDir::new("mc-test");
         let opts = McOptions {
             runs: 3,
             jobs: 2,
-            work_dir: dir.clone(),
+            work_dir: dir.to_path_buf(),
             ..McOptions::default()
         };
         let calls = AtomicUsize::new(0);
@@ -589,7 +589,6 @@ mod tests {
         assert!(r.nees_time_offset.is_some());
         // Every run's files are gone.
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
-        let _ = std::fs::remove_dir_all(&dir);
         assert!(r.table().contains("position RMS, horizontal"));
     }
 }

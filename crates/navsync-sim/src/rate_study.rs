@@ -277,8 +277,7 @@ antlever: [ 0.0, 0.0, 0.0 ]
 
     #[test]
     fn decimated_files_keep_every_increment() {
-        let dir =
-            std::env::temp_dir().join(format!("navsync-ratestudy-dec-{}", std::process::id()));
+        let dir = navsync::testfiles::TestDir::new("ratestudy-dec");
         let cfg = static_scenario(&dir, 10);
         let out = dir.join("imu25.txt");
         let mut diag = Diagnostics::default();
@@ -302,7 +301,6 @@ antlever: [ 0.0, 0.0, 0.0 ]
         );
         let g = earth::gravity(30f64.to_radians().sin(), 20.0);
         assert!((first.dvel.z + g * 0.04).abs() < 1e-15);
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
@@ -310,7 +308,7 @@ antlever: [ 0.0, 0.0, 0.0 ]
         // Exact, error-free increments of a vehicle at rest: whatever the
         // rate, the INS stays put within the filter's tiny corrections, so
         // drift over the outages must stay at the mm level everywhere.
-        let dir = std::env::temp_dir().join(format!("navsync-ratestudy-{}", std::process::id()));
+        let dir = navsync::testfiles::TestDir::new("ratestudy");
         let cfg = static_scenario(&dir, 240);
         let opts = RateStudyOptions {
             rates_hz: vec![200.0, 50.0, 10.0],
@@ -344,6 +342,5 @@ antlever: [ 0.0, 0.0, 0.0 ]
             .unwrap_err()
             .to_string();
         assert!(err.contains("not a whole number"), "{err}");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 }

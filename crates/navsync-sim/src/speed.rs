@@ -113,8 +113,7 @@ mod tests {
 
     #[test]
     fn simulated_speed_follows_the_truth_with_its_scale_error() {
-        let dir = std::env::temp_dir().join(format!("navsync-speedsim-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = navsync::testfiles::TestDir::new("speedsim");
         let truth = dir.join("truth.nav");
         // Heading 90° (east) at 12 m/s, body forward = east.
         let mut s = String::new();
@@ -142,6 +141,5 @@ mod tests {
             .unwrap()
             .unwrap();
         assert!((v - 12.24).abs() < 1e-9, "{v}");
-        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -149,8 +149,7 @@ mod tests {
 
     #[test]
     fn std_file_is_projected_and_bad_lines_skipped() {
-        let dir = std::env::temp_dir().join(format!("navsync-track-std-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = navsync::testfiles::TestDir::new("track-std");
         let p = dir.join("std.txt");
         std::fs::write(
             &p,
@@ -167,7 +166,6 @@ mod tests {
         assert!(d.items[0].to_string().contains(":3:"), "{}", d.items[0]);
         std::fs::write(&p, "# nothing\n").unwrap();
         assert!(read_los_velocity_sd(&p, &u, &mut d).is_err());
-        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

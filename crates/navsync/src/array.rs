@@ -592,8 +592,7 @@ mod tests {
 
     #[test]
     fn relative_delays_come_from_the_gyros_to_a_tenth_of_a_millisecond() {
-        let dir = std::env::temp_dir().join(format!("navsync-array-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::testfiles::TestDir::new("array");
         let files = [
             (dir.join("a.txt"), 0.0, 1.0, 0.0),
             (dir.join("b.txt"), 0.0123, 1.0005, 2e-4),
@@ -621,7 +620,6 @@ mod tests {
         let late: Vec<&Path> = vec![files[0].0.as_path(), late_path.as_path()];
         let e = relative_delays(&late, 0.005, 0.1, 0, &mut diag).unwrap_err();
         assert!(e.to_string().contains("late.txt"), "{e}");
-        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -665,9 +665,7 @@ mod tests {
 
     #[test]
     fn a_drive_across_the_week_rollover_is_scored_whole() {
-        let dir =
-            std::env::temp_dir().join(format!("navsync-eval-rollover-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::testfiles::TestDir::new("eval-rollover");
         // 1 Hz from 604790 s of week 2300 to 10 s into week 2301.
         let secs: Vec<f64> = (0..=20).map(|k| 604_790.0 + k as f64).collect();
         let sow = |t: f64| if t >= 604_800.0 { t - 604_800.0 } else { t };
@@ -737,6 +735,5 @@ mod tests {
             diag.items[0].message.contains("time goes backwards"),
             "{diag:?}"
         );
-        std::fs::remove_dir_all(&dir).ok();
     }
 }

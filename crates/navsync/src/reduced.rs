@@ -476,8 +476,7 @@ mod tests {
 
     #[test]
     fn speed_stream_interpolates_and_reports_bad_lines() {
-        let dir = std::env::temp_dir().join(format!("navsync-speed-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::testfiles::TestDir::new("speed");
         let p = dir.join("speed.txt");
         std::fs::write(&p, "# sow speed\n100.0 10.0\n100.1,11.0\n100.1 12\n100.2\tfast\n100.2 12.0 extra\n\n101.0 20.0\n").unwrap();
         let mut d = Diagnostics::default();
@@ -505,7 +504,6 @@ mod tests {
         std::fs::write(&p, "# only comments\n").unwrap();
         let mut s = SpeedStream::open(&p, 0, 0.5).unwrap();
         assert!(s.at(t(1.0), &mut d).is_err());
-        std::fs::remove_dir_all(&dir).ok();
     }
 
     /// End to end through [`crate::pipeline::run`]: a level land-vehicle
@@ -530,8 +528,7 @@ mod tests {
         use rand::SeedableRng;
         use rand_distr::StandardNormal;
 
-        let dir = std::env::temp_dir().join(format!("navsync-reduced-e2e-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::testfiles::TestDir::new("reduced-e2e");
         let dt = 0.01;
         let week = 2300;
         let t0 = 200_000.0;
@@ -632,7 +629,7 @@ mod tests {
             path: dir.join("cfg.yaml"),
             imu_path: dir.join("imu.txt"),
             gnss_path: dir.join("gnss.txt"),
-            output_path: dir.clone(),
+            output_path: dir.to_path_buf(),
             imu_rate_hz: 100.0,
             start_sow: t0,
             end_sow: None,
@@ -713,7 +710,6 @@ mod tests {
             odometer: Some(odo),
             ..base.clone()
         });
-        std::fs::remove_dir_all(&dir).ok();
         assert!(red < 1.5, "1g2a + odometer + NHC drift {red} m");
         assert!(full_odo < 1.5, "full + odometer + NHC drift {full_odo} m");
         assert!(

@@ -467,12 +467,12 @@ impl Reservoir {
 }
 
 /// Samples covered by `ranges` (`[start, end)` sample indices, in any
-/// order, overlapping or not).
-fn union_len(mut ranges: Vec<(usize, usize)>) -> usize {
+/// order, overlapping or not); sorts them.
+fn union_len(ranges: &mut [(usize, usize)]) -> usize {
     ranges.sort_unstable();
     let mut total = 0;
     let mut cur: Option<(usize, usize)> = None;
-    for (a, b) in ranges {
+    for &(a, b) in ranges.iter() {
         cur = match cur {
             Some((ca, cb)) if a <= cb => Some((ca, cb.max(b))),
             Some((ca, cb)) => {
@@ -1436,7 +1436,7 @@ impl QualityAnalyzer {
             }
         }
         // Union of stuck sample ranges over channels.
-        self.counts.stuck_samples = union_len(stuck_ranges.clone());
+        self.counts.stuck_samples = union_len(&mut stuck_ranges);
         for c in 0..6 {
             let st = &self.ch[c];
             if st.range_hits > 0 {
@@ -1506,7 +1506,7 @@ impl QualityAnalyzer {
                 }
             }
         }
-        let stuck_or_saturated_records = union_len(flagged) + unranged;
+        let stuck_or_saturated_records = union_len(&mut flagged) + unranged;
 
         // Intervals.
         let hist_total: u64 = self.hist.iter().map(|&h| h as u64).sum();

@@ -213,8 +213,7 @@ mod tests {
 
     #[test]
     fn bad_lines_are_reported_with_their_line_and_skipped() {
-        let d = std::env::temp_dir().join(format!("navsync-heading-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
+        let d = crate::testfiles::TestDir::new("heading");
         let p = d.join("heading.txt");
         std::fs::write(
             &p,
@@ -250,6 +249,5 @@ mod tests {
             assert_eq!((a.time, a.source), (b.time, b.source));
             assert!((a.heading_rad - b.heading_rad).abs() < 1e-6);
         }
-        std::fs::remove_dir_all(&d).ok();
     }
 }
