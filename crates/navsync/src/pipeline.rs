@@ -392,6 +392,10 @@ pub struct FuseSummary {
     pub smoother: Option<SmootherSummary>,
     /// The initial alignment, when the run aligned itself.
     pub alignment: Option<crate::align::Alignment>,
+    /// The heading found later in the run from the GNSS track, when the
+    /// alignment could not find it (`fusion::course_heading`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub heading_acquired: Option<crate::fusion::course_heading::HeadingAcquired>,
     /// The configuration's IMU error model (the datasheet figures a report
     /// compares the estimates with).
     pub imu_model: ImuModelSummary,
@@ -913,6 +917,12 @@ fn run_inner(
         }
         fc.init_std.pos = Vector3::from(a.pos_sd_m);
         fc.init_std.vel = Vector3::from(a.vel_sd_mps);
+        if a.method == crate::align::AlignMethod::NoMotion {
+            // Too slow for the course: look for the heading in the track.
+            fc.course_heading = Some(crate::fusion::course_heading::CourseHeadingOptions::new(
+                ao.mount_yaw_rad,
+            ));
+        }
         Some(a)
     } else {
         None
@@ -1124,6 +1134,7 @@ fn run_inner(
         gnss_weighting: WeightingReport::from_records(&records),
         smoother,
         alignment,
+        heading_acquired: fusion.heading_acquired(),
         imu_model: ImuModelSummary::of(cfg),
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),

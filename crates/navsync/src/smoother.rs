@@ -198,9 +198,13 @@ pub(crate) struct NodeNominal {
     /// Time offset τ̂ (s) and odometer scale, when they are states.
     pub time_offset_s: f64,
     pub(crate) odometer_scale: f64,
+    /// The forward filter held the yaw (heading unknown, σ beyond 90°: a
+    /// vehicle that had not moved yet): a consider state there, never
+    /// corrected, so the backward pass does not correct it either.
+    pub(crate) yaw_held: bool,
 }
 
-const NOMINAL_LEN: usize = 26;
+const NOMINAL_LEN: usize = 27;
 
 impl NodeNominal {
     fn write(&self, out: &mut Vec<f64>) {
@@ -213,6 +217,7 @@ impl NodeNominal {
         out.extend(i.accel_misalign);
         out.push(self.time_offset_s);
         out.push(self.odometer_scale);
+        out.push(if self.yaw_held { 1.0 } else { 0.0 });
     }
 
     fn read(v: &[f64]) -> Self {
@@ -232,6 +237,7 @@ impl NodeNominal {
             },
             time_offset_s: v[24],
             odometer_scale: v[25],
+            yaw_held: v[26] != 0.0,
         }
     }
 }
@@ -368,15 +374,22 @@ impl Recorder {
             p: last.p_plus.clone(),
         };
         let mut next_node = last;
+        let mut next_held = last_nom.yaw_held;
         write_result(&mut out, &next_node, &next, &last_nom)?;
         let mut failures = 0usize;
+        let yaw = crate::filter::idx::ATT + 2;
         for k in (0..count - 1).rev() {
             let (node, nominal) = self.read_node(k)?;
-            let (step, ok) = rts_step(&node.p_plus, &next_node, &next);
+            let held = Held {
+                this: nominal.yaw_held.then_some(yaw),
+                next: next_held.then_some(yaw),
+            };
+            let (step, ok) = rts_step(&node.p_plus, &next_node, &next, held);
             failures += usize::from(!ok);
             write_result(&mut out, &node, &step, &nominal)?;
             next = step;
             next_node = node;
+            next_held = nominal.yaw_held;
         }
         Ok(Smoothed {
             n,
@@ -385,6 +398,7 @@ impl Recorder {
             tape: self.tape,
             count,
             failures,
+            yaw_turn: None,
         })
     }
 }
@@ -396,19 +410,57 @@ pub(crate) struct BackwardStep {
     pub p: Mat,
 }
 
+/// A state the forward filter held as a consider state (Schmidt, "Application
+/// of state-space methods to navigation problems", 1966: its covariance
+/// carried, its estimate never corrected) at node k (`this`) and at node
+/// k+1 (`next`). The forward filter held the yaw while the heading was
+/// unknown because a small-angle error model linearised at a heading that
+/// may be 180° off says nothing true about it; the backward pass must not
+/// correct it either: its smoothed error is kept at zero (the forward
+/// nominal), and it passes no correction on to the other states. Without
+/// this, a hovering drone's smoothed track ran hundreds of metres off
+/// through the yaw–velocity cross-covariances.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Held {
+    pub this: Option<usize>,
+    pub next: Option<usize>,
+}
+
 /// One RTS step: node k's posterior covariance `p_plus`, node k+1 and its
-/// smoothed estimate. Returns node k's smoothed estimate, and false when
-/// P⁻ₖ₊₁ had to be regularised.
+/// smoothed estimate, the states held at either node. Returns node k's
+/// smoothed estimate, and false when P⁻ₖ₊₁ had to be regularised.
 pub(crate) fn rts_step(
     p_plus: &Mat,
     next: &SmootherNode,
     next_s: &BackwardStep,
+    held: Held,
 ) -> (BackwardStep, bool) {
     let n = p_plus.rows;
     // M = Φ P⁺ ; Aᵀ = (P⁻)⁻¹ M, column by column.
     let mut m = Mat::zeros(0, 0);
     dense::mul(&next.phi_in, p_plus, &mut m);
-    let (l, ok) = spd_factor(&next.p_minus);
+    // A held state is marginalised out of the gain: M's and P⁻'s rows and
+    // columns of it are dropped (kept as an identity so the dimensions
+    // stay), so Aₛₛ = [P⁺Φᵀ]ₛₛ (P⁻ₛₛ)⁻¹ conditions the estimated states
+    // of node k on those of node k+1 alone, and A's held row and column
+    // are zero.
+    let decoupled;
+    let p_minus = match held.this.into_iter().chain(held.next).next() {
+        Some(h) => {
+            let mut p = next.p_minus.clone();
+            for i in 0..n {
+                p.set(h, i, 0.0);
+                p.set(i, h, 0.0);
+                m.set(h, i, 0.0);
+                m.set(i, h, 0.0);
+            }
+            p.set(h, h, 1.0);
+            decoupled = p;
+            &decoupled
+        }
+        None => &next.p_minus,
+    };
+    let (l, ok) = spd_factor(p_minus);
     let mut a = Mat::zeros(n, n);
     let mut col = vec![0.0; n];
     for j in 0..n {
@@ -420,10 +472,16 @@ pub(crate) fn rts_step(
         a.row_mut(j).copy_from_slice(&col);
     }
     // e⁻ₖ₊₁ = eₖ₊₁ + dxₖ₊₁ ; eₖ = A e⁻ₖ₊₁
-    let e_pre: Vec<f64> = next_s.e.iter().zip(&next.dx).map(|(a, b)| a + b).collect();
-    let e: Vec<f64> = (0..n)
+    let mut e_pre: Vec<f64> = next_s.e.iter().zip(&next.dx).map(|(a, b)| a + b).collect();
+    if let Some(i) = held.next {
+        e_pre[i] = 0.0;
+    }
+    let mut e: Vec<f64> = (0..n)
         .map(|i| a.row(i).iter().zip(&e_pre).map(|(x, y)| x * y).sum())
         .collect();
+    if let Some(i) = held.this {
+        e[i] = 0.0;
+    }
     // Pˢ = P⁺ + A (Pˢₖ₊₁ − P⁻ₖ₊₁) Aᵀ
     let mut d = next_s.p.clone();
     for (x, y) in d.data.iter_mut().zip(&next.p_minus.data) {
@@ -521,6 +579,9 @@ pub struct Smoothed {
     count: usize,
     /// Nodes where P⁻ was regularised.
     pub(crate) failures: usize,
+    /// The heading found in the run (`crate::fusion::course_heading`):
+    /// epochs whose yaw was held before it are turned by its offset.
+    pub(crate) yaw_turn: Option<crate::fusion::course_heading::HeadingAcquired>,
 }
 
 impl Smoothed {
@@ -612,6 +673,18 @@ impl Smoothed {
             }
             let mut imu = a.nominal.imu;
             feedback(&e, &self.layout, &mut nav, &mut imu);
+            if let Some(h) = self.yaw_turn
+                && a.nominal.yaw_held
+            {
+                let turn = nalgebra::UnitQuaternion::from_axis_angle(
+                    &nalgebra::Vector3::z_axis(),
+                    h.offset_rad,
+                );
+                nav.q_nb = turn * nav.q_nb;
+                // The gyros' drift between this epoch and the acquisition
+                // is left out of the σ (minutes of a MEMS gyro: a degree).
+                sd[crate::filter::idx::ATT + 2] = h.sd_rad;
+            }
             let extra = |name: &str| self.layout.index_of(name).map(|i| e[i]).unwrap_or(0.0);
             f(&SmoothedEpoch {
                 nav,
@@ -722,7 +795,7 @@ mod tests {
         };
         smoothed[last] = nominals[last];
         for k in (0..last).rev() {
-            let (s, ok) = rts_step(&nodes[k].p_plus, &nodes[k + 1], &next);
+            let (s, ok) = rts_step(&nodes[k].p_plus, &nodes[k + 1], &next, Held::default());
             assert!(ok);
             smoothed[k] = [nominals[k][0] - s.e[0], nominals[k][1] - s.e[1]];
             next = s;

@@ -361,6 +361,9 @@ pub struct FusionConfig {
     /// Detect standstills and apply zero-velocity and zero-angular-rate
     /// updates while stopped.
     pub standstill: Option<StandstillOptions>,
+    /// A land vehicle whose heading is unknown at the start: find it in the
+    /// run from the GNSS track (`course_heading`); `None`: off.
+    pub course_heading: Option<super::course_heading::CourseHeadingOptions>,
 }
 
 impl FusionConfig {
@@ -394,6 +397,7 @@ impl FusionConfig {
             levelling_coupling: None,
             levelling_accel_misalignment_sd_rad: 0.0,
             standstill: None,
+            course_heading: None,
         }
     }
 }
@@ -466,6 +470,13 @@ pub struct FusionStats {
     /// beyond [`MAX_GNSS_SD_M`] (repeated times and stale outputs are
     /// counted below).
     pub gnss_fixes_invalid: usize,
+    /// Headings from the GNSS track's course fused after the heading was
+    /// found there (`course_heading`), and those over the gate.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub course_heading_updates: usize,
+    /// Track-course headings over the χ² gate.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub course_heading_rejected: usize,
     /// Fixes ignored because their time repeats an earlier fix's.
     pub gnss_fixes_duplicate: usize,
     /// Fixes ignored as stale: position repeated while the solution moved > 1 m.

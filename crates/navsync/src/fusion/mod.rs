@@ -55,6 +55,7 @@ use crate::time::GpsTime;
 
 mod aid;
 mod config;
+pub mod course_heading;
 mod latency;
 #[cfg(test)]
 mod tests;
@@ -88,6 +89,10 @@ struct Core {
     last_w_ib: Vector3<f64>,
     /// The initial heading is unknown (σ > 90°): yaw is never updated.
     heading_unknown: bool,
+    /// Finds the heading from the GNSS track while it is unknown.
+    course_heading: Option<course_heading::CourseHeading>,
+    /// The heading found from the track, once found.
+    heading_acquired: Option<course_heading::HeadingAcquired>,
     kin: Kinematics,
     odo_scale: f64,
     odo_scale_index: Option<usize>,
@@ -223,6 +228,8 @@ impl Core {
             pending: DelayBuffer::default(),
             last_w_ib: Vector3::zeros(),
             heading_unknown: cfg.init_std.att.z > std::f64::consts::FRAC_PI_2,
+            course_heading: cfg.course_heading.map(course_heading::CourseHeading::new),
+            heading_acquired: None,
             kin: Kinematics::default(),
             odo_scale: 0.0,
             odo_scale_index,
@@ -257,6 +264,7 @@ impl Core {
             imu: self.imu,
             time_offset_s: self.tau,
             odometer_scale: self.odo_scale,
+            yaw_held: self.heading_unknown,
         };
         for node in self.filter.take_nodes() {
             self.nodes.push((node, nominal));
@@ -585,7 +593,14 @@ impl Fusion {
             .recorder
             .take()
             .ok_or_else(|| Error::Invalid("the smoother was not enabled".into()))?;
-        rec.smooth(layout)
+        let mut smoothed = rec.smooth(layout)?;
+        smoothed.yaw_turn = self.core.heading_acquired;
+        Ok(smoothed)
+    }
+
+    /// The heading found in the run from the GNSS track, if it was.
+    pub fn heading_acquired(&self) -> Option<course_heading::HeadingAcquired> {
+        self.core.heading_acquired
     }
 
     /// The error-state layout (state names and indices).

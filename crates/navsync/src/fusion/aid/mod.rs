@@ -153,6 +153,9 @@ impl AidSources {
     }
 }
 
+/// χ² gate of a track-course heading (1 degree of freedom, 99.9 %).
+const COURSE_GATE_NIS: f64 = 10.83;
+
 impl Core {
     /// Fuses the aid sources that are due at the epoch (most epochs have
     /// none: then the sources stay in place).
@@ -174,7 +177,65 @@ impl Core {
 
     /// Fuses one GNSS fix now.
     pub(super) fn gnss_update(&mut self, fix: &GnssFix) -> Result<(), Error> {
-        self.with_sources(|aid, core| aid.gnss.fuse_fix(core, fix))
+        self.with_sources(|aid, core| aid.gnss.fuse_fix(core, fix))?;
+        let Some(ch) = self.course_heading.as_mut() else {
+            return Ok(());
+        };
+        let sd_h = fix.pos_sd.x.max(fix.pos_sd.y);
+        let yaw = super::course_heading::yaw_of(&self.nav.q_nb);
+        let acquired = ch.push(self.nav.time, fix.pos.lat_rad, fix.pos.lon_rad, sd_h, yaw);
+        let chord = ch.take_chord();
+        if self.heading_unknown {
+            if let Some(h) = acquired {
+                self.acquire_heading(h);
+            }
+        } else if let Some(c) = chord {
+            // The track's course as a heading measurement of the body now.
+            let obs = crate::filter::heading::baseline_heading(
+                &self.nav,
+                0.0,
+                yaw + c.delta_rad,
+                c.sd_rad,
+                0.0,
+                self.filter.n(),
+            );
+            let frozen = self.frozen_states();
+            let outcome = self.apply(&obs, Some(COURSE_GATE_NIS), &frozen)?;
+            if outcome.accepted {
+                self.stats.course_heading_updates += 1;
+            } else {
+                self.stats.course_heading_rejected += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// Sets the heading found from the GNSS track: the nominal attitude
+    /// turned by the offset about the vertical, the yaw's covariance reset
+    /// to its σ (uncorrelated: it was held), and the yaw a state again.
+    fn acquire_heading(&mut self, h: super::course_heading::HeadingAcquired) {
+        let turn =
+            nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), h.offset_rad);
+        self.nav.q_nb = turn * self.nav.q_nb;
+        let yaw = crate::filter::idx::ATT + 2;
+        let p = self.filter.covariance_mut();
+        for i in 0..p.rows {
+            p.set(yaw, i, 0.0);
+            p.set(i, yaw, 0.0);
+        }
+        p.set(yaw, yaw, h.sd_rad * h.sd_rad);
+        self.heading_unknown = false;
+        self.notes.push(format!(
+            "heading found from the GNSS track at {:.1} s of week: {} chords agree within {:.1}° over courses spanning {:.0}°; \
+             the held yaw turned by {:.1}° (σ {:.1}°); the smoothed output turns the epochs before by the same angle",
+            h.time_sow,
+            h.chords,
+            h.spread_rad.to_degrees(),
+            h.course_span_rad.to_degrees(),
+            h.offset_rad.to_degrees(),
+            h.sd_rad.to_degrees()
+        ));
+        self.heading_acquired = Some(h);
     }
 
     /// The one update path of every source: propagates the covariance to
