@@ -163,6 +163,10 @@ pub struct ConvertSummary {
     /// Decoded messages and intact frames by type.
     pub frames: BTreeMap<String, u64>,
     pub gnss_fixes: usize,
+    /// The GPS week of the first fix written (gnss.txt holds seconds of
+    /// week only), so that the solution carries its week.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gps_week: Option<i64>,
     pub gnss_columns: usize,
     pub gnss_source: String,
     pub gnss_default_sd: usize,
@@ -333,6 +337,7 @@ fn write_gnss(path: &Path, fixes: &[GnssFix], s: &mut ConvertSummary) -> Result<
     }
     w.finish()?;
     s.gnss_fixes = fixes.len();
+    s.gps_week = fixes.first().map(|f| f.time.week());
     s.gnss_columns = if fixes.iter().all(|f| f.vel.is_some()) {
         13
     } else {

@@ -547,6 +547,20 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     };
     let gaps = sections::gaps(&fix_times, &outage_spans, &sigma_h, t0);
     let biases = sections::bias_checks(summary.as_ref(), imu_err_full.as_deref());
+    // The written file itself against the fixes and the forward pass.
+    let written = match (&inp.gnss, ep.origin) {
+        (Some(g), Some(o)) => {
+            let fixes = crate::written::read_fixes(g, &o, &mut diag)?;
+            let track = crate::written::Track::read(&inp.nav, &o, &mut diag)?;
+            let forward = inp
+                .forward_nav
+                .as_deref()
+                .map(|p| crate::written::Track::read(p, &o, &mut diag))
+                .transpose()?;
+            crate::written::evidence(&track, forward.as_ref(), &fixes, std_full.as_deref())
+        }
+        _ => None,
+    };
     let verdict = quality::assess(&sections::evidence(sections::Gathered {
         fixes: &fixes,
         std: std_full.as_deref(),
@@ -555,6 +569,7 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         summary: summary.as_ref(),
         time_offset: offset.as_deref(),
         gaps: &gaps,
+        written,
     }));
     let gap_shade = Shade {
         name: "GNSS gap or outage".into(),

@@ -14,6 +14,7 @@ pub(crate) mod plot;
 pub(crate) mod quality;
 mod sections;
 pub mod tracking;
+pub(crate) mod written;
 
 pub use html::{Report, build};
 pub use inputs::ReportInputs;

@@ -191,6 +191,8 @@ pub(crate) struct Evidence {
     /// Predicted horizontal σ at the end of the worst GNSS gap: (gap
     /// length s, σ m).
     pub worst_gap: Option<(f64, f64)>,
+    /// The written file against the fixes and the forward pass.
+    pub written: Option<crate::written::WrittenEvidence>,
 }
 
 /// Rejected fixes: a consistent filter gates at 99.99 % (or IGG-III k1 =
@@ -236,6 +238,90 @@ pub(crate) const IMU_GAP_CAUTION_S: f64 = 0.1;
 /// across-track by v·t·δψ; above 10° the small-angle error model of the
 /// filter no longer holds.
 pub(crate) const ALIGN_YAW_SD_CAUTION_DEG: f64 = 10.0;
+
+/// The written (smoothed) solution against the fixes, relative to the
+/// forward filter's: a smoother only ever moves the solution within the
+/// forward pass's uncertainty, so it ends about as close to the fixes as
+/// the forward filter or closer (the forward filter's 0.78 m became
+/// 1 643 m on a slow robot whose heading was unknown). Above 1.5× (and by
+/// more than the fixes' σ) is a caution, above 3× (and by more than twice
+/// their σ) the smoothing diverged.
+pub(crate) const WRITTEN_VS_FORWARD_CAUTION: f64 = 1.5;
+pub(crate) const WRITTEN_VS_FORWARD_POOR: f64 = 3.0;
+/// Any written solution further than this from the fixes, in units of
+/// their stated σ (and at least [`WRITTEN_FAR_MIN_M`]), is not on the
+/// fixes' trajectory at all: an antenna lever arm is metres at most.
+pub(crate) const WRITTEN_FAR_SIGMAS: f64 = 10.0;
+pub(crate) const WRITTEN_FAR_MIN_M: f64 = 10.0;
+/// Written speeds above twice the fixes' fastest plus this (m/s) are not
+/// the vehicle's.
+pub(crate) const WRITTEN_SPEED_MARGIN_MPS: f64 = 5.0;
+/// A written horizontal σ beyond this (m) says the solution is not a
+/// position (no land or air vehicle application accepts it).
+pub(crate) const WRITTEN_SD_POOR_M: f64 = 1000.0;
+
+/// The checks of the written file ([`crate::written`]).
+fn written_checks(w: &crate::written::WrittenEvidence, checks: &mut Vec<Check>) {
+    let far = (WRITTEN_FAR_SIGMAS * w.median_fix_sd_h_m).max(WRITTEN_FAR_MIN_M);
+    let (grade, how) = match w.forward_rms_vs_fixes_m {
+        _ if !w.rms_vs_fixes_m.is_finite() || w.rms_vs_fixes_m > far => (
+            Grade::Poor,
+            format!("not on the fixes' trajectory (beyond {far:.1} m)"),
+        ),
+        Some(fwd) => {
+            let ratio = w.rms_vs_fixes_m / fwd.max(1e-9);
+            let excess = w.rms_vs_fixes_m - fwd;
+            let g = if ratio > WRITTEN_VS_FORWARD_POOR && excess > 2.0 * w.median_fix_sd_h_m {
+                Grade::Poor
+            } else if ratio > WRITTEN_VS_FORWARD_CAUTION && excess > w.median_fix_sd_h_m {
+                Grade::Caution
+            } else {
+                Grade::Good
+            };
+            (g, format!("{ratio:.2}× the forward filter's {fwd:.3} m"))
+        }
+        None => (Grade::Good, "on the fixes' trajectory".to_string()),
+    };
+    checks.push(Check {
+        name: "written solution vs GNSS fixes",
+        grade: Some(grade),
+        finding: format!(
+            "horizontal RMS {:.3} m over {} of {} fixes (their median σ {:.3} m; a lever arm adds to it): {how}",
+            w.rms_vs_fixes_m, w.fixes_compared, w.fixes_total, w.median_fix_sd_h_m
+        ),
+        rule: format!(
+            "poor beyond {WRITTEN_FAR_SIGMAS:.0}× the fixes' σ (at least {WRITTEN_FAR_MIN_M:.0} m); a smoothed file: caution above {WRITTEN_VS_FORWARD_CAUTION}× the forward filter's RMS, poor above {WRITTEN_VS_FORWARD_POOR}×"
+        ),
+    });
+    let speed_limit = 2.0 * w.max_fix_speed_mps + WRITTEN_SPEED_MARGIN_MPS;
+    checks.push(Check {
+        name: "written speeds",
+        grade: Some(
+            if w.max_speed_mps.is_finite() && w.max_speed_mps <= speed_limit {
+                Grade::Good
+            } else {
+                Grade::Poor
+            },
+        ),
+        finding: format!(
+            "up to {:.1} m/s; the fixes' track up to {:.1} m/s",
+            w.max_speed_mps, w.max_fix_speed_mps
+        ),
+        rule: format!("poor above twice the fixes' fastest + {WRITTEN_SPEED_MARGIN_MPS:.0} m/s"),
+    });
+    if let Some(sd) = w.max_sd_h_m {
+        checks.push(Check {
+            name: "written σ",
+            grade: Some(if sd.is_finite() && sd <= WRITTEN_SD_POOR_M {
+                Grade::Good
+            } else {
+                Grade::Poor
+            }),
+            finding: format!("largest horizontal σ {sd:.2} m"),
+            rule: format!("poor above {WRITTEN_SD_POOR_M:.0} m"),
+        });
+    }
+}
 
 /// The three-way grade of `x` with `good ≤ caution < poor` thresholds.
 fn grade_of(x: f64, caution_above: f64, poor_above: f64) -> Grade {
@@ -331,6 +417,9 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
             finding: format!("{sd:.3} m (no gnss_residuals.txt to compare it with)"),
             rule: "not graded".into(),
         });
+    }
+    if let Some(w) = &ev.written {
+        written_checks(w, &mut checks);
     }
     if !ev.biases.is_empty() {
         let outside: Vec<&BiasCheck> = ev
@@ -667,5 +756,72 @@ mod tests {
         let v = assess(&e);
         assert_eq!(v.grade, Grade::Caution);
         assert_eq!(graded(&v, "worst GNSS gap").grade, None);
+    }
+
+    /// A smoothed file that left the fixes (a slow robot: forward 0.78 m,
+    /// smoothed 1 643 m) is poor whatever the forward statistics say; one
+    /// as close as the forward filter is good; a forward-only file far off
+    /// the fixes is poor; absurd speeds and σ are poor.
+    #[test]
+    fn the_written_file_is_judged_as_written() {
+        use crate::written::WrittenEvidence;
+        let base = WrittenEvidence {
+            fixes_compared: 989,
+            fixes_total: 989,
+            rms_vs_fixes_m: 0.5,
+            median_fix_sd_h_m: 1.27,
+            forward_rms_vs_fixes_m: Some(0.78),
+            max_speed_mps: 1.7,
+            max_fix_speed_mps: 2.0,
+            max_sd_h_m: Some(0.9),
+        };
+        let grade = |w: WrittenEvidence| {
+            let e = Evidence {
+                fixes: Some(fixes(600, 0, 3, 3.0)),
+                final_h_sd_m: Some(0.8),
+                written: Some(w),
+                ..Evidence::default()
+            };
+            assess(&e).grade
+        };
+        assert_eq!(grade(base.clone()), Grade::Good);
+        let diverged = WrittenEvidence {
+            rms_vs_fixes_m: 1643.0,
+            max_speed_mps: 121.0,
+            max_sd_h_m: Some(33_000.0),
+            ..base.clone()
+        };
+        assert_eq!(grade(diverged), Grade::Poor);
+        // Three times the forward filter's distance and beyond the fixes'
+        // σ twice over: poor even while still near the fixes.
+        let drifted = WrittenEvidence {
+            rms_vs_fixes_m: 3.5,
+            ..base.clone()
+        };
+        assert_eq!(grade(drifted), Grade::Poor);
+        let slightly = WrittenEvidence {
+            rms_vs_fixes_m: 2.2,
+            ..base.clone()
+        };
+        assert_eq!(grade(slightly), Grade::Caution);
+        // RTK: 2 cm against 1 cm is within the fixes' σ: not a divergence.
+        let rtk = WrittenEvidence {
+            rms_vs_fixes_m: 0.02,
+            forward_rms_vs_fixes_m: Some(0.01),
+            median_fix_sd_h_m: 0.028,
+            ..base.clone()
+        };
+        assert_eq!(grade(rtk), Grade::Good);
+        let forward_far = WrittenEvidence {
+            rms_vs_fixes_m: 40.0,
+            forward_rms_vs_fixes_m: None,
+            ..base.clone()
+        };
+        assert_eq!(grade(forward_far), Grade::Poor);
+        let fast = WrittenEvidence {
+            max_speed_mps: 13.7,
+            ..base
+        };
+        assert_eq!(grade(fast), Grade::Poor);
     }
 }

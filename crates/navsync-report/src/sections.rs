@@ -195,7 +195,7 @@ pub(crate) fn align_evidence(summary: Option<&Value>) -> Option<AlignEvidence> {
     if a.is_null() {
         return None;
     }
-    Some(AlignEvidence {
+    let mut ev = AlignEvidence {
         method: a.get("method")?.as_str()?.to_string(),
         time_sow: a.get("time_sow")?.as_f64()?,
         yaw_sd_deg: triplet(a.get("att_sd_rad"))?[2].to_degrees(),
@@ -204,7 +204,23 @@ pub(crate) fn align_evidence(summary: Option<&Value>) -> Option<AlignEvidence> {
             .and_then(Value::as_str)
             .unwrap_or_default()
             .to_string(),
-    })
+    };
+    // A heading found later from the GNSS track (fusion::course_heading).
+    if let Some(h) = summary?.get("heading_acquired").filter(|h| !h.is_null())
+        && let (Some(sow), Some(sd)) = (
+            h.get("time_sow").and_then(Value::as_f64),
+            h.get("sd_rad").and_then(Value::as_f64),
+        )
+    {
+        ev.method = "course-from-track".into();
+        ev.note = format!(
+            "{}; the heading was found from the GNSS track at SOW {sow:.1} (σ {:.1}°) and the epochs before turned by it in the smoothed output",
+            ev.note,
+            sd.to_degrees()
+        );
+        ev.yaw_sd_deg = sd.to_degrees();
+    }
+    Some(ev)
 }
 
 /// The worst predicted drift among the gaps: (length s, σ at its end m).
@@ -803,6 +819,7 @@ pub(crate) struct Gathered<'a> {
     pub summary: Option<&'a Value>,
     pub time_offset: Option<&'a [Vec<f64>]>,
     pub gaps: &'a [Gap],
+    pub written: Option<crate::written::WrittenEvidence>,
 }
 
 pub(crate) fn evidence(g: Gathered) -> Evidence {
@@ -814,5 +831,6 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         time_offset_sd_s: g.time_offset.and_then(|r| r.last()).map(|r| r[2]),
         alignment: align_evidence(g.summary),
         worst_gap: worst_gap(g.gaps),
+        written: g.written,
     }
 }

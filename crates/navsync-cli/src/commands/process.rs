@@ -300,6 +300,7 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
     opts.fix.default_sd_m = sheet.gnss_default_sd_m;
     opts.hdt_sd_deg = sheet.hdt_sd_deg;
     let mut notes = Vec::new();
+    let mut week = 0;
     let (gnss, receipt) = if *gk == FileKind::KfginsGnss {
         (g.clone(), None)
     } else {
@@ -310,6 +311,8 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
         if let Some(m) = s.no_fix_message() {
             bail!("{m}: navsync process needs GNSS positions to align and fuse");
         }
+        // The fixes' GPS week (gnss.txt holds seconds of week only).
+        week = s.gps_week.unwrap_or(0);
         let r = d.join("gnss_receipt.txt");
         (d.join("gnss.txt"), r.is_file().then_some(r))
     };
@@ -367,7 +370,7 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
     Ok(Data {
         imu,
         gnss,
-        week: 0,
+        week,
         sync_report: None,
         software_timed,
         notes,
