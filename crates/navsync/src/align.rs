@@ -70,7 +70,11 @@ pub struct AlignOptions {
     pub accel_bias_sd_mps2: f64,
     /// GNSS antenna lever arm, body FRD (m).
     pub lever_b: [f64; 3],
-    /// Yaw of the IMU's x axis relative to the vehicle's forward axis (rad).
+    /// Yaw of the IMU's x axis relative to the vehicle's forward axis
+    /// (rad), positive from forward towards the vehicle's right: the IMU's
+    /// yaw is the vehicle's heading plus this (the sensor sheet's
+    /// `mount_deg[2]`, the same convention as the NHC's C_b^v,
+    /// `filter::nhc`).
     pub mount_yaw_rad: f64,
     /// Starting in motion: the span of GNSS velocities (s) over which the
     /// tilt and heading are averaged before the run starts at its beginning.
@@ -471,7 +475,7 @@ impl Aligner {
             return (yaw, sd, HeadingFrom::Baseline, note);
         }
         if let Some(h) = self.heading_near(t, HeadingSource::Vehicle) {
-            let yaw = wrap_pi(h.heading_rad - self.opts.mount_yaw_rad);
+            let yaw = wrap_pi(h.heading_rad + self.opts.mount_yaw_rad);
             let sd = h.sd_rad;
             let d = wrap_pi(yaw - course_yaw);
             if sd < course_sd && d.abs() <= 3.0 * sd.hypot(course_sd) {
@@ -806,7 +810,7 @@ impl Aligner {
         // at 15 m/s).
         let a_sd = (w.v0_sd.norm().hypot(v_sd.norm()) / span_s).hypot(0.002);
         let tilt_sd = o.accel_bias_sd_mps2.hypot(a_sd) / g;
-        let mut course_yaw = course0 - o.mount_yaw_rad;
+        let mut course_yaw = course0 + o.mount_yaw_rad;
         if reversing {
             course_yaw += std::f64::consts::PI;
         }
@@ -921,7 +925,7 @@ impl Aligner {
             }
         };
         let course = v.y.atan2(v.x);
-        let mut course_yaw = course - o.mount_yaw_rad;
+        let mut course_yaw = course + o.mount_yaw_rad;
         if reversing {
             course_yaw += std::f64::consts::PI;
         }
@@ -1287,6 +1291,74 @@ mod tests {
         assert!(al_out.speed_mps >= 3.0);
         // σ: 0.02 m/s at ≥ 3 m/s is ≤ 0.4°, plus the 0.5° allowance.
         assert!(al_out.att_sd_rad[2] < 0.7f64.to_radians());
+    }
+
+    /// The sheet's mounting yaw: an IMU whose x axis points to the
+    /// vehicle's right has yaw +90° in the vehicle; driving along course
+    /// 45°, its yaw is 135° — and the NHC's C_b^v built from the same angle
+    /// carries the IMU-frame velocity onto the vehicle's forward axis alone
+    /// (one sign convention for both; they disagreed before).
+    #[test]
+    fn the_mounting_yaw_turns_the_imu_from_the_course_as_the_nhc_has_it() {
+        let g = GAMMA_E;
+        let mount = 90f64.to_radians();
+        let mut al = Aligner::new(AlignOptions {
+            mount_yaw_rad: mount,
+            ..AlignOptions::default()
+        });
+        let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+        let dt = 0.01;
+        let t0 = GpsTime::from_week_sow(2000, 1000.0);
+        let fix_at = |t: GpsTime, v: Vector3<f64>| GnssFix {
+            time: t,
+            pos,
+            pos_sd: Vector3::repeat(0.02),
+            vel: Some(v),
+            vel_sd: Some(Vector3::repeat(0.02)),
+        };
+        let mut t = t0;
+        for k in 1..=200 {
+            t = t0.add_seconds(k as f64 * dt);
+            al.push_imu(&sample(t, Vector3::new(0.0, 0.0, -g), dt));
+            if k % 100 == 0 {
+                assert!(al.push_gnss(&fix_at(t, Vector3::zeros())).is_none());
+            }
+        }
+        let course = 45f64.to_radians();
+        let a = 1.0;
+        // The vehicle's forward acceleration seen in the IMU's axes:
+        // C_v^b (a, 0, 0) = (a cos α, −a sin α, 0).
+        let c_bv = crate::attitude::euler_to_dcm(&Euler {
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            yaw_rad: mount,
+        });
+        let f_drive = c_bv.transpose() * Vector3::new(a, 0.0, 0.0) + Vector3::new(0.0, 0.0, -g);
+        let mut out = None;
+        for k in 1..=2000 {
+            t = t.add_seconds(dt);
+            al.push_imu(&sample(t, f_drive, dt));
+            if k % 100 == 0 {
+                let speed = a * k as f64 * dt;
+                let v = Vector3::new(speed * course.cos(), speed * course.sin(), 0.0);
+                if let Some(x) = al.push_gnss(&fix_at(t, v)) {
+                    out = Some(x);
+                    break;
+                }
+            }
+        }
+        let e = out.expect("aligned once moving").nav.euler();
+        assert!(
+            (wrap_pi(e.yaw_rad - (course + mount))).abs() < 1e-6,
+            "{}",
+            e.yaw_rad.to_degrees()
+        );
+        // The NHC: the IMU-frame velocity of a vehicle moving forward,
+        // carried by C_b^v, is forward only.
+        let c_nb = crate::attitude::euler_to_dcm(&e);
+        let v_n = Vector3::new(course.cos(), course.sin(), 0.0) * 5.0;
+        let v_v = c_bv * (c_nb.transpose() * v_n);
+        assert!((v_v.x - 5.0).abs() < 1e-6 && v_v.y.abs() < 1e-6, "{v_v}");
     }
 
     /// Reversing: the speed grows while the IMU's forward specific force is

@@ -504,6 +504,10 @@ impl WeightingReport {
     }
 }
 
+/// An IMU found tilted beyond this (deg) at the start, with the NHC on and
+/// no mounting roll or pitch given, is taken as mounted so.
+pub const MOUNT_TILT_FROM_GRAVITY_DEG: f64 = 20.0;
+
 /// Builds the engine configuration from a KF-GINS configuration.
 pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
     let start = GpsTime::from_week_ns(opts.week, crate::time::seconds_to_ns(cfg.start_sow));
@@ -917,6 +921,35 @@ fn run_inner(
         }
         fc.init_std.pos = Vector3::from(a.pos_sd_m);
         fc.init_std.vel = Vector3::from(a.vel_sd_mps);
+        // An IMU tilted far more than a road or a parked drone tilts (20°)
+        // with no mounting given is mounted so: its roll and pitch in the
+        // vehicle are the levelled ones (a level vehicle's attitude is
+        // the mounting's; Groves §5.6.2), for the NHC's C_b^v.
+        if let (Some(n), Some(nhc)) = (&opts.nhc, fc.nhc.as_mut())
+            && n.mount_deg[0] == 0.0
+            && n.mount_deg[1] == 0.0
+        {
+            let e = a.nav.euler();
+            let limit = MOUNT_TILT_FROM_GRAVITY_DEG.to_radians();
+            if e.roll_rad.abs() > limit || e.pitch_rad.abs() > limit {
+                let mount = Euler::from_deg(
+                    e.roll_rad.to_degrees(),
+                    e.pitch_rad.to_degrees(),
+                    n.mount_deg[2],
+                );
+                nhc.vehicle = VehicleConstraint::new(&mount, Vector3::from(n.lever_m), n.sd_mps);
+                diag.note(format!(
+                    "the IMU is tilted by roll {:.1}°, pitch {:.1}° at the start and the sheet gives no mounting: \
+                     taken as its mounting in the vehicle for the NHC, mount_deg [{:.1}, {:.1}, {:.1}] \
+                     (set mount_deg in the sheet to override)",
+                    e.roll_rad.to_degrees(),
+                    e.pitch_rad.to_degrees(),
+                    e.roll_rad.to_degrees(),
+                    e.pitch_rad.to_degrees(),
+                    n.mount_deg[2]
+                ));
+            }
+        }
         if a.method == crate::align::AlignMethod::NoMotion {
             // Too slow for the course: look for the heading in the track.
             fc.course_heading = Some(crate::fusion::course_heading::CourseHeadingOptions::new(

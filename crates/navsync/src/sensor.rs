@@ -259,8 +259,13 @@ pub struct SensorSheet {
     /// Lever arm from the IMU to the GNSS antenna phase centre, IMU axes
     /// [forward, right, down] (m).
     pub antenna_lever_m: [f64; 3],
-    /// IMU-to-vehicle mounting [roll, pitch, yaw] (deg): the rotation from the
-    /// vehicle's axes to the IMU's; 0 when the IMU's x axis points forward.
+    /// IMU-to-vehicle mounting [roll, pitch, yaw] (deg): the IMU's attitude
+    /// in the vehicle's axes (forward, right, down), ZYX Euler angles like a
+    /// solution's roll, pitch, yaw, so the IMU's yaw is the vehicle's
+    /// heading + yaw. Positive yaw turns the IMU's x axis from forward to
+    /// the right (clockwise from above), positive roll its y axis down,
+    /// positive pitch its x axis up; 0 when x forward, y right, z down.
+    /// Used by the NHC (C_b^v, `filter::nhc`) and the alignment's course.
     #[serde(default)]
     pub mount_deg: [f64; 3],
     /// Apply the non-holonomic constraint (land vehicle; needs `mount_deg`).
@@ -633,8 +638,16 @@ pub fn template(preset: &str) -> Result<String, Error> {
          # Land vehicle: apply the non-holonomic constraint (no sideways or vertical\n\
          # velocity of the vehicle). Needs the IMU's mounting angles below.\n\
          nhc: false\n\
-         # IMU-to-vehicle mounting [roll, pitch, yaw] (deg): the rotation from the\n\
-         # vehicle's axes to the IMU's. 0 when the IMU's x axis points forward.\n\
+         # IMU-to-vehicle mounting [roll, pitch, yaw] (deg): the IMU's attitude in the\n\
+         # vehicle's axes (forward, right, down), as a solution's roll/pitch/yaw: the\n\
+         # IMU's yaw is the vehicle's heading + yaw. Positive yaw turns the IMU's x\n\
+         # axis from forward to the right (clockwise seen from above), positive roll\n\
+         # turns its y axis down, positive pitch its x axis up. Examples: x forward,\n\
+         # z down: [0, 0, 0]; x to the right: [0, 0, 90]; x backward: [0, 0, 180];\n\
+         # on its side, x forward and y down (a ROS/FLU IMU with its y axis up):\n\
+         # [90, 0, 0]; upside down, x forward: [180, 0, 0]. With nhc and mount_deg\n\
+         # [0, 0, 0], an IMU found tilted by more than 20° at rest is taken as mounted\n\
+         # so (roll and pitch from gravity; process says so).\n\
          mount_deg: [0.0, 0.0, 0.0]\n\
          \n\
          # Optional wheel or CAN speed: a file of `sow speed_mps` lines (GPS seconds\n\

@@ -10,8 +10,9 @@
 //! Inertial, and Multisensor Integrated Navigation Systems*, 2nd ed.,
 //! §6.1.4, heading from trajectory), so the course c of the track between
 //! two fixes some metres apart is the vehicle's heading there, and each
-//! such chord measures δ = c − α − ψ̂ (α the IMU's mounting yaw,
-//! `mount_yaw_rad`, with the alignment's sign: body yaw = course − α),
+//! such chord measures δ = c + α − ψ̂ (α the IMU's mounting yaw,
+//! `mount_yaw_rad`: the IMU's yaw is the vehicle's heading + α, as the
+//! NHC's C_b^v and the alignment have it),
 //! whatever the speed: at 1 m/s a chord of 10 m with
 //! fixes of 0.9 m σ measures the course to 7°, where the alignment's
 //! instantaneous velocity would need 3 m/s.
@@ -22,7 +23,8 @@
 //! drone flying sideways, or a reversing vehicle, gives chords that
 //! disagree, and nothing is acquired). The heading is then set by turning
 //! the nominal attitude by the mean δ̄ about the vertical, with σ the
-//! spread over √n plus the sideslip allowance, and the yaw is a filter
+//! chords' spread plus the sideslip allowance (not the spread over √n: the
+//! fixes' errors are time-correlated, so the chords are not independent), and the yaw is a filter
 //! state again from there on. The epochs before, written with the held
 //! yaw, are turned by the same δ̄ in the smoothed output
 //! (`crate::smoother`), so the heading covers the whole run. Every later
@@ -217,7 +219,7 @@ impl CourseHeading {
                 (s + t.yaw_rad.sin(), c + t.yaw_rad.cos())
             });
         let yaw = s.atan2(c);
-        let delta = wrap_pi(course - o.mount_yaw_rad - yaw);
+        let delta = wrap_pi(course + o.mount_yaw_rad - yaw);
         self.chords.push((course, delta));
         self.last_chord_end = Some(p.time);
         let len = (p.north_m - a.north_m).hypot(p.east_m - a.east_m);
@@ -282,7 +284,7 @@ mod tests {
         let mut r = rng::stream(3, "course-heading");
         let offset = 70f64.to_radians();
         let mut ch = CourseHeading::new(CourseHeadingOptions::new(0.0));
-        let (mut n, mut e, mut psi) = (0.0, 0.0, 0.3);
+        let (mut n, mut e, mut psi) = (0.0f64, 0.0f64, 0.3f64);
         let mut got = None;
         for k in 0..2000 {
             let dt = 0.4;
@@ -305,7 +307,11 @@ mod tests {
         let h = got.expect("acquired");
         let err = wrap_pi(h.offset_rad - offset).abs();
         assert!(err < 3.0 * h.sd_rad, "{err} vs σ {}", h.sd_rad);
-        assert!(h.sd_rad < 6f64.to_radians());
+        // σ: the chords' spread (3 m chords of 0.3 m fixes: ≈ 8°; not
+        // divided by √n, the fixes' errors being time-correlated in
+        // practice) plus the 2° allowance.
+        assert!(h.sd_rad < 15f64.to_radians(), "{}", h.sd_rad.to_degrees());
+        assert!(err < 5f64.to_radians(), "{}", err.to_degrees());
     }
 
     /// A drone that drifts in every direction while its nose stays put:
@@ -313,7 +319,7 @@ mod tests {
     #[test]
     fn sideways_motion_acquires_nothing() {
         let mut ch = CourseHeading::new(CourseHeadingOptions::new(0.0));
-        let (mut n, mut e) = (0.0, 0.0);
+        let (mut n, mut e) = (0.0f64, 0.0f64);
         for k in 0..3000 {
             let dt = 0.2;
             let course = (k as f64 * 0.013).sin() * 3.0;
