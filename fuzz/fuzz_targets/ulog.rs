@@ -89,7 +89,7 @@ fuzz_target!(|data: &[u8]| {
         }
         for ((t, id), v) in &d.gps {
             assert!(ulog::GPS_TOPICS.contains(&t.as_str()));
-            assert!(v.len() as u64 <= count(t, *id));
+            assert!(v.len() as u64 <= count(t.as_str(), *id));
         }
     }
 });

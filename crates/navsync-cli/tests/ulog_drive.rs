@@ -211,4 +211,11 @@ fn simulated_drive_as_a_px4_ulog_processes() {
         rms < 2.0 * sd_h,
         "horizontal RMS {rms} m ≥ 2 × fix σh {sd_h} m"
     );
+    // Software sync maps boot time to GPS time up to the fastest fix
+    // latency (60 ms here); the filter's time-offset state finds it.
+    let offset = fuse["time_offset_s"].as_f64().unwrap();
+    assert!(
+        (offset - 0.060).abs() < 0.010,
+        "time offset {offset} s, expected ≈ 0.060 s"
+    );
 }

@@ -43,6 +43,9 @@ pub const MAX_NESTING: usize = 8;
 /// Largest resolved layout (bytes): a data message holds at most
 /// 65535 − 2 bytes of struct.
 const MAX_LAYOUT_BYTES: usize = u16::MAX as usize;
+/// Most flattened fields of one layout (PX4's largest topics have a few
+/// hundred): bounds the work of resolving a corrupt definition.
+const MAX_FIELDS: usize = 8192;
 
 // ------------------------------------------------------------ layouts
 
@@ -244,6 +247,10 @@ fn flatten(
     let raw = defs
         .get(name)
         .ok_or_else(|| format!("type '{name}' is neither a basic type nor defined"))?;
+    // An empty struct would let arrays of it loop without growing the layout.
+    if raw.is_empty() {
+        return Err(format!("type '{name}' has no fields"));
+    }
     let mut off = 0usize;
     for f in raw {
         let n = f.count.unwrap_or(1);
@@ -272,9 +279,10 @@ fn flatten(
                 }
             }
         }
-        if base + off > MAX_LAYOUT_BYTES {
+        if base + off > MAX_LAYOUT_BYTES || out.len() > MAX_FIELDS {
             return Err(format!(
-                "'{name}' is larger than a ULog message can hold ({MAX_LAYOUT_BYTES} bytes)"
+                "'{name}' is larger than a ULog message can hold ({MAX_LAYOUT_BYTES} bytes, \
+                 {MAX_FIELDS} fields)"
             ));
         }
     }
@@ -362,6 +370,8 @@ fn pick(l: &Layout, names: &[(&str, f64)]) -> Option<Num> {
 }
 
 /// What a subscription's data are decoded into.
+// One per subscription, not per message: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Copy, Clone, Debug)]
 enum Decoder {
     Imu {

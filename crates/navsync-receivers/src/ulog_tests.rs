@@ -164,6 +164,16 @@ fn nested_layout_flattens_with_padding_and_offsets() {
     let (n, f) = parse_format("odd:uint64_t timestamp;quaternion q;").unwrap();
     defs.insert(n, f);
     assert!(resolve(&defs, "odd").unwrap_err().contains("'quaternion'"));
+    // Arrays of an empty struct, nested: refused, not looped over.
+    for d in ["e0:", "e1:e0[65535] a;", "e2:e1[65535] b;"] {
+        let (n, f) = parse_format(d).unwrap();
+        defs.insert(n, f);
+    }
+    assert!(
+        resolve(&defs, "e2")
+            .unwrap_err()
+            .contains("'e0' has no fields")
+    );
     assert!(parse_format("no colon").is_err());
     assert!(parse_format("x:float[0] a;").is_err());
     assert!(parse_format("x:float[99999999] a;").is_err());
