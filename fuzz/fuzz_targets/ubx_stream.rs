@@ -1,5 +1,5 @@
 //! Fuzzes the mixed-stream reader with UBX-heavy input: raw bytes, and
-//! checksum-correct frames of the eleven decoded messages (so the payload
+//! checksum-correct frames of the thirteen decoded messages (so the payload
 //! decoders and the NAV epoch combiner are reached) and CRC-correct RTCM3
 //! frames, spliced with raw bytes.
 #![no_main]
@@ -11,7 +11,7 @@ use navsync_receivers::ubx::encode_frame;
 #[path = "common.rs"]
 mod common;
 
-const IDS: [(u8, u8); 13] = [
+const IDS: [(u8, u8); 15] = [
     (0x01, 0x07),
     (0x01, 0x06),
     (0x01, 0x02),
@@ -25,6 +25,9 @@ const IDS: [(u8, u8); 13] = [
     (0x10, 0x03),
     (0x01, 0x35),
     (0x28, 0x00),
+    // Dead-reckoning receivers: NAV-PVAT, NAV-ATT.
+    (0x01, 0x17),
+    (0x01, 0x05),
 ];
 
 fuzz_target!(|data: &[u8]| {

@@ -61,6 +61,9 @@ pub enum InputFormat {
     CommaGnss,
     /// ROS 2 bag in MCAP form (`sensor_msgs/Imu`, `NavSatFix`).
     Mcap,
+    /// PX4 ULog (`.ulg`): to a rig log on the autopilot's boot clock
+    /// ([`crate::ulog`]).
+    Ulog,
 }
 
 /// Which fixes go into `gnss.txt` when a stream holds both kinds.
@@ -183,6 +186,9 @@ pub struct ConvertSummary {
     pub leap_source: Option<LeapSource>,
     /// ROS 2 bag: its topics, what each was used for, stamp vs log time.
     pub ros2: Option<crate::ros2::BagSummary>,
+    /// PX4 ULog: topics, instances, what was read.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ulog: Option<crate::ulog::UlogSummary>,
     pub imu_samples: usize,
     pub imu_time_axis: String,
     pub imu_gaps: usize,
@@ -290,6 +296,7 @@ pub fn convert_with_topics(
             convert_comma_gnss(LineReader::new(reader, input), out_dir, opts, &mut s)?
         }
         InputFormat::Mcap => convert_mcap(reader, input, out_dir, opts, topics, &mut s)?,
+        InputFormat::Ulog => crate::ulog::convert_ulog(reader, input, out_dir, &mut s)?,
     }
     let path = out_dir.join("summary.json");
     let json = serde_json::to_string_pretty(&s).map_err(|e| Error::Invalid(e.to_string()))?;
@@ -520,30 +527,11 @@ impl StreamConverter {
                         self.note_fix_time(GpsTime::from_ns(ns));
                     }
                 }
-                UbxMessage::NavPvt(p) => {
-                    // The fix itself comes when its epoch closes; its time
-                    // is noted on arrival for the sensor-clock check.
-                    if let Ok(Some(f)) = nav_pvt_fix(p, &self.ctx) {
-                        self.note_fix_time(f.fix.time);
-                        // A dead-reckoning receiver's vehicle heading.
-                        if p.head_veh_valid() && p.gnss_fix_ok() {
-                            let sd_deg = p.head_acc_e5 as f64 * 1e-5;
-                            match heading_problem(sd_deg) {
-                                None => self.headings.push(HeadingObs {
-                                    time: f.fix.time,
-                                    heading_rad: (p.head_veh_e5 as f64 * 1e-5).to_radians(),
-                                    sd_rad: sd_deg.to_radians(),
-                                    source: HeadingSource::Vehicle,
-                                }),
-                                Some(why) => {
-                                    *s.heading_drops
-                                        .entry(format!("NAV-PVT headVeh: {why}"))
-                                        .or_default() += 1;
-                                }
-                            }
-                        }
-                    }
-                }
+                UbxMessage::NavPvt(p) => self.push_pvt(p, "NAV-PVT headVeh", s),
+                // A dead-reckoning receiver's fused solution: its fix comes
+                // when the epoch closes (fixes::UbxEpochs), its heading here.
+                UbxMessage::NavPvat(p) => self.push_pvt(&p.as_nav_pvt(), "NAV-PVAT vehHeading", s),
+                UbxMessage::NavAtt(a) => self.push_att(a, s),
                 UbxMessage::NavRelPosNed(r) => self.push_relposned(r, offset, file, s),
                 UbxMessage::NavSol(_)
                 | UbxMessage::NavPosLlh(_)
@@ -607,6 +595,53 @@ impl StreamConverter {
             ),
             EventKind::Corrupt(_) => {
                 diag.push(file, 0, format!("{ev}"));
+            }
+        }
+    }
+
+    /// The time of a NAV-PVT (or NAV-PVAT in its form), noted on arrival for
+    /// the sensor-clock check (its fix comes when the epoch closes), and a
+    /// dead-reckoning receiver's vehicle heading (headVeh / vehHeading
+    /// when valid, σ = headAcc / accHeading).
+    fn push_pvt(&mut self, p: &crate::ubx::NavPvt, what: &str, s: &mut ConvertSummary) {
+        let Ok(Some(f)) = nav_pvt_fix(p, &self.ctx) else {
+            return;
+        };
+        self.note_fix_time(f.fix.time);
+        if p.head_veh_valid() && p.gnss_fix_ok() {
+            let sd_deg = p.head_acc_e5 as f64 * 1e-5;
+            match heading_problem(sd_deg) {
+                None => self.headings.push(HeadingObs {
+                    time: f.fix.time,
+                    heading_rad: (p.head_veh_e5 as f64 * 1e-5).to_radians(),
+                    sd_rad: sd_deg.to_radians(),
+                    source: HeadingSource::Vehicle,
+                }),
+                Some(why) => {
+                    *s.heading_drops.entry(format!("{what}: {why}")).or_default() += 1;
+                }
+            }
+        }
+    }
+
+    /// NAV-ATT ([HPS] UBX-NAV-ATT): a dead-reckoning receiver's vehicle
+    /// heading, σ = accHeading, at its iTOW in the week of the last fix.
+    fn push_att(&mut self, a: &crate::ubx::NavAtt, s: &mut ConvertSummary) {
+        let why = match self.last_fix_time {
+            None => Some("no GPS week known yet (no fix before it)".to_string()),
+            Some(_) => heading_problem(a.acc_heading_deg()),
+        };
+        match (why, self.last_fix_time) {
+            (None, Some(last)) => self.headings.push(HeadingObs {
+                time: itow_near(last, a.itow_ms),
+                heading_rad: a.heading_deg().to_radians(),
+                sd_rad: a.acc_heading_deg().to_radians(),
+                source: HeadingSource::Vehicle,
+            }),
+            (why, _) => {
+                *s.heading_drops
+                    .entry(format!("NAV-ATT: {}", why.unwrap_or_default()))
+                    .or_default() += 1;
             }
         }
     }
@@ -863,7 +898,10 @@ impl StreamConverter {
         if !self.headings.is_empty() {
             let mut h = std::mem::take(&mut self.headings);
             h.sort_by_key(|o| (o.time, o.source == HeadingSource::Vehicle));
-            h.dedup_by_key(|o| (o.time, o.source));
+            // One heading per epoch and source: a dead-reckoning receiver
+            // gives its vehicle heading in NAV-ATT (at iTOW) and NAV-PVAT
+            // (at UTC + nano, within 1 ms of it).
+            h.dedup_by(|b, a| a.source == b.source && (b.time - a.time).abs() < 1_000_000);
             let path = out_dir.join("heading.txt");
             write_headings(&path, &h)?;
             s.headings = h.len();

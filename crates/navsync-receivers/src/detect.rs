@@ -29,6 +29,8 @@ pub enum FileKind {
     KfginsImu,
     /// KF-GINS GNSS fixes (7 or 13 columns).
     KfginsGnss,
+    /// PX4 ULog flight log (IMU and GPS on the autopilot's boot clock).
+    Ulog,
 }
 
 impl FileKind {
@@ -42,6 +44,7 @@ impl FileKind {
                 | FileKind::Mcap
                 | FileKind::CommaGnss
                 | FileKind::KfginsGnss
+                | FileKind::Ulog
         )
     }
 
@@ -55,13 +58,14 @@ impl FileKind {
             FileKind::RateCsv => "rate-form IMU CSV",
             FileKind::KfginsImu => "KF-GINS IMU increments",
             FileKind::KfginsGnss => "KF-GINS GNSS fixes",
+            FileKind::Ulog => "PX4 ULog flight log",
         }
     }
 }
 
 /// What an unknown file should have been.
 pub(crate) const EXPECTED: &str = "expected a rig log ('# rig-log v1' first line), a u-blox UBX or \
-    NMEA 0183 receiver log, a ROS 2 .mcap bag, a comma2k19 gnss_ublox.csv, an IMU log \
+    NMEA 0183 receiver log, a ROS 2 .mcap bag, a PX4 .ulg log, a comma2k19 gnss_ublox.csv, an IMU log \
     (lines of 'time gyro_x gyro_y gyro_z acc_x acc_y acc_z' in s, rad/s, m/s²) or KF-GINS \
     imu/gnss text files";
 
@@ -88,10 +92,39 @@ pub fn detect(path: &Path) -> Result<FileKind, Error> {
     })
 }
 
+/// Whether a UBX log holds a sensor-fusion receiver's fused solution
+/// (NAV-PVAT) and no raw IMU data (ESF-RAW / ESF-MEAS), judged on its
+/// first megabyte: such a log cannot feed navsync's own INS.
+pub fn ubx_fused_without_imu(path: &Path) -> Result<bool, Error> {
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut buf = Vec::new();
+    f.by_ref()
+        .take(1 << 20)
+        .read_to_end(&mut buf)
+        .map_err(|e| Error::io(path, e))?;
+    let mut r = crate::stream::StreamReader::new();
+    r.push(&buf[gpsd_log_header_len(&buf).min(buf.len())..]);
+    r.finish();
+    let (mut pvat, mut raw) = (0, 0);
+    while let Some(ev) = r.next_event() {
+        if let crate::stream::EventKind::Ubx(m) = &ev.kind {
+            match m {
+                crate::ubx::UbxMessage::NavPvat(_) => pvat += 1,
+                crate::ubx::UbxMessage::EsfRaw(_) | crate::ubx::UbxMessage::EsfMeas(_) => raw += 1,
+                _ => {}
+            }
+        }
+    }
+    Ok(pvat > 0 && raw == 0)
+}
+
 /// [`detect`] on the first bytes of a file.
 pub(crate) fn detect_bytes(buf: &[u8]) -> Option<FileKind> {
     if buf.starts_with(b"\x89MCAP") {
         return Some(FileKind::Mcap);
+    }
+    if buf.starts_with(&crate::ulog::MAGIC) {
+        return Some(FileKind::Ulog);
     }
     let first_line = buf
         .split(|b| *b == b'\n')
@@ -230,5 +263,9 @@ $GPGGA,123520,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*4D\r\n";
         assert_eq!(detect_bytes(b"hello world\nthis is text\n"), None);
         assert_eq!(detect_bytes(b""), None);
         assert_eq!(detect_bytes(b"\x89MCAP0\r\n"), Some(FileKind::Mcap));
+        assert_eq!(
+            detect_bytes(b"ULog\x01\x12\x35\x01\0\0\0\0\0\0\0\0"),
+            Some(FileKind::Ulog)
+        );
     }
 }

@@ -23,7 +23,7 @@ use crate::geoid::Egm96Grid;
 use crate::gnsstime::{LeapSeconds, LeapSource, UtcTime};
 use crate::nmea::{Date, Gga, Gst, Hdt, NmeaMessage, TimeOfDayNs};
 use crate::ubx::{
-    NavHpPosLlh, NavPosLlh, NavPvt, NavSol, NavStatus, NavTimeGps, NavVelNed, UbxMessage,
+    NavHpPosLlh, NavPosLlh, NavPvat, NavPvt, NavSol, NavStatus, NavTimeGps, NavVelNed, UbxMessage,
     fix_type_name,
 };
 
@@ -40,6 +40,9 @@ pub struct FixOptions {
     /// Keep UBX 2D fixes (fix type 2: height held by the receiver, not
     /// measured), with the receiver's vertical accuracy estimate.
     pub keep_2d: bool,
+    /// Keep dead-reckoning-only epochs (fix type 1) of a sensor-fusion
+    /// receiver: no GNSS in them, only its own IMU and wheel ticks.
+    pub keep_dr_only: bool,
 }
 
 impl Default for FixOptions {
@@ -48,6 +51,7 @@ impl Default for FixOptions {
             default_sd_m: [5.0, 5.0, 10.0],
             keep_fix_not_ok: false,
             keep_2d: false,
+            keep_dr_only: false,
         }
     }
 }
@@ -95,6 +99,7 @@ impl DropReason {
     pub fn kept_by(&self) -> Option<&'static str> {
         match self {
             DropReason::FixType(2) => Some("--keep-2d"),
+            DropReason::FixType(1) => Some("--keep-dr-only"),
             DropReason::FixNotOk => Some("--keep-fix-not-ok"),
             _ => None,
         }
@@ -107,6 +112,8 @@ fn check_status(fix_type: u8, fix_ok: bool, opts: &FixOptions) -> Result<(), Dro
     match fix_type {
         3 | 4 => {}
         2 if opts.keep_2d => {}
+        // Dead reckoning only: gnssFixOK is 0 by definition.
+        1 if opts.keep_dr_only => return Ok(()),
         t => return Err(DropReason::FixType(t)),
     }
     if !fix_ok && !opts.keep_fix_not_ok {
@@ -267,6 +274,24 @@ pub(crate) fn nav_pvt_epoch(
 
 // ------------------------------------------------------------ UBX epochs
 
+/// Correlation time (s) assumed for the errors of a receiver's fused
+/// (GNSS + dead-reckoning) solution: its filter carries an error for tens
+/// of seconds (an assumption; the receivers do not state it).
+pub const FUSED_CORRELATION_TIME_S: f64 = 10.0;
+
+/// σ factor for fixes whose errors are a first-order Gauss–Markov process
+/// of correlation time `tau_s` sampled every `interval_s`: with lag-one
+/// correlation ρ = exp(−Δt/τ), n such fixes carry the information of
+/// n·(1 − ρ)/(1 + ρ) independent ones (the AR(1) effective sample size,
+/// Bretherton et al. 1999, "The effective number of spatial degrees of
+/// freedom of a time-varying field", J. Climate 12), so each fix's
+/// variance is scaled by (1 + ρ)/(1 − ρ) for a filter that takes them as
+/// white: σ × √20 ≈ 4.5 at 1 Hz and τ = 10 s.
+pub fn fused_sd_factor(interval_s: f64, tau_s: f64) -> f64 {
+    let rho = (-interval_s / tau_s).exp();
+    ((1.0 + rho) / (1.0 - rho)).sqrt()
+}
+
 /// Largest GPS week taken from a message (year 2171).
 const MAX_GPS_WEEK: i16 = 10_000;
 
@@ -278,6 +303,9 @@ pub enum UbxFixSource {
     /// NAV-SOL / NAV-POSLLH / NAV-HPPOSLLH / NAV-VELNED / NAV-STATUS of
     /// one iTOW, where the stream has no NAV-PVT for it.
     Combined,
+    /// NAV-PVAT of a dead-reckoning receiver (no NAV-PVT for the iTOW):
+    /// its fused GNSS + IMU solution, σ inflated by [`fused_sd_factor`].
+    NavPvat,
 }
 
 impl UbxFixSource {
@@ -285,6 +313,9 @@ impl UbxFixSource {
         match self {
             UbxFixSource::NavPvt => "UBX NAV-PVT",
             UbxFixSource::Combined => "UBX NAV-SOL/POSLLH/VELNED/STATUS",
+            UbxFixSource::NavPvat => {
+                "UBX NAV-PVAT (the receiver's FUSED GNSS + dead-reckoning solution, σ inflated)"
+            }
         }
     }
 }
@@ -317,6 +348,7 @@ struct UbxEpoch {
     hp: Option<NavHpPosLlh>,
     velned: Option<NavVelNed>,
     status: Option<NavStatus>,
+    pvat: Option<NavPvat>,
 }
 
 /// Gathers UBX navigation messages by iTOW into epochs and turns each into
@@ -330,11 +362,17 @@ struct UbxEpoch {
 pub struct UbxEpochs {
     cur: Option<UbxEpoch>,
     opts: FixOptions,
+    /// iTOW of the last NAV-PVAT epoch (ms), for its fix interval.
+    last_pvat_itow: Option<u32>,
 }
 
 impl UbxEpochs {
     pub fn new(opts: FixOptions) -> Self {
-        UbxEpochs { cur: None, opts }
+        UbxEpochs {
+            cur: None,
+            opts,
+            last_pvat_itow: None,
+        }
     }
 
     /// Takes a message; epochs closed by it go to `out`. Messages without
@@ -347,6 +385,7 @@ impl UbxEpochs {
             UbxMessage::NavHpPosLlh(p) => p.itow_ms,
             UbxMessage::NavVelNed(p) => p.itow_ms,
             UbxMessage::NavStatus(p) => p.itow_ms,
+            UbxMessage::NavPvat(p) => p.itow_ms,
             UbxMessage::NavTimeGps(t) => {
                 if self.cur.as_ref().is_some_and(|e| e.itow_ms != t.itow_ms) {
                     self.close(ctx, out);
@@ -369,6 +408,7 @@ impl UbxEpochs {
             UbxMessage::NavHpPosLlh(p) => e.hp = Some(p.clone()),
             UbxMessage::NavVelNed(p) => e.velned = Some(p.clone()),
             UbxMessage::NavStatus(p) => e.status = Some(p.clone()),
+            UbxMessage::NavPvat(p) => e.pvat = Some(p.clone()),
             _ => {}
         }
     }
@@ -380,6 +420,12 @@ impl UbxEpochs {
 
     fn close(&mut self, ctx: &TimeContext, out: &mut Vec<UbxOutcome>) {
         let Some(e) = self.cur.take() else { return };
+        if e.pvt.is_none()
+            && let Some(p) = &e.pvat
+        {
+            out.push(self.pvat_epoch(p, ctx));
+            return;
+        }
         let hp = e.hp.as_ref().filter(|h| !h.invalid_llh());
         if let Some(p) = &e.pvt {
             let source = UbxFixSource::NavPvt;
@@ -417,6 +463,36 @@ impl UbxEpochs {
                 detail,
             },
         });
+    }
+
+    /// A NAV-PVAT epoch: NAV-PVT's rules on its fields, then the σ scaled
+    /// by [`fused_sd_factor`] for the fix interval since the last one.
+    fn pvat_epoch(&mut self, p: &NavPvat, ctx: &TimeContext) -> UbxOutcome {
+        let interval_s = self
+            .last_pvat_itow
+            .map(|l| p.itow_ms.wrapping_sub(l) as f64 * 1e-3)
+            .filter(|d| *d > 0.0 && *d <= 60.0)
+            .unwrap_or(1.0);
+        self.last_pvat_itow = Some(p.itow_ms);
+        let source = UbxFixSource::NavPvat;
+        match nav_pvt_epoch(&p.as_nav_pvt(), ctx, &self.opts) {
+            Ok(mut fix) => {
+                let k = fused_sd_factor(interval_s, FUSED_CORRELATION_TIME_S);
+                fix.fix.pos_sd *= k;
+                fix.fix.vel_sd = fix.fix.vel_sd.map(|v| v * k);
+                UbxOutcome::Fix {
+                    fix,
+                    source,
+                    high_precision: false,
+                }
+            }
+            Err((reason, detail)) => UbxOutcome::Dropped {
+                itow_ms: p.itow_ms,
+                source,
+                reason,
+                detail,
+            },
+        }
     }
 
     /// A fix from the pre-NAV-PVT messages of one epoch: status from

@@ -12,6 +12,7 @@
 //! - [`imu`]: ESF-MEAS/ESF-RAW and rate-form IMU data → increments.
 //! - [`marks`]: TIM-TM2 event stamps and TIM-TP qErr PPS correction.
 //! - [`ros2`]: ROS 2 bags (MCAP, CDR): `Imu`, `NavSatFix`, velocities.
+//! - [`ulog`]: PX4 ULog flight logs: IMU, GPS, the autopilot's estimate.
 //! - [`convert`]: file conversion to KF-GINS files and rig-logs.
 //!
 //! Kept out of the core `navsync` crate so that its receiver dependencies
@@ -30,6 +31,10 @@ pub mod rtcm3;
 pub mod stream;
 #[cfg(feature = "test-bags")]
 pub mod testbag;
+#[cfg(feature = "test-bags")]
+pub mod testulog;
 pub mod ubx;
+pub mod ubx_dr;
+pub mod ulog;
 
 pub use stream::{Event, EventKind, StreamReader};

@@ -2,7 +2,8 @@
 //! navsync reads (NAV-PVT, NAV-TIMEGPS, TIM-TP, TIM-TM2, ESF-MEAS, ESF-RAW,
 //! and the older navigation set NAV-SOL, NAV-POSLLH, NAV-VELNED,
 //! NAV-STATUS, plus the F9 high-precision NAV-HPPOSLLH and the moving-base
-//! NAV-RELPOSNED of a dual-antenna heading setup).
+//! NAV-RELPOSNED of a dual-antenna heading setup; the dead-reckoning
+//! receivers' NAV-PVAT and NAV-ATT are in [`crate::ubx_dr`]).
 //!
 //! Written from the u-blox interface descriptions rather than with the
 //! `ublox` crate: 0.10.0 panics in `TimTm2Flags::time_base()` for the GNSS
@@ -32,6 +33,7 @@
 //! all of its bytes, reserved ones included, so `encode(decode(frame))`
 //! reproduces a real frame bit for bit.
 
+pub use crate::ubx_dr::{NavAtt, NavPvat};
 use std::fmt;
 
 /// First UBX sync character ([M8] §32.2).
@@ -84,35 +86,35 @@ impl fmt::Display for PayloadError {
 
 impl std::error::Error for PayloadError {}
 
-fn bad_len(name: &str, len: usize, expected: &str) -> PayloadError {
+pub(crate) fn bad_len(name: &str, len: usize, expected: &str) -> PayloadError {
     PayloadError {
         what: format!("{name} payload is {len} bytes, expected {expected}"),
     }
 }
 
 /// Little-endian field reader over a payload whose length was checked.
-struct Rd<'a>(&'a [u8]);
+pub(crate) struct Rd<'a>(pub(crate) &'a [u8]);
 
 impl Rd<'_> {
-    fn u1(&self, o: usize) -> u8 {
+    pub(crate) fn u1(&self, o: usize) -> u8 {
         self.0[o]
     }
-    fn i1(&self, o: usize) -> i8 {
+    pub(crate) fn i1(&self, o: usize) -> i8 {
         self.0[o] as i8
     }
-    fn u2(&self, o: usize) -> u16 {
+    pub(crate) fn u2(&self, o: usize) -> u16 {
         u16::from_le_bytes([self.0[o], self.0[o + 1]])
     }
-    fn i2(&self, o: usize) -> i16 {
+    pub(crate) fn i2(&self, o: usize) -> i16 {
         self.u2(o) as i16
     }
-    fn u4(&self, o: usize) -> u32 {
+    pub(crate) fn u4(&self, o: usize) -> u32 {
         u32::from_le_bytes([self.0[o], self.0[o + 1], self.0[o + 2], self.0[o + 3]])
     }
-    fn i4(&self, o: usize) -> i32 {
+    pub(crate) fn i4(&self, o: usize) -> i32 {
         self.u4(o) as i32
     }
-    fn arr<const N: usize>(&self, o: usize) -> [u8; N] {
+    pub(crate) fn arr<const N: usize>(&self, o: usize) -> [u8; N] {
         let mut a = [0u8; N];
         a.copy_from_slice(&self.0[o..o + N]);
         a
@@ -155,6 +157,14 @@ impl MsgId {
         class: 0x01,
         id: 0x3C,
     };
+    pub(crate) const NAV_PVAT: MsgId = MsgId {
+        class: 0x01,
+        id: 0x17,
+    };
+    pub(crate) const NAV_ATT: MsgId = MsgId {
+        class: 0x01,
+        id: 0x05,
+    };
     pub(crate) const NAV_TIMEGPS: MsgId = MsgId {
         class: 0x01,
         id: 0x20,
@@ -183,10 +193,12 @@ impl MsgId {
             (0x01, 0x02) => "NAV-POSLLH",
             (0x01, 0x03) => "NAV-STATUS",
             (0x01, 0x04) => "NAV-DOP",
+            (0x01, 0x05) => "NAV-ATT",
             (0x01, 0x06) => "NAV-SOL",
             (0x01, 0x07) => "NAV-PVT",
             (0x01, 0x11) => "NAV-VELECEF",
             (0x01, 0x14) => "NAV-HPPOSLLH",
+            (0x01, 0x17) => "NAV-PVAT",
             (0x01, 0x12) => "NAV-VELNED",
             (0x01, 0x20) => "NAV-TIMEGPS",
             (0x01, 0x21) => "NAV-TIMEUTC",
@@ -1403,6 +1415,9 @@ pub enum UbxMessage {
     TimTm2(TimTm2),
     EsfMeas(EsfMeas),
     EsfRaw(EsfRaw),
+    /// Dead-reckoning receivers ([`crate::ubx_dr`]).
+    NavPvat(NavPvat),
+    NavAtt(NavAtt),
 }
 
 impl UbxMessage {
@@ -1422,6 +1437,8 @@ impl UbxMessage {
             MsgId::TIM_TM2 => UbxMessage::TimTm2(TimTm2::decode(payload)?),
             MsgId::ESF_MEAS => UbxMessage::EsfMeas(EsfMeas::decode(payload)?),
             MsgId::ESF_RAW => UbxMessage::EsfRaw(EsfRaw::decode(payload)?),
+            MsgId::NAV_PVAT => UbxMessage::NavPvat(NavPvat::decode(payload)?),
+            MsgId::NAV_ATT => UbxMessage::NavAtt(NavAtt::decode(payload)?),
             _ => return Ok(None),
         }))
     }
@@ -1440,6 +1457,8 @@ impl UbxMessage {
             UbxMessage::TimTm2(_) => MsgId::TIM_TM2,
             UbxMessage::EsfMeas(_) => MsgId::ESF_MEAS,
             UbxMessage::EsfRaw(_) => MsgId::ESF_RAW,
+            UbxMessage::NavPvat(_) => MsgId::NAV_PVAT,
+            UbxMessage::NavAtt(_) => MsgId::NAV_ATT,
         }
     }
 
@@ -1457,6 +1476,8 @@ impl UbxMessage {
             UbxMessage::TimTm2(m) => m.encode(),
             UbxMessage::EsfMeas(m) => m.encode(),
             UbxMessage::EsfRaw(m) => m.encode(),
+            UbxMessage::NavPvat(m) => m.encode(),
+            UbxMessage::NavAtt(m) => m.encode(),
         }
     }
 

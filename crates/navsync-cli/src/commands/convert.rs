@@ -26,6 +26,10 @@ pub enum From {
     /// ROS 2 bag as .mcap (uncompressed, zstd or lz4 chunks): sensor_msgs/Imu,
     /// sensor_msgs/NavSatFix, geometry_msgs/TwistWithCovarianceStamped (CDR).
     Mcap,
+    /// PX4 ULog (.ulg): sensor_combined, vehicle_gps_position / sensor_gps →
+    /// rig.csv on the autopilot's boot clock (then `navsync sync`);
+    /// vehicle_attitude + vehicle_global_position → autopilot.nav.
+    Ulog,
 }
 
 #[derive(Copy, Clone, Debug, clap::ValueEnum)]
@@ -72,6 +76,9 @@ pub struct Args {
     /// Keep UBX 2D fixes (fix type 2: height held by the receiver), with its vertical accuracy.
     #[arg(long)]
     pub keep_2d: bool,
+    /// Keep dead-reckoning-only epochs (fix type 1) of a u-blox sensor-fusion receiver's NAV-PVAT.
+    #[arg(long)]
+    pub keep_dr_only: bool,
     /// ROS 2 bag: the sensor_msgs/msg/Imu topic (default: the only one).
     #[arg(long)]
     pub imu_topic: Option<String>,
@@ -94,6 +101,7 @@ pub fn run(a: Args) -> Result<()> {
         From::RateCsv => InputFormat::RateCsv,
         From::CommaGnss => InputFormat::CommaGnss,
         From::Mcap => InputFormat::Mcap,
+        From::Ulog => InputFormat::Ulog,
     };
     let topics = TopicChoice {
         imu: a.imu_topic.clone(),
@@ -116,6 +124,7 @@ pub fn run(a: Args) -> Result<()> {
     opts.fix.default_sd_m = a.default_sd;
     opts.fix.keep_fix_not_ok = a.keep_fix_not_ok;
     opts.fix.keep_2d = a.keep_2d;
+    opts.fix.keep_dr_only = a.keep_dr_only;
     if let Some(why) = convert::heading_problem(a.hdt_sd) {
         anyhow::bail!("--hdt-sd: {why}");
     }
@@ -188,7 +197,9 @@ pub fn run(a: Args) -> Result<()> {
             s.ubx_high_precision_positions
         );
     }
-    if s.gnss_fixes > 0 {
+    if let Some(u) = &s.ulog {
+        print_ulog(u);
+    } else if s.gnss_fixes > 0 {
         println!(
             "gnss.txt: {} fixes, {} columns, from {}{}{}",
             s.gnss_fixes,
@@ -210,7 +221,7 @@ pub fn run(a: Args) -> Result<()> {
             s.geoid_model_heights
         );
     }
-    if s.imu_samples > 0 {
+    if s.imu_samples > 0 && s.ulog.is_none() {
         println!(
             "imu.txt: {} increments on {}; {} gaps ≥ {} s",
             s.imu_samples, s.imu_time_axis, s.imu_gaps, a.gap_s
@@ -251,4 +262,48 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// What a ULog conversion read and wrote.
+fn print_ulog(u: &navsync_receivers::ulog::UlogSummary) {
+    let sys = ["sys_name", "ver_hw", "ver_sw"]
+        .iter()
+        .filter_map(|k| u.info.get(*k).map(|v| format!("{k} {v}")))
+        .collect::<Vec<_>>()
+        .join(", ");
+    println!(
+        "PX4 ULog v{}: {} topic instances{}{}",
+        u.version,
+        u.topics.len(),
+        if sys.is_empty() {
+            String::new()
+        } else {
+            format!(" ({sys})")
+        },
+        if u.dropouts > 0 {
+            format!(
+                "; {} logger dropouts ({} ms lost)",
+                u.dropouts, u.dropout_ms
+            )
+        } else {
+            String::new()
+        }
+    );
+    println!(
+        "rig.csv: {} sensor_combined samples (instance {}, {:.1} Hz, {}) and {} fixes from {} (instance {}), counter = boot µs",
+        u.imu_samples,
+        u.imu_instance,
+        u.imu_rate_hz,
+        u.imu_axes,
+        u.fixes,
+        u.gps_topic,
+        u.gps_instance
+    );
+    for o in &u.other_instances {
+        println!("  {o}");
+    }
+    println!(
+        "autopilot.nav: {} epochs; {}",
+        u.autopilot_nav_epochs, u.autopilot_nav
+    );
 }

@@ -80,7 +80,8 @@ fn classify(raw: &[PathBuf]) -> Result<Inputs> {
             )
         };
         match kind {
-            FileKind::RigLog => {
+            // An autopilot log holds IMU and GNSS on one clock, as a rig log.
+            FileKind::RigLog | FileKind::Ulog => {
                 if let Some(o) = &inp.rig {
                     return Err(slot_taken("rig", o));
                 }
@@ -121,6 +122,17 @@ fn classify(raw: &[PathBuf]) -> Result<Inputs> {
             "no GNSS log among the inputs: navsync process needs GNSS positions to align and fuse \
              (an IMU alone drifts); give a receiver log (UBX, NMEA, comma2k19 CSV) or a rig log"
         ),
+        (Some((g, FileKind::Ubx)), None)
+            if navsync_receivers::detect::ubx_fused_without_imu(g).unwrap_or(false) =>
+        {
+            bail!(
+                "{} holds a u-blox dead-reckoning receiver's FUSED solution (NAV-PVAT: GNSS + the \
+                 receiver's own IMU, already filtered) and no raw IMU data (no ESF-RAW/ESF-MEAS): \
+                 navsync process needs the IMU samples to run its own INS. Use \
+                 `navsync convert --from ubx` for its fixes and headings, or log ESF-RAW too",
+                g.display()
+            )
+        }
         (Some((g, _)), None) => bail!(
             "no IMU log among the inputs (only {}): give the IMU log too (rate CSV: time, gyro x y z rad/s, accel x y z m/s²)",
             g.display()
@@ -236,6 +248,19 @@ fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
     })
 }
 
+/// An autopilot log (PX4 ULog) → `DIR/convert/rig.csv` on its boot clock,
+/// for `sync`; a rig log as it is.
+fn autopilot_to_rig(path: &Path, out: &Path) -> Result<PathBuf> {
+    let kind = detect(path)?;
+    if kind == FileKind::RigLog {
+        return Ok(path.to_path_buf());
+    }
+    let dir = out.join("convert");
+    println!("[0/4] convert: {} → {}", path.display(), dir.display());
+    convert_one(path, kind, &dir, &ConvertOptions::default())?;
+    Ok(dir.join("rig.csv"))
+}
+
 fn format_of(kind: FileKind) -> Option<InputFormat> {
     Some(match kind {
         FileKind::Ubx => InputFormat::Ubx,
@@ -243,6 +268,7 @@ fn format_of(kind: FileKind) -> Option<InputFormat> {
         FileKind::Mcap => InputFormat::Mcap,
         FileKind::CommaGnss => InputFormat::CommaGnss,
         FileKind::RateCsv => InputFormat::RateCsv,
+        FileKind::Ulog => InputFormat::Ulog,
         FileKind::RigLog | FileKind::KfginsImu | FileKind::KfginsGnss => return None,
     })
 }
@@ -261,7 +287,18 @@ fn convert_one(
         );
     };
     let s = convert::convert(format, path, dir, opts)?;
-    if s.gnss_fixes > 0 {
+    if let Some(u) = &s.ulog {
+        println!(
+            "  {}: {} IMU samples ({:.1} Hz) on the boot clock, {} GPS fixes from {}; autopilot.nav: {} epochs",
+            dir.join("rig.csv").display(),
+            u.imu_samples,
+            u.imu_rate_hz,
+            u.fixes,
+            u.gps_topic,
+            u.autopilot_nav_epochs
+        );
+    }
+    if s.gnss_fixes > 0 && s.ulog.is_none() {
         println!(
             "  {}: {} fixes ({} columns) from {}",
             dir.join("gnss.txt").display(),
@@ -270,7 +307,7 @@ fn convert_one(
             s.gnss_source
         );
     }
-    if s.imu_samples > 0 {
+    if s.imu_samples > 0 && s.ulog.is_none() {
         println!(
             "  {}: {} increments on {}, {} gaps",
             dir.join("imu.txt").display(),
@@ -446,7 +483,7 @@ pub fn run(a: Args) -> Result<()> {
     println!("navsync process: inputs");
     let inp = classify(&a.raw)?;
     let data = match &inp.rig {
-        Some(rig) => sync_stage(rig, &a.output, a.force)?,
+        Some(rig) => sync_stage(&autopilot_to_rig(rig, &a.output)?, &a.output, a.force)?,
         None => convert_stage(&inp, &sheet, &a.output)?,
     };
 
