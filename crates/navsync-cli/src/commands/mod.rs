@@ -1,3 +1,4 @@
+pub mod args;
 pub mod array;
 pub mod batch;
 pub mod bench;
@@ -41,13 +42,6 @@ pub fn parse_numbers(s: &str) -> Result<Vec<f64>, String> {
                 .map_err(|_| format!("'{x}' is not a number"))
         })
         .collect()
-}
-
-/// Parses "a,b,c" into three numbers.
-pub fn parse_triplet(s: &str) -> Result<[f64; 3], String> {
-    parse_numbers(s)?
-        .try_into()
-        .map_err(|_| format!("'{s}': expected three comma-separated numbers"))
 }
 
 /// Prints at most `limit` diagnostics and a count of the rest.

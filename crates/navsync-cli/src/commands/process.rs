@@ -25,6 +25,7 @@ use navsync_receivers::detect::{FileKind, detect};
 use navsync_report::ReportInputs;
 use serde_json::json;
 
+use super::args;
 use super::print_diagnostics;
 
 #[derive(clap::Args)]
@@ -49,7 +50,7 @@ pub struct Args {
     #[arg(long)]
     pub truth: Option<PathBuf>,
     /// Alignment: take the heading from GNSS velocity from this speed on (m/s).
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(value_parser = args::positive(100.0, "m/s"), long, default_value_t = 3.0)]
     pub align_min_speed: f64,
     /// Go on when `sync` finds the rig log implausible.
     #[arg(long)]

@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use navsync::eval::parse_outages;
 use navsync_report::ReportInputs;
 
+use super::args;
 use super::print_diagnostics;
 
 #[derive(clap::Args)]
@@ -46,7 +47,7 @@ pub struct Args {
     #[arg(long)]
     pub time_offset: Option<PathBuf>,
     /// The true time offset (s), drawn beside the estimate.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(value_parser = args::symmetric(args::MAX_OFFSET_S, "s"), long, allow_negative_numbers = true)]
     pub time_offset_truth: Option<f64>,
     /// Page title.
     #[arg(long, default_value = "navsync report")]
