@@ -27,11 +27,9 @@ pub const MAX_RATE_HZ: f64 = 1.0e6;
 /// minute the clocks are wrong (e.g. GPS vs UTC: 18 s), not offset.
 pub const MAX_OFFSET_S: f64 = 60.0;
 /// Largest coarse search range of the IMU–GNSS time offset (±s): the
-/// search keeps a 1 ms grid over ±(range + 50 ms), so this bounds its
-/// memory (10 001 cells per running cost); an offset beyond 5 s is a
-/// wrong clock, for `convert --imu-time-offset-s` or the sync, not a
-/// filter state.
-pub const MAX_OFFSET_SEARCH_S: f64 = 5.0;
+/// library's bound on the search grid's memory and the reason for it
+/// (`TimeOffsetOptions::MAX_SEARCH_RANGE_S`).
+pub const MAX_OFFSET_SEARCH_S: f64 = navsync::fusion::TimeOffsetOptions::MAX_SEARCH_RANGE_S;
 /// Largest standard deviation or distance in metres: 1000 km, beyond
 /// any GNSS solution's error (a fix with a σ over 1 km is refused by
 /// the filter anyway) or any lever arm.
@@ -250,6 +248,49 @@ pub fn refuse_output_over_input(
         }
     }
     Ok(())
+}
+
+/// Every argument of `cmd` and its subcommands that takes numbers, as
+/// `path<TAB>--flag<TAB>kind` lines (kind `real`, `real3` for three
+/// comma-separated numbers, `int`): what the hidden `navsync
+/// __numeric-args` prints for the CLI's property test
+/// (tests/numeric_args.rs), so that a flag added later is tried too.
+pub fn numeric_args(cmd: &clap::Command) -> Vec<String> {
+    use std::any::TypeId;
+    let mut out = Vec::new();
+    let mut stack = vec![(String::new(), cmd)];
+    while let Some((path, c)) = stack.pop() {
+        for a in c.get_arguments() {
+            let Some(long) = a.get_long() else { continue };
+            let id = a.get_value_parser().type_id();
+            let kind = if id == TypeId::of::<f64>() {
+                "real"
+            } else if id == TypeId::of::<[f64; 3]>() {
+                "real3"
+            } else if id == TypeId::of::<[f64; 2]>() {
+                "real2"
+            } else if [
+                TypeId::of::<u8>(),
+                TypeId::of::<u32>(),
+                TypeId::of::<u64>(),
+                TypeId::of::<usize>(),
+                TypeId::of::<i64>(),
+            ]
+            .iter()
+            .any(|t| id == *t)
+            {
+                "int"
+            } else {
+                continue;
+            };
+            out.push(format!("{}\t--{long}\t{kind}", path.trim()));
+        }
+        for s in c.get_subcommands() {
+            stack.push((format!("{path} {}", s.get_name()), s));
+        }
+    }
+    out.sort();
+    out
 }
 
 #[cfg(test)]

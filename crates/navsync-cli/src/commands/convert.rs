@@ -65,7 +65,7 @@ pub struct Args {
     #[arg(value_parser = args::positive(3600.0, "s"), long, default_value_t = 0.1)]
     pub gap_s: f64,
     /// σ (deg) of NMEA HDT headings (dual-antenna receivers; HDT carries no accuracy): the receiver's datasheet heading accuracy for its baseline.
-    #[arg(value_parser = args::sigma(180.0, "deg"), long, default_value_t = navsync_receivers::convert::DEFAULT_HDT_SD_DEG)]
+    #[arg(value_parser = args::positive(30.0, "deg"), long, default_value_t = navsync_receivers::convert::DEFAULT_HDT_SD_DEG)]
     pub hdt_sd: f64,
     /// Keep UBX 3D epochs whose gnssFixOK flag is 0 (outside the receiver's DOP/accuracy masks).
     #[arg(long)]
@@ -124,6 +124,13 @@ pub fn run(a: Args) -> Result<()> {
         anyhow::bail!("--default-sd: standard deviations must be positive");
     }
     let s = convert::convert_with_topics(format, &a.file, &a.output, &opts, &topics)?;
+    for j in &s.time_jumps {
+        eprintln!(
+            "navsync: warning: byte {}: GPS time jumps by {:.0} s (from {} to {}): two logs \
+             concatenated? Their fixes are mixed in gnss.txt; convert each log on its own",
+            j.byte_offset, j.jump_s, j.from, j.to
+        );
+    }
     if let Some(st) = &s.stream {
         println!(
             "stream: {} bytes after a {}-byte header; {} UBX + {} NMEA messages read, {} other intact frames ({} RTCM3), {} invalid, {} corrupt runs ({} bytes)",

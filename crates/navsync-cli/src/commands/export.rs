@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use navsync::Diagnostics;
 use navsync::io::export::{self, ExportFormat, ExportMeta, ExportPoint};
 use navsync::io::kfgins::NavReader;
@@ -59,7 +59,21 @@ pub fn run(a: Args) -> Result<()> {
         To::Tum => ExportFormat::Tum,
     };
     let mut diag = Diagnostics::default();
-    let recs = NavReader::read_all(&a.nav, &mut diag)?;
+    let mut recs = NavReader::read_all(&a.nav, &mut diag)?;
+    let read = recs.len();
+    recs.retain(|r| match export::off_earth(r) {
+        Some(why) => {
+            diag.push(&a.nav, 0, format!("epoch {}: {why}; not exported", r.time));
+            false
+        }
+        None => true,
+    });
+    if read > 0 && recs.is_empty() {
+        bail!(
+            "{}: no epoch with a position on the earth to export",
+            a.nav.display()
+        );
+    }
     let recs = export::decimate(&recs, a.every);
     let week = recs.first().map_or(0, |r| r.week);
     let std_path = match (&a.std, a.no_std) {

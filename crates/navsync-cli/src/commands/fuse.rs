@@ -223,7 +223,7 @@ pub struct Args {
     #[arg(long)]
     pub output_at: Option<PathBuf>,
     /// n of the (2n+1)-order interpolation (0 linear, 1 cubic, …).
-    #[arg(value_parser = args::count(0, 10), long, default_value_t = 1)]
+    #[arg(value_parser = args::count(0, navsync::interp::MAX_INTERP_N as u64), long, default_value_t = 1)]
     pub interp_n: usize,
     /// Inertial sensors present: full, 1g2a (vertical gyro, forward and
     /// lateral accelerometers) or 1g3a; absent ones become pseudo-signals.
@@ -272,18 +272,23 @@ pub struct Args {
     pub accel_misalignment: Option<f64>,
 }
 
-/// "a" or "a,b" (degrees, ≥ 0) into [a, a] or [a, b].
+/// "a" or "a,b" (degrees, in [1e-9, 10]: an axis misalignment of a MEMS
+/// IMU is at most about a degree) into [a, a] or [a, b].
 fn parse_sd_pair(s: &str) -> Result<[f64; 2], String> {
-    let v = super::parse_numbers(s)?;
-    let pair = match v.as_slice() {
-        [a] => [*a, *a],
-        [a, b] => [*a, *b],
-        _ => return Err(format!("'{s}': expected SD or GYRO_SD,ACCEL_SD")),
-    };
-    if pair.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
-        return Err(format!("'{s}': standard deviations must be positive"));
+    let range = args::sigma(10.0, "deg");
+    let v = s
+        .split(',')
+        .map(|x| {
+            range
+                .check(x)
+                .map_err(|why| format!("'{}' is {why}", x.trim()))
+        })
+        .collect::<Result<Vec<f64>, String>>()?;
+    match v.as_slice() {
+        [a] => Ok([*a, *a]),
+        [a, b] => Ok([*a, *b]),
+        _ => Err(format!("'{s}': expected SD or GYRO_SD,ACCEL_SD")),
     }
-    Ok(pair)
 }
 
 #[derive(Copy, Clone, PartialEq, clap::ValueEnum)]

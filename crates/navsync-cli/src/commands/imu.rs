@@ -210,6 +210,11 @@ fn load_lowpass(path: Option<&Path>) -> Result<Option<LowPassFilter>> {
 }
 
 fn check(a: CheckArgs) -> Result<()> {
+    if let Some(p) = &a.json {
+        let mut inputs = vec![a.file.as_path()];
+        inputs.extend(a.lowpass.as_deref());
+        super::args::refuse_output_over_input(p, &inputs, "--json")?;
+    }
     let started = Instant::now();
     let lowpass = load_lowpass(a.lowpass.as_deref())?;
     let cfg = QualityConfig {
@@ -310,6 +315,10 @@ fn convert(a: ConvertArgs) -> Result<()> {
         (None, Some(_)) => Some(ImuLogFormat::RateCsv),
         (None, None) => None,
     };
+    super::args::refuse_output_over_input(&a.output, &[&a.input], "the output")?;
+    if let Some(lp) = &a.lowpass {
+        super::args::refuse_output_over_input(&a.output, &[lp], "the output")?;
+    }
     let mut reader = ImuLogReader::open(&a.input, format)?;
     // Read ahead to learn the format and the nominal rate.
     let mut head = Vec::new();
@@ -377,7 +386,7 @@ fn convert(a: ConvertArgs) -> Result<()> {
         delay_compensation_s: delay_s,
         ..Default::default()
     };
-    let mut cond = Conditioner::new(cfg);
+    let mut cond = Conditioner::new(cfg)?;
     let mut out = TextWriter::create(&a.output)?;
     let mut buf = Vec::with_capacity(1 << 20);
     let mut written = 0usize;

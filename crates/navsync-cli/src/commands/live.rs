@@ -32,13 +32,13 @@ pub struct Args {
     /// GNSS receiver serial port (UBX NAV-PVT or NMEA GGA+GST+RMC/ZDA).
     #[arg(long, required_unless_present = "selftest")]
     pub gnss: Option<PathBuf>,
-    #[arg(value_parser = args::count_u32(50, 4_000_000), long, default_value_t = 115200)]
+    #[arg(long, default_value_t = 115200)]
     pub gnss_baud: u32,
     /// IMU serial port (one text line per sample, see --imu-format; not
     /// with `--imu-format ubx-esf`).
     #[arg(long)]
     pub imu: Option<PathBuf>,
-    #[arg(value_parser = args::count_u32(50, 4_000_000), long, default_value_t = 115200)]
+    #[arg(long, default_value_t = 115200)]
     pub imu_baud: u32,
     /// IMU line format: `rate` = gx gy gz (rad/s) ax ay az (m/s²), FRD;
     /// `increment` = dθ (rad) dv (m/s); `rate-csv` = t then the six rates
@@ -106,7 +106,7 @@ pub struct Args {
     #[command(flatten)]
     pub dual_antenna: super::fuse::DualAntennaArgs,
     /// σ of NMEA HDT headings (deg; HDT carries none), as `convert --hdt-sd`.
-    #[arg(value_parser = args::sigma(180.0, "deg"), long, default_value_t = 0.5, requires = "heading")]
+    #[arg(value_parser = args::positive(30.0, "deg"), long, default_value_t = 0.5, requires = "heading")]
     pub hdt_sd: f64,
     /// Measure the live loop on pseudo-terminals at real rate (200 Hz IMU,
     /// 10 Hz GNSS, injected PPS with a gap): lost samples, latency, CPU.

@@ -33,17 +33,6 @@ pub struct Scored {
     pub outages: String,
 }
 
-/// Parses "a,b,…" into numbers.
-pub fn parse_numbers(s: &str) -> Result<Vec<f64>, String> {
-    s.split(',')
-        .map(|x| {
-            x.trim()
-                .parse::<f64>()
-                .map_err(|_| format!("'{x}' is not a number"))
-        })
-        .collect()
-}
-
 /// Prints at most `limit` diagnostics and a count of the rest.
 pub fn print_diagnostics(d: &navsync::Diagnostics, limit: usize) {
     for item in d.items.iter().take(limit) {

@@ -469,6 +469,10 @@ pub fn run(a: Args) -> Result<()> {
         imu_rate_hz: (imu_span.median_dt_s > 0.0).then(|| 1.0 / imu_span.median_dt_s),
         start_sow: imu_span.first_sow,
     };
+    let rate_warning = sheet.rate_mismatch(&a.sensor, &drive);
+    if let Some(w) = &rate_warning {
+        eprintln!("navsync process: WARNING: {w}");
+    }
     let cfg = sheet.kfgins_config(&a.sensor, &drive)?;
     // Without 1PPS the filter estimates the remaining constant offset.
     let estimate_offset = sheet
@@ -533,7 +537,7 @@ pub fn run(a: Args) -> Result<()> {
     );
     let summary = super::fuse::execute(&cfg, &opts, &fuse_dir)?;
 
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = rate_warning.into_iter().collect();
     if let Some(al) = &summary.alignment
         && al.method == AlignMethod::NoMotion
     {

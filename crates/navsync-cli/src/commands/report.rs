@@ -58,6 +58,19 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    let inputs = [
+        Some(&a.nav),
+        a.truth.as_ref(),
+        a.sync_report.as_ref(),
+        a.summary.as_ref(),
+        a.std.as_ref(),
+        a.imu_err.as_ref(),
+        a.imu_err_truth.as_ref(),
+        a.gnss.as_ref(),
+        a.time_offset.as_ref(),
+    ];
+    let inputs: Vec<&std::path::Path> = inputs.into_iter().flatten().map(|p| p.as_path()).collect();
+    args::refuse_output_over_input(&a.output, &inputs, "--output")?;
     let inputs = ReportInputs {
         title: a.title,
         truth: a.truth,

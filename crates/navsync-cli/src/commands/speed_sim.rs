@@ -39,6 +39,7 @@ pub fn run(a: Args) -> Result<()> {
         a.rate > 0.0 && a.noise >= 0.0 && a.resolution >= 0.0,
         "need --rate > 0, --noise ≥ 0, --resolution ≥ 0"
     );
+    args::refuse_output_over_input(&a.out, &[&a.truth], "--out")?;
     let o = SpeedSimOptions {
         rate_hz: a.rate,
         scale_error: a.scale_error,
