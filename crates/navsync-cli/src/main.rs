@@ -69,6 +69,9 @@ enum Command {
     /// Live on Linux: GNSS and IMU serial ports + kernel PPS, synchronized
     /// and fused in real time (--selftest: measured on pseudo-terminals).
     Live(commands::live::Args),
+    /// The numeric arguments of every command (for the CLI's tests).
+    #[command(name = "__numeric-args", hide = true)]
+    NumericArgs,
 }
 
 fn main() {
@@ -92,9 +95,34 @@ fn main() {
         Command::Montecarlo(a) => commands::montecarlo::run(a),
         Command::Batch(a) => commands::batch::run(a),
         Command::Live(a) => commands::live::run(a),
+        Command::NumericArgs => {
+            use clap::CommandFactory;
+            for line in commands::args::numeric_args(&Cli::command()) {
+                println!("{line}");
+            }
+            Ok(())
+        }
     };
     if let Err(e) = result {
-        eprintln!("navsync: error: {e:#}");
+        eprintln!("navsync: error: {}", chain_once(&e));
         std::process::exit(1);
     }
+}
+
+/// The error and its causes joined by ": ", each cause once: a cause
+/// whose text its parent already shows (`navsync::Error::Io` prints its
+/// io::Error, which is also its source) is not repeated.
+fn chain_once(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
 }

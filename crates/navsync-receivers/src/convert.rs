@@ -204,6 +204,9 @@ pub struct ConvertSummary {
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub heading_drops: BTreeMap<String, u64>,
     pub files: Vec<String>,
+    /// GPS time jumps between consecutive fixes (concatenated logs).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub time_jumps: Vec<TimeJump>,
     pub diagnostics: Diagnostics,
 }
 
@@ -277,6 +280,25 @@ pub fn convert_with_topics(
     opts: &ConvertOptions,
     topics: &TopicChoice,
 ) -> Result<ConvertSummary, Error> {
+    // Ticks are divided by and times shifted: a zero tick would put every
+    // ESF sample at one time (an empty imu.txt), a NaN offset everywhere.
+    for (name, v) in [
+        ("ESF-MEAS tick", opts.esf_meas_tick_s),
+        ("ESF-RAW tick", opts.esf_raw_tick_s),
+        ("IMU gap threshold", opts.gap_threshold_s),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::Invalid(format!(
+                "{name} {v} s: expected a positive number of seconds"
+            )));
+        }
+    }
+    if !opts.imu_time_offset_s.is_finite() {
+        return Err(Error::Invalid(format!(
+            "IMU time offset {} s: expected a finite number",
+            opts.imu_time_offset_s
+        )));
+    }
     let (reader, input) = open_input(input)?;
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let mut s = ConvertSummary {
@@ -448,7 +470,30 @@ struct StreamConverter {
     headings: Vec<HeadingObs>,
     /// Largest interval between consecutive fix times (s).
     fix_interval_s: f64,
+    /// Byte offset of the event being converted (for time jumps).
+    offset: u64,
+    /// GPS time jumps between consecutive fixes (two logs concatenated).
+    time_jumps: Vec<TimeJump>,
 }
+
+/// A jump of GPS time between consecutive fixes in arrival order larger
+/// than [`MAX_FIX_STEP_S`]: two logs concatenated, or a receiver that lost
+/// its week. Reported in summary.json and on the console.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TimeJump {
+    /// Byte offset of the message whose time jumped.
+    pub byte_offset: u64,
+    /// GPS time (week sow) of the fix before and of this one.
+    pub from: String,
+    pub to: String,
+    pub jump_s: f64,
+}
+
+/// Largest step of GPS time between consecutive fixes of one log taken
+/// as a pause (s): one day. A larger step is a jump.
+pub const MAX_FIX_STEP_S: f64 = 86_400.0;
+/// Time jumps kept in the summary (the rest are counted in diagnostics).
+const MAX_TIME_JUMPS: usize = 16;
 
 impl StreamConverter {
     fn new(opts: &ConvertOptions) -> Self {
@@ -479,14 +524,26 @@ impl StreamConverter {
             last_fix_time: None,
             headings: Vec::new(),
             fix_interval_s: 0.0,
+            offset: 0,
+            time_jumps: Vec::new(),
         }
     }
 
     fn note_fix_time(&mut self, t: GpsTime) {
-        if let Some(last) = self.last_fix_time
-            && t > last
-        {
-            self.fix_interval_s = self.fix_interval_s.max(t.seconds_since(last));
+        if let Some(last) = self.last_fix_time {
+            let step = t.seconds_since(last);
+            if step.abs() > MAX_FIX_STEP_S {
+                if self.time_jumps.len() < MAX_TIME_JUMPS {
+                    self.time_jumps.push(TimeJump {
+                        byte_offset: self.offset,
+                        from: last.to_string(),
+                        to: t.to_string(),
+                        jump_s: step,
+                    });
+                }
+            } else if step > 0.0 {
+                self.fix_interval_s = self.fix_interval_s.max(step);
+            }
         }
         self.last_fix_time = Some(t);
     }
@@ -504,6 +561,7 @@ impl StreamConverter {
 
     fn push(&mut self, ev: &Event, file: &Path, s: &mut ConvertSummary) {
         let (kind, offset) = (&ev.kind, ev.offset);
+        self.offset = offset;
         let diag = &mut s.diagnostics;
         let key = match kind {
             EventKind::Ubx(m) => m.id().to_string(),
@@ -713,6 +771,18 @@ impl StreamConverter {
     fn finish(mut self, input: &Path, out_dir: &Path, s: &mut ConvertSummary) -> Result<(), Error> {
         self.ubx_epochs.finish(&self.ctx, &mut self.ubx_out);
         self.take_ubx_outcomes(input, &mut s.diagnostics);
+        for j in &self.time_jumps {
+            s.diagnostics.push(
+                input,
+                0,
+                format!(
+                    "byte {}: GPS time jumps by {:.0} s from {} to {}: two logs concatenated? \
+                     Convert each log on its own",
+                    j.byte_offset, j.jump_s, j.from, j.to
+                ),
+            );
+        }
+        s.time_jumps = std::mem::take(&mut self.time_jumps);
         s.ubx_high_precision_positions = self.ubx_hp;
         s.fix_epochs = self
             .ubx_tally

@@ -447,6 +447,13 @@ fn sync_tables(html: &mut String, s: &SyncReport, t0_sow: f64) {
 
 /// Builds the report.
 pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
+    if let Some(t) = inp.time_offset_truth_s
+        && !t.is_finite()
+    {
+        return Err(Error::Invalid(format!(
+            "true time offset {t} s: expected a finite number"
+        )));
+    }
     let mut diag = Diagnostics::with_cap(100);
     let summary = inp.summary.as_deref().map(read_summary).transpose()?;
     let outages = if inp.outages.is_empty() {

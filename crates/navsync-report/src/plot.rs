@@ -260,6 +260,15 @@ fn draw_panel<DB: DrawingBackend>(
                 ),
         )
     });
+    // plotters' mesh never ends on an infinite range (`report
+    // --time-offset-truth inf` looped): refuse it.
+    if !(x0.is_finite() && x1.is_finite() && y0.is_finite() && y1.is_finite()) || x0 > x1 || y0 > y1
+    {
+        return Err(Error::Invalid(format!(
+            "plot '{}': axis range x {x0}…{x1}, y {y0}…{y1} is not finite",
+            p.title
+        )));
+    }
     let clamp = |y: f64| y.clamp(y0, y1);
     let (plot_area, legend_area) = area.split_horizontally(fig.width.saturating_sub(LEGEND_W));
     let mut chart = chart_on(

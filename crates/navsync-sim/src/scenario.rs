@@ -274,7 +274,7 @@ impl Scenario {
     /// Reads a user scenario file (TOML) as a sparse layer; unknown keys
     /// and bad values are reported with the file and line.
     pub fn read_toml_layer(path: &Path) -> Result<Value, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = navsync::io::text::read_config_text(path)?;
         Self::toml_layer(&text, path)
     }
 

@@ -56,6 +56,13 @@ impl CoarseOffsetSearch {
     pub(crate) fn new(range_s: f64, v0: Vector3<f64>) -> Self {
         // The grid extends 50 ms beyond the range so that an offset at the
         // range's end is still an interior minimum.
+        // Bounded (FuseOptions::validate refuses a larger range first): a
+        // range of 1e6 s would ask for 16 GB.
+        let range_s = if range_s.is_finite() {
+            range_s.clamp(0.0, crate::fusion::TimeOffsetOptions::MAX_SEARCH_RANGE_S)
+        } else {
+            0.0
+        };
         let steps = ((range_s + 0.05) / 0.001).round() as i64;
         let grid: Vec<f64> = (-steps..=steps).map(|k| k as f64 * 0.001).collect();
         CoarseOffsetSearch {
@@ -256,5 +263,33 @@ impl CoarseOffsetSearch {
             self.kin.clear();
             self.fixes.clear();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fusion::TimeOffsetOptions;
+    use crate::pipeline::FuseOptions;
+
+    #[test]
+    fn a_search_range_beyond_its_bound_is_refused_and_never_allocated() {
+        // `fuse --time-offset-search 1e300` overflowed the grid's capacity.
+        for bad in [1e300, 1e6, f64::NAN, f64::INFINITY, -1.0, 5.001] {
+            let o = FuseOptions {
+                time_offset: Some(TimeOffsetOptions {
+                    search_range_s: bad,
+                    ..Default::default()
+                }),
+                ..FuseOptions::default()
+            };
+            let e = o.validate().unwrap_err().to_string();
+            assert!(e.contains("time-offset search range"), "{e}");
+        }
+        // Called directly, the grid stays within ±(5 s + 50 ms) at 1 ms.
+        let s = CoarseOffsetSearch::new(1e300, Vector3::zeros());
+        assert_eq!(s.grid.len(), 2 * 5050 + 1);
+        let s = CoarseOffsetSearch::new(f64::NAN, Vector3::zeros());
+        assert_eq!(s.grid.len(), 2 * 50 + 1);
     }
 }

@@ -234,6 +234,16 @@ impl FuseOptions {
                 t.sd_s, t.init_s
             ));
         }
+        if let Some(t) = &self.time_offset
+            && !(t.search_range_s.is_finite()
+                && (0.0..=TimeOffsetOptions::MAX_SEARCH_RANGE_S).contains(&t.search_range_s))
+        {
+            return bad(format!(
+                "time-offset search range ±{} s: expected 0 (off) to {} s",
+                t.search_range_s,
+                TimeOffsetOptions::MAX_SEARCH_RANGE_S
+            ));
+        }
         if let Some(h) = &self.heading
             && !(h.dual_antenna_yaw_deg.is_finite()
                 && h.dual_antenna_yaw_sd_deg.is_finite()

@@ -310,7 +310,7 @@ impl SensorSheet {
     /// Reads and checks a sheet; relative paths in it (the odometer file)
     /// become relative to the sheet's folder.
     pub fn load(path: &Path) -> Result<SensorSheet, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::text::read_config_text(path)?;
         let mut s = Self::parse(&text, path)?;
         if let (Some(o), Some(dir)) = (&mut s.odometer, path.parent())
             && o.file.is_relative()
@@ -505,6 +505,24 @@ impl SensorSheet {
         Ok(())
     }
 
+    /// A warning when the sheet's `imu.rate_hz` differs from the rate
+    /// measured on the data (its median interval) by more than
+    /// [`RATE_MISMATCH`]: the filter would take the sheet's rate (its gap
+    /// detection and noise per sample), though the data say otherwise.
+    pub fn rate_mismatch(&self, sheet_path: &Path, data: &DriveFiles) -> Option<String> {
+        let (given, measured) = (self.imu.rate_hz?, data.imu_rate_hz?);
+        ((given - measured).abs() > RATE_MISMATCH * measured).then(|| {
+            format!(
+                "{}: imu.rate_hz is {given} Hz but the data's median interval gives {measured:.1} Hz \
+                 ({} differs by more than {:.0} %): the sheet's rate is used; correct it or remove \
+                 the key to use the measured rate",
+                sheet_path.display(),
+                data.imu.display(),
+                RATE_MISMATCH * 100.0
+            )
+        })
+    }
+
     /// The filter configuration for a drive: the sheet's IMU and lever arm,
     /// the data's files, rate and start time; no initial state (the run
     /// aligns itself: `init_state_given` is false).
@@ -539,6 +557,11 @@ impl SensorSheet {
         })
     }
 }
+
+/// Relative difference between a sheet's IMU rate and the measured one
+/// beyond which [`SensorSheet::rate_mismatch`] warns: a clock error is
+/// ppm to a few %, a wrong rate (50 Hz for 200 Hz) is a factor.
+pub const RATE_MISMATCH: f64 = 0.10;
 
 /// The KF-GINS files of one drive and what is known of them.
 #[derive(Clone, Debug)]

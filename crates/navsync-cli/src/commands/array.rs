@@ -8,6 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::args;
 use anyhow::{Context, Result};
 use navsync::Diagnostics;
 use navsync::array::RelativeDelay;
@@ -39,7 +40,7 @@ pub struct Args {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u8).range(1..=7))]
     pub fd_order: u8,
     /// Largest relative delay searched between two units (s).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(value_parser = args::positive(args::MAX_OFFSET_SEARCH_S, "s"), long, default_value_t = 0.5)]
     pub max_delay: f64,
 }
 

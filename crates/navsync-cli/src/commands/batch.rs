@@ -5,6 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use super::args;
 use anyhow::{Context, Result};
 use navsync_report::drive::{DriveOptions, DriveRow, process_drive};
 use rayon::prelude::*;
@@ -21,7 +22,7 @@ pub struct Args {
     #[arg(long, default_value = "navsync-batch")]
     pub output: PathBuf,
     /// Drives processed at once [default: the number of cores].
-    #[arg(long)]
+    #[arg(value_parser = args::count(1, args::MAX_JOBS), long)]
     pub jobs: Option<usize>,
     /// Forward filter only (no smoothing).
     #[arg(long)]
@@ -65,10 +66,7 @@ pub fn output_names(drives: &[PathBuf]) -> Vec<String> {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let jobs = a
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    anyhow::ensure!(jobs >= 1, "--jobs must be at least 1");
+    let jobs = args::jobs(a.jobs);
     std::fs::create_dir_all(&a.output)
         .with_context(|| format!("creating {}", a.output.display()))?;
     let opts = DriveOptions {

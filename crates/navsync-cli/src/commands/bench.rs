@@ -18,6 +18,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
+use super::args;
 use anyhow::{Context, Result, bail, ensure};
 use navsync::Diagnostics;
 use navsync::ins::{ImuErrors, NavState};
@@ -42,10 +43,10 @@ const GOAL_SMOOTH_PEAK_MB: f64 = 300.0;
 #[derive(clap::Args)]
 pub struct Args {
     /// Hours of 200 Hz IMU data to generate and fuse.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(value_parser = args::real(1e-3, 168.0, "h"), long, default_value_t = 1.0)]
     pub hours: f64,
     /// Timed runs of `navsync fuse` (the median is reported).
-    #[arg(long, default_value_t = 5)]
+    #[arg(value_parser = args::count(1, 1000), long, default_value_t = 5)]
     pub runs: usize,
     /// Also time `navsync fuse --smooth` in every round.
     #[arg(long)]

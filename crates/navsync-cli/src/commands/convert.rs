@@ -7,7 +7,8 @@ use anyhow::Result;
 use navsync_receivers::convert::{self, ConvertOptions, GnssSource, InputFormat};
 use navsync_receivers::ros2::TopicChoice;
 
-use super::{parse_triplet, print_diagnostics};
+use super::args;
+use super::print_diagnostics;
 
 #[derive(Copy, Clone, Debug, clap::ValueEnum)]
 pub enum From {
@@ -50,25 +51,25 @@ pub struct Args {
     #[arg(long)]
     pub output: PathBuf,
     /// Standard deviations N,E,D (m) for fixes that carry none (NMEA without GST, comma2k19).
-    #[arg(long, default_value = "5,5,10", value_parser = parse_triplet)]
+    #[arg(long, default_value = "5,5,10", value_parser = args::Triplet(args::sigma(args::MAX_LENGTH_M, "m")))]
     pub default_sd: [f64; 3],
     /// Which fixes to write when a stream has both NAV-PVT and NMEA.
     #[arg(long, value_enum, default_value = "auto")]
     pub gnss_source: Source,
     /// Seconds added to IMU times (a known sensor/boot time → GPS time offset).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(value_parser = args::symmetric(args::MAX_SPAN_S, "s"), long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub imu_time_offset_s: f64,
     /// Microseconds per ESF-RAW sensor time-tag tick (checked against GPS time in summary.json).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(value_parser = args::real(1e-3, 1e6, "µs"), long, default_value_t = 1000.0)]
     pub esf_raw_tick_us: f64,
     /// Microseconds per ESF-MEAS time-tag tick (u-blox IMUs: 1 ms).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(value_parser = args::real(1e-3, 1e6, "µs"), long, default_value_t = 1000.0)]
     pub esf_meas_tick_us: f64,
     /// Report IMU intervals at least this long (Tang, Zhang & Niu 2022: no 0.1 s gap).
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(value_parser = args::positive(3600.0, "s"), long, default_value_t = 0.1)]
     pub gap_s: f64,
     /// σ (deg) of NMEA HDT headings (dual-antenna receivers; HDT carries no accuracy): the receiver's datasheet heading accuracy for its baseline.
-    #[arg(long, default_value_t = navsync_receivers::convert::DEFAULT_HDT_SD_DEG)]
+    #[arg(value_parser = args::positive(30.0, "deg"), long, default_value_t = navsync_receivers::convert::DEFAULT_HDT_SD_DEG)]
     pub hdt_sd: f64,
     /// Keep UBX 3D epochs whose gnssFixOK flag is 0 (outside the receiver's DOP/accuracy masks).
     #[arg(long)]
@@ -132,6 +133,13 @@ pub fn run(a: Args) -> Result<()> {
         anyhow::bail!("--default-sd: standard deviations must be positive");
     }
     let s = convert::convert_with_topics(format, &a.file, &a.output, &opts, &topics)?;
+    for j in &s.time_jumps {
+        eprintln!(
+            "navsync: warning: byte {}: GPS time jumps by {:.0} s (from {} to {}): two logs \
+             concatenated? Their fixes are mixed in gnss.txt; convert each log on its own",
+            j.byte_offset, j.jump_s, j.from, j.to
+        );
+    }
     if let Some(st) = &s.stream {
         println!(
             "stream: {} bytes after a {}-byte header; {} UBX + {} NMEA messages read, {} other intact frames ({} RTCM3), {} invalid, {} corrupt runs ({} bytes)",

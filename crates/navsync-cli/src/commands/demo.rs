@@ -4,6 +4,7 @@
 use std::collections::HashMap;
 use std::path::PathBuf;
 
+use super::args;
 use anyhow::Result;
 use indicatif::ProgressBar;
 use navsync_report::demo::{DemoOptions, run_demo};
@@ -14,10 +15,10 @@ pub struct Args {
     #[arg(long, default_value = "navsync-demo")]
     pub output: PathBuf,
     /// Length of the drive (s) [default: 600].
-    #[arg(long)]
+    #[arg(value_parser = args::real(1.0, 86_400.0, "s"), long)]
     pub duration: Option<f64>,
     /// Seed of every random error source [default: 1].
-    #[arg(long)]
+    #[arg(value_parser = args::seed(), long)]
     pub seed: Option<u64>,
 }
 

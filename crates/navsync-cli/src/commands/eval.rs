@@ -19,6 +19,9 @@ pub struct Args {
 
 pub fn run(args: Args) -> Result<()> {
     let s = &args.scored;
+    if let Some(p) = &args.json {
+        super::args::refuse_output_over_input(p, &[&s.truth, &s.nav], "--json")?;
+    }
     let outages = eval::parse_outages(&s.outages, 0)?;
     let mut diag = Diagnostics::default();
     let report = eval::eval_files(&s.truth, &s.nav, &outages, &mut diag)?;

@@ -11,6 +11,7 @@ use navsync::io::kfgins::NavReader;
 use navsync_receivers::geoid::{EGM96_SOURCE, Egm96Grid};
 use navsync_receivers::gnsstime::gps_to_unix_ns;
 
+use super::args;
 use super::print_diagnostics;
 
 #[derive(Copy, Clone, Debug, clap::ValueEnum)]
@@ -36,7 +37,7 @@ pub struct Args {
     pub to: To,
     /// Keep one epoch per this many seconds of GPS time (the first of each
     /// interval: whole seconds for 1); 0 keeps every epoch.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(value_parser = args::non_negative(args::MAX_SPAN_S, "s"), long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub every: f64,
     /// Output file (default: NAV with the format's extension).
     #[arg(long)]
@@ -50,9 +51,6 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    if !(a.every.is_finite() && a.every >= 0.0) {
-        bail!("--every: expected seconds ≥ 0, got {}", a.every);
-    }
     let format = match a.to {
         To::Gpx => ExportFormat::Gpx,
         To::Kml => ExportFormat::Kml,
@@ -61,7 +59,21 @@ pub fn run(a: Args) -> Result<()> {
         To::Tum => ExportFormat::Tum,
     };
     let mut diag = Diagnostics::default();
-    let recs = NavReader::read_all(&a.nav, &mut diag)?;
+    let mut recs = NavReader::read_all(&a.nav, &mut diag)?;
+    let read = recs.len();
+    recs.retain(|r| match export::off_earth(r) {
+        Some(why) => {
+            diag.push(&a.nav, 0, format!("epoch {}: {why}; not exported", r.time));
+            false
+        }
+        None => true,
+    });
+    if read > 0 && recs.is_empty() {
+        bail!(
+            "{}: no epoch with a position on the earth to export",
+            a.nav.display()
+        );
+    }
     let recs = export::decimate(&recs, a.every);
     let week = recs.first().map_or(0, |r| r.week);
     let std_path = match (&a.std, a.no_std) {
@@ -96,9 +108,9 @@ pub fn run(a: Args) -> Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| a.nav.with_extension(format.extension()));
-    if output == a.nav {
-        bail!("--output would overwrite the input {}", a.nav.display());
-    }
+    let mut inputs = vec![a.nav.as_path()];
+    inputs.extend(std_path.as_deref());
+    args::refuse_output_over_input(&output, &inputs, "--output")?;
     let meta = ExportMeta {
         name: a
             .nav

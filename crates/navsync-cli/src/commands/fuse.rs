@@ -11,7 +11,8 @@ use navsync::io::config::KfGinsConfig;
 use navsync::io::rtklib::GnssFormat;
 use navsync::pipeline::{self, FuseOptions, KfGinsSink, NhcSettings, OutageSchedule};
 
-use super::{parse_triplet, print_diagnostics};
+use super::args;
+use super::print_diagnostics;
 
 /// How a dual-antenna baseline sits in the body: `fuse --heading FILE`
 /// and `live --heading` (both need `--heading`).
@@ -20,6 +21,7 @@ pub struct DualAntennaArgs {
     /// Yaw of the dual-antenna baseline (primary → secondary antenna) in
     /// the body frame, from x towards y (deg; 0: along body x).
     #[arg(
+        value_parser = args::symmetric(360.0, "deg"),
         long,
         default_value_t = 0.0,
         requires = "heading",
@@ -27,7 +29,7 @@ pub struct DualAntennaArgs {
     )]
     pub dual_antenna_yaw: f64,
     /// σ of that mounting yaw (deg), added to the receiver's heading σ.
-    #[arg(long, default_value_t = 0.5, requires = "heading")]
+    #[arg(value_parser = args::non_negative(180.0, "deg"), long, default_value_t = 0.5, requires = "heading")]
     pub dual_antenna_yaw_sd: f64,
 }
 
@@ -61,25 +63,25 @@ pub struct Args {
     #[arg(long)]
     pub nhc: bool,
     /// NHC standard deviation (m/s).
-    #[arg(long, default_value_t = 0.1, requires = "nhc")]
+    #[arg(value_parser = args::sigma(args::MAX_SPEED_MPS, "m/s"), long, default_value_t = 0.1, requires = "nhc")]
     pub nhc_sd: f64,
     /// Seconds between NHC updates.
-    #[arg(long, default_value_t = 0.2, requires = "nhc")]
+    #[arg(value_parser = args::positive(3600.0, "s"), long, default_value_t = 0.2, requires = "nhc")]
     pub nhc_interval: f64,
     /// IMU mounting angles in the vehicle: roll,pitch,yaw (deg).
-    #[arg(long, value_parser = parse_triplet, default_value = "0,0,0", requires = "nhc")]
+    #[arg(long, value_parser = args::Triplet(args::symmetric(360.0, "deg")), default_value = "0,0,0", requires = "nhc")]
     pub mount: [f64; 3],
     /// Lever arm from the IMU to the NHC point (rear-axle centre), body FRD (m).
-    #[arg(long, value_parser = parse_triplet, default_value = "0,0,0", requires = "nhc")]
+    #[arg(long, value_parser = args::Triplet(args::symmetric(1000.0, "m")), default_value = "0,0,0", requires = "nhc")]
     pub nhc_lever: [f64; 3],
     /// Simulated GNSS outages: one every PERIOD seconds…
-    #[arg(long, requires_all = ["outage_len", "outage_first"])]
+    #[arg(value_parser = args::real(1.0, args::MAX_SPAN_S, "s"), long, requires_all = ["outage_len", "outage_first"])]
     pub outage_period: Option<f64>,
     /// …lasting LEN seconds…
-    #[arg(long)]
+    #[arg(value_parser = args::non_negative(args::MAX_SPAN_S, "s"), long)]
     pub outage_len: Option<f64>,
     /// …the first FIRST seconds after the first IMU epoch.
-    #[arg(long)]
+    #[arg(value_parser = args::non_negative(args::MAX_SPAN_S, "s"), long)]
     pub outage_first: Option<f64>,
     /// Post-process forward and backward: Rauch–Tung–Striebel smoothing of
     /// every filter state over the whole run. The smoothed solution goes to
@@ -88,7 +90,7 @@ pub struct Args {
     pub smooth: bool,
     /// Longest interval between smoother nodes without corrections (s);
     /// between nodes the smoothed correction is interpolated.
-    #[arg(long, default_value_t = 1.0, requires = "smooth")]
+    #[arg(value_parser = args::positive(3600.0, "s"), long, default_value_t = 1.0, requires = "smooth")]
     pub smooth_node_interval: f64,
     /// Find the initial attitude, position and velocity from the data
     /// (static levelling, heading from GNSS course once moving) instead of
@@ -97,7 +99,7 @@ pub struct Args {
     #[arg(long)]
     pub align: bool,
     /// Alignment: take the heading from GNSS velocity from this speed on (m/s).
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(value_parser = args::positive(100.0, "m/s"), long, default_value_t = 3.0)]
     pub align_min_speed: f64,
     /// Receiver headings for the alignment (`sow heading_deg sd_deg
     /// [baseline|vehicle]`, docs/FORMATS.md; `navsync convert` writes
@@ -114,7 +116,7 @@ pub struct Args {
     pub zupt: bool,
     /// Standstill: RMS spread of the specific force over 1 s below which the
     /// IMU counts as still (m/s²); raise it for an IMU on a vibrating mount.
-    #[arg(long, default_value_t = 0.15)]
+    #[arg(value_parser = args::positive(100.0, "m/s²"), long, default_value_t = 0.15)]
     pub zupt_accel_spread: f64,
     /// Column order of 13-column GNSS files.
     #[arg(long, value_enum, default_value_t = Layout::Cpp)]
@@ -129,7 +131,7 @@ pub struct Args {
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u8).range(1..=6))]
     pub rtklib_max_q: u8,
     /// Replace GNSS standard deviations below this (m) instead of skipping the fix.
-    #[arg(long)]
+    #[arg(value_parser = args::positive(1000.0, "m"), long)]
     pub gnss_sd_floor: Option<f64>,
     /// Ignore GNSS velocities in 13-column files (KF-GINS ignores them).
     #[arg(long)]
@@ -142,7 +144,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Weighting::Robust)]
     pub gnss_weighting: Weighting,
     /// Gate probability of --gnss-weighting gate (implies it).
-    #[arg(long, conflicts_with = "no_gate")]
+    #[arg(value_parser = args::real(0.5, 0.999_999, ""), long, conflicts_with = "no_gate")]
     pub gate_prob: Option<f64>,
     /// Every fix at its stated σ: same as --gnss-weighting off.
     #[arg(long)]
@@ -150,21 +152,22 @@ pub struct Args {
     /// The receiver's time-correlated position error as 3 Gauss–Markov
     /// filter states: its σ per NED axis (m), e.g. 0.01,0.01,0.015 for RTK
     /// (with --gnss-gm-time). The stated σ is then taken as the total.
-    #[arg(long, value_name = "N,E,D", requires = "gnss_gm_time")]
-    pub gnss_gm_sd: Option<String>,
+    #[arg(long, value_name = "N,E,D", requires = "gnss_gm_time",
+          value_parser = args::Triplet(args::sigma(args::MAX_LENGTH_M, "m")))]
+    pub gnss_gm_sd: Option<[f64; 3]>,
     /// Correlation time of that error (s), e.g. 60 for RTK, 300 for SPP.
-    #[arg(long, value_name = "S", requires = "gnss_gm_sd")]
+    #[arg(value_parser = args::real(1e-3, 1e6, "s"), long, value_name = "S", requires = "gnss_gm_sd")]
     pub gnss_gm_time: Option<f64>,
     /// Robust weighting: standardised innovation below which a fix keeps
     /// its σ…
-    #[arg(long, default_value_t = RobustWeighting::default().k0)]
+    #[arg(value_parser = args::positive(100.0, ""), long, default_value_t = RobustWeighting::default().k0)]
     pub robust_k0: f64,
     /// …and beyond which an axis is rejected.
-    #[arg(long, default_value_t = RobustWeighting::default().k1)]
+    #[arg(value_parser = args::positive(100.0, ""), long, default_value_t = RobustWeighting::default().k1)]
     pub robust_k1: f64,
     /// Robust weighting: correlation time (s) over which a down-weighting
     /// is remembered (0: every fix on its own).
-    #[arg(long, default_value_t = RobustWeighting::default().memory_s)]
+    #[arg(value_parser = args::non_negative(args::MAX_SPAN_S, "s"), long, default_value_t = RobustWeighting::default().memory_s)]
     pub robust_memory: f64,
     /// Robust weighting: scale up R for fixes that jump from the previous
     /// fix by more than their σ allow (measured against the INS). Off by
@@ -173,29 +176,29 @@ pub struct Args {
     #[arg(long, action = clap::ArgAction::Set, default_value_t = RobustWeighting::default().noise_scale)]
     pub robust_noise_scale: bool,
     /// Covariance propagation step (s); 0 = every IMU sample.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(value_parser = args::non_negative(3600.0, "s"), long, default_value_t = 0.1)]
     pub cov_step: f64,
     /// How to treat the sample after an IMU data gap.
     #[arg(long, value_enum, default_value_t = Gap::Auto)]
     pub gap_policy: Gap,
     /// Interval of imu_err.txt and std.txt lines (s); 0 = every IMU epoch.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(value_parser = args::non_negative(3600.0, "s"), long, default_value_t = 0.1)]
     pub aux_interval: f64,
     /// GPS week written into navresult.nav (KF-GINS writes 0).
-    #[arg(long, default_value_t = 0)]
+    #[arg(value_parser = args::int(0, 9999), long, default_value_t = 0)]
     pub week: i64,
     /// Estimate the IMU–GNSS time offset (GNSS time tag − true time of
     /// validity) as a filter state; written to time_offset.txt and summary.json.
     #[arg(long)]
     pub estimate_time_offset: bool,
     /// Initial time-offset estimate (s).
-    #[arg(long, default_value_t = 0.0, requires = "estimate_time_offset")]
+    #[arg(value_parser = args::symmetric(args::MAX_OFFSET_SEARCH_S, "s"), long, default_value_t = 0.0, requires = "estimate_time_offset")]
     pub time_offset_init: f64,
     /// Initial time-offset σ (s).
-    #[arg(long, default_value_t = 0.2, requires = "estimate_time_offset")]
+    #[arg(value_parser = args::sigma(args::MAX_OFFSET_SEARCH_S, "s"), long, default_value_t = 0.2, requires = "estimate_time_offset")]
     pub time_offset_sd: f64,
     /// Coarse search range ±S (s) before the filter refines; 0 disables it.
-    #[arg(long, default_value_t = 0.5, requires = "estimate_time_offset")]
+    #[arg(value_parser = args::non_negative(args::MAX_OFFSET_SEARCH_S, "s"), long, default_value_t = 0.5, requires = "estimate_time_offset")]
     pub time_offset_search: f64,
     /// Let the time offset move even while the motion makes it unobservable.
     #[arg(long, requires = "estimate_time_offset")]
@@ -210,17 +213,17 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Latency::Offline)]
     pub latency_mode: Latency,
     /// Emulated GNSS latency for the real-time modes (s).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(value_parser = args::non_negative(args::MAX_OFFSET_S, "s"), long, default_value_t = 0.0)]
     pub gnss_latency: f64,
     /// Fusion lag of `--latency-mode fixed` (s) [default: --gnss-latency].
-    #[arg(long)]
+    #[arg(value_parser = args::non_negative(args::MAX_OFFSET_S, "s"), long)]
     pub fixed_lag: Option<f64>,
     /// Also write the solution at these epochs (one `sow` or `week sow` per
     /// line) to navresult_at.nav, by (2n+1)-order Lagrange interpolation.
     #[arg(long)]
     pub output_at: Option<PathBuf>,
     /// n of the (2n+1)-order interpolation (0 linear, 1 cubic, …).
-    #[arg(long, default_value_t = 1)]
+    #[arg(value_parser = args::count(0, navsync::interp::MAX_INTERP_N as u64), long, default_value_t = 1)]
     pub interp_n: usize,
     /// Inertial sensors present: full, 1g2a (vertical gyro, forward and
     /// lateral accelerometers) or 1g3a; absent ones become pseudo-signals.
@@ -228,32 +231,32 @@ pub struct Args {
     pub imu_config: navsync::reduced::ImuConfig,
     /// Roll/pitch rates a pseudo gyro must cover (deg/s, 1σ) and their
     /// correlation time (s).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(value_parser = args::sigma(1000.0, "deg/s"), long, default_value_t = 0.5)]
     pub pseudo_rate_sd: f64,
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(value_parser = args::real(1e-3, 1e6, "s"), long, default_value_t = 1.0)]
     pub pseudo_rate_corr: f64,
     /// Vertical acceleration a pseudo accelerometer must cover (m/s², 1σ)
     /// and its correlation time (s).
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(value_parser = args::sigma(1000.0, "m/s²"), long, default_value_t = 0.2)]
     pub pseudo_accel_sd: f64,
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(value_parser = args::real(1e-3, 1e6, "s"), long, default_value_t = 0.5)]
     pub pseudo_accel_corr: f64,
     /// Odometer/CAN speed file: `sow speed_mps` per line (GPS seconds of
     /// week, m/s; any separators; `#` comments).
     #[arg(long)]
     pub odometer: Option<PathBuf>,
     /// Odometer speed standard deviation (m/s).
-    #[arg(long, default_value_t = 0.1, requires = "odometer")]
+    #[arg(value_parser = args::sigma(args::MAX_SPEED_MPS, "m/s"), long, default_value_t = 0.1, requires = "odometer")]
     pub odo_sd: f64,
     /// Seconds between odometer updates.
-    #[arg(long, default_value_t = 0.1, requires = "odometer")]
+    #[arg(value_parser = args::positive(3600.0, "s"), long, default_value_t = 0.1, requires = "odometer")]
     pub odo_interval: f64,
     /// Initial σ of the odometer scale factor (0: no scale-factor state).
-    #[arg(long, default_value_t = 0.01, requires = "odometer")]
+    #[arg(value_parser = args::non_negative(1.0, ""), long, default_value_t = 0.01, requires = "odometer")]
     pub odo_scale_sd: f64,
     /// Lever arm from the IMU to the odometer point, body FRD (m)
     /// [default: the NHC lever arm].
-    #[arg(long, value_parser = parse_triplet, requires = "odometer")]
+    #[arg(long, value_parser = args::Triplet(args::symmetric(1000.0, "m")), requires = "odometer")]
     pub odo_lever: Option<[f64; 3]>,
     /// Estimate the gyro and accelerometer axis misalignments (12 more
     /// states) with this initial σ (deg), or GYRO,ACCEL: e.g. 0.05 for an
@@ -265,22 +268,27 @@ pub struct Args {
     /// (no initatt, or --align): levelling takes the misaligned axes for
     /// level, so the tilt's σ includes it. Not estimated (see
     /// --misalignment). E.g. 0.3 for an ICM-20602, 0.05 for an ADIS16465.
-    #[arg(long, value_name = "SD_DEG")]
+    #[arg(value_parser = args::non_negative(10.0, "deg"), long, value_name = "SD_DEG")]
     pub accel_misalignment: Option<f64>,
 }
 
-/// "a" or "a,b" (degrees, ≥ 0) into [a, a] or [a, b].
+/// "a" or "a,b" (degrees, in [1e-9, 10]: an axis misalignment of a MEMS
+/// IMU is at most about a degree) into [a, a] or [a, b].
 fn parse_sd_pair(s: &str) -> Result<[f64; 2], String> {
-    let v = super::parse_numbers(s)?;
-    let pair = match v.as_slice() {
-        [a] => [*a, *a],
-        [a, b] => [*a, *b],
-        _ => return Err(format!("'{s}': expected SD or GYRO_SD,ACCEL_SD")),
-    };
-    if pair.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
-        return Err(format!("'{s}': standard deviations must be positive"));
+    let range = args::sigma(10.0, "deg");
+    let v = s
+        .split(',')
+        .map(|x| {
+            range
+                .check(x)
+                .map_err(|why| format!("'{}' is {why}", x.trim()))
+        })
+        .collect::<Result<Vec<f64>, String>>()?;
+    match v.as_slice() {
+        [a] => Ok([*a, *a]),
+        [a, b] => Ok([*a, *b]),
+        _ => Err(format!("'{s}': expected SD or GYRO_SD,ACCEL_SD")),
     }
-    Ok(pair)
 }
 
 #[derive(Copy, Clone, PartialEq, clap::ValueEnum)]
@@ -351,10 +359,10 @@ impl Args {
             (None, None, None) => None,
             _ => anyhow::bail!("--outage-period, --outage-len and --outage-first go together"),
         };
-        let gnss_error = match (&self.gnss_gm_sd, self.gnss_gm_time) {
+        let gnss_error = match (self.gnss_gm_sd, self.gnss_gm_time) {
             (Some(sd), Some(tau)) => {
                 let m = GnssErrorModel {
-                    gm_sd_m: parse_triplet(sd).map_err(|e| anyhow::anyhow!("--gnss-gm-sd: {e}"))?,
+                    gm_sd_m: sd,
                     corr_time_s: tau,
                 };
                 Some(m)

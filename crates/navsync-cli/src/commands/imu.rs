@@ -18,6 +18,7 @@ use navsync::ins::ImuSample;
 use navsync::io::kfgins::{TextWriter, format_imu_line};
 use navsync::time::GpsTime;
 
+use super::args;
 use super::print_diagnostics;
 
 #[derive(clap::Args)]
@@ -71,25 +72,25 @@ pub struct CheckArgs {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Nominal output rate (Hz) [default: from the first intervals].
-    #[arg(long)]
+    #[arg(value_parser = args::rate(), long)]
     pub rate: Option<f64>,
     /// The IMU's internal (raw) sampling rate, if known (Hz).
-    #[arg(long)]
+    #[arg(value_parser = args::rate(), long)]
     pub raw_rate: Option<f64>,
     /// Gyro full scale (deg/s): samples at it are saturated.
-    #[arg(long)]
+    #[arg(value_parser = args::positive(1e5, "deg/s"), long)]
     pub gyro_range: Option<f64>,
     /// Accelerometer full scale (g).
-    #[arg(long)]
+    #[arg(value_parser = args::positive(1000.0, "g"), long)]
     pub accel_range: Option<f64>,
     /// The low-pass filter the IMU applied (TOML, see `imu convert --help`).
     #[arg(long)]
     pub lowpass: Option<PathBuf>,
     /// Longest acceptable gap (s).
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(value_parser = args::positive(3600.0, "s"), long, default_value_t = 0.1)]
     pub max_gap: f64,
     /// Findings to print (all are in the JSON).
-    #[arg(long, default_value_t = 12)]
+    #[arg(value_parser = args::count(0, args::MAX_COUNT), long, default_value_t = 12)]
     pub show: usize,
     /// Exit with status 2 when the verdict is FAIL (for scripts and CI).
     #[arg(long)]
@@ -127,19 +128,19 @@ pub struct ConvertArgs {
     #[arg(long, value_enum)]
     pub format: Option<Format>,
     /// Decimate by N = DEC_RATE + 1.
-    #[arg(long, default_value_t = 1)]
+    #[arg(value_parser = args::count_u32(1, 10_000), long, default_value_t = 1)]
     pub decimate: u32,
     #[arg(long, value_enum, default_value_t = Method::Average)]
     pub method: Method,
     /// Nominal input rate (Hz) [default: from the first intervals].
-    #[arg(long)]
+    #[arg(value_parser = args::rate(), long)]
     pub rate: Option<f64>,
     /// Count windows (device DEC_RATE semantics) instead of ending them on
     /// multiples of the output period.
     #[arg(long)]
     pub no_align: bool,
     /// Seconds added to every time stamp (e.g. boot time → GPS sow).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(value_parser = args::symmetric(args::MAX_SPAN_S, "s"), long, default_value_t = 0.0)]
     pub time_offset: f64,
     /// Low-pass filter the IMU applied: its group delay is removed from
     /// the time stamps. TOML: `sample_rate_hz = 2000`, then `kind = "fir"`
@@ -156,7 +157,7 @@ pub struct RateStudyArgs {
     #[arg(long)]
     pub config: PathBuf,
     /// Output rates (Hz), each an integer divisor of the input rate.
-    #[arg(long, value_delimiter = ',', default_value = "200,100,50,25,10")]
+    #[arg(value_parser = args::rate(), long, value_delimiter = ',', default_value = "200,100,50,25,10")]
     pub rates: Vec<f64>,
     /// Reference trajectory (11-column nav format).
     #[arg(long)]
@@ -164,11 +165,11 @@ pub struct RateStudyArgs {
     #[arg(long, value_enum, default_value_t = Method::Average)]
     pub method: Method,
     /// Outage protocol: every PERIOD s, LEN s long, the first FIRST s in.
-    #[arg(long, default_value_t = 180.0)]
+    #[arg(value_parser = args::real(1.0, args::MAX_SPAN_S, "s"), long, default_value_t = 180.0)]
     pub outage_period: f64,
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(value_parser = args::positive(args::MAX_SPAN_S, "s"), long, default_value_t = 60.0)]
     pub outage_len: f64,
-    #[arg(long, default_value_t = 120.0)]
+    #[arg(value_parser = args::non_negative(args::MAX_SPAN_S, "s"), long, default_value_t = 120.0)]
     pub outage_first: f64,
     /// Apply the non-holonomic constraint in every run.
     #[arg(long)]
@@ -183,9 +184,9 @@ pub struct RateStudyArgs {
 
 #[derive(clap::Args)]
 pub struct BenchArgs {
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(value_parser = args::real(1e-3, 168.0, "h"), long, default_value_t = 1.0)]
     pub hours: f64,
-    #[arg(long, default_value_t = 200.0)]
+    #[arg(value_parser = args::rate(), long, default_value_t = 200.0)]
     pub rate: f64,
     /// Keep the generated file here (else a temporary file, removed).
     #[arg(long)]
@@ -209,6 +210,11 @@ fn load_lowpass(path: Option<&Path>) -> Result<Option<LowPassFilter>> {
 }
 
 fn check(a: CheckArgs) -> Result<()> {
+    if let Some(p) = &a.json {
+        let mut inputs = vec![a.file.as_path()];
+        inputs.extend(a.lowpass.as_deref());
+        super::args::refuse_output_over_input(p, &inputs, "--json")?;
+    }
     let started = Instant::now();
     let lowpass = load_lowpass(a.lowpass.as_deref())?;
     let cfg = QualityConfig {
@@ -309,6 +315,10 @@ fn convert(a: ConvertArgs) -> Result<()> {
         (None, Some(_)) => Some(ImuLogFormat::RateCsv),
         (None, None) => None,
     };
+    super::args::refuse_output_over_input(&a.output, &[&a.input], "the output")?;
+    if let Some(lp) = &a.lowpass {
+        super::args::refuse_output_over_input(&a.output, &[lp], "the output")?;
+    }
     let mut reader = ImuLogReader::open(&a.input, format)?;
     // Read ahead to learn the format and the nominal rate.
     let mut head = Vec::new();
@@ -376,7 +386,7 @@ fn convert(a: ConvertArgs) -> Result<()> {
         delay_compensation_s: delay_s,
         ..Default::default()
     };
-    let mut cond = Conditioner::new(cfg);
+    let mut cond = Conditioner::new(cfg)?;
     let mut out = TextWriter::create(&a.output)?;
     let mut buf = Vec::with_capacity(1 << 20);
     let mut written = 0usize;

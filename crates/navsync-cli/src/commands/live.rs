@@ -20,6 +20,7 @@ use {
     std::time::{Duration, Instant},
 };
 
+use super::args;
 #[cfg(target_os = "linux")]
 use super::print_diagnostics;
 use super::sync::Osc;
@@ -46,21 +47,21 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Format::Rate)]
     pub imu_format: Format,
     /// `ubx-esf`: seconds per ESF time-tag tick.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(value_parser = args::real(1e-9, 1.0, "s"), long, default_value_t = 1e-3)]
     pub esf_tick: f64,
     /// Nominal IMU rate (Hz) [default: the config's imudatarate].
-    #[arg(long)]
+    #[arg(value_parser = args::rate(), long)]
     pub imu_rate: Option<f64>,
     /// Known IMU output delay T_c (s), subtracted from its stamps (Liu et
     /// al., "Data synchronization in IMU/GPS integrated measurement system
     /// of vehicle motion parameters").
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(value_parser = args::non_negative(10.0, "s"), long, default_value_t = 0.0)]
     pub imu_output_delay: f64,
     /// Receive time (s) the IMU's sample clock waits after a late line
     /// before deciding whether samples were lost before it; lines on time
     /// are stamped at once. Shorter: late lines' solutions come sooner, but
     /// a latency excursion longer than this is taken for a loss.
-    #[arg(long, default_value_t = navsync_live::live::DEFAULT_IMU_LOOKAHEAD_S)]
+    #[arg(value_parser = args::positive(60.0, "s"), long, default_value_t = navsync_live::live::DEFAULT_IMU_LOOKAHEAD_S)]
     pub imu_lookahead: f64,
     /// Kernel PPS device (RFC 2783), e.g. /dev/pps0. Without it, the
     /// clock is synchronized from receive times only.
@@ -80,13 +81,13 @@ pub struct Args {
     #[arg(long)]
     pub output: Option<PathBuf>,
     /// Without --output: solution lines printed per second.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(value_parser = args::real(1e-3, 1000.0, "Hz"), long, default_value_t = 1.0)]
     pub print_rate: f64,
     /// Status line interval (s).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(value_parser = args::real(1e-3, 3600.0, "s"), long, default_value_t = 1.0)]
     pub status_interval: f64,
     /// Stop after this many seconds (default: Ctrl-C).
-    #[arg(long)]
+    #[arg(value_parser = args::positive(args::MAX_SPAN_S, "s"), long)]
     pub duration: Option<f64>,
     /// Record every IMU line, GNSS fix and PPS edge received, on the host
     /// counter, as a rig log for `navsync sync` (written to the OS every
@@ -105,20 +106,20 @@ pub struct Args {
     #[command(flatten)]
     pub dual_antenna: super::fuse::DualAntennaArgs,
     /// σ of NMEA HDT headings (deg; HDT carries none), as `convert --hdt-sd`.
-    #[arg(long, default_value_t = 0.5, requires = "heading")]
+    #[arg(value_parser = args::positive(30.0, "deg"), long, default_value_t = 0.5, requires = "heading")]
     pub hdt_sd: f64,
     /// Measure the live loop on pseudo-terminals at real rate (200 Hz IMU,
     /// 10 Hz GNSS, injected PPS with a gap): lost samples, latency, CPU.
     #[arg(long)]
     pub selftest: bool,
     /// Self-test length (minutes).
-    #[arg(long, default_value_t = 10.0, requires = "selftest")]
+    #[arg(value_parser = args::real(0.1, 10_080.0, "min"), long, default_value_t = 10.0, requires = "selftest")]
     pub minutes: f64,
     /// Self-test: PPS removed this many seconds into the run…
-    #[arg(long, default_value_t = 240.0, requires = "selftest")]
+    #[arg(value_parser = args::non_negative(args::MAX_SPAN_S, "s"), long, default_value_t = 240.0, requires = "selftest")]
     pub pps_gap_start: f64,
     /// …for this long (s); 0 keeps it.
-    #[arg(long, default_value_t = 60.0, requires = "selftest")]
+    #[arg(value_parser = args::non_negative(args::MAX_SPAN_S, "s"), long, default_value_t = 60.0, requires = "selftest")]
     pub pps_gap: f64,
     /// Self-test GNSS messages.
     #[arg(long, value_enum, default_value_t = Gnss::Ubx, requires = "selftest")]

@@ -1,3 +1,4 @@
+pub mod args;
 pub mod array;
 pub mod batch;
 pub mod bench;
@@ -30,24 +31,6 @@ pub struct Scored {
     /// GNSS outage windows "sow:len,sow:len" in which drift is measured.
     #[arg(long, default_value = "")]
     pub outages: String,
-}
-
-/// Parses "a,b,…" into numbers.
-pub fn parse_numbers(s: &str) -> Result<Vec<f64>, String> {
-    s.split(',')
-        .map(|x| {
-            x.trim()
-                .parse::<f64>()
-                .map_err(|_| format!("'{x}' is not a number"))
-        })
-        .collect()
-}
-
-/// Parses "a,b,c" into three numbers.
-pub fn parse_triplet(s: &str) -> Result<[f64; 3], String> {
-    parse_numbers(s)?
-        .try_into()
-        .map_err(|_| format!("'{s}': expected three comma-separated numbers"))
 }
 
 /// Prints at most `limit` diagnostics and a count of the rest.

@@ -14,16 +14,16 @@ pub struct Args {
     #[arg(long, default_value = "demo")]
     pub scenario: String,
     /// Number of runs (seeds FIRST_SEED, FIRST_SEED+1, …).
-    #[arg(long, default_value_t = 50)]
+    #[arg(value_parser = super::args::count(1, 100_000), long, default_value_t = 50)]
     pub runs: usize,
     /// Runs in parallel [default: the number of cores].
-    #[arg(long)]
+    #[arg(value_parser = super::args::count(1, super::args::MAX_JOBS), long)]
     pub jobs: Option<usize>,
     /// Length of each run (s) [default: the scenario's].
-    #[arg(long)]
+    #[arg(value_parser = super::args::real(1.0, super::args::MAX_SPAN_S, "s"), long)]
     pub duration: Option<f64>,
     /// Seed of the first run.
-    #[arg(long, default_value_t = 1)]
+    #[arg(value_parser = super::args::seed(), long, default_value_t = 1)]
     pub first_seed: u64,
     /// Folder for montecarlo.json (the runs' files go below it and are
     /// removed as each run ends).
@@ -51,9 +51,7 @@ pub fn run(args: Args) -> Result<()> {
         set_path(&mut layer, &k, v)?;
     }
     let scn = Scenario::from_layer(layer)?;
-    let jobs = args
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()));
+    let jobs = super::args::jobs(args.jobs);
     let opts = McOptions {
         runs: args.runs,
         jobs,

@@ -25,6 +25,7 @@ use navsync_receivers::detect::{FileKind, detect};
 use navsync_report::ReportInputs;
 use serde_json::json;
 
+use super::args;
 use super::print_diagnostics;
 
 #[derive(clap::Args)]
@@ -49,7 +50,7 @@ pub struct Args {
     #[arg(long)]
     pub truth: Option<PathBuf>,
     /// Alignment: take the heading from GNSS velocity from this speed on (m/s).
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(value_parser = args::positive(100.0, "m/s"), long, default_value_t = 3.0)]
     pub align_min_speed: f64,
     /// Go on when `sync` finds the rig log implausible.
     #[arg(long)]
@@ -508,6 +509,10 @@ pub fn run(a: Args) -> Result<()> {
         imu_rate_hz: (imu_span.median_dt_s > 0.0).then(|| 1.0 / imu_span.median_dt_s),
         start_sow: imu_span.first_sow,
     };
+    let rate_warning = sheet.rate_mismatch(&a.sensor, &drive);
+    if let Some(w) = &rate_warning {
+        eprintln!("navsync process: WARNING: {w}");
+    }
     let cfg = sheet.kfgins_config(&a.sensor, &drive)?;
     // Without 1PPS the filter estimates the remaining constant offset.
     let estimate_offset = sheet
@@ -572,7 +577,7 @@ pub fn run(a: Args) -> Result<()> {
     );
     let summary = super::fuse::execute(&cfg, &opts, &fuse_dir)?;
 
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = rate_warning.into_iter().collect();
     if let Some(al) = &summary.alignment
         && al.method == AlignMethod::NoMotion
     {

@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use navsync::eval::parse_outages;
 use navsync_report::ReportInputs;
 
+use super::args;
 use super::print_diagnostics;
 
 #[derive(clap::Args)]
@@ -46,7 +47,7 @@ pub struct Args {
     #[arg(long)]
     pub time_offset: Option<PathBuf>,
     /// The true time offset (s), drawn beside the estimate.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(value_parser = args::symmetric(args::MAX_OFFSET_S, "s"), long, allow_negative_numbers = true)]
     pub time_offset_truth: Option<f64>,
     /// Page title.
     #[arg(long, default_value = "navsync report")]
@@ -57,6 +58,19 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    let inputs = [
+        Some(&a.nav),
+        a.truth.as_ref(),
+        a.sync_report.as_ref(),
+        a.summary.as_ref(),
+        a.std.as_ref(),
+        a.imu_err.as_ref(),
+        a.imu_err_truth.as_ref(),
+        a.gnss.as_ref(),
+        a.time_offset.as_ref(),
+    ];
+    let inputs: Vec<&std::path::Path> = inputs.into_iter().flatten().map(|p| p.as_path()).collect();
+    args::refuse_output_over_input(&a.output, &inputs, "--output")?;
     let inputs = ReportInputs {
         title: a.title,
         truth: a.truth,

@@ -9,6 +9,7 @@ use navsync_sim::scenario::{Scenario, base_layer, parse_override, set_path};
 use navsync_sim::{SimReport, Simulation};
 use serde_json::{Value, json};
 
+use super::args;
 use crate::progress;
 
 #[derive(Copy, Clone, clap::ValueEnum)]
@@ -70,26 +71,26 @@ pub struct Args {
     #[arg(long, default_value = "urban")]
     pub scenario: String,
     /// Seed of every random error source.
-    #[arg(long)]
+    #[arg(value_parser = args::seed(), long)]
     pub seed: Option<u64>,
     /// Output folder.
     #[arg(long, required_unless_present = "bench")]
     pub output: Option<PathBuf>,
     /// Length of the run (s); built-in scenarios default to 600 s.
-    #[arg(long)]
+    #[arg(value_parser = args::real(1.0, args::MAX_SPAN_S, "s"), long)]
     pub duration: Option<f64>,
     /// Seed of the random trajectory (urban).
-    #[arg(long)]
+    #[arg(value_parser = args::seed(), long)]
     pub traj_seed: Option<u64>,
     /// IMU preset: nav, tactical, adis16465, icm20602, perfect.
     #[arg(long)]
     pub imu_grade: Option<String>,
     /// IMU output rate (Hz).
-    #[arg(long)]
+    #[arg(value_parser = args::real(1.0, 10_000.0, "Hz"), long)]
     pub imu_rate: Option<f64>,
     /// IMU internal sampling rate (Hz; a multiple of the output rate, 0 =
     /// ideal integrating IMU).
-    #[arg(long)]
+    #[arg(value_parser = args::non_negative(args::MAX_RATE_HZ, "Hz"), long)]
     pub internal_rate: Option<f64>,
     /// How the IMU decimates its internal samples.
     #[arg(long, value_enum)]
@@ -101,7 +102,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub vibration: Option<Vibration>,
     /// GNSS fix rate (Hz).
-    #[arg(long)]
+    #[arg(value_parser = args::real(0.01, 100.0, "Hz"), long)]
     pub gnss_rate: Option<f64>,
     /// GNSS solution type (sets the noise).
     #[arg(long, value_enum)]
@@ -122,16 +123,16 @@ pub struct Args {
     #[arg(long)]
     pub pps_dropout: Option<String>,
     /// Logger counter frequency error (ppm).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(value_parser = args::symmetric(1e4, "ppm"), long, allow_negative_numbers = true)]
     pub counter_ppm: Option<f64>,
     /// IMU sample-clock frequency error (ppm; −400 makes 200 Hz 199.92 Hz).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(value_parser = args::symmetric(1e4, "ppm"), long, allow_negative_numbers = true)]
     pub imu_clock_ppm: Option<f64>,
     /// How the logger times the IMU.
     #[arg(long, value_enum)]
     pub sync: Option<Sync>,
     /// Probability that an IMU frame is lost.
-    #[arg(long)]
+    #[arg(value_parser = args::real(0.0, 0.99, ""), long)]
     pub lost_frames: Option<f64>,
     /// Follow a reference drive (a KF-GINS navigation file, e.g. a real
     /// vehicle's reference trajectory) instead of a built-in scenario: the

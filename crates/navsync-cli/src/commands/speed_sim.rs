@@ -7,6 +7,7 @@ use anyhow::Result;
 use navsync::Diagnostics;
 use navsync_sim::speed::{SpeedSimOptions, simulate_speed_file};
 
+use super::args;
 use super::print_diagnostics;
 
 #[derive(clap::Args)]
@@ -18,18 +19,18 @@ pub struct Args {
     #[arg(long)]
     pub out: PathBuf,
     /// Output rate (Hz).
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(value_parser = args::real(0.01, 10_000.0, "Hz"), long, default_value_t = 20.0)]
     pub rate: f64,
     /// Scale error s: reported = (1 + s)·true + noise.
-    #[arg(long, default_value_t = 0.01, allow_hyphen_values = true)]
+    #[arg(value_parser = args::symmetric(1.0, ""), long, default_value_t = 0.01, allow_hyphen_values = true)]
     pub scale_error: f64,
     /// White noise σ (m/s).
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(value_parser = args::non_negative(args::MAX_SPEED_MPS, "m/s"), long, default_value_t = 0.05)]
     pub noise: f64,
     /// Resolution of the reported speed (m/s); 0 keeps full precision.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(value_parser = args::non_negative(args::MAX_SPEED_MPS, "m/s"), long, default_value_t = 0.01)]
     pub resolution: f64,
-    #[arg(long, default_value_t = 1)]
+    #[arg(value_parser = args::seed(), long, default_value_t = 1)]
     pub seed: u64,
 }
 
@@ -38,6 +39,7 @@ pub fn run(a: Args) -> Result<()> {
         a.rate > 0.0 && a.noise >= 0.0 && a.resolution >= 0.0,
         "need --rate > 0, --noise ≥ 0, --resolution ≥ 0"
     );
+    args::refuse_output_over_input(&a.out, &[&a.truth], "--out")?;
     let o = SpeedSimOptions {
         rate_hz: a.rate,
         scale_error: a.scale_error,

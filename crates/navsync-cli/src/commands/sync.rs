@@ -39,13 +39,13 @@ pub struct Args {
     /// parameters"); in hybrid mode the fastest transport latency, which
     /// receive times cannot observe [default: the log header's
     /// `imu_output_delay_s`, else 0].
-    #[arg(long)]
+    #[arg(value_parser = args::non_negative(10.0, "s"), long)]
     pub imu_output_delay: Option<f64>,
     /// The counter's oscillator: how fast holdover error bounds grow.
     #[arg(long, value_enum, default_value_t = Osc::Xo)]
     pub oscillator: Osc,
     /// Software sync: assumed latency of the fastest GNSS message (s).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(value_parser = args::non_negative(args::MAX_OFFSET_S, "s"), long, default_value_t = 0.0)]
     pub gnss_min_latency: f64,
     /// Rate → increment rule: trapezoid of consecutive samples (Tang, Zhang
     /// & Niu 2022 §1.1, for instantaneous rates) or average (rate already averaged
@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(long)]
     pub bench: bool,
     /// Hours of data for --bench.
-    #[arg(long, default_value_t = 24.0, requires = "bench")]
+    #[arg(value_parser = args::real(1e-3, 168.0, "h"), long, default_value_t = 24.0, requires = "bench")]
     pub hours: f64,
 }
 
@@ -198,6 +198,7 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
+use super::args;
 use navsync::timing::report::Implausible;
 
 pub fn print_summary(r: &SyncReport, wall: f64) {

@@ -18,6 +18,7 @@ use navsync_tracking::oscillator::AllanCoefficients;
 use navsync_tracking::scenario::{self, Scenario};
 use navsync_tracking::sim::{self, Threshold, TrackConfig, TrackResult};
 
+use super::args;
 use super::print_diagnostics;
 
 #[derive(clap::Args)]
@@ -46,7 +47,7 @@ pub struct Args {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=3))]
     pub order: Option<u32>,
     /// Coherent integration time (ms): 1–20, dividing 20 with data bits.
-    #[arg(long, default_value_t = 1)]
+    #[arg(value_parser = args::count_u32(1, 20), long, default_value_t = 1)]
     pub t_coh: u32,
     #[arg(long, value_enum, default_value_t = Disc::Costas)]
     pub discriminator: Disc,
@@ -61,33 +62,33 @@ pub struct Args {
     #[arg(long, default_value = "tcxo")]
     pub oscillator: String,
     /// Satellite elevation and azimuth (deg).
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(value_parser = args::real(-90.0, 90.0, "deg"), long, default_value_t = 30.0)]
     pub elevation: f64,
-    #[arg(long, default_value_t = 45.0)]
+    #[arg(value_parser = args::symmetric(360.0, "deg"), long, default_value_t = 45.0)]
     pub azimuth: f64,
     /// Satellite range rate (m/s) and range acceleration (m/s²) from its own motion.
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(value_parser = args::symmetric(1e4, "m/s"), long, default_value_t = 300.0)]
     pub sat_rate: f64,
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(value_parser = args::symmetric(100.0, "m/s²"), long, default_value_t = 0.1)]
     pub sat_accel: f64,
     /// Simulated seconds per C/N0 point.
-    #[arg(long, default_value_t = 120.0)]
+    #[arg(value_parser = args::real(1.0, 86_400.0, "s"), long, default_value_t = 120.0)]
     pub duration: f64,
     /// Seconds excluded from the statistics at the start.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(value_parser = args::non_negative(3600.0, "s"), long, default_value_t = 2.0)]
     pub settle: f64,
     /// Adaptive bandwidth limits (Hz) and slew (factor per second).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(value_parser = args::real(0.01, 100.0, "Hz"), long, default_value_t = 0.5)]
     pub bn_min: f64,
-    #[arg(long, default_value_t = 25.0)]
+    #[arg(value_parser = args::real(0.01, 100.0, "Hz"), long, default_value_t = 25.0)]
     pub bn_max: f64,
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(value_parser = args::positive(100.0, ""), long, default_value_t = 2.0)]
     pub bn_slew: f64,
     /// Also run these fixed bandwidths (Hz, comma-separated) and compare the
     /// RMS phase error with the best of them at each C/N0.
     #[arg(long)]
     pub compare_fixed: Option<String>,
-    #[arg(long, default_value_t = 1)]
+    #[arg(value_parser = args::seed(), long, default_value_t = 1)]
     pub seed: u64,
     /// Write the table as CSV.
     #[arg(long)]

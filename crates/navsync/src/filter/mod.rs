@@ -97,6 +97,34 @@ const MISALIGN_NAMES: [&str; 12] = [
 ];
 
 impl StateLayout {
+    /// The name of state `i`, for messages (KF-GINS's 21-state order,
+    /// then the extras by name).
+    pub(crate) fn state_name(&self, i: usize) -> String {
+        const CORE: [&str; 7] = [
+            "position",
+            "velocity",
+            "attitude",
+            "gyro bias",
+            "accelerometer bias",
+            "gyro scale",
+            "accelerometer scale",
+        ];
+        const AXES: [[&str; 3]; 2] = [["north", "east", "down"], ["x", "y", "z"]];
+        if i < idx::CORE {
+            let axes = if i < idx::ATT { AXES[0] } else { AXES[1] };
+            let axis = if (idx::ATT..idx::BG).contains(&i) {
+                ["roll", "pitch", "yaw"][i % 3]
+            } else {
+                axes[i % 3]
+            };
+            return format!("{} {axis} (state {i})", CORE[i / 3]);
+        }
+        match self.extras.iter().find(|e| e.index == i) {
+            Some(e) => format!("{} (state {i})", e.name),
+            None => format!("state {i}"),
+        }
+    }
+
     /// Total number of states.
     pub fn n(&self) -> usize {
         idx::CORE + self.extras.len()
@@ -640,10 +668,7 @@ impl ErrorStateFilter {
         let (hpat, hp, s) = self.innovation_parts(obs);
         let l = dense::cholesky(&s).ok_or_else(|| Error::Covariance {
             time,
-            msg: format!(
-                "{} innovation covariance is not positive definite",
-                obs.kind
-            ),
+            msg: self.explain_innovation(obs, &s),
         })?;
         let mut s_inv_z = obs.z.clone();
         dense::cholesky_solve(&l, &mut s_inv_z);
@@ -731,7 +756,7 @@ impl ErrorStateFilter {
             if !d.is_finite() || d < 0.0 {
                 return Err(Error::Covariance {
                     time,
-                    msg: format!("variance of state {i} is {d}"),
+                    msg: format!("variance of {} is {d}", self.layout.state_name(i)),
                 });
             }
         }
@@ -747,12 +772,71 @@ impl ErrorStateFilter {
             c.data[i * n + i] += 1e-12;
         }
         if dense::cholesky(&c).is_none() {
+            // The first leading block that fails names the state that the
+            // ones before it (numerically) determine.
+            let k = (1..=n)
+                .find(|&k| {
+                    let mut b = Mat::zeros(k, k);
+                    for i in 0..k {
+                        for j in 0..k {
+                            b.data[i * k + j] = c.data[i * n + j];
+                        }
+                    }
+                    dense::cholesky(&b).is_none()
+                })
+                .unwrap_or(n);
             return Err(Error::Covariance {
                 time,
-                msg: "covariance is not positive definite".into(),
+                msg: format!(
+                    "covariance P is not positive definite at {}: it is (numerically) \
+                     determined by the states before it (σ {:.3e}). Likely cause: a σ many \
+                     orders of magnitude below the others (initial σ, measurement σ or \
+                     noise in the configuration) or two states the data cannot tell apart",
+                    self.layout.state_name(k - 1),
+                    sd[k - 1]
+                ),
             });
         }
         Ok(())
+    }
+
+    /// Why S = H P Hᵀ + R of `obs` is not positive definite: the first
+    /// axis whose R or H P Hᵀ is not a finite positive number, and the
+    /// likely cause.
+    fn explain_innovation(&self, obs: &Observation, s: &Mat) -> String {
+        let head = format!(
+            "{} innovation covariance S = HPHᵀ + R is not positive definite",
+            obs.kind
+        );
+        for a in 0..obs.dim() {
+            let r = obs.r.get(a, a);
+            let hph = s.get(a, a) - r;
+            if !(r.is_finite() && r > 0.0) {
+                return format!(
+                    "{head}: axis {a} has measurement variance R = {r:e}; the measurement's σ \
+                     must be a positive finite number (check the σ given for {})",
+                    obs.kind
+                );
+            }
+            if !hph.is_finite() {
+                let worst = (0..self.n)
+                    .filter(|&i| obs.h.get(a, i) != 0.0)
+                    .find(|&i| !self.p.get(i, i).is_finite() || self.p.get(i, i) > 1e150);
+                let state = worst.map_or_else(
+                    || "the states it observes".to_string(),
+                    |i| self.layout.state_name(i),
+                );
+                return format!(
+                    "{head}: axis {a} has HPHᵀ = {hph:e}, R = {r:e}: the filter's covariance of \
+                     {state} overflowed (an initial σ far too large, or the filter diverged before)"
+                );
+            }
+        }
+        format!(
+            "{head}: every axis has a finite positive variance but S is singular (axes \
+             measuring the same thing with σ = 0 correlation?); R diagonal {:?}",
+            (0..obs.dim()).map(|a| obs.r.get(a, a)).collect::<Vec<_>>()
+        )
     }
 }
 

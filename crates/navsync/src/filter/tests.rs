@@ -426,7 +426,42 @@ fn broken_covariance_is_reported() {
     let v = f.covariance().get(0, 0).sqrt() * f.covariance().get(1, 1).sqrt() * 1.5;
     f.covariance_mut().set(0, 1, v);
     f.covariance_mut().set(1, 0, v);
-    assert!(f.check_covariance(GpsTime::EPOCH).is_err());
+    let err = f.check_covariance(GpsTime::EPOCH).unwrap_err().to_string();
+    // The message names the state and the likely cause (issue 32).
+    assert!(
+        err.contains("at position east (state 1)") && err.contains("Likely cause"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_singular_innovation_covariance_names_its_cause() {
+    let (truth, _) = moving_state();
+    let fix = GnssFix {
+        time: truth.time,
+        pos: truth.pos,
+        pos_sd: Vector3::repeat(0.02),
+        vel: None,
+        vel_sd: None,
+    };
+    let mut f = converged_filter();
+    let mut obs = gnss::position(&truth, &fix, &Vector3::zeros(), 21);
+    obs.r.set(1, 1, -1.0);
+    let err = f.update(&obs, None, truth.time).unwrap_err().to_string();
+    assert!(
+        err.contains("innovation covariance S = HPHᵀ + R is not positive definite")
+            && err.contains("axis 1 has measurement variance R = -1e0"),
+        "{err}"
+    );
+    // A covariance that overflowed: named with its state.
+    let mut f = converged_filter();
+    f.covariance_mut().set(0, 0, f64::INFINITY);
+    let obs = gnss::position(&truth, &fix, &Vector3::zeros(), 21);
+    let err = f.update(&obs, None, truth.time).unwrap_err().to_string();
+    assert!(
+        err.contains("covariance of position north (state 0) overflowed"),
+        "{err}"
+    );
 }
 
 #[test]

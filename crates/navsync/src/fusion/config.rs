@@ -288,6 +288,14 @@ pub struct TimeOffsetOptions {
     pub search_range_s: f64,
 }
 
+impl TimeOffsetOptions {
+    /// Largest coarse search range (±s): the search keeps a 1 ms grid
+    /// over ±(range + 50 ms) (`offset_search.rs`), 10 101 cells at 5 s; an
+    /// IMU–GNSS offset beyond seconds is a wrong clock (e.g. GPS vs UTC),
+    /// to be fixed in the time stamps, not estimated.
+    pub const MAX_SEARCH_RANGE_S: f64 = 5.0;
+}
+
 impl Default for TimeOffsetOptions {
     fn default() -> Self {
         TimeOffsetOptions {

@@ -256,9 +256,11 @@ impl Windows {
 fn window_mode(factor: u32, input_rate_hz: Option<f64>, align_to_grid: bool) -> WindowMode {
     match (align_to_grid, input_rate_hz) {
         (true, Some(r)) if r > 0.0 && factor > 1 => {
-            let dt = period_ns(r);
+            // At least 1 ns (a rate above 1 GHz would round the period to
+            // 0 and divide by it); saturating for huge factors.
+            let dt = period_ns(r).max(1);
             WindowMode::Grid {
-                period_ns: dt * factor as i64,
+                period_ns: dt.saturating_mul(factor as i64),
                 tol_ns: (dt / 2 - 1).max(0),
             }
         }
@@ -557,9 +559,46 @@ pub struct Conditioner {
     shift_ns: i64,
 }
 
+impl ConditionerConfig {
+    /// Highest input rate accepted (Hz): its period is 1 µs, the time
+    /// base is 1 ns (MEMS IMUs sample at most at tens of kHz).
+    pub const MAX_INPUT_RATE_HZ: f64 = 1e6;
+
+    /// Checks the values the conditioner divides by or adds to times.
+    pub fn validate(&self) -> Result<(), Error> {
+        if let Some(r) = self.input_rate_hz
+            && !(r.is_finite() && r > 0.0 && r <= Self::MAX_INPUT_RATE_HZ)
+        {
+            return Err(Error::Invalid(format!(
+                "IMU input rate {r} Hz: expected a rate in (0, {}] Hz",
+                Self::MAX_INPUT_RATE_HZ
+            )));
+        }
+        if !(self.gap_factor.is_finite() && self.gap_factor > 1.0) {
+            return Err(Error::Invalid(format!(
+                "gap factor {} must be a finite number above 1",
+                self.gap_factor
+            )));
+        }
+        if !self.delay_compensation_s.is_finite()
+            || self
+                .max_bridge_s
+                .is_some_and(|s| !(s.is_finite() && s >= 0.0))
+        {
+            return Err(Error::Invalid(format!(
+                "delay compensation {} s and bridge limit {:?} s must be finite (the limit ≥ 0)",
+                self.delay_compensation_s, self.max_bridge_s
+            )));
+        }
+        Ok(())
+    }
+}
+
 impl Conditioner {
-    /// A conditioner over this configuration.
-    pub fn new(cfg: ConditionerConfig) -> Self {
+    /// A conditioner over this configuration, checked
+    /// ([`ConditionerConfig::validate`]).
+    pub fn new(cfg: ConditionerConfig) -> Result<Self, Error> {
+        cfg.validate()?;
         let bridge = |c: RateToIncrement| match cfg.max_bridge_s {
             Some(s) => c.with_max_bridge(s),
             None => c,
@@ -605,13 +644,13 @@ impl Conditioner {
                 ),
             ),
         };
-        Conditioner {
+        Ok(Conditioner {
             cfg,
             conv,
             rate_dec,
             inc_dec,
             shift_ns: crate::time::seconds_to_ns(cfg.delay_compensation_s),
-        }
+        })
     }
 
     /// Its configuration.
@@ -962,6 +1001,35 @@ mod tests {
     }
 
     #[test]
+    fn a_rate_the_time_base_cannot_hold_is_refused_not_divided_by() {
+        // `imu convert --rate 1e300 --decimate 2` divided by a zero period.
+        for bad in [1e300, f64::NAN, f64::INFINITY, 0.0, -200.0, 2e6] {
+            let cfg = ConditionerConfig {
+                dec: DecRate(1),
+                input_rate_hz: Some(bad),
+                ..Default::default()
+            };
+            let e = Conditioner::new(cfg).unwrap_err().to_string();
+            assert!(e.contains("expected a rate in (0, 1000000] Hz"), "{e}");
+        }
+        // The decimator alone (its own constructor) does not divide by zero.
+        let mut d = IncrementDecimator::new(
+            DecRate(1),
+            DecimationMethod::Average,
+            Some(1e300),
+            true,
+            1.5,
+        );
+        let s = ImuSample {
+            time: GpsTime::from_ns(T0_NS),
+            dtheta: Vector3::zeros(),
+            dvel: Vector3::zeros(),
+            odo_speed: None,
+        };
+        let _ = d.push(&s);
+    }
+
+    #[test]
     fn conditioner_converts_accumulates_and_compensates_delay() {
         let cfg = ConditionerConfig {
             input: InputKind::Rate(RateRule::Trapezoid),
@@ -971,7 +1039,7 @@ mod tests {
             delay_compensation_s: 0.0015,
             ..Default::default()
         };
-        let mut c = Conditioner::new(cfg);
+        let mut c = Conditioner::new(cfg).unwrap();
         let mut out = Vec::new();
         for k in 0..=8i64 {
             let s = InputSample::Rate(RateSample {

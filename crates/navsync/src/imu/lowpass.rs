@@ -273,7 +273,7 @@ impl LowPassFilter {
         path: &Path,
         parse: impl FnOnce(&str) -> Result<LowPassSpec, E>,
     ) -> Result<Self, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::text::read_config_text(path)?;
         let spec: LowPassSpec = parse(&text)
             .map_err(|e| Error::config(path, format!("not a filter description: {e}")))?;
         Self::from_spec(&spec).map_err(|e| Error::config(path, e.to_string()))

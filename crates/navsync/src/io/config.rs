@@ -140,7 +140,7 @@ impl KfGinsConfig {
     /// run (unknown keys, a path found next to the config rather than in
     /// the working directory) go into `diag`.
     pub fn load(path: &Path, diag: &mut Diagnostics) -> Result<Self, Error> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::text::read_config_text(path)?;
         Self::parse(&text, path, diag)
     }
 

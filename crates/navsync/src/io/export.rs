@@ -188,6 +188,24 @@ pub fn decimate(recs: &[NavRecord], every_s: f64) -> Vec<NavRecord> {
         .collect()
 }
 
+/// Why a record's position is not on the earth (latitude outside ±90°,
+/// longitude outside ±180°, a non-finite value), or `None`: such a point
+/// would be drawn (GPX 1.1 `latType`/`lonType`, RFC 7946 §3.1.1) where no
+/// vehicle was, so it is not exported.
+pub fn off_earth(r: &NavRecord) -> Option<String> {
+    let (lat, lon, h) = (r.lat_deg, r.lon_deg, r.h_m);
+    if !(lat.is_finite() && lon.is_finite() && h.is_finite()) {
+        return Some(format!("position {lat}, {lon}, {h} m is not finite"));
+    }
+    if lat.abs() > 90.0 {
+        return Some(format!("latitude {lat}° outside −90…90°"));
+    }
+    if lon.abs() > 180.0 {
+        return Some(format!("longitude {lon}° outside −180…180°"));
+    }
+    None
+}
+
 /// One epoch to export, with what the caller could add to it.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct ExportPoint {

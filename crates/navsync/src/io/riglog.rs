@@ -866,7 +866,11 @@ fn parse_record(
         diag.push(
             path,
             no,
-            format!("expected {want} fields ({layout}), found {n}; line skipped"),
+            if n > want {
+                format!("extra fields: expected {want} ({layout}), found {n}; line skipped")
+            } else {
+                format!("expected {want} fields ({layout}), found {n}; line skipped")
+            },
         );
     };
     match kind {

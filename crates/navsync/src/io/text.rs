@@ -26,6 +26,13 @@ pub struct LineReader<R> {
 }
 
 const BLOCK: usize = 1 << 20;
+/// Longest line read (bytes): a record of any navsync text format is a
+/// few hundred bytes; a longer "line" is a binary file or a runaway
+/// writer, refused before it fills memory.
+pub const MAX_LINE_BYTES: usize = BLOCK;
+/// The UTF-8 byte-order mark some Windows editors put at a file's start
+/// (Unicode §23.8): skipped, it is not part of the first line.
+const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
 
 /// A line, its 1-based number, and whether it ended in `\n`.
 pub type EndedLine<'a> = (&'a [u8], usize, bool);
@@ -86,7 +93,7 @@ impl<R: Read> LineReader<R> {
                 }
                 self.line_no += 1;
                 self.terminated = true;
-                return Ok(Some((line_start, line_end)));
+                return Ok(Some((self.skip_bom(line_start, line_end), line_end)));
             }
             if self.eof {
                 if self.start < self.end {
@@ -98,7 +105,7 @@ impl<R: Read> LineReader<R> {
                     }
                     self.line_no += 1;
                     self.terminated = false;
-                    return Ok(Some((line_start, line_end)));
+                    return Ok(Some((self.skip_bom(line_start, line_end), line_end)));
                 }
                 return Ok(None);
             }
@@ -109,8 +116,15 @@ impl<R: Read> LineReader<R> {
                 self.start = 0;
             }
             if self.end == self.buf.len() {
-                let new_len = self.buf.len() * 2;
-                self.buf.resize(new_len, 0);
+                return Err(Error::parse(
+                    &self.path,
+                    self.line_no + 1,
+                    format!(
+                        "line longer than {} MiB without a line break: not a text log \
+                         (expected one record per line)",
+                        MAX_LINE_BYTES >> 20
+                    ),
+                ));
             }
             let n = loop {
                 match self.inner.read(&mut self.buf[self.end..]) {
@@ -123,6 +137,54 @@ impl<R: Read> LineReader<R> {
                 self.eof = true;
             }
             self.end += n;
+        }
+    }
+}
+
+/// Largest configuration file read whole (YAML, TOML: KF-GINS
+/// configurations, sensor sheets, scenarios, filter files): 16 MiB, a
+/// thousand times a real one; `/dev/zero` given as a configuration fails
+/// at once instead of filling memory.
+pub const MAX_CONFIG_BYTES: u64 = 16 << 20;
+
+/// A whole text file (a configuration) of at most [`MAX_CONFIG_BYTES`],
+/// its UTF-8 byte-order mark removed; the error names the file and what
+/// is wrong (too large, not UTF-8 at byte N).
+pub fn read_config_text(path: &Path) -> Result<String, Error> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut bytes = Vec::new();
+    file.take(MAX_CONFIG_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > MAX_CONFIG_BYTES {
+        return Err(Error::config(
+            path,
+            format!(
+                "larger than {} MiB: not a configuration file",
+                MAX_CONFIG_BYTES >> 20
+            ),
+        ));
+    }
+    let body = bytes.strip_prefix(UTF8_BOM).unwrap_or(&bytes);
+    match std::str::from_utf8(body) {
+        Ok(s) => Ok(s.to_string()),
+        Err(e) => Err(Error::config(
+            path,
+            format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.valid_up_to() + (bytes.len() - body.len())
+            ),
+        )),
+    }
+}
+
+impl<R> LineReader<R> {
+    /// The first line's start past a UTF-8 byte-order mark.
+    fn skip_bom(&self, start: usize, end: usize) -> usize {
+        if self.line_no == 1 && self.buf[start..end].starts_with(UTF8_BOM) {
+            start + UTF8_BOM.len()
+        } else {
+            start
         }
     }
 }
@@ -393,13 +455,29 @@ mod tests {
     }
 
     #[test]
-    fn line_reader_handles_lines_longer_than_a_block() {
-        let mut data = vec![b'x'; BLOCK * 2 + 10];
+    fn line_reader_takes_a_line_up_to_its_cap_and_refuses_a_longer_one() {
+        let mut data = b"first\n".to_vec();
+        data.extend(vec![b'x'; MAX_LINE_BYTES - 1]);
         data.push(b'\n');
         data.extend_from_slice(b"end");
         let mut r = LineReader::new(&data[..], Path::new("mem"));
-        assert_eq!(r.next_line().unwrap().unwrap().0.len(), BLOCK * 2 + 10);
+        assert_eq!(r.next_line().unwrap().unwrap().0, b"first");
+        assert_eq!(r.next_line().unwrap().unwrap().0.len(), MAX_LINE_BYTES - 1);
         assert_eq!(r.next_line().unwrap().unwrap().0, b"end");
         assert!(r.next_line().unwrap().is_none());
+        // /dev/zero as a log: one endless line, refused at the cap.
+        let mut r = LineReader::new(std::io::repeat(0), Path::new("/dev/zero"));
+        let e = r.next_line().unwrap_err().to_string();
+        assert!(e.starts_with("/dev/zero:1: line longer than 1 MiB"), "{e}");
+    }
+
+    #[test]
+    fn line_reader_skips_a_utf8_bom_on_the_first_line_only() {
+        let data = b"\xEF\xBB\xBF# rig-log v1\n\xEF\xBB\xBFx";
+        let mut r = LineReader::new(&data[..], Path::new("mem"));
+        assert_eq!(r.next_line().unwrap().unwrap().0, b"# rig-log v1");
+        assert_eq!(r.next_line().unwrap().unwrap().0, b"\xEF\xBB\xBFx");
+        let mut r = LineReader::new(&b"\xEF\xBB\xBF"[..], Path::new("mem"));
+        assert_eq!(r.next_line().unwrap().unwrap().0, b"");
     }
 }

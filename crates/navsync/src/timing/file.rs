@@ -126,6 +126,72 @@ impl Consumer for SyncFiles {
     }
 }
 
+/// Watches the raw counters of a rig log's records in file order, to say
+/// why a log gave no GPS time: a counter that runs backwards (a reversed
+/// or sorted-by-something-else file) is not a short log.
+struct CounterOrder {
+    half_range: u64,
+    prev: Option<u64>,
+    records: usize,
+    backwards: usize,
+    first_back_line: usize,
+}
+
+impl CounterOrder {
+    fn new(counter_bits: u32) -> Self {
+        CounterOrder {
+            half_range: 1u64 << counter_bits.clamp(1, 64).saturating_sub(1),
+            prev: None,
+            records: 0,
+            backwards: 0,
+            first_back_line: 0,
+        }
+    }
+
+    fn push(&mut self, counter: u64, line: usize) {
+        self.records += 1;
+        // A step back by less than half the counter's range is time
+        // running backwards; by more, a wrap (FORMATS.md §2).
+        if let Some(p) = self.prev
+            && counter < p
+            && p - counter < self.half_range
+        {
+            if self.backwards == 0 {
+                self.first_back_line = line;
+            }
+            self.backwards += 1;
+        }
+        self.prev = Some(counter);
+    }
+
+    /// The engine's "no data" error with its likely cause: most records
+    /// earlier than the one before, or every record skipped by the reader.
+    fn explain(&self, e: Error, read_diag: &Diagnostics) -> Error {
+        let Error::NoData { path, msg } = e else {
+            return e;
+        };
+        let msg = if self.records >= 3 && 2 * self.backwards > self.records {
+            format!(
+                "time runs backwards from line {} ({} of {} records have a counter below the one \
+                 before): a reversed or re-sorted log? Records must be in the order they were \
+                 logged",
+                self.first_back_line, self.backwards, self.records
+            )
+        } else if self.records == 0 && read_diag.total > 0 {
+            match read_diag.items.first() {
+                Some(first) => format!(
+                    "no usable records: {} lines skipped, the first {first}",
+                    read_diag.total
+                ),
+                None => format!("no usable records: {} lines skipped", read_diag.total),
+            }
+        } else {
+            msg
+        };
+        Error::NoData { path, msg }
+    }
+}
+
 /// Reads `rig`, synchronizes it, and writes `imu.txt`, `gnss.txt`,
 /// `imu_times.txt` and `sync_report.json` into `out_dir`, and
 /// `heading.txt` when the log has `heading` records. Rates become
@@ -177,6 +243,7 @@ pub fn sync_file(
         "sync-writer",
     )?;
 
+    let mut order = CounterOrder::new(header.counter_bits);
     let mut engine = SyncEngine::new(&header, cfg);
     let mut out = Vec::with_capacity(BATCH * 2);
     // Read, synchronize and hand over; the reader is always joined, and on
@@ -184,6 +251,7 @@ pub fn sync_file(
     let mut feed = || -> Result<(), Error> {
         while let Some(batch) = records_in.next_batch()? {
             for (rec, line) in batch {
+                order.push(rec.counter(), line);
                 engine.push_into(rec, line, &mut out);
             }
             if out.len() >= BATCH {
@@ -196,7 +264,7 @@ pub fn sync_file(
     let read = records_in.finish();
     let finished = fed.and_then(|()| {
         let (read_diag, records) = read?;
-        let (rest, report) = engine.finish()?;
+        let (rest, report) = engine.finish().map_err(|e| order.explain(e, &read_diag))?;
         out.extend(rest);
         files_out.send(out)?;
         Ok((read_diag, records, report))
@@ -230,7 +298,7 @@ pub fn sync_file(
 /// Writes `out_dir/kf-gins.yaml`: the KF-GINS `template` with paths, rate
 /// and start time replaced by this run's (`./imu.txt`, `./gnss.txt`).
 pub fn write_kfgins_config(template: &Path, out_dir: &Path, r: &SyncReport) -> Result<(), Error> {
-    let text = std::fs::read_to_string(template).map_err(|e| Error::io(template, e))?;
+    let text = crate::io::text::read_config_text(template)?;
     let rate = r.imu.rate_hz.unwrap_or(200.0).round();
     let start = r.first_stamp.map(|w| w.sow).unwrap_or(0.0);
     let mut out = String::new();
