@@ -12,6 +12,8 @@
 //! - [`imu`]: ESF-MEAS/ESF-RAW and rate-form IMU data → increments.
 //! - [`marks`]: TIM-TM2 event stamps and TIM-TP qErr PPS correction.
 //! - [`ros2`]: ROS 2 bags (MCAP, CDR): `Imu`, `NavSatFix`, velocities.
+//! - [`ros1`]: ROS 1 bags (v2.0; bz2, lz4 chunks): the same and odometry;
+//!   [`rosmsg`]: the messages both share and what becomes of them.
 //! - [`convert`]: file conversion to KF-GINS files and rig-logs.
 //!
 //! Kept out of the core `navsync` crate so that its receiver dependencies
@@ -25,11 +27,15 @@ pub mod gnsstime;
 pub mod imu;
 pub mod marks;
 pub mod nmea;
+pub mod ros1;
 pub mod ros2;
+pub mod rosmsg;
 pub mod rtcm3;
 pub mod stream;
 #[cfg(feature = "test-bags")]
 pub mod testbag;
+#[cfg(feature = "test-bags")]
+pub mod testbag1;
 pub mod ubx;
 
 pub use stream::{Event, EventKind, StreamReader};

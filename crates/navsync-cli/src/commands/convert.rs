@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use navsync_receivers::convert::{self, ConvertOptions, GnssSource, InputFormat};
-use navsync_receivers::ros2::TopicChoice;
+use navsync_receivers::rosmsg::{AltitudeDatum, BagSummary, TopicChoice};
 
 use super::{parse_triplet, print_diagnostics};
 
@@ -26,6 +26,28 @@ pub enum From {
     /// ROS 2 bag as .mcap (uncompressed, zstd or lz4 chunks): sensor_msgs/Imu,
     /// sensor_msgs/NavSatFix, geometry_msgs/TwistWithCovarianceStamped (CDR).
     Mcap,
+    /// ROS 1 bag, format 2.0 (.bag; uncompressed, bz2 or lz4 chunks):
+    /// sensor_msgs/Imu, sensor_msgs/NavSatFix, nav_msgs/Odometry (→ speed.txt),
+    /// geometry_msgs/TwistStamped and TwistWithCovarianceStamped.
+    Rosbag,
+}
+
+/// Which height a ROS NavSatFix altitude is.
+#[derive(Copy, Clone, Debug, clap::ValueEnum)]
+pub enum RosAltitude {
+    /// Above the WGS 84 ellipsoid, as sensor_msgs/NavSatFix defines it.
+    Ellipsoid,
+    /// Above mean sea level (what many drivers write): EGM96 geoid added.
+    Msl,
+}
+
+impl std::convert::From<RosAltitude> for AltitudeDatum {
+    fn from(a: RosAltitude) -> Self {
+        match a {
+            RosAltitude::Ellipsoid => AltitudeDatum::Ellipsoid,
+            RosAltitude::Msl => AltitudeDatum::Msl,
+        }
+    }
 }
 
 #[derive(Copy, Clone, Debug, clap::ValueEnum)]
@@ -72,16 +94,27 @@ pub struct Args {
     /// Keep UBX 2D fixes (fix type 2: height held by the receiver), with its vertical accuracy.
     #[arg(long)]
     pub keep_2d: bool,
-    /// ROS 2 bag: the sensor_msgs/msg/Imu topic (default: the only one).
+    /// ROS bag: the sensor_msgs/Imu topic (default: the only one; ROS 1:
+    /// the one with most messages).
     #[arg(long)]
     pub imu_topic: Option<String>,
-    /// ROS 2 bag: the sensor_msgs/msg/NavSatFix topic (default: the only one).
+    /// ROS bag: the sensor_msgs/NavSatFix topic (default: the only one).
     #[arg(long)]
     pub gnss_topic: Option<String>,
-    /// ROS 2 bag: the geometry_msgs/msg/TwistWithCovarianceStamped velocity
-    /// topic (ENU; default: the only one), matched to fixes by header.stamp.
+    /// ROS bag: the geometry_msgs/TwistWithCovarianceStamped velocity topic
+    /// (ENU; ROS 1 also a TwistStamped in a world frame; default: the only
+    /// one), matched to fixes by header.stamp.
     #[arg(long)]
     pub velocity_topic: Option<String>,
+    /// ROS 1 bag: the odometer topic, nav_msgs/Odometry (twist.twist.linear.x)
+    /// or a TwistStamped in the body frame (default: the only one): speed.txt.
+    #[arg(long)]
+    pub odom_topic: Option<String>,
+    /// ROS bag: the datum of NavSatFix altitudes. The message defines
+    /// ellipsoidal height; `msl` when the driver writes height above sea
+    /// level (EGM96 geoid separation added). Stated in summary.json.
+    #[arg(long, value_enum, default_value = "ellipsoid")]
+    pub ros_altitude: RosAltitude,
     /// Succeed even when a receiver stream gives no fix (e.g. a timing log converted for its PPS events).
     #[arg(long)]
     pub allow_no_fix: bool,
@@ -94,11 +127,13 @@ pub fn run(a: Args) -> Result<()> {
         From::RateCsv => InputFormat::RateCsv,
         From::CommaGnss => InputFormat::CommaGnss,
         From::Mcap => InputFormat::Mcap,
+        From::Rosbag => InputFormat::Ros1Bag,
     };
     let topics = TopicChoice {
         imu: a.imu_topic.clone(),
         gnss: a.gnss_topic.clone(),
         velocity: a.velocity_topic.clone(),
+        odom: a.odom_topic.clone(),
     };
     let mut opts = ConvertOptions {
         gnss_source: match a.gnss_source {
@@ -111,6 +146,7 @@ pub fn run(a: Args) -> Result<()> {
         imu_time_offset_s: a.imu_time_offset_s,
         gap_threshold_s: a.gap_s,
         hdt_sd_deg: a.hdt_sd,
+        ros_altitude: a.ros_altitude.into(),
         ..Default::default()
     };
     opts.fix.default_sd_m = a.default_sd;
@@ -141,26 +177,10 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     if let Some(b) = &s.ros2 {
-        println!("ROS 2 bag: {} topics", b.topics.len());
-        for t in &b.topics {
-            println!(
-                "  {:<24} {:<46} {:>8} messages{}{}",
-                t.topic,
-                t.schema,
-                t.messages,
-                t.role
-                    .as_ref()
-                    .map(|r| format!(", {} used as {r}", t.used))
-                    .unwrap_or_default(),
-                t.log_time_minus_stamp
-                    .as_ref()
-                    .map(|l| format!(", log_time − stamp median {:+.4} s", l.median_s))
-                    .unwrap_or_default()
-            );
-        }
-        if let Some(w) = &b.stopped_early {
-            println!("  {w}");
-        }
+        print_bag("ROS 2", b);
+    }
+    if let Some(b) = &s.ros1 {
+        print_bag("ROS 1", b);
     }
     for t in &s.fix_epochs {
         println!(
@@ -226,6 +246,9 @@ pub fn run(a: Args) -> Result<()> {
             );
         }
     }
+    if s.speeds > 0 {
+        println!("speed.txt: {} odometer speeds", s.speeds);
+    }
     if s.headings > 0 || !s.heading_drops.is_empty() {
         println!("heading.txt: {} receiver headings", s.headings);
         for (why, n) in &s.heading_drops {
@@ -251,4 +274,50 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A ROS bag's topics (used and skipped, with types and counts), its
+/// altitude datum and odometer speeds, on the console.
+pub fn print_bag(ros: &str, b: &BagSummary) {
+    println!("{ros} bag: {} topics", b.topics.len());
+    for t in &b.topics {
+        println!(
+            "  {:<24} {:<46} {:>8} messages{}{}",
+            t.topic,
+            t.schema,
+            t.messages,
+            t.role
+                .as_ref()
+                .map(|r| format!(", {} used as {r}", t.used))
+                .unwrap_or_else(|| ", skipped".into()),
+            t.log_time_minus_stamp
+                .as_ref()
+                .map(|l| format!(", log_time − stamp median {:+.4} s", l.median_s))
+                .unwrap_or_default()
+        );
+        if let Some(n) = &t.note {
+            println!("      {n}");
+        }
+    }
+    if let Some(w) = &b.stopped_early {
+        println!("  {w}");
+    }
+    if b.topics.iter().any(|t| t.role.as_deref() == Some("gnss")) {
+        println!("  altitude: {}", b.altitude_datum);
+    }
+    if let Some(sp) = &b.speed {
+        println!(
+            "  speeds: {} from {} on {} ({:.2} … {:.2} m/s, σ {})",
+            sp.speeds,
+            sp.source,
+            sp.topic,
+            sp.min_mps,
+            sp.max_mps,
+            sp.median_sd_mps
+                .map(|s| format!("{s:.3} m/s median from its covariance"))
+                .unwrap_or_else(
+                    || "not given: the sensor sheet's odometer sd_mps or 0.1 m/s".into()
+                )
+        );
+    }
 }
