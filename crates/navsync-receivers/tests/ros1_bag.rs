@@ -273,10 +273,15 @@ fn the_real_husky_bag() {
     );
     let span = imu[imu.len() - 1][0] - imu[0][0];
     assert!((span - 395.3).abs() < 0.5, "{span}");
-    // σ 0.9 m horizontal, 1.8 m vertical from the diagonal covariance.
+    // σ from the diagonal covariance: 0.8–1.7 m horizontal (median
+    // 0.8–0.9 m), the vertical twice that.
+    let mut h: Vec<f64> = gnss.iter().map(|r| r[4]).collect();
+    h.sort_by(f64::total_cmp);
+    assert!((0.8..=0.9).contains(&h[h.len() / 2]), "{}", h[h.len() / 2]);
     assert!(
-        gnss.iter()
-            .all(|r| r[4] == 0.9 && r[5] == 0.9 && r[6] == 1.8)
+        gnss.iter().all(|r| r[4] == r[5]
+            && (r[6] - 2.0 * r[4]).abs() < 1e-9
+            && (0.7..1.8).contains(&r[4]))
     );
     // At rest the accelerometer reads (−0.22, 9.79, 0.08) FLU: y up, so
     // the FRD y column holds −g·dt.
