@@ -179,7 +179,7 @@ pub fn decode_message(type_name: &str, data: &[u8]) -> Result<(), String> {
 /// One record: its op, header fields, data and where it starts.
 struct Record<'a> {
     offset: usize,
-    fields: Vec<(&'a [u8], &'a [u8])>,
+    fields: Vec<Field<'a>>,
     data: &'a [u8],
 }
 
@@ -220,9 +220,12 @@ impl<'a> Record<'a> {
     }
 }
 
+/// A header field: name, value.
+type Field<'a> = (&'a [u8], &'a [u8]);
+
 /// `name=value` fields, each behind an int32 length (a record header and
 /// a connection record's data).
-fn parse_fields(mut b: &[u8]) -> Result<Vec<(&[u8], &[u8])>, String> {
+fn parse_fields(mut b: &[u8]) -> Result<Vec<Field<'_>>, String> {
     let mut out = Vec::new();
     while !b.is_empty() {
         let Some((len, rest)) = split_len(b) else {
