@@ -18,6 +18,11 @@
 //!   (σ from its covariance; 13 columns when every fix has a
 //!   `TwistWithCovarianceStamped` velocity of the same stamp), both at
 //!   `header.stamp` turned from UTC into GPS time.
+//! - From a ROS 1 bag (`.bag`, [`crate::ros1`]): the same, and
+//!   `speed.txt` (`sow speed_mps`, the odometer file of `navsync::io::speed`)
+//!   from `nav_msgs/Odometry` `twist.twist.linear.x` (or a body-frame
+//!   `TwistStamped`); NavSatFix altitudes taken as ellipsoidal or, with
+//!   `ros_altitude: Msl`, as MSL + EGM96 (said in the summary).
 //! - `summary.json`: counts, stream statistics, every navigation epoch
 //!   (UBX or NMEA GGA) that gave no fix counted by reason (`fix_epochs`),
 //!   and every reported problem.
@@ -44,7 +49,7 @@ use crate::fixes::{
 use crate::gnsstime::{LeapSource, UtcTime, utc_to_gps};
 use crate::imu::{EsfImu, RateIssue, RateSample, RateToIncrement};
 use crate::marks::{Edge, QErrCorrector, TimeMarks, pps_edge_gps};
-use crate::ros2::TopicChoice;
+use crate::rosmsg::{AltitudeDatum, BagData, BagOptions, TopicChoice};
 use crate::stream::{Event, EventKind, StreamReader, StreamStats, gpsd_log_header_len};
 use crate::ubx::{NavRelPosNed, UbxMessage};
 
@@ -64,6 +69,8 @@ pub enum InputFormat {
     /// PX4 ULog (`.ulg`): to a rig log on the autopilot's boot clock
     /// ([`crate::ulog`]).
     Ulog,
+    /// ROS 1 bag, format 2.0 (`sensor_msgs/Imu`, `NavSatFix`, `nav_msgs/Odometry`).
+    Ros1Bag,
 }
 
 /// Which fixes go into `gnss.txt` when a stream holds both kinds.
@@ -94,6 +101,8 @@ pub struct ConvertOptions {
     /// σ (deg) given to NMEA HDT headings, which carry none: the
     /// receiver's datasheet heading accuracy for its antenna baseline.
     pub hdt_sd_deg: f64,
+    /// Which height ROS NavSatFix altitudes are.
+    pub ros_altitude: AltitudeDatum,
 }
 
 /// The default σ of an NMEA HDT heading (deg): dual-antenna receivers
@@ -110,6 +119,7 @@ impl Default for ConvertOptions {
             imu_time_offset_s: 0.0,
             gap_threshold_s: 0.1,
             hdt_sd_deg: DEFAULT_HDT_SD_DEG,
+            ros_altitude: AltitudeDatum::Ellipsoid,
         }
     }
 }
@@ -189,6 +199,12 @@ pub struct ConvertSummary {
     /// PX4 ULog: topics, instances, what was read.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ulog: Option<crate::ulog::UlogSummary>,
+    /// ROS 1 bag: the same, with the odometer speeds and altitude datum.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ros1: Option<crate::ros2::BagSummary>,
+    /// Speeds written to speed.txt (ROS 1 odometry).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub speeds: usize,
     pub imu_samples: usize,
     pub imu_time_axis: String,
     pub imu_gaps: usize,
@@ -221,7 +237,7 @@ impl ConvertSummary {
         }
         let epochs: u64 = self.fix_epochs.iter().map(|t| t.epochs).sum();
         let mut m = format!("no GNSS fix in {}", self.input);
-        if self.format == Some(InputFormat::Mcap) {
+        if matches!(self.format, Some(InputFormat::Mcap | InputFormat::Ros1Bag)) {
             // A bag without a NavSatFix topic is an IMU log, not a failure.
             if self.fix_epochs.is_empty() {
                 return None;
@@ -317,7 +333,9 @@ pub fn convert_with_topics(
         InputFormat::CommaGnss => {
             convert_comma_gnss(LineReader::new(reader, input), out_dir, opts, &mut s)?
         }
-        InputFormat::Mcap => convert_mcap(reader, input, out_dir, opts, topics, &mut s)?,
+        InputFormat::Mcap | InputFormat::Ros1Bag => {
+            convert_bag(format, reader, input, out_dir, opts, topics, &mut s)?
+        }
         InputFormat::Ulog => crate::ulog::convert_ulog(reader, input, out_dir, &mut s)?,
     }
     let path = out_dir.join("summary.json");
@@ -1288,7 +1306,8 @@ fn convert_comma_gnss(
     Ok(())
 }
 
-fn convert_mcap(
+fn convert_bag(
+    format: InputFormat,
     mut reader: Box<dyn Read>,
     input: &Path,
     out_dir: &Path,
@@ -1300,17 +1319,24 @@ fn convert_mcap(
     reader
         .read_to_end(&mut bytes)
         .map_err(|e| Error::io(input, e))?;
-    let bag = crate::ros2::read_bag(
-        &bytes,
-        input,
-        topics,
-        opts.fix.default_sd_m,
-        &mut s.diagnostics,
-    )?;
+    let bag_opts = BagOptions {
+        default_sd_m: opts.fix.default_sd_m,
+        altitude: opts.ros_altitude,
+    };
+    let ros = if format == InputFormat::Ros1Bag {
+        "ROS 1"
+    } else {
+        "ROS 2"
+    };
+    let bag = if format == InputFormat::Ros1Bag {
+        crate::ros1::read_bag(&bytes, input, topics, &bag_opts, &mut s.diagnostics)?
+    } else {
+        crate::ros2::read_bag_with(&bytes, input, topics, &bag_opts, &mut s.diagnostics)?
+    };
     drop(bytes);
     if let Some(topic) = &bag.gnss_topic {
         s.fix_epochs.push(EpochTally {
-            source: format!("ROS 2 NavSatFix {topic}"),
+            source: format!("{ros} NavSatFix {topic}"),
             epochs: bag.fix_messages,
             fixes: bag.fixes.len() as u64,
             dropped: bag
@@ -1325,12 +1351,19 @@ fn convert_mcap(
         });
         if !bag.fixes.is_empty() {
             s.gnss_source =
-                format!("ROS 2 NavSatFix on {topic} (header.stamp, UTC + leap seconds)");
+                format!("{ros} NavSatFix on {topic} (header.stamp, UTC + leap seconds)");
             s.gnss_default_sd = bag.fixes.iter().filter(|f| f.default_sd).count();
             s.leap_source = Some(LeapSource::Table);
+            if opts.ros_altitude == AltitudeDatum::Msl {
+                s.geoid_model_heights = bag.fixes.len();
+                s.geoid_model = Some(crate::geoid::EGM96_SOURCE.into());
+            }
             let gf: Vec<GnssFix> = bag.fixes.iter().map(|f| f.fix).collect();
             write_gnss(&out_dir.join("gnss.txt"), &gf, s)?;
         }
+    }
+    if !bag.speeds.is_empty() {
+        write_speeds(&out_dir.join("speed.txt"), &bag, s)?;
     }
     if let Some(topic) = &bag.imu_topic
         && !bag.imu.is_empty()
@@ -1360,6 +1393,33 @@ fn convert_mcap(
             s,
         )?;
     }
-    s.ros2 = Some(bag.summary);
+    if format == InputFormat::Ros1Bag {
+        s.ros1 = Some(bag.summary);
+    } else {
+        s.ros2 = Some(bag.summary);
+    }
+    Ok(())
+}
+
+/// `speed.txt`: `sow speed_mps` lines (FORMATS.md, `navsync::io::speed`).
+fn write_speeds(path: &Path, bag: &BagData, s: &mut ConvertSummary) -> Result<(), Error> {
+    let mut w = TextWriter::create(path)?;
+    let src = bag
+        .summary
+        .speed
+        .as_ref()
+        .map(|p| format!("{} on {}", p.source, p.topic))
+        .unwrap_or_default();
+    w.write(format!("# sow speed_mps  (GPS seconds of week; {src})\n").as_bytes())?;
+    let mut line = Vec::with_capacity(48);
+    for (t, v) in &bag.speeds {
+        line.clear();
+        t.write_sow(&mut line);
+        line.extend_from_slice(format!(" {v}\n").as_bytes());
+        w.write(&line)?;
+    }
+    w.finish()?;
+    s.speeds = bag.speeds.len();
+    s.files.push(path.display().to_string());
     Ok(())
 }

@@ -1,5 +1,5 @@
 //! What kind of log a file is, from its content (not its name): a raw rig
-//! log, a receiver stream (UBX, NMEA), a ROS 2 bag, a comma2k19 GNSS CSV,
+//! log, a receiver stream (UBX, NMEA), a ROS 1 or ROS 2 bag, a comma2k19 GNSS CSV,
 //! a rate-form IMU CSV, or KF-GINS increment / fix files. Used by
 //! `navsync process` to route each input to `sync` or `convert`.
 
@@ -21,6 +21,8 @@ pub enum FileKind {
     Nmea,
     /// ROS 2 bag (MCAP).
     Mcap,
+    /// ROS 1 bag (format 2.0).
+    Ros1Bag,
     /// comma2k19 `gnss_ublox.csv`.
     CommaGnss,
     /// Rate-form IMU CSV: time s, gyro xyz rad/s, accel xyz m/s².
@@ -42,6 +44,7 @@ impl FileKind {
                 | FileKind::Ubx
                 | FileKind::Nmea
                 | FileKind::Mcap
+                | FileKind::Ros1Bag
                 | FileKind::CommaGnss
                 | FileKind::KfginsGnss
                 | FileKind::Ulog
@@ -54,6 +57,7 @@ impl FileKind {
             FileKind::Ubx => "u-blox UBX receiver log",
             FileKind::Nmea => "NMEA 0183 receiver log",
             FileKind::Mcap => "ROS 2 bag (MCAP)",
+            FileKind::Ros1Bag => "ROS 1 bag (format 2.0)",
             FileKind::CommaGnss => "comma2k19 GNSS CSV",
             FileKind::RateCsv => "rate-form IMU CSV",
             FileKind::KfginsImu => "KF-GINS IMU increments",
@@ -65,7 +69,7 @@ impl FileKind {
 
 /// What an unknown file should have been.
 pub(crate) const EXPECTED: &str = "expected a rig log ('# rig-log v1' first line), a u-blox UBX or \
-    NMEA 0183 receiver log, a ROS 2 .mcap bag, a PX4 .ulg log, a comma2k19 gnss_ublox.csv, an IMU log \
+    NMEA 0183 receiver log, a ROS 2 .mcap bag, a ROS 1 .bag, a PX4 .ulg log, a comma2k19 gnss_ublox.csv, an IMU log \
     (lines of 'time gyro_x gyro_y gyro_z acc_x acc_y acc_z' in s, rad/s, m/s²) or KF-GINS \
     imu/gnss text files";
 
@@ -125,6 +129,9 @@ pub(crate) fn detect_bytes(buf: &[u8]) -> Option<FileKind> {
     }
     if buf.starts_with(&crate::ulog::MAGIC) {
         return Some(FileKind::Ulog);
+    }
+    if buf.starts_with(crate::ros1::MAGIC) {
+        return Some(FileKind::Ros1Bag);
     }
     let first_line = buf
         .split(|b| *b == b'\n')
@@ -266,6 +273,10 @@ $GPGGA,123520,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,*4D\r\n";
         assert_eq!(
             detect_bytes(b"ULog\x01\x12\x35\x01\0\0\0\0\0\0\0\0"),
             Some(FileKind::Ulog)
+        );
+        assert_eq!(
+            detect_bytes(b"#ROSBAG V2.0\n\x45\0\0\0"),
+            Some(FileKind::Ros1Bag)
         );
     }
 }

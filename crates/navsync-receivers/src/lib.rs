@@ -13,6 +13,8 @@
 //! - [`marks`]: TIM-TM2 event stamps and TIM-TP qErr PPS correction.
 //! - [`ros2`]: ROS 2 bags (MCAP, CDR): `Imu`, `NavSatFix`, velocities.
 //! - [`ulog`]: PX4 ULog flight logs: IMU, GPS, the autopilot's estimate.
+//! - [`ros1`]: ROS 1 bags (v2.0; bz2, lz4 chunks): the same and odometry;
+//!   [`rosmsg`]: the messages both share and what becomes of them.
 //! - [`convert`]: file conversion to KF-GINS files and rig-logs.
 //!
 //! Kept out of the core `navsync` crate so that its receiver dependencies
@@ -26,13 +28,16 @@ pub mod gnsstime;
 pub mod imu;
 pub mod marks;
 pub mod nmea;
+pub mod ros1;
 pub mod ros2;
+pub mod rosmsg;
 pub mod rtcm3;
 pub mod stream;
 #[cfg(feature = "test-bags")]
 pub mod testbag;
 #[cfg(feature = "test-bags")]
 pub mod testulog;
+pub mod testbag1;
 pub mod ubx;
 pub mod ubx_dr;
 pub mod ulog;

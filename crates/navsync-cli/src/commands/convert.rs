@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use navsync_receivers::convert::{self, ConvertOptions, GnssSource, InputFormat};
-use navsync_receivers::ros2::TopicChoice;
+use navsync_receivers::rosmsg::{AltitudeDatum, BagSummary, TopicChoice};
 
 use super::args;
 use super::print_diagnostics;
@@ -31,6 +31,28 @@ pub enum From {
     /// rig.csv on the autopilot's boot clock (then `navsync sync`);
     /// vehicle_attitude + vehicle_global_position → autopilot.nav.
     Ulog,
+    /// ROS 1 bag, format 2.0 (.bag; uncompressed, bz2 or lz4 chunks):
+    /// sensor_msgs/Imu, sensor_msgs/NavSatFix, nav_msgs/Odometry (→ speed.txt),
+    /// geometry_msgs/TwistStamped and TwistWithCovarianceStamped.
+    Rosbag,
+}
+
+/// Which height a ROS NavSatFix altitude is.
+#[derive(Copy, Clone, Debug, clap::ValueEnum)]
+pub enum RosAltitude {
+    /// Above the WGS 84 ellipsoid, as sensor_msgs/NavSatFix defines it.
+    Ellipsoid,
+    /// Above mean sea level (what many drivers write): EGM96 geoid added.
+    Msl,
+}
+
+impl std::convert::From<RosAltitude> for AltitudeDatum {
+    fn from(a: RosAltitude) -> Self {
+        match a {
+            RosAltitude::Ellipsoid => AltitudeDatum::Ellipsoid,
+            RosAltitude::Msl => AltitudeDatum::Msl,
+        }
+    }
 }
 
 #[derive(Copy, Clone, Debug, clap::ValueEnum)]
@@ -80,16 +102,27 @@ pub struct Args {
     /// Keep dead-reckoning-only epochs (fix type 1) of a u-blox sensor-fusion receiver's NAV-PVAT.
     #[arg(long)]
     pub keep_dr_only: bool,
-    /// ROS 2 bag: the sensor_msgs/msg/Imu topic (default: the only one).
+    /// ROS bag: the sensor_msgs/Imu topic (default: the only one; ROS 1:
+    /// the one with most messages).
     #[arg(long)]
     pub imu_topic: Option<String>,
-    /// ROS 2 bag: the sensor_msgs/msg/NavSatFix topic (default: the only one).
+    /// ROS bag: the sensor_msgs/NavSatFix topic (default: the only one).
     #[arg(long)]
     pub gnss_topic: Option<String>,
-    /// ROS 2 bag: the geometry_msgs/msg/TwistWithCovarianceStamped velocity
-    /// topic (ENU; default: the only one), matched to fixes by header.stamp.
+    /// ROS bag: the geometry_msgs/TwistWithCovarianceStamped velocity topic
+    /// (ENU; ROS 1 also a TwistStamped in a world frame; default: the only
+    /// one), matched to fixes by header.stamp.
     #[arg(long)]
     pub velocity_topic: Option<String>,
+    /// ROS 1 bag: the odometer topic, nav_msgs/Odometry (twist.twist.linear.x)
+    /// or a TwistStamped in the body frame (default: the only one): speed.txt.
+    #[arg(long)]
+    pub odom_topic: Option<String>,
+    /// ROS bag: the datum of NavSatFix altitudes. The message defines
+    /// ellipsoidal height; `msl` when the driver writes height above sea
+    /// level (EGM96 geoid separation added). Stated in summary.json.
+    #[arg(long, value_enum, default_value = "ellipsoid")]
+    pub ros_altitude: RosAltitude,
     /// Succeed even when a receiver stream gives no fix (e.g. a timing log converted for its PPS events).
     #[arg(long)]
     pub allow_no_fix: bool,
@@ -103,11 +136,13 @@ pub fn run(a: Args) -> Result<()> {
         From::CommaGnss => InputFormat::CommaGnss,
         From::Mcap => InputFormat::Mcap,
         From::Ulog => InputFormat::Ulog,
+        From::Rosbag => InputFormat::Ros1Bag,
     };
     let topics = TopicChoice {
         imu: a.imu_topic.clone(),
         gnss: a.gnss_topic.clone(),
         velocity: a.velocity_topic.clone(),
+        odom: a.odom_topic.clone(),
     };
     let mut opts = ConvertOptions {
         gnss_source: match a.gnss_source {
@@ -120,6 +155,7 @@ pub fn run(a: Args) -> Result<()> {
         imu_time_offset_s: a.imu_time_offset_s,
         gap_threshold_s: a.gap_s,
         hdt_sd_deg: a.hdt_sd,
+        ros_altitude: a.ros_altitude.into(),
         ..Default::default()
     };
     opts.fix.default_sd_m = a.default_sd;
@@ -158,26 +194,10 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     if let Some(b) = &s.ros2 {
-        println!("ROS 2 bag: {} topics", b.topics.len());
-        for t in &b.topics {
-            println!(
-                "  {:<24} {:<46} {:>8} messages{}{}",
-                t.topic,
-                t.schema,
-                t.messages,
-                t.role
-                    .as_ref()
-                    .map(|r| format!(", {} used as {r}", t.used))
-                    .unwrap_or_default(),
-                t.log_time_minus_stamp
-                    .as_ref()
-                    .map(|l| format!(", log_time − stamp median {:+.4} s", l.median_s))
-                    .unwrap_or_default()
-            );
-        }
-        if let Some(w) = &b.stopped_early {
-            println!("  {w}");
-        }
+        print_bag("ROS 2", b);
+    }
+    if let Some(b) = &s.ros1 {
+        print_bag("ROS 1", b);
     }
     for t in &s.fix_epochs {
         println!(
@@ -244,6 +264,9 @@ pub fn run(a: Args) -> Result<()> {
                 c.configured_ticks_per_second
             );
         }
+    }
+    if s.speeds > 0 {
+        println!("speed.txt: {} odometer speeds", s.speeds);
     }
     if s.headings > 0 || !s.heading_drops.is_empty() {
         println!("heading.txt: {} receiver headings", s.headings);
@@ -314,4 +337,50 @@ fn print_ulog(u: &navsync_receivers::ulog::UlogSummary) {
         "autopilot.nav: {} epochs; {}",
         u.autopilot_nav_epochs, u.autopilot_nav
     );
+}
+
+/// A ROS bag's topics (used and skipped, with types and counts), its
+/// altitude datum and odometer speeds, on the console.
+pub fn print_bag(ros: &str, b: &BagSummary) {
+    println!("{ros} bag: {} topics", b.topics.len());
+    for t in &b.topics {
+        println!(
+            "  {:<24} {:<46} {:>8} messages{}{}",
+            t.topic,
+            t.schema,
+            t.messages,
+            t.role
+                .as_ref()
+                .map(|r| format!(", {} used as {r}", t.used))
+                .unwrap_or_else(|| ", skipped".into()),
+            t.log_time_minus_stamp
+                .as_ref()
+                .map(|l| format!(", log_time − stamp median {:+.4} s", l.median_s))
+                .unwrap_or_default()
+        );
+        if let Some(n) = &t.note {
+            println!("      {n}");
+        }
+    }
+    if let Some(w) = &b.stopped_early {
+        println!("  {w}");
+    }
+    if b.topics.iter().any(|t| t.role.as_deref() == Some("gnss")) {
+        println!("  altitude: {}", b.altitude_datum);
+    }
+    if let Some(sp) = &b.speed {
+        println!(
+            "  speeds: {} from {} on {} ({:.2} … {:.2} m/s, σ {})",
+            sp.speeds,
+            sp.source,
+            sp.topic,
+            sp.min_mps,
+            sp.max_mps,
+            sp.median_sd_mps
+                .map(|s| format!("{s:.3} m/s median from its covariance"))
+                .unwrap_or_else(
+                    || "not given: the sensor sheet's odometer sd_mps or 0.1 m/s".into()
+                )
+        );
+    }
 }

@@ -32,8 +32,9 @@ use super::print_diagnostics;
 pub struct Args {
     /// The raw logs: one rig log (rig-log v1), or a receiver log (u-blox
     /// UBX, NMEA, comma2k19 gnss_ublox.csv) and an IMU log (rate CSV:
-    /// time s, gyro x y z rad/s, accel x y z m/s²), or a ROS 2 .mcap bag.
-    /// Recognised by content.
+    /// time s, gyro x y z rad/s, accel x y z m/s²), or a ROS 2 .mcap bag,
+    /// or a ROS 1 .bag (its odometry → the odometer when the sheet has
+    /// none). Recognised by content.
     #[arg(required = true, value_name = "RAW")]
     pub raw: Vec<PathBuf>,
     /// The sensor sheet (`navsync init` writes one).
@@ -55,6 +56,9 @@ pub struct Args {
     /// Go on when `sync` finds the rig log implausible.
     #[arg(long)]
     pub force: bool,
+    /// ROS bag: the datum of NavSatFix altitudes (`msl`: EGM96 geoid added).
+    #[arg(long, value_enum, default_value = "ellipsoid")]
+    pub ros_altitude: super::convert::RosAltitude,
 }
 
 /// The inputs, by kind.
@@ -88,7 +92,7 @@ fn classify(raw: &[PathBuf]) -> Result<Inputs> {
                 }
                 inp.rig = Some(p.clone());
             }
-            FileKind::Mcap => {
+            FileKind::Mcap | FileKind::Ros1Bag => {
                 if let Some((o, _)) = inp.gnss.as_ref().or(inp.imu.as_ref()) {
                     return Err(slot_taken("GNSS/IMU", o));
                 }
@@ -192,6 +196,8 @@ struct Data {
     /// only: a constant offset remains for the filter to estimate.
     software_timed: bool,
     notes: Vec<String>,
+    /// Odometer speeds a ROS 1 bag gave (`speed.txt`) and their median σ.
+    speed: Option<(PathBuf, Option<f64>)>,
     /// Receiver headings `convert` wrote (dual-antenna NAV-RELPOSNED or NMEA HDT,
     /// NAV-PVT headVeh), for the alignment.
     heading: Option<PathBuf>,
@@ -244,6 +250,7 @@ fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
         sync_report: Some(dir.join("sync_report.json")),
         software_timed,
         notes: Vec::new(),
+        speed: None,
         // The log's `heading` records, when it has any.
         heading: Some(dir.join("heading.txt")).filter(|p| p.is_file()),
     })
@@ -267,6 +274,7 @@ fn format_of(kind: FileKind) -> Option<InputFormat> {
         FileKind::Ubx => InputFormat::Ubx,
         FileKind::Nmea => InputFormat::Nmea,
         FileKind::Mcap => InputFormat::Mcap,
+        FileKind::Ros1Bag => InputFormat::Ros1Bag,
         FileKind::CommaGnss => InputFormat::CommaGnss,
         FileKind::RateCsv => InputFormat::RateCsv,
         FileKind::Ulog => InputFormat::Ulog,
@@ -317,6 +325,9 @@ fn convert_one(
             s.imu_gaps
         );
     }
+    if let Some(b) = &s.ros1 {
+        super::convert::print_bag("ROS 1", b);
+    }
     if !s.diagnostics.is_empty() {
         eprintln!(
             "  {} problems reported (all in {}/summary.json):",
@@ -328,7 +339,12 @@ fn convert_one(
     Ok(s)
 }
 
-fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> {
+fn convert_stage(
+    inp: &Inputs,
+    sheet: &SensorSheet,
+    out: &Path,
+    ros_altitude: navsync_receivers::rosmsg::AltitudeDatum,
+) -> Result<Data> {
     let (Some((g, gk)), Some((i, ik))) = (&inp.gnss, &inp.imu) else {
         bail!("a receiver log and an IMU log are needed");
     };
@@ -337,8 +353,10 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
     let mut opts = ConvertOptions::default();
     opts.fix.default_sd_m = sheet.gnss_default_sd_m;
     opts.hdt_sd_deg = sheet.hdt_sd_deg;
+    opts.ros_altitude = ros_altitude;
     let mut notes = Vec::new();
     let mut week = 0;
+    let mut speed = None;
     let (gnss, receipt) = if *gk == FileKind::KfginsGnss {
         (g.clone(), None)
     } else {
@@ -351,6 +369,31 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
         }
         // The fixes' GPS week (gnss.txt holds seconds of week only).
         week = s.gps_week.unwrap_or(0);
+        let bag = s.ros1.as_ref().or(s.ros2.as_ref());
+        if let Some(b) = bag
+            && s.gnss_fixes == 0
+        {
+            let topics: Vec<String> = b
+                .topics
+                .iter()
+                .map(|t| format!("{} ({})", t.topic, t.schema))
+                .collect();
+            bail!(
+                "no GNSS in {}: the bag has no NavSatFix topic (topics: {}); navsync process needs GNSS \
+                 positions to align and fuse (an IMU alone drifts)",
+                g.display(),
+                topics.join(", ")
+            );
+        }
+        if let Some(b) = bag {
+            notes.push(format!("NavSatFix altitude datum: {}", b.altitude_datum));
+        }
+        if s.speeds > 0 {
+            let sd = bag
+                .and_then(|b| b.speed.as_ref())
+                .and_then(|p| p.median_sd_mps);
+            speed = Some((d.join("speed.txt"), sd));
+        }
         let r = d.join("gnss_receipt.txt");
         (d.join("gnss.txt"), r.is_file().then_some(r))
     };
@@ -412,8 +455,30 @@ fn convert_stage(inp: &Inputs, sheet: &SensorSheet, out: &Path) -> Result<Data> 
         sync_report: None,
         software_timed,
         notes,
+        speed,
         heading: Some(dir.join("gnss").join("heading.txt")).filter(|p| p.is_file()),
     })
+}
+
+/// The odometer: the sensor sheet's, else the speeds a ROS 1 bag gave,
+/// at their covariance's median σ (else the sheet's default, 0.1 m/s).
+fn odometer_settings(
+    sheet: &SensorSheet,
+    data: &Data,
+) -> Option<navsync::reduced::OdometerSettings> {
+    if let Some(o) = &sheet.odometer {
+        return Some(navsync::reduced::OdometerSettings {
+            sd_mps: o.sd_mps,
+            lever_m: Some(o.lever_m),
+            ..navsync::reduced::OdometerSettings::new(o.file.clone())
+        });
+    }
+    let (path, sd) = data.speed.as_ref()?;
+    let mut o = navsync::reduced::OdometerSettings::new(path.clone());
+    if let Some(sd) = sd.filter(|s| s.is_finite() && *s > 0.0) {
+        o.sd_mps = sd;
+    }
+    Some(o)
 }
 
 /// c0 = max over fixes of (GPS sow of validity − receipt time), from a
@@ -485,8 +550,9 @@ pub fn run(a: Args) -> Result<()> {
     let inp = classify(&a.raw)?;
     let data = match &inp.rig {
         Some(rig) => sync_stage(&autopilot_to_rig(rig, &a.output)?, &a.output, a.force)?,
-        None => convert_stage(&inp, &sheet, &a.output)?,
+        None => convert_stage(&inp, &sheet, &a.output, a.ros_altitude.into())?,
     };
+    let mut notes = data.notes.clone();
 
     let imu_span = span_of(&data.imu)?;
     let gnss_span = span_of(&data.gnss)?;
@@ -520,6 +586,25 @@ pub fn run(a: Args) -> Result<()> {
         .as_ref()
         .map(|t| t.estimate)
         .unwrap_or(data.software_timed);
+    let odometer = odometer_settings(&sheet, &data);
+    if odometer.is_some() && sheet.odometer.is_none() {
+        let n = format!(
+            "the bag's odometry ({}) is used as the odometer (the sensor sheet has no `odometer`), \
+             σ {:.3} m/s{}, lever arm: the NHC's",
+            data.speed
+                .as_ref()
+                .map(|s| s.0.display().to_string())
+                .unwrap_or_default(),
+            odometer.as_ref().map(|o| o.sd_mps).unwrap_or_default(),
+            if data.speed.as_ref().is_some_and(|s| s.1.is_some()) {
+                " from its covariance"
+            } else {
+                " (the bag gives none: the sheet default)"
+            }
+        );
+        println!("  {n}");
+        notes.push(n);
+    }
     let opts = FuseOptions {
         output_dir: Some(fuse_dir.clone()),
         week: data.week,
@@ -527,14 +612,7 @@ pub fn run(a: Args) -> Result<()> {
             mount_deg: sheet.mount_deg,
             ..NhcSettings::default()
         }),
-        odometer: sheet
-            .odometer
-            .as_ref()
-            .map(|o| navsync::reduced::OdometerSettings {
-                sd_mps: o.sd_mps,
-                lever_m: Some(o.lever_m),
-                ..navsync::reduced::OdometerSettings::new(o.file.clone())
-            }),
+        odometer: odometer.clone(),
         time_offset: estimate_offset.then(|| TimeOffsetOptions {
             init_s: 0.0,
             sd_s: sheet.time_offset.as_ref().map(|t| t.sd_s).unwrap_or(0.2),
@@ -648,7 +726,7 @@ pub fn run(a: Args) -> Result<()> {
         "alignment": summary.alignment,
         "report": report_written.then(|| html.display().to_string()),
         "eval": eval_json,
-        "notes": data.notes,
+        "notes": notes,
         "warnings": warnings,
     });
     let p = a.output.join("process.json");
