@@ -18,6 +18,9 @@
 //!   (σ from its covariance; 13 columns when every fix has a
 //!   `TwistWithCovarianceStamped` velocity of the same stamp), both at
 //!   `header.stamp` turned from UTC into GPS time.
+//! - From an ArduPilot DataFlash log ([`crate::autopilot`]): `rig.csv`
+//!   (IMU on the boot clock, fixes with GPS time and arrival boot time,
+//!   for `navsync sync`) and `autopilot.nav` (the autopilot's estimate).
 //! - `summary.json`: counts, stream statistics, every navigation epoch
 //!   (UBX or NMEA GGA) that gave no fix counted by reason (`fix_epochs`),
 //!   and every reported problem.
@@ -61,6 +64,8 @@ pub enum InputFormat {
     CommaGnss,
     /// ROS 2 bag in MCAP form (`sensor_msgs/Imu`, `NavSatFix`).
     Mcap,
+    /// ArduPilot DataFlash `.BIN` log ([`crate::dataflash`]): a rig log.
+    DataFlash,
 }
 
 /// Which fixes go into `gnss.txt` when a stream holds both kinds.
@@ -179,6 +184,9 @@ pub struct ConvertSummary {
     pub leap_source: Option<LeapSource>,
     /// ROS 2 bag: its topics, what each was used for, stamp vs log time.
     pub ros2: Option<crate::ros2::BagSummary>,
+    /// ArduPilot DataFlash log: messages, instances, σ source, drops.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dataflash: Option<crate::dataflash::DataFlashSummary>,
     pub imu_samples: usize,
     pub imu_time_axis: String,
     pub imu_gaps: usize,
@@ -208,8 +216,12 @@ impl ConvertSummary {
         }
         let epochs: u64 = self.fix_epochs.iter().map(|t| t.epochs).sum();
         let mut m = format!("no GNSS fix in {}", self.input);
-        if self.format == Some(InputFormat::Mcap) {
-            // A bag without a NavSatFix topic is an IMU log, not a failure.
+        if matches!(
+            self.format,
+            Some(InputFormat::Mcap | InputFormat::DataFlash)
+        ) {
+            // A bag without a NavSatFix topic (an autopilot log without
+            // GPS messages) is an IMU log, not a failure.
             if self.fix_epochs.is_empty() {
                 return None;
             }
@@ -286,6 +298,9 @@ pub fn convert_with_topics(
             convert_comma_gnss(LineReader::new(reader, input), out_dir, opts, &mut s)?
         }
         InputFormat::Mcap => convert_mcap(reader, input, out_dir, opts, topics, &mut s)?,
+        InputFormat::DataFlash => {
+            crate::autopilot::convert_dataflash(reader, input, out_dir, opts, &mut s)?
+        }
     }
     let path = out_dir.join("summary.json");
     let json = serde_json::to_string_pretty(&s).map_err(|e| Error::Invalid(e.to_string()))?;

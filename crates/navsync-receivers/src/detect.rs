@@ -29,6 +29,8 @@ pub enum FileKind {
     KfginsImu,
     /// KF-GINS GNSS fixes (7 or 13 columns).
     KfginsGnss,
+    /// ArduPilot DataFlash `.BIN` log (IMU and GNSS on the boot clock).
+    DataFlash,
 }
 
 impl FileKind {
@@ -42,7 +44,14 @@ impl FileKind {
                 | FileKind::Mcap
                 | FileKind::CommaGnss
                 | FileKind::KfginsGnss
+                | FileKind::DataFlash
         )
+    }
+
+    /// An autopilot log: IMU and fix arrivals on one boot clock, converted
+    /// into a rig log (`convert/rig.csv`) that `sync` puts on GPS time.
+    pub fn is_autopilot_log(self) -> bool {
+        matches!(self, FileKind::DataFlash)
     }
 
     pub fn describe(self) -> &'static str {
@@ -55,13 +64,14 @@ impl FileKind {
             FileKind::RateCsv => "rate-form IMU CSV",
             FileKind::KfginsImu => "KF-GINS IMU increments",
             FileKind::KfginsGnss => "KF-GINS GNSS fixes",
+            FileKind::DataFlash => "ArduPilot DataFlash log (.BIN)",
         }
     }
 }
 
 /// What an unknown file should have been.
 pub(crate) const EXPECTED: &str = "expected a rig log ('# rig-log v1' first line), a u-blox UBX or \
-    NMEA 0183 receiver log, a ROS 2 .mcap bag, a comma2k19 gnss_ublox.csv, an IMU log \
+    NMEA 0183 receiver log, a ROS 2 .mcap bag, an ArduPilot DataFlash .BIN log, a comma2k19 gnss_ublox.csv, an IMU log \
     (lines of 'time gyro_x gyro_y gyro_z acc_x acc_y acc_z' in s, rad/s, m/s²) or KF-GINS \
     imu/gnss text files";
 
@@ -92,6 +102,9 @@ pub fn detect(path: &Path) -> Result<FileKind, Error> {
 pub(crate) fn detect_bytes(buf: &[u8]) -> Option<FileKind> {
     if buf.starts_with(b"\x89MCAP") {
         return Some(FileKind::Mcap);
+    }
+    if crate::dataflash::looks_like_dataflash(buf) {
+        return Some(FileKind::DataFlash);
     }
     let first_line = buf
         .split(|b| *b == b'\n')

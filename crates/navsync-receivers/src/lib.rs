@@ -12,12 +12,16 @@
 //! - [`imu`]: ESF-MEAS/ESF-RAW and rate-form IMU data → increments.
 //! - [`marks`]: TIM-TM2 event stamps and TIM-TP qErr PPS correction.
 //! - [`ros2`]: ROS 2 bags (MCAP, CDR): `Imu`, `NavSatFix`, velocities.
+//! - [`dataflash`]: ArduPilot DataFlash `.BIN` logs; [`autopilot`]: an
+//!   autopilot log → a rig log for software synchronization.
 //! - [`convert`]: file conversion to KF-GINS files and rig-logs.
 //!
 //! Kept out of the core `navsync` crate so that its receiver dependencies
 //! (`nmea`, later serial and PPS) stay optional for library users.
 
+pub mod autopilot;
 pub mod convert;
+pub mod dataflash;
 pub mod detect;
 pub mod fixes;
 pub mod geoid;
@@ -30,6 +34,8 @@ pub mod rtcm3;
 pub mod stream;
 #[cfg(feature = "test-bags")]
 pub mod testbag;
+#[cfg(feature = "test-bags")]
+pub mod testdataflash;
 pub mod ubx;
 
 pub use stream::{Event, EventKind, StreamReader};
