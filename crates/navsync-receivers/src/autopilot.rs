@@ -227,7 +227,7 @@ pub(crate) fn convert_dataflash(
     }
     s.imu_samples = read.imu.len();
     s.imu_time_axis = format!(
-        "boot clock ({}), counter of rig.csv in µs: `navsync sync` puts it on GPS time",
+        "the boot clock, {}; rig.csv counter in µs, put on GPS time by `navsync sync`",
         d.time_field
     );
     s.imu_gaps = d.imu_gaps.len();
