@@ -116,7 +116,8 @@ impl BootToGps {
             .fold((0.0, 0.0), |(a, b), p| (a + p.0 / n, b + p.1 / n));
         let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
         let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-        if !(sxx > 0.0) {
+        // Arrival times over ~3 years apart are not one boot: no relation.
+        if !(sxx > 0.0) || pts.iter().any(|p| p.0.abs() > 1e8 || p.1.abs() > 1e8) {
             return None;
         }
         let b = sxy / sxx;
@@ -169,7 +170,10 @@ pub fn write_estimate_nav(
     let mut w = TextWriter::create(path)?;
     let mut line = Vec::with_capacity(200);
     let mut n = 0;
-    let (lo, hi) = (span_us.0.saturating_sub(10_000_000), span_us.1 + 10_000_000);
+    let (lo, hi) = (
+        span_us.0.saturating_sub(10_000_000),
+        span_us.1.saturating_add(10_000_000),
+    );
     for r in rows.iter().filter(|r| (lo..=hi).contains(&r.boot_us)) {
         let t = map.gps(r.boot_us);
         line.clear();

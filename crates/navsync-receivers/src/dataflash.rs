@@ -488,6 +488,8 @@ pub struct DataFlashSummary {
     /// the boot clock runs fast) and the fixes' latency above the fastest.
     pub boot_clock_error_ppm: Option<f64>,
     pub fix_latency_above_fastest_ms: Option<MinMedMax>,
+    /// IMU samples dropped for a non-finite value (all instances).
+    pub imu_nonfinite_dropped: u64,
     /// IMU gaps (boot time of the last sample before, length s), the first 100.
     pub imu_gaps: Vec<BootGap>,
 }
@@ -528,6 +530,8 @@ struct Collected {
     ahr2: Vec<(u64, f64, f64, f64)>,
     time_us: bool,
     seq: u64,
+    imu_nonfinite: u64,
+    notes: Vec<String>,
 }
 
 impl Collected {
@@ -553,6 +557,16 @@ impl Collected {
                 let mut values = [0.0; 6];
                 for (v, i) in values.iter_mut().zip(idx) {
                     *v = f.value(p, i).unwrap_or(f64::NAN);
+                }
+                if !values.iter().all(|v| v.is_finite()) {
+                    self.imu_nonfinite += 1;
+                    if self.imu_nonfinite <= 20 {
+                        self.notes.push(format!(
+                            "byte offset {}: {} sample with a non-finite value; dropped",
+                            m.offset, f.name
+                        ));
+                    }
+                    return;
                 }
                 self.imu
                     .entry(instance(f, p))
@@ -650,6 +664,9 @@ pub fn read_dataflash(
 ) -> DataFlashRead {
     let mut c = Collected::default();
     let parse_stats = parse(bytes, path, diag, |m| c.push(m));
+    for n in c.notes.drain(..) {
+        diag.push(path, 0, n);
+    }
     let mut s = DataFlashSummary {
         parse: parse_stats,
         time_field: if c.time_us {
@@ -657,6 +674,7 @@ pub fn read_dataflash(
         } else {
             "TimeMS (boot ms, ArduPilot ≤ 3.3)".into()
         },
+        imu_nonfinite_dropped: c.imu_nonfinite,
         ..Default::default()
     };
     let mut geoid = crate::geoid::Egm96Grid::new();
@@ -857,7 +875,9 @@ fn estimate_rows(
         let Some(&(ta, la, lo, alt)) = near else {
             continue;
         };
-        if ta.abs_diff(t) > 10_000 || !(att.iter().chain(&vel).all(|v| v.is_finite())) {
+        if ta.abs_diff(t) > 10_000
+            || !(att.iter().chain(&vel).all(|v| v.is_finite()) && alt.abs() < 1e5)
+        {
             continue;
         }
         let Some(n) = geoid.separation_m(la, lo) else {
