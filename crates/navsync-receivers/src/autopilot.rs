@@ -117,7 +117,7 @@ impl BootToGps {
         let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
         let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
         // Arrival times over ~3 years apart are not one boot: no relation.
-        if !(sxx > 0.0) || pts.iter().any(|p| p.0.abs() > 1e8 || p.1.abs() > 1e8) {
+        if sxx.is_nan() || sxx <= 0.0 || pts.iter().any(|p| p.0.abs() > 1e8 || p.1.abs() > 1e8) {
             return None;
         }
         let b = sxy / sxx;

@@ -517,6 +517,12 @@ pub struct DataFlashRead {
     pub summary: DataFlashSummary,
 }
 
+/// An EKF row: boot µs, roll pitch yaw (deg), velocity NED (m/s).
+type EkfRow = (u64, [f64; 3], [f64; 3]);
+
+/// One GPS instance's fixes, drops by reason, arrivals from `GPA.SMS`.
+type InstanceFixes = (Vec<BootFix>, BTreeMap<String, u64>, u64);
+
 /// Everything collected from one pass over the messages.
 #[derive(Default)]
 struct Collected {
@@ -525,7 +531,7 @@ struct Collected {
     acc: BTreeMap<u8, Vec<RawAcc>>,
     acc_names: BTreeMap<String, u64>,
     /// (boot µs, [roll, pitch, yaw], [vn, ve, vd]) by message name.
-    ekf: BTreeMap<String, Vec<(u64, [f64; 3], [f64; 3])>>,
+    ekf: BTreeMap<String, Vec<EkfRow>>,
     /// AHR2 (boot µs, lat, lon, alt MSL).
     ahr2: Vec<(u64, f64, f64, f64)>,
     time_us: bool,
@@ -704,7 +710,7 @@ pub fn read_dataflash(
         prev = Some(x.boot_us);
     }
     // GPS: every instance's fixes, then the instance with most.
-    let mut best: Option<(u8, Vec<BootFix>, BTreeMap<String, u64>, u64)> = None;
+    let mut best: Option<(u8, InstanceFixes)> = None;
     for (&inst, msgs) in &c.gps {
         let accs = c.acc.get(&inst).map(Vec::as_slice).unwrap_or(&[]);
         let (fixes, drops, from_sms) = gps_fixes(msgs, accs, default_sd_m, &mut geoid, path, diag);
@@ -712,12 +718,12 @@ pub fn read_dataflash(
             .insert(format!("GPS[{inst}] messages"), msgs.len() as u64);
         s.gps_instances
             .insert(format!("GPS[{inst}] fixes"), fixes.len() as u64);
-        if best.as_ref().is_none_or(|b| fixes.len() > b.1.len()) {
-            best = Some((inst, fixes, drops, from_sms));
+        if best.as_ref().is_none_or(|b| fixes.len() > b.1.0.len()) {
+            best = Some((inst, (fixes, drops, from_sms)));
         }
     }
     let fixes = match best {
-        Some((inst, fixes, drops, from_sms)) => {
+        Some((inst, (fixes, drops, from_sms))) => {
             s.gps_instance_used = Some(inst);
             s.gps_drops = drops;
             s.arrival_from_gpa_sms = from_sms;
@@ -759,13 +765,13 @@ fn gps_fixes(
     geoid: &mut crate::geoid::Egm96Grid,
     path: &Path,
     diag: &mut Diagnostics,
-) -> (Vec<BootFix>, BTreeMap<String, u64>, u64) {
+) -> InstanceFixes {
     let mut drops: BTreeMap<String, u64> = BTreeMap::new();
     let mut drop = |r: &str| *drops.entry(r.to_string()).or_insert(0) += 1;
     let mut out: Vec<BootFix> = Vec::new();
     let mut from_sms = 0;
     for (k, g) in msgs.iter().enumerate() {
-        if !(g.status >= 3.0) {
+        if g.status.is_nan() || g.status < 3.0 {
             drop("no 3D fix (Status < 3)");
             continue;
         }
