@@ -23,6 +23,9 @@
 //!   from `nav_msgs/Odometry` `twist.twist.linear.x` (or a body-frame
 //!   `TwistStamped`); NavSatFix altitudes taken as ellipsoidal or, with
 //!   `ros_altitude: Msl`, as MSL + EGM96 (said in the summary).
+//! - From an ArduPilot DataFlash log ([`crate::autopilot`]): `rig.csv`
+//!   (IMU on the boot clock, fixes with GPS time and arrival boot time,
+//!   for `navsync sync`) and `autopilot.nav` (the autopilot's estimate).
 //! - `summary.json`: counts, stream statistics, every navigation epoch
 //!   (UBX or NMEA GGA) that gave no fix counted by reason (`fix_epochs`),
 //!   and every reported problem.
@@ -71,6 +74,8 @@ pub enum InputFormat {
     Ulog,
     /// ROS 1 bag, format 2.0 (`sensor_msgs/Imu`, `NavSatFix`, `nav_msgs/Odometry`).
     Ros1Bag,
+    /// ArduPilot DataFlash `.BIN` log ([`crate::dataflash`]): a rig log.
+    DataFlash,
 }
 
 /// Which fixes go into `gnss.txt` when a stream holds both kinds.
@@ -205,6 +210,9 @@ pub struct ConvertSummary {
     /// Speeds written to speed.txt (ROS 1 odometry).
     #[serde(skip_serializing_if = "is_zero")]
     pub speeds: usize,
+    /// ArduPilot DataFlash log: messages, instances, σ source, drops.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dataflash: Option<crate::dataflash::DataFlashSummary>,
     pub imu_samples: usize,
     pub imu_time_axis: String,
     pub imu_gaps: usize,
@@ -237,8 +245,12 @@ impl ConvertSummary {
         }
         let epochs: u64 = self.fix_epochs.iter().map(|t| t.epochs).sum();
         let mut m = format!("no GNSS fix in {}", self.input);
-        if matches!(self.format, Some(InputFormat::Mcap | InputFormat::Ros1Bag)) {
-            // A bag without a NavSatFix topic is an IMU log, not a failure.
+        if matches!(
+            self.format,
+            Some(InputFormat::Mcap | InputFormat::Ros1Bag | InputFormat::DataFlash)
+        ) {
+            // A bag without a NavSatFix topic (an autopilot log without
+            // GPS messages) is an IMU log, not a failure.
             if self.fix_epochs.is_empty() {
                 return None;
             }
@@ -337,6 +349,9 @@ pub fn convert_with_topics(
             convert_bag(format, reader, input, out_dir, opts, topics, &mut s)?
         }
         InputFormat::Ulog => crate::ulog::convert_ulog(reader, input, out_dir, &mut s)?,
+        InputFormat::DataFlash => {
+            crate::autopilot::convert_dataflash(reader, input, out_dir, opts, &mut s)?
+        }
     }
     let path = out_dir.join("summary.json");
     let json = serde_json::to_string_pretty(&s).map_err(|e| Error::Invalid(e.to_string()))?;

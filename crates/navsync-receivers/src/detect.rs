@@ -33,6 +33,8 @@ pub enum FileKind {
     KfginsGnss,
     /// PX4 ULog flight log (IMU and GPS on the autopilot's boot clock).
     Ulog,
+    /// ArduPilot DataFlash `.BIN` log (IMU and GNSS on the boot clock).
+    DataFlash,
 }
 
 impl FileKind {
@@ -48,7 +50,14 @@ impl FileKind {
                 | FileKind::CommaGnss
                 | FileKind::KfginsGnss
                 | FileKind::Ulog
+                | FileKind::DataFlash
         )
+    }
+
+    /// An autopilot log: IMU and fix arrivals on one boot clock, converted
+    /// into a rig log (`convert/rig.csv`) that `sync` puts on GPS time.
+    pub fn is_autopilot_log(self) -> bool {
+        matches!(self, FileKind::DataFlash | FileKind::Ulog)
     }
 
     pub fn describe(self) -> &'static str {
@@ -63,13 +72,14 @@ impl FileKind {
             FileKind::KfginsImu => "KF-GINS IMU increments",
             FileKind::KfginsGnss => "KF-GINS GNSS fixes",
             FileKind::Ulog => "PX4 ULog flight log",
+            FileKind::DataFlash => "ArduPilot DataFlash log (.BIN)",
         }
     }
 }
 
 /// What an unknown file should have been.
 pub(crate) const EXPECTED: &str = "expected a rig log ('# rig-log v1' first line), a u-blox UBX or \
-    NMEA 0183 receiver log, a ROS 2 .mcap bag, a ROS 1 .bag, a PX4 .ulg log, a comma2k19 gnss_ublox.csv, an IMU log \
+    NMEA 0183 receiver log, a ROS 2 .mcap bag, a ROS 1 .bag, a PX4 .ulg log, an ArduPilot DataFlash .BIN log, a comma2k19 gnss_ublox.csv, an IMU log \
     (lines of 'time gyro_x gyro_y gyro_z acc_x acc_y acc_z' in s, rad/s, m/s²) or KF-GINS \
     imu/gnss text files";
 
@@ -132,6 +142,9 @@ pub(crate) fn detect_bytes(buf: &[u8]) -> Option<FileKind> {
     }
     if buf.starts_with(crate::ros1::MAGIC) {
         return Some(FileKind::Ros1Bag);
+    }
+    if crate::dataflash::looks_like_dataflash(buf) {
+        return Some(FileKind::DataFlash);
     }
     let first_line = buf
         .split(|b| *b == b'\n')

@@ -15,12 +15,16 @@
 //! - [`ulog`]: PX4 ULog flight logs: IMU, GPS, the autopilot's estimate.
 //! - [`ros1`]: ROS 1 bags (v2.0; bz2, lz4 chunks): the same and odometry;
 //!   [`rosmsg`]: the messages both share and what becomes of them.
+//! - [`dataflash`]: ArduPilot DataFlash `.BIN` logs; [`autopilot`]: an
+//!   autopilot log → a rig log for software synchronization.
 //! - [`convert`]: file conversion to KF-GINS files and rig-logs.
 //!
 //! Kept out of the core `navsync` crate so that its receiver dependencies
 //! (`nmea`, later serial and PPS) stay optional for library users.
 
+pub mod autopilot;
 pub mod convert;
+pub mod dataflash;
 pub mod detect;
 pub mod fixes;
 pub mod geoid;
@@ -37,7 +41,10 @@ pub mod stream;
 pub mod testbag;
 #[cfg(feature = "test-bags")]
 pub mod testulog;
+#[cfg(feature = "test-bags")]
 pub mod testbag1;
+#[cfg(feature = "test-bags")]
+pub mod testdataflash;
 pub mod ubx;
 pub mod ubx_dr;
 pub mod ulog;

@@ -35,6 +35,11 @@ pub enum From {
     /// sensor_msgs/Imu, sensor_msgs/NavSatFix, nav_msgs/Odometry (→ speed.txt),
     /// geometry_msgs/TwistStamped and TwistWithCovarianceStamped.
     Rosbag,
+    /// ArduPilot DataFlash .BIN log (2014 TimeMS or current TimeUS layouts):
+    /// rig.csv (IMU on the boot clock, GPS fixes with their arrival boot
+    /// time; `navsync sync` puts it on GPS time) and autopilot.nav (the
+    /// autopilot's EKF/AHR2 estimate, for comparison).
+    Dataflash,
 }
 
 /// Which height a ROS NavSatFix altitude is.
@@ -137,6 +142,7 @@ pub fn run(a: Args) -> Result<()> {
         From::Mcap => InputFormat::Mcap,
         From::Ulog => InputFormat::Ulog,
         From::Rosbag => InputFormat::Ros1Bag,
+        From::Dataflash => InputFormat::DataFlash,
     };
     let topics = TopicChoice {
         imu: a.imu_topic.clone(),
@@ -199,6 +205,9 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(b) = &s.ros1 {
         print_bag("ROS 1", b);
     }
+    if let Some(d) = &s.dataflash {
+        print_dataflash(d, &s);
+    }
     for t in &s.fix_epochs {
         println!(
             "{}: {} epochs, {} gave a fix, {} dropped",
@@ -227,7 +236,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     if let Some(u) = &s.ulog {
         print_ulog(u);
-    } else if s.gnss_fixes > 0 {
+    } else if s.gnss_fixes > 0 && s.dataflash.is_none() {
         println!(
             "gnss.txt: {} fixes, {} columns, from {}{}{}",
             s.gnss_fixes,
@@ -243,13 +252,13 @@ pub fn run(a: Args) -> Result<()> {
             }
         );
     }
-    if let Some(g) = &s.geoid_model {
+    if let Some(g) = s.geoid_model.as_ref().filter(|_| s.dataflash.is_none()) {
         println!(
             "  {} heights from MSL + geoid model (GGA without geoid separation): {g}",
             s.geoid_model_heights
         );
     }
-    if s.imu_samples > 0 && s.ulog.is_none() {
+    if s.imu_samples > 0 && s.ulog.is_none() && s.dataflash.is_none() {
         println!(
             "imu.txt: {} increments on {}; {} gaps ≥ {} s",
             s.imu_samples, s.imu_time_axis, s.imu_gaps, a.gap_s
@@ -382,5 +391,61 @@ pub fn print_bag(ros: &str, b: &BagSummary) {
                     || "not given: the sensor sheet's odometer sd_mps or 0.1 m/s".into()
                 )
         );
+    }
+}
+
+/// What a DataFlash conversion read and wrote.
+fn print_dataflash(
+    d: &navsync_receivers::dataflash::DataFlashSummary,
+    s: &convert::ConvertSummary,
+) {
+    let p = &d.parse;
+    println!(
+        "DataFlash log: {} message types described, {} messages; time field {}{}",
+        p.formats,
+        p.messages.values().sum::<u64>(),
+        d.time_field,
+        if p.garbage_bytes > 0 || !p.unknown_type_messages.is_empty() || p.truncated_at.is_some() {
+            format!(
+                "; {} bytes outside messages, {} messages of undescribed types, {}",
+                p.garbage_bytes,
+                p.unknown_type_messages.values().sum::<u64>(),
+                if p.truncated_at.is_some() {
+                    "last message cut short"
+                } else {
+                    "complete"
+                }
+            )
+        } else {
+            String::new()
+        }
+    );
+    for (k, n) in d.imu_instances.iter().chain(&d.gps_instances) {
+        println!("  {k:<20} {n}");
+    }
+    println!(
+        "rig.csv: {} IMU samples (instance {}), {} GNSS fixes (instance {}), {} IMU gaps > 1 s",
+        s.imu_samples,
+        d.imu_instance_used.map_or("-".into(), |i| i.to_string()),
+        s.gnss_fixes,
+        d.gps_instance_used.map_or("-".into(), |i| i.to_string()),
+        d.imu_gaps.len()
+    );
+    if s.gnss_fixes > 0 {
+        println!("  σ: {}", d.sigma_source);
+    }
+    if let (Some(ppm), Some(l)) = (d.boot_clock_error_ppm, &d.fix_latency_above_fastest_ms) {
+        println!(
+            "  boot clock {ppm:+.1} ppm against GPS time; fix arrival above the fastest: median {:.1} ms, max {:.1} ms",
+            l.median, l.max
+        );
+    }
+    match &d.estimate_source {
+        Some(src) if d.estimate_rows > 0 => {
+            println!("autopilot.nav: {} rows from {src}", d.estimate_rows)
+        }
+        _ => println!(
+            "autopilot.nav: not written (no EKF attitude/velocity with AHR2 position, or no fixes to put it on GPS time)"
+        ),
     }
 }

@@ -5,6 +5,7 @@
 //! align → fuse → smooth, and the report. Layout of DIR:
 //!
 //! - `sync/` (rig log) or `convert/gnss/`, `convert/imu/`: GPS-time KF-GINS files;
+//!   an autopilot log is converted into `convert/rig.csv` first, then `sync/`;
 //! - `fuse/`: navresult.nav, std.txt, imu_err.txt, summary.json (smoothed;
 //!   the forward filter's in `fuse/forward/`);
 //! - `report.html`; `process.json`: what each stage did.
@@ -34,7 +35,8 @@ pub struct Args {
     /// UBX, NMEA, comma2k19 gnss_ublox.csv) and an IMU log (rate CSV:
     /// time s, gyro x y z rad/s, accel x y z m/s²), or a ROS 2 .mcap bag,
     /// or a ROS 1 .bag (its odometry → the odometer when the sheet has
-    /// none). Recognised by content.
+    /// none), or an autopilot log (ArduPilot DataFlash .BIN, PX4 ULog).
+    /// Recognised by content.
     #[arg(required = true, value_name = "RAW")]
     pub raw: Vec<PathBuf>,
     /// The sensor sheet (`navsync init` writes one).
@@ -64,6 +66,9 @@ pub struct Args {
 /// The inputs, by kind.
 struct Inputs {
     rig: Option<PathBuf>,
+    /// An autopilot log (IMU and fix arrivals on its boot clock): converted
+    /// into `convert/rig.csv`, then synchronized like a rig log.
+    autopilot: Option<PathBuf>,
     gnss: Option<(PathBuf, FileKind)>,
     imu: Option<(PathBuf, FileKind)>,
 }
@@ -71,6 +76,7 @@ struct Inputs {
 fn classify(raw: &[PathBuf]) -> Result<Inputs> {
     let mut inp = Inputs {
         rig: None,
+        autopilot: None,
         gnss: None,
         imu: None,
     };
@@ -86,11 +92,17 @@ fn classify(raw: &[PathBuf]) -> Result<Inputs> {
         };
         match kind {
             // An autopilot log holds IMU and GNSS on one clock, as a rig log.
-            FileKind::RigLog | FileKind::Ulog => {
+            FileKind::RigLog => {
                 if let Some(o) = &inp.rig {
                     return Err(slot_taken("rig", o));
                 }
                 inp.rig = Some(p.clone());
+            }
+            k if k.is_autopilot_log() => {
+                if let Some(o) = &inp.autopilot {
+                    return Err(slot_taken("autopilot", o));
+                }
+                inp.autopilot = Some(p.clone());
             }
             FileKind::Mcap | FileKind::Ros1Bag => {
                 if let Some((o, _)) = inp.gnss.as_ref().or(inp.imu.as_ref()) {
@@ -112,6 +124,15 @@ fn classify(raw: &[PathBuf]) -> Result<Inputs> {
                 inp.imu = Some((p.clone(), kind));
             }
         }
+    }
+    if let Some(r) = &inp.autopilot {
+        if inp.rig.is_some() || inp.gnss.is_some() || inp.imu.is_some() {
+            bail!(
+                "{} is an autopilot log, which holds IMU and GNSS already: give it alone",
+                r.display()
+            );
+        }
+        return Ok(inp);
     }
     if let Some(r) = &inp.rig {
         if inp.gnss.is_some() || inp.imu.is_some() {
@@ -256,19 +277,6 @@ fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
     })
 }
 
-/// An autopilot log (PX4 ULog) → `DIR/convert/rig.csv` on its boot clock,
-/// for `sync`; a rig log as it is.
-fn autopilot_to_rig(path: &Path, out: &Path) -> Result<PathBuf> {
-    let kind = detect(path)?;
-    if kind == FileKind::RigLog {
-        return Ok(path.to_path_buf());
-    }
-    let dir = out.join("convert");
-    println!("[0/4] convert: {} → {}", path.display(), dir.display());
-    convert_one(path, kind, &dir, &ConvertOptions::default())?;
-    Ok(dir.join("rig.csv"))
-}
-
 fn format_of(kind: FileKind) -> Option<InputFormat> {
     Some(match kind {
         FileKind::Ubx => InputFormat::Ubx,
@@ -278,6 +286,7 @@ fn format_of(kind: FileKind) -> Option<InputFormat> {
         FileKind::CommaGnss => InputFormat::CommaGnss,
         FileKind::RateCsv => InputFormat::RateCsv,
         FileKind::Ulog => InputFormat::Ulog,
+        FileKind::DataFlash => InputFormat::DataFlash,
         FileKind::RigLog | FileKind::KfginsImu | FileKind::KfginsGnss => return None,
     })
 }
@@ -306,8 +315,17 @@ fn convert_one(
             u.gps_topic,
             u.autopilot_nav_epochs
         );
-    }
-    if s.gnss_fixes > 0 && s.ulog.is_none() {
+    } else if s.dataflash.is_some() {
+        println!(
+            "  {}: {} IMU samples ({}), {} fixes ({}); {}/summary.json",
+            dir.join("rig.csv").display(),
+            s.imu_samples,
+            s.imu_time_axis,
+            s.gnss_fixes,
+            s.gnss_source,
+            dir.display()
+        );
+    } else if s.gnss_fixes > 0 {
         println!(
             "  {}: {} fixes ({} columns) from {}",
             dir.join("gnss.txt").display(),
@@ -316,7 +334,7 @@ fn convert_one(
             s.gnss_source
         );
     }
-    if s.imu_samples > 0 && s.ulog.is_none() {
+    if s.imu_samples > 0 && s.ulog.is_none() && s.dataflash.is_none() {
         println!(
             "  {}: {} increments on {}, {} gaps",
             dir.join("imu.txt").display(),
@@ -337,6 +355,29 @@ fn convert_one(
         print_diagnostics(&s.diagnostics, 5);
     }
     Ok(s)
+}
+
+/// An autopilot log → `DIR/convert/rig.csv` (IMU on the boot clock, fixes
+/// with their GPS time and arrival boot time) → [`sync_stage`] (software
+/// synchronization puts the IMU on GPS time).
+fn autopilot_stage(log: &Path, sheet: &SensorSheet, out: &Path, force: bool) -> Result<Data> {
+    let kind = detect(log)?;
+    let dir = out.join("convert");
+    println!("[1/4] convert: {} → {}", log.display(), dir.display());
+    let mut opts = ConvertOptions::default();
+    opts.fix.default_sd_m = sheet.gnss_default_sd_m;
+    let s = convert_one(log, kind, &dir, &opts)?;
+    if s.gnss_fixes == 0 {
+        let why = s.no_fix_message().unwrap_or_else(|| {
+            format!(
+                "no GNSS fix in {}: the log holds no GPS messages (IMU only; {}/rig.csv has no gnss records)",
+                log.display(),
+                dir.display()
+            )
+        });
+        bail!("{why}: navsync process needs GNSS positions to align and fuse");
+    }
+    sync_stage(&dir.join("rig.csv"), out, force)
 }
 
 fn convert_stage(
@@ -548,9 +589,10 @@ pub fn run(a: Args) -> Result<()> {
         .with_context(|| format!("creating {}", a.output.display()))?;
     println!("navsync process: inputs");
     let inp = classify(&a.raw)?;
-    let data = match &inp.rig {
-        Some(rig) => sync_stage(&autopilot_to_rig(rig, &a.output)?, &a.output, a.force)?,
-        None => convert_stage(&inp, &sheet, &a.output, a.ros_altitude.into())?,
+    let data = match (&inp.rig, &inp.autopilot) {
+        (Some(rig), _) => sync_stage(rig, &a.output, a.force)?,
+        (None, Some(log)) => autopilot_stage(log, &sheet, &a.output, a.force)?,
+        (None, None) => convert_stage(&inp, &sheet, &a.output, a.ros_altitude.into())?,
     };
     let mut notes = data.notes.clone();
 

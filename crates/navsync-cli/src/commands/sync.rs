@@ -237,6 +237,12 @@ pub fn print_summary(r: &SyncReport, wall: f64) {
             s.state, s.start.week, s.start.sow, s.end.sow
         );
     }
+    for g in r.imu.logging_gaps.iter().take(10) {
+        println!(
+            "  imu logging gap: {:.1} s after {} {:.3} ({} samples missing; not counted as random loss)",
+            g.length_s, g.start.week, g.start.sow, g.samples_missing
+        );
+    }
     for h in &r.holdover {
         println!(
             "  holdover {:.3} … {:.3} ({:.1} s), bound up to {:.2} µs",

@@ -514,5 +514,9 @@ pub struct FusionStats {
     pub max_gap_s: f64,
     pub(crate) covariance_propagations: usize,
     pub(crate) time_offset_held_updates: usize,
+    /// Times the time-offset estimate left its search range (± the coarse
+    /// search's range) and was reset to its initial value and σ.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub time_offset_resets: usize,
     pub(crate) delayed_state_replays: usize,
 }

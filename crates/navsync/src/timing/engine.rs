@@ -245,6 +245,11 @@ pub struct SyncEngine {
     max_bound_s: f64,
     last_time: Option<GpsTime>,
     nonincreasing: u64,
+    /// Stamp intervals over [`LOGGING_GAP_S`] (the first 1000) and the
+    /// losses the sync counted inside them.
+    logging_gaps: Vec<LoggingGap>,
+    logging_gap_count: u64,
+    lost_in_logging_gaps: u64,
     first_time: Option<GpsTime>,
     backwards: u64,
     reorders: u64,
@@ -336,6 +341,9 @@ impl SyncEngine {
             max_bound_s: 0.0,
             last_time: None,
             nonincreasing: 0,
+            logging_gaps: Vec::new(),
+            logging_gap_count: 0,
+            lost_in_logging_gaps: 0,
             first_time: None,
             backwards: 0,
             reorders: 0,
@@ -1023,8 +1031,9 @@ impl SyncEngine {
             if self.last_time.is_some_and(|l| t <= l) {
                 self.nonincreasing += 1;
             }
+            let lost = self.note_logging_gap(t, flags.lost_before);
             self.last_time = Some(t);
-            self.rate.push(t, flags.lost_before);
+            self.rate.push(t, lost);
             self.bounds.push(bound);
             self.first_time.get_or_insert(t);
         }
@@ -1057,6 +1066,37 @@ impl SyncEngine {
             values: p.values,
             flags,
         }));
+    }
+
+    /// A stamp more than [`LOGGING_GAP_S`] after the previous one: a
+    /// logging gap (the logger stopped writing), kept apart from random
+    /// loss. Returns the samples missing before `t`: the sync's count, or
+    /// the gap over the mean period so far when that is more (a software
+    /// clock may not see a whole gap as loss).
+    fn note_logging_gap(&mut self, t: GpsTime, lost_before: u32) -> u32 {
+        let Some(last) = self.last_time else {
+            return lost_before;
+        };
+        let gap_s = t.seconds_since(last);
+        if gap_s <= LOGGING_GAP_S {
+            return lost_before;
+        }
+        let missing = self
+            .rate
+            .rate_hz()
+            .map(|hz| ((gap_s * hz).round() - 1.0).clamp(0.0, u32::MAX as f64) as u32)
+            .unwrap_or(0)
+            .max(lost_before);
+        self.lost_in_logging_gaps += lost_before as u64;
+        self.logging_gap_count += 1;
+        if self.logging_gaps.len() < 1000 {
+            self.logging_gaps.push(LoggingGap {
+                start: WeekSow::from(last),
+                length_s: gap_s,
+                samples_missing: missing as u64,
+            });
+        }
+        missing
     }
 
     fn emit_gnss(&mut self, fix: RigGnss, rx: GpsTime, out: &mut Vec<SyncOutput>) {
@@ -1201,6 +1241,9 @@ impl SyncEngine {
                 .collect(),
             output_delay_s: self.cfg.imu_output_delay_s.unwrap_or(0.0),
             timestamps_not_increasing: self.nonincreasing,
+            logging_gaps: self.logging_gaps.clone(),
+            logging_gap_count: self.logging_gap_count,
+            lost_in_logging_gaps: self.lost_in_logging_gaps,
             interval_jitter_us: self.interval_jitter_s().map(|j| j * 1e6),
         };
         let hybrid = matches!(self.state, Engine::Hybrid).then(|| {

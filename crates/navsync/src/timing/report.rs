@@ -183,6 +183,17 @@ pub struct ImuReport {
     pub out_of_order: u64,
     /// Gaps (first 1000): record index after the gap, samples lost.
     pub gaps: Vec<ImuGap>,
+    /// Logging gaps: stamp intervals over [`LOGGING_GAP_S`] (the first
+    /// 1000), where the logger stopped writing; reported, not counted as
+    /// random loss in the plausibility checks.
+    #[serde(default)]
+    pub logging_gaps: Vec<LoggingGap>,
+    /// All logging gaps.
+    #[serde(default)]
+    pub logging_gap_count: u64,
+    /// Of `lost`, the samples inside logging gaps.
+    #[serde(default)]
+    pub lost_in_logging_gaps: u64,
     pub(crate) gap_count: u64,
     /// Samples counted in each full GPS second → how many seconds (seed 002).
     pub samples_per_gps_second: BTreeMap<String, u64>,
@@ -196,6 +207,19 @@ pub struct ImuReport {
     /// milliseconds for receive times.
     #[serde(default)]
     pub interval_jitter_us: Option<f64>,
+}
+
+/// A stretch without IMU samples longer than [`LOGGING_GAP_S`]: the
+/// logger stopped writing (a full card buffer, a logging restart), not a
+/// link that drops frames at random.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct LoggingGap {
+    /// GPS time of the last sample before the gap.
+    pub start: WeekSow,
+    /// Time from that sample to the next (s).
+    pub length_s: f64,
+    /// Sample periods missing in it.
+    pub samples_missing: u64,
 }
 
 /// Hybrid synchronization: 1PPS maps the counter to GPS time, the IMU's
@@ -530,6 +554,10 @@ pub(crate) fn format_week_sow(out: &mut Vec<u8>, t: GpsTime) {
 /// loss rates below 1e-5: Tang, Zhang & Niu, "MEMS IMU raw data
 /// acquisition and time synchronization pitfalls", 2022).
 pub(crate) const IMPLAUSIBLE_SHARE: f64 = 0.01;
+/// Stamp interval (s) beyond which missing IMU samples are a logging gap,
+/// reported on its own and left out of the loss rate: one long silence is
+/// not random loss (a link dropping frames loses them spread over the run).
+pub const LOGGING_GAP_S: f64 = 1.0;
 /// Relative difference of the measured IMU rate from the nominal one
 /// above which the rate is implausible (crystals are within 1e-4).
 pub(crate) const IMPLAUSIBLE_RATE: f64 = 0.01;
@@ -630,8 +658,10 @@ impl SyncReport {
                 fix: fix_timing.clone(),
             })
         };
+        // Losses inside logging gaps are the gaps' own finding, not random loss.
+        let random_lost = i.lost.saturating_sub(i.lost_in_logging_gaps);
         for (count, name) in [
-            (i.lost, "lost"),
+            (random_lost, "lost"),
             (i.duplicated, "duplicated"),
             (i.irregular_intervals, "irregular intervals"),
         ] {

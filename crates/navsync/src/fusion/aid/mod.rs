@@ -282,6 +282,7 @@ impl Core {
             }
             if let Some(i) = self.tau_index {
                 self.tau -= outcome.dx[i];
+                self.bound_time_offset();
             }
             if let Some(i) = self.gnss_bias_index {
                 for k in 0..3 {

@@ -79,6 +79,50 @@ impl Core {
         }
     }
 
+    /// The range τ̂ must stay in: the coarse search's (± `search_range_s`),
+    /// or without a search the initial value ± 3σ₀.
+    fn offset_bound_s(to: &TimeOffsetOptions) -> f64 {
+        let b = if to.search_range_s > 0.0 {
+            to.search_range_s
+        } else {
+            to.init_s.abs() + 3.0 * to.sd_s
+        };
+        b.max(to.init_s.abs())
+    }
+
+    /// Resets τ̂ to its initial value and σ when an update carried it out
+    /// of [`Self::offset_bound_s`]: an offset the search never allowed is a
+    /// symptom (an IMU gap, a GNSS jump taken for a time offset), not an
+    /// estimate, and left alone it carries the solution kilometres away.
+    pub(in crate::fusion) fn bound_time_offset(&mut self) {
+        let (Some(i), Some(to)) = (self.tau_index, self.cfg.time_offset) else {
+            return;
+        };
+        let bound = Self::offset_bound_s(&to);
+        if self.tau.abs() <= bound {
+            return;
+        }
+        let was = self.tau;
+        let mut dx = vec![0.0; self.filter.n()];
+        dx[i] = self.tau - to.init_s;
+        self.filter.record_correction(self.nav.time, &dx);
+        self.tau = to.init_s;
+        let p = self.filter.covariance_mut();
+        for j in 0..p.rows {
+            p.set(i, j, 0.0);
+            p.set(j, i, 0.0);
+        }
+        p.set(i, i, to.sd_s * to.sd_s);
+        self.stats.time_offset_resets += 1;
+        if self.stats.time_offset_resets <= 20 {
+            self.notes.push(format!(
+                "time offset estimate {was:.4} s at {} left its range ±{bound:.3} s: reset to {:.4} s ± {:.4} s \
+                 (an IMU gap or a GNSS jump taken for a time offset)",
+                self.nav.time, to.init_s, to.sd_s
+            ));
+        }
+    }
+
     /// Re-initialises τ̂ from the coarse search when the filter disagrees.
     pub(in crate::fusion) fn adopt_coarse(&mut self, est: &OffsetEstimate) -> Option<String> {
         let i = self.tau_index?;
