@@ -26,8 +26,11 @@
 //! the energies of the whole signals (not of the overlap), so that a lag
 //! that overlaps one turn of several scores accordingly. Search: every lag
 //! on a 1 s grid over the whole range where the spans overlap by
-//! `min_overlap_s`, then 10 ms steps ±1.5 s around the best, parabolic
-//! interpolation. The result is refused when the drive has no turns, the
+//! `min_overlap_s` (whole-signal normalisation: the peak and its rivals),
+//! then 10 ms steps ±1.5 s around the best by the Pearson correlation over
+//! the overlap (whose peak, unlike the whole-signal one's, is not pulled by
+//! the means of the parts outside: 20–30 ms on the simulated test track),
+//! parabolic interpolation. The result is refused when the drive has no turns, the
 //! peak is low (flat) or a second peak nearly as high (ambiguous).
 #![warn(missing_docs)]
 
@@ -85,13 +88,17 @@ pub struct ClockOffset {
     pub offset_s: f64,
     /// Its standard deviation from the peak's curvature (s).
     pub sd_s: f64,
-    /// Normalised correlation at the peak (mean of the two signals').
+    /// Pearson correlation over the overlap at the peak (mean of the two
+    /// signals').
     pub peak_corr: f64,
+    /// The coarse peak's correlation normalised by the whole signals
+    /// (lower when the logs cover different spans).
+    pub whole_corr: f64,
     /// The yaw-rate signal's correlation at the peak.
     pub yaw_corr: f64,
     /// The specific-force signal's correlation at the peak.
     pub accel_corr: f64,
-    /// Full width of the peak at half its height (s).
+    /// Full width of the coarse peak at half its height (s).
     pub width_s: f64,
     /// The best correlation outside the main peak, over the peak's.
     pub second_peak_ratio: f64,
@@ -413,7 +420,47 @@ impl<'a> Correlator<'a> {
         }
     }
 
-    /// (combined, yaw, accel) correlation at offset `c` (GPS = IMU + c).
+    /// (combined, yaw, accel) Pearson correlation over the intervals the
+    /// IMU covers at offset `c`: the fine search's measure (normalised by
+    /// the overlap's own means and energies, the peak is not pulled by the
+    /// parts of the log outside it).
+    fn pearson(&self, c: f64) -> (f64, f64, f64) {
+        // Weighted sums: w, wx, wy, wxx, wyy, wxy per signal.
+        let (mut ys, mut as_) = ([0.0; 6], [0.0; 6]);
+        let add = |acc: &mut [f64; 6], w: f64, x: f64, y: f64| {
+            for (a, v) in acc
+                .iter_mut()
+                .zip([w, w * x, w * y, w * x * x, w * y * y, w * x * y])
+            {
+                *a += v;
+            }
+        };
+        for k in self.iv {
+            let Some((iy, ia, w)) = self.track.mean(k.a_s - c, k.b_s - c) else {
+                continue;
+            };
+            if let Some(gy) = k.yaw {
+                add(&mut ys, w, gy, iy);
+            }
+            add(&mut as_, w, k.accel, ia);
+        }
+        let r = |a: &[f64; 6]| {
+            if a[0] <= 0.0 {
+                return 0.0;
+            }
+            let sxx = a[3] - a[1] * a[1] / a[0];
+            let syy = a[4] - a[2] * a[2] / a[0];
+            let sxy = a[5] - a[1] * a[2] / a[0];
+            let e = (sxx * syy).sqrt();
+            if e > 0.0 { sxy / e } else { 0.0 }
+        };
+        let (ry, ra) = (r(&ys), r(&as_));
+        (0.5 * (ry + ra), ry, ra)
+    }
+
+    /// (combined, yaw, accel) correlation at offset `c` (GPS = IMU + c),
+    /// normalised by the whole signals' energies: the coarse search's
+    /// measure (a lag that overlaps part of the drive scores less).
     fn corr(&self, c: f64) -> (f64, f64, f64) {
         let (mut sy, mut sa) = (0.0, 0.0);
         for k in self.iv {
@@ -492,7 +539,7 @@ pub fn search_clock_offset(
     let fine: Vec<(f64, f64)> = (-m..=m)
         .map(|k| {
             let c = c0 + k as f64 * o.fine_step_s;
-            (c, cor.corr(c).0)
+            (c, cor.pearson(c).0)
         })
         .collect();
     let fb = (0..fine.len())
@@ -506,12 +553,13 @@ pub fn search_clock_offset(
             offset_s += 0.5 * o.fine_step_s * (ym - yp) / den;
         }
     }
-    let (peak_corr, yaw_corr, accel_corr) = cor.corr(offset_s);
+    let (peak_corr, yaw_corr, accel_corr) = cor.pearson(offset_s);
     // Curvature over ±0.1 s; σ² = (1 − ρ²) / (N ρ |ρ''|), the delay
     // estimator's variance for a least-squares fit of one signal to the
     // other (N independent samples; Knapp & Carter 1976).
     let h = 0.1;
-    let d2 = (cor.corr(offset_s + h).0 - 2.0 * peak_corr + cor.corr(offset_s - h).0) / (h * h);
+    let d2 =
+        (cor.pearson(offset_s + h).0 - 2.0 * peak_corr + cor.pearson(offset_s - h).0) / (h * h);
     let n_eff = iv.len() as f64;
     let sd_s = if d2 < 0.0 && peak_corr > 0.0 {
         ((1.0 - peak_corr * peak_corr).max(0.0) / (n_eff * peak_corr * -d2))
@@ -520,8 +568,7 @@ pub fn search_clock_offset(
     } else {
         f64::INFINITY
     };
-    let width_s = half_width(&fine, fb, peak_corr)
-        .unwrap_or_else(|| half_width_coarse(&coarse, best, peak_corr) * o.coarse_step_s);
+    let width_s = half_width_coarse(&coarse, best, coarse[best]) * o.coarse_step_s;
     let result = ClockOffset {
         offset_s,
         sd_s,
@@ -529,8 +576,9 @@ pub fn search_clock_offset(
         yaw_corr,
         accel_corr,
         width_s,
-        second_peak_ratio: if peak_corr > 0.0 {
-            second / peak_corr
+        whole_corr: coarse[best],
+        second_peak_ratio: if coarse[best] > 0.0 {
+            second / coarse[best]
         } else {
             1.0
         },
@@ -543,9 +591,9 @@ pub fn search_clock_offset(
 }
 
 fn check(r: ClockOffset, o: &ClockSearchOptions) -> Result<ClockOffset, ClockSearchError> {
-    if !(r.peak_corr >= o.min_peak_corr) {
+    if !(r.whole_corr >= o.min_peak_corr) {
         return Err(ClockSearchError::Flat {
-            peak: r.peak_corr,
+            peak: r.whole_corr,
             offset_s: r.offset_s,
             min: o.min_peak_corr,
             detail: format!(
@@ -594,16 +642,8 @@ fn second_peak(v: &[f64], best: usize) -> (f64, usize) {
         .unwrap_or((0.0, best))
 }
 
-/// Full width at half `peak` of a (lag, value) curve around index `b`,
-/// when both half points are inside it.
-fn half_width(v: &[(f64, f64)], b: usize, peak: f64) -> Option<f64> {
-    let half = 0.5 * peak;
-    let l = (0..b).rev().find(|&i| v[i].1 < half)?;
-    let r = (b + 1..v.len()).find(|&i| v[i].1 < half)?;
-    Some(v[r].0 - v[l].0)
-}
-
-/// The same on a uniform curve, in steps (the curve's ends when not reached).
+/// Full width at half `peak` of a uniform curve around index `b`, in
+/// steps (the curve's ends when not reached).
 fn half_width_coarse(v: &[f64], b: usize, peak: f64) -> f64 {
     let half = 0.5 * peak;
     let l = (0..b).rev().find(|&i| v[i] < half).unwrap_or(0);

@@ -1,6 +1,7 @@
 pub mod array;
 pub mod batch;
 pub mod bench;
+pub mod clock;
 pub mod convert;
 pub mod demo;
 pub mod eval;
