@@ -99,12 +99,11 @@ pub fn find(raw: &Path, imu_txt: &Path, gnss: &Path, try_utc: bool) -> Result<Fo
     let c = search_clock_offset(&imu, &fixes, &o).map_err(|e| {
         anyhow::anyhow!(
             "the IMU clock's offset to GPS time could not be found from the motion ({} against {}): {e}. \
-             Drive a few turns (at least {} s turning faster than {}°/s above {} m/s: the yaw rate is what times the IMU \
+             Drive a few turns (faster than {}°/s above {} m/s: the yaw rate is what times the IMU \
              against the GNSS course), or log the fixes' receive times on the IMU's clock (a rig log, or gpspipe \
              with host times), or give the offset (`navsync convert --from rate-csv --imu-time-offset-s S`)",
             imu_txt.display(),
             gnss.display(),
-            o.min_turn_intervals,
             o.turn_rate_deg_s,
             o.min_speed_mps
         )
