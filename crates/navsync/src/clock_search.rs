@@ -750,7 +750,7 @@ mod tests {
     }
 
     #[test]
-    fn known_offsets_are_recovered_to_a_few_ms() {
+    fn known_offsets_are_recovered_within_10_ms() {
         for (offset_s, with_vel, seed) in [
             (3.0, true, 1),
             (3600.237, false, 2),
@@ -761,9 +761,9 @@ mod tests {
             let r = search_clock_offset(&imu, &fixes, &ClockSearchOptions::default())
                 .unwrap_or_else(|e| panic!("offset {offset_s}: {e}"));
             let err = r.offset_s - offset_s;
-            assert!(err.abs() < 0.005, "offset {offset_s}: {r:?}");
+            assert!(err.abs() < 0.010, "offset {offset_s}: {r:?}");
             // The stated σ covers the error and is not absurdly loose.
-            assert!(err.abs() < 4.0 * r.sd_s + 0.002 && r.sd_s < 0.02, "{r:?}");
+            assert!(err.abs() < 3.0 * r.sd_s + 0.002 && r.sd_s < 0.02, "{r:?}");
             assert!(r.peak_corr > 0.8 && r.second_peak_ratio < 0.6, "{r:?}");
         }
     }
