@@ -212,7 +212,7 @@ impl ImuTrack {
         let t: Vec<f64> = imu.iter().map(|s| s.time.seconds()).collect();
         let span = t[t.len() - 1] - t[0];
         let sum_dv: Vector3<f64> = imu[1..].iter().map(|s| s.dvel).sum();
-        if !(span > 0.0) {
+        if span.is_nan() || span <= 0.0 {
             return Err(ClockSearchError::TooLittle(
                 "IMU times do not increase".into(),
             ));
@@ -274,7 +274,7 @@ impl ImuTrack {
     /// moves it over the log's ends); none across a gap.
     fn mean(&self, a: f64, b: f64) -> Option<(f64, f64, f64)> {
         let (ca, cb) = (a.max(self.t0_s), b.min(self.end_s()));
-        if !(cb - ca > 1e-6) {
+        if (cb - ca).is_nan() || cb - ca <= 1e-6 {
             return None;
         }
         let ia = self.locate(ca)?;
@@ -356,7 +356,7 @@ fn gnss_intervals(fixes: &[GnssFix], min_speed_mps: f64) -> Vec<Interval> {
         let ((a, va), (b, vb)) = (w[0], w[1]);
         let dt = b - a;
         // A gap (missing fixes) or a repeated time: no sample.
-        if !(dt > 0.0) || dt > 2.5 * med {
+        if dt.is_nan() || dt <= 0.0 || dt > 2.5 * med {
             continue;
         }
         let (sa, sb) = (va.xy().norm(), vb.xy().norm());
@@ -519,7 +519,7 @@ pub fn search_clock_offset(
         .min(0.5 * (g1 - g0))
         .min(0.5 * (track.end_s() - track.t0_s));
     let (lo, hi) = (g0 - track.end_s() + overlap, g1 - track.t0_s - overlap);
-    if !(hi >= lo) {
+    if hi.is_nan() || lo.is_nan() || hi < lo {
         return Err(ClockSearchError::TooLittle(
             "the IMU and GNSS spans are too short to overlap".into(),
         ));
@@ -591,7 +591,7 @@ pub fn search_clock_offset(
 }
 
 fn check(r: ClockOffset, o: &ClockSearchOptions) -> Result<ClockOffset, ClockSearchError> {
-    if !(r.whole_corr >= o.min_peak_corr) {
+    if r.whole_corr.is_nan() || r.whole_corr < o.min_peak_corr {
         return Err(ClockSearchError::Flat {
             peak: r.whole_corr,
             offset_s: r.offset_s,
@@ -611,7 +611,7 @@ fn check(r: ClockOffset, o: &ClockSearchOptions) -> Result<ClockOffset, ClockSea
             max: o.max_second_ratio,
         });
     }
-    if !(r.sd_s <= o.max_sd_s) {
+    if r.sd_s.is_nan() || r.sd_s > o.max_sd_s {
         return Err(ClockSearchError::Imprecise {
             offset_s: r.offset_s,
             sd_s: r.sd_s,
