@@ -281,3 +281,129 @@ fn drive_without_gnss_and_unknown_files_are_refused() {
         "{err}"
     );
 }
+
+/// A rate CSV (`time gyro accel`) from the simulator's KF-GINS increments:
+/// rates = increment / interval, stamped mid-interval at `time(GPS sow)`.
+fn rate_csv(imu_txt: &Path, out: &Path, time: impl Fn(f64) -> f64) {
+    let mut text = String::from("# time_s gx gy gz ax ay az\n");
+    let mut prev: Option<f64> = None;
+    for line in std::fs::read_to_string(imu_txt).unwrap().lines() {
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect();
+        if let Some(p) = prev {
+            let dt = v[0] - p;
+            text += &format!("{:.6}", time(v[0] - 0.5 * dt));
+            for x in &v[1..7] {
+                text += &format!(" {:.9e}", x / dt);
+            }
+            text.push('\n');
+        }
+        prev = Some(v[0]);
+    }
+    std::fs::write(out, text).unwrap();
+}
+
+/// `process` on GNSS fixes + a rate CSV: (stdout + stderr, process.json) or
+/// the failure's stderr.
+fn process_rate_csv(
+    sim: &Path,
+    imu_csv: &Path,
+    sensor: &Path,
+    out: &Path,
+) -> Result<serde_json::Value, String> {
+    let (ok, stdout, err) = run(bin().args([
+        "process",
+        sim.join("gnss.txt").to_str().unwrap(),
+        imu_csv.to_str().unwrap(),
+        "--sensor",
+        sensor.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+        "--no-smooth",
+        "--truth",
+        sim.join("truth.nav").to_str().unwrap(),
+    ]));
+    if ok {
+        Ok(json(&out.join("process.json")))
+    } else {
+        Err(format!("{stdout}{err}"))
+    }
+}
+
+#[test]
+fn imu_on_an_unknown_clock_is_put_on_gps_time_from_the_motion() {
+    let d = temp_dir("any-clock");
+    let sim = simulate(&d, "test-track", "180");
+    let sensor = sheet(&d);
+    let rms = |p: &serde_json::Value| p["eval"]["pos_horizontal_m"]["rms"].as_f64().unwrap();
+    // The reference: the IMU on GPS time (checked by the motion, kept).
+    let csv = d.join("imu-gps.csv");
+    rate_csv(&sim.join("imu.txt"), &csv, |t| t);
+    let reference = process_rate_csv(&sim, &csv, &sensor, &d.join("o-gps")).unwrap();
+    assert_eq!(reference["time_offset_estimated"], false, "{reference}");
+    let kept = reference["notes"].to_string();
+    assert!(kept.contains("GPS time within"), "{kept}");
+    // An hour ahead (no overlap), and Unix (UTC) seconds with a host clock
+    // 0.2371 s ahead (GPS week 2300; GPS − UTC = 18 s).
+    let unix = |t: f64| 315_964_800.0 + 2300.0 * 604_800.0 + t - 18.0 + 0.2371;
+    for (name, clock, truth_s) in [
+        ("1h", &(|t: f64| t + 3600.0) as &dyn Fn(f64) -> f64, -3600.0),
+        ("unix", &unix, -(315_964_800.0 - 18.0 + 0.2371)),
+    ] {
+        let csv = d.join(format!("imu-{name}.csv"));
+        rate_csv(&sim.join("imu.txt"), &csv, clock);
+        let p = process_rate_csv(&sim, &csv, &sensor, &d.join(format!("o-{name}")))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let s = &p["imu_clock_search"];
+        // Offset on the shifted axis, plus the steps before it.
+        let notes = p["notes"].to_string();
+        let found = notes
+            .split("GPS = IMU time + ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|x| x.parse::<f64>().ok())
+            .unwrap_or_else(|| panic!("{name}: no offset in the notes: {notes}"));
+        assert!(
+            (found - truth_s).abs() < 0.010,
+            "{name}: found {found} s, truth {truth_s} s: {s}"
+        );
+        assert!(s["sd_s"].as_f64().unwrap() < 0.05, "{name}: {s}");
+        assert_eq!(p["time_offset_estimated"], true, "{name}");
+        assert_eq!(
+            name == "unix",
+            notes.contains("Unix (UTC) seconds"),
+            "{notes}"
+        );
+        assert!(
+            rms(&p) <= 1.2 * rms(&reference),
+            "{name}: horizontal RMS {} m vs {} m on GPS time",
+            rms(&p),
+            rms(&reference)
+        );
+    }
+}
+
+#[test]
+fn imu_on_an_unknown_clock_on_a_straight_road_is_refused() {
+    let d = temp_dir("any-clock-straight");
+    let toml = d.join("straight.toml");
+    std::fs::write(
+        &toml,
+        "[[segments]]\nkind = \"static\"\nduration_s = 10\n\n[[segments]]\nkind = \"accelerate\"\nspeed_mps = 12\n\n\
+         [[segments]]\nkind = \"cruise\"\nduration_s = 110\n",
+    )
+    .unwrap();
+    let sim = simulate(&d, toml.to_str().unwrap(), "120");
+    let sensor = sheet(&d);
+    let csv = d.join("imu.csv");
+    rate_csv(&sim.join("imu.txt"), &csv, |t| t + 3600.0);
+    let err = process_rate_csv(&sim, &csv, &sensor, &d.join("o")).unwrap_err();
+    assert!(
+        err.contains("no turns")
+            && err.contains("Drive a few turns")
+            && err.contains("--imu-time-offset-s"),
+        "{err}"
+    );
+}

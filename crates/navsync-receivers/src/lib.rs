@@ -40,11 +40,11 @@ pub mod stream;
 #[cfg(feature = "test-bags")]
 pub mod testbag;
 #[cfg(feature = "test-bags")]
-pub mod testulog;
-#[cfg(feature = "test-bags")]
 pub mod testbag1;
 #[cfg(feature = "test-bags")]
 pub mod testdataflash;
+#[cfg(feature = "test-bags")]
+pub mod testulog;
 pub mod ubx;
 pub mod ubx_dr;
 pub mod ulog;

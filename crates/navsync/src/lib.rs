@@ -20,6 +20,7 @@ pub mod align;
 pub mod allan;
 pub mod array;
 pub mod attitude;
+pub mod clock_search;
 pub mod earth;
 pub mod error;
 pub mod eval;

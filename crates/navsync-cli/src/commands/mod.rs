@@ -2,6 +2,7 @@ pub mod args;
 pub mod array;
 pub mod batch;
 pub mod bench;
+pub mod clock;
 pub mod convert;
 pub mod demo;
 pub mod eval;

@@ -222,6 +222,8 @@ struct Data {
     /// Receiver headings `convert` wrote (dual-antenna NAV-RELPOSNED or NMEA HDT,
     /// NAV-PVT headVeh), for the alignment.
     heading: Option<PathBuf>,
+    /// The IMU clock's offset found from the motion (`clock_search`).
+    clock_search: Option<navsync::clock_search::ClockOffset>,
 }
 
 fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
@@ -274,6 +276,7 @@ fn sync_stage(rig: &Path, out: &Path, force: bool) -> Result<Data> {
         speed: None,
         // The log's `heading` records, when it has any.
         heading: Some(dir.join("heading.txt")).filter(|p| p.is_file()),
+        clock_search: None,
     })
 }
 
@@ -459,30 +462,53 @@ fn convert_stage(
     let is = span_of(&imu)?;
     let overlap = is.first_sow < gs.last_sow && gs.first_sow < is.last_sow;
     let mut software_timed = false;
-    if !overlap {
-        let receipt = receipt.as_ref().filter(|_| matches!(ik, FileKind::RateCsv));
-        let Some(receipt) = receipt else {
-            bail!(
-                "the IMU log's times ({:.3} … {:.3} s) and the GNSS fixes' GPS times of week ({:.3} … {:.3} s) \
-                 do not overlap: the IMU log is not on GPS time, and no receive times relate the two clocks. \
-                 Put the IMU on GPS time (`navsync convert --from rate-csv --imu-time-offset-s S`), or log both \
-                 streams with one clock in a rig log",
+    let mut clock_search = None;
+    let receipt = receipt.as_ref().filter(|_| matches!(ik, FileKind::RateCsv));
+    let offset_s = match receipt {
+        Some(receipt) if !overlap => {
+            let c0 = receipt_envelope(receipt)?;
+            let note = format!(
+                "IMU times are not GPS time: shifted by {c0:.6} s, the lower envelope of the fixes' \
+                 (GPS time of validity − receipt time) in {}; the remaining constant offset is estimated by the filter",
+                receipt.display()
+            );
+            println!("  {note}");
+            notes.push(note);
+            Some(c0)
+        }
+        // A rate CSV's clock is the logging host's: nothing relates it to
+        // GPS time, so the offset comes from the motion; when the times
+        // overlap the fixes', the motion checks them.
+        None if *ik == FileKind::RateCsv => {
+            println!(
+                "  IMU log {:.3} … {:.3} s, fixes' GPS times of week {:.3} … {:.3} s, no receive times: {}",
                 is.first_sow,
                 is.last_sow,
                 gs.first_sow,
-                gs.last_sow
+                gs.last_sow,
+                if overlap {
+                    "checking the IMU's clock against the motion"
+                } else {
+                    "no overlap, the offset from the motion"
+                }
             );
-        };
-        let c0 = receipt_envelope(receipt)?;
-        let note = format!(
-            "IMU times are not GPS time: shifted by {c0:.6} s, the lower envelope of the fixes' \
-             (GPS time of validity − receipt time) in {}; the remaining constant offset is estimated by the filter",
-            receipt.display()
-        );
-        println!("  {note}");
-        notes.push(note);
+            clock_offset(i, &imu, &gnss, overlap, &mut notes, &mut clock_search)?
+        }
+        _ if !overlap => bail!(
+            "the IMU log's times ({:.3} … {:.3} s) and the GNSS fixes' GPS times of week ({:.3} … {:.3} s) \
+             do not overlap: the IMU log is not on GPS time, and no receive times relate the two clocks. \
+             Put the IMU on GPS time (`navsync convert --from rate-csv --imu-time-offset-s S`), or log both \
+             streams with one clock in a rig log",
+            is.first_sow,
+            is.last_sow,
+            gs.first_sow,
+            gs.last_sow
+        ),
+        _ => None,
+    };
+    if let Some(offset_s) = offset_s {
         let o = ConvertOptions {
-            imu_time_offset_s: c0,
+            imu_time_offset_s: offset_s,
             ..opts
         };
         convert_one(i, *ik, &imu_dir, &o)?;
@@ -498,6 +524,7 @@ fn convert_stage(
         notes,
         speed,
         heading: Some(dir.join("gnss").join("heading.txt")).filter(|p| p.is_file()),
+        clock_search,
     })
 }
 
@@ -520,6 +547,51 @@ fn odometer_settings(
         o.sd_mps = sd;
     }
     Some(o)
+}
+
+/// The IMU clock's offset from the motion (`clock::find`): `Some` when
+/// the IMU is to be shifted. Times that overlap the fixes' stay when the
+/// offset found is zero within max(3σ, 10 ms), and stay with a warning
+/// note when the motion cannot tell; without overlap, no offset is an
+/// error that says what to do.
+fn clock_offset(
+    raw: &Path,
+    imu: &Path,
+    gnss: &Path,
+    overlap: bool,
+    notes: &mut Vec<String>,
+    search: &mut Option<navsync::clock_search::ClockOffset>,
+) -> Result<Option<f64>> {
+    match super::clock::find(raw, imu, gnss, !overlap) {
+        Ok(found) => {
+            for n in &found.notes {
+                println!("  {n}");
+            }
+            notes.extend(found.notes);
+            *search = Some(found.search.clone());
+            let zero = found.offset_s.abs() <= (3.0 * found.search.sd_s).max(0.010);
+            if overlap && zero {
+                let n = format!(
+                    "the IMU's times are GPS time within {:.4} s (offset found {:+.4} s): kept",
+                    (3.0 * found.search.sd_s).max(0.010),
+                    found.offset_s
+                );
+                println!("  {n}");
+                notes.push(n);
+                return Ok(None);
+            }
+            Ok(Some(found.offset_s))
+        }
+        Err(e) if overlap => {
+            let n = format!(
+                "the IMU's times overlap the fixes' and are taken for GPS time, unchecked: {e:#}"
+            );
+            eprintln!("navsync process: warning: {n}");
+            notes.push(n);
+            Ok(None)
+        }
+        Err(e) => Err(e),
+    }
 }
 
 /// c0 = max over fixes of (GPS sow of validity − receipt time), from a
@@ -769,6 +841,7 @@ pub fn run(a: Args) -> Result<()> {
         "report": report_written.then(|| html.display().to_string()),
         "eval": eval_json,
         "notes": notes,
+        "imu_clock_search": data.clock_search,
         "warnings": warnings,
     });
     let p = a.output.join("process.json");
