@@ -75,7 +75,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     .with_siblings_of_nav();
     let report = navsync_report::build(&inputs)?;
-    std::fs::write(&a.output, &report.html)
+    navsync::io::output::write_file(&a.output, &report.html)
         .with_context(|| format!("writing {}", a.output.display()))?;
     let scored = match &report.eval {
         Some(e) => format!("{} epochs scored, ", e.epochs_compared),

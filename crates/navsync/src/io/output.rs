@@ -228,8 +228,8 @@ impl Drop for AtomicFile {
 
 /// `std::fs::write` made whole-or-absent: `bytes` under a temporary name,
 /// renamed onto `path`.
-pub fn write_file(path: &Path, bytes: impl AsRef<[u8]>) -> Result<(), Error> {
-    let mut f = AtomicFile::create(path)?;
+pub fn write_file(path: impl AsRef<Path>, bytes: impl AsRef<[u8]>) -> Result<(), Error> {
+    let mut f = AtomicFile::create(path.as_ref())?;
     f.write(bytes.as_ref())?;
     f.commit()
 }
@@ -383,6 +383,33 @@ impl OutputDir {
             .map(|s| s.written.clone())
             .unwrap_or_default()
     }
+}
+
+/// The files this process has committed under `dir` inside a folder it
+/// holds ([`OutputDir`]), relative to `dir`, in order: what a run's
+/// `summary.json` lists (`process`'s `fuse/` is inside its folder).
+pub fn written_under(dir: &Path) -> Vec<String> {
+    let Ok(dir) = std::fs::canonicalize(dir) else {
+        return Vec::new();
+    };
+    let d = dirs();
+    let Some(s) = d.iter().find(|s| dir.starts_with(&s.root)) else {
+        return Vec::new();
+    };
+    let prefix = dir
+        .strip_prefix(&s.root)
+        .map(|p| p.to_string_lossy().replace('\\', "/"))
+        .unwrap_or_default();
+    s.written
+        .iter()
+        .filter_map(|f| {
+            if prefix.is_empty() {
+                Some(f.clone())
+            } else {
+                f.strip_prefix(&format!("{prefix}/")).map(str::to_string)
+            }
+        })
+        .collect()
 }
 
 impl Drop for OutputDir {
@@ -630,6 +657,7 @@ mod tests {
                 out.written(),
                 ["time_offset.txt", "forward/navresult.nav", "navresult.nav"]
             );
+            assert_eq!(written_under(&d.join("forward")), ["navresult.nav"]);
         }
         assert_eq!(
             names(&d),
