@@ -803,6 +803,8 @@ pub(crate) struct Gathered<'a> {
     pub summary: Option<&'a Value>,
     pub time_offset: Option<&'a [Vec<f64>]>,
     pub gaps: &'a [Gap],
+    /// [`crate::inputs::incomplete_solution`]'s finding.
+    pub incomplete: Option<String>,
 }
 
 pub(crate) fn evidence(g: Gathered) -> Evidence {
@@ -814,5 +816,6 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         time_offset_sd_s: g.time_offset.and_then(|r| r.last()).map(|r| r[2]),
         alignment: align_evidence(g.summary),
         worst_gap: worst_gap(g.gaps),
+        solution_incomplete: g.incomplete,
     }
 }
