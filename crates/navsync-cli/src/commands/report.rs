@@ -87,6 +87,14 @@ pub fn run(a: Args) -> Result<()> {
         a.output.display(),
         report.html.len() as f64 / 1e3
     );
+    if let Some(c) = report
+        .verdict
+        .checks
+        .iter()
+        .find(|c| c.name == "solution file")
+    {
+        eprintln!("navsync report: {}", c.finding);
+    }
     if !report.diagnostics.is_empty() {
         eprintln!("{} lines skipped:", report.diagnostics.total);
         print_diagnostics(&report.diagnostics, 10);
