@@ -619,7 +619,7 @@ impl Simulation {
         report.motion = motion;
 
         let config = self.kf_gins_config(&report, &gnss_spec, &sensor);
-        navsync::io::output::write_file(&dir.join("kf-gins.yaml"), config)?;
+        navsync::io::output::write_file(dir.join("kf-gins.yaml"), config)?;
         report.files = written;
         report.files.push("kf-gins.yaml".into());
         report.files.push("scenario.json".into());

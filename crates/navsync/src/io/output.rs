@@ -650,9 +650,9 @@ mod tests {
                 "{:?}",
                 out.notes()
             );
-            write_file(&d.join("time_offset.txt"), "t").unwrap();
-            write_file(&d.join("forward/navresult.nav"), "n").unwrap();
-            write_file(&d.join("navresult.nav"), "n").unwrap();
+            write_file(d.join("time_offset.txt"), "t").unwrap();
+            write_file(d.join("forward/navresult.nav"), "n").unwrap();
+            write_file(d.join("navresult.nav"), "n").unwrap();
             assert_eq!(
                 out.written(),
                 ["time_offset.txt", "forward/navresult.nav", "navresult.nav"]
@@ -673,7 +673,7 @@ mod tests {
         std::fs::write(d.join("kf-gins.yaml"), "k").unwrap();
         {
             let out = OutputDir::open(&d, "sync").unwrap();
-            write_file(&d.join("kf-gins.yaml"), "k2").unwrap();
+            write_file(d.join("kf-gins.yaml"), "k2").unwrap();
             assert!(out.notes().is_empty(), "{:?}", out.notes());
         }
         let out = OutputDir::open(&d, "fuse").unwrap();
@@ -682,7 +682,7 @@ mod tests {
             "{:?}",
             out.notes()
         );
-        write_file(&d.join("navresult.nav"), "n2").unwrap();
+        write_file(d.join("navresult.nav"), "n2").unwrap();
         assert!(!d.join("time_offset.txt").exists());
         assert!(d.join(".previous/time_offset.txt").exists());
         assert!(d.join(".previous/forward/navresult.nav").exists());
