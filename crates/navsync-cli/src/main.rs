@@ -4,6 +4,7 @@
 mod commands;
 mod procstat;
 mod progress;
+mod signals;
 
 use clap::{Parser, Subcommand};
 
@@ -76,6 +77,7 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
+    signals::install();
     let result = match cli.command {
         Command::Init(a) => commands::init::run(a),
         Command::Process(a) => commands::process::run(a),

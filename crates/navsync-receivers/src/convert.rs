@@ -355,7 +355,7 @@ pub fn convert_with_topics(
     }
     let path = out_dir.join("summary.json");
     let json = serde_json::to_string_pretty(&s).map_err(|e| Error::Invalid(e.to_string()))?;
-    std::fs::write(&path, json).map_err(|e| Error::io(&path, e))?;
+    navsync::io::output::write_file(&path, json)?;
     s.files.push(path.display().to_string());
     Ok(s)
 }

@@ -146,7 +146,7 @@ pub struct DemoOutcome {
 
 fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), Error> {
     let json = serde_json::to_string_pretty(v).map_err(|e| Error::Invalid(e.to_string()))?;
-    std::fs::write(path, json).map_err(|e| Error::io(path, e))
+    navsync::io::output::write_file(path, json)
 }
 
 /// The demo scenario with the options applied.
@@ -215,7 +215,7 @@ pub fn run_demo(
         ));
     };
     let report_path = opts.output.join("report.html");
-    std::fs::write(&report_path, &report.html).map_err(|e| Error::io(&report_path, e))?;
+    navsync::io::output::write_file(&report_path, &report.html)?;
     write_json(&opts.output.join("eval.json"), &eval)?;
     times.push(("report".into(), t_report.elapsed().as_secs_f64()));
     progress("report", 1.0);

@@ -106,7 +106,7 @@ pub fn process_drive(input: &Path, output: &Path, opts: &DriveOptions) -> DriveR
     let json = output.join("drive.json");
     if let (true, Ok(text)) = (output.is_dir(), serde_json::to_string_pretty(&row)) {
         // A row that cannot be saved is still returned.
-        let _ = std::fs::write(json, text);
+        let _ = navsync::io::output::write_file(json, text);
     }
     row
 }
@@ -125,7 +125,8 @@ fn run(input: &Path, output: &Path, opts: &DriveOptions, row: &mut DriveRow) -> 
             msg: "no kf-gins.yaml (a drive is rig.csv + kf-gins.yaml, or kf-gins.yaml with its IMU and GNSS files)".into(),
         });
     }
-    std::fs::create_dir_all(output).map_err(|e| Error::io(output, e))?;
+    // One writer per drive folder (navsync::io::output).
+    let _held = navsync::io::output::OutputDir::open(output, "batch")?;
     let rig = input.join("rig.csv");
     let mut notes = Diagnostics::default();
     let mut sync_report: Option<PathBuf> = None;
@@ -192,12 +193,12 @@ fn run(input: &Path, output: &Path, opts: &DriveOptions, row: &mut DriveRow) -> 
         row.outage_drift_rms_m = e.outage_rms_max_horizontal_m;
         let path = output.join("eval.json");
         let json = serde_json::to_string_pretty(e).map_err(|e| Error::Invalid(e.to_string()))?;
-        std::fs::write(&path, json).map_err(|e| Error::io(&path, e))?;
+        navsync::io::output::write_file(&path, json)?;
     }
     row.verdict = Some(report.verdict.grade.words().to_string());
     if opts.html {
         let path = output.join("report.html");
-        std::fs::write(&path, &report.html).map_err(|e| Error::io(&path, e))?;
+        navsync::io::output::write_file(&path, &report.html)?;
     }
     Ok(())
 }
@@ -223,6 +224,6 @@ pub fn fuse(
     sink.finish()?;
     let path = dir.join("summary.json");
     let json = serde_json::to_string_pretty(&summary).map_err(|e| Error::Invalid(e.to_string()))?;
-    std::fs::write(&path, json).map_err(|e| Error::io(&path, e))?;
+    navsync::io::output::write_file(&path, json)?;
     Ok(summary)
 }

@@ -9,8 +9,8 @@ use navsync::{Diagnostics, Error};
 
 use crate::inputs::{
     Epochs, FixWeight, IMU_ERR_LAYOUT, ReportInputs, STD_LAYOUT, TIME_OFFSET_LAYOUT,
-    read_fix_weights, read_gnss, read_solution, read_summary, read_sync_report, read_table, rel_s,
-    score,
+    incomplete_solution, read_fix_weights, read_gnss, read_solution, read_summary,
+    read_sync_report, read_table, rel_s, score,
 };
 use crate::plot::{
     self, AXES, BLUE, Band, Figure, GREY, Line, ORANGE, OUTAGE, PURPLE, Panel, RED, Shade,
@@ -577,6 +577,7 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         time_offset: offset.as_deref(),
         gaps: &gaps,
         written,
+        incomplete: incomplete_solution(&inp.nav, &ep, summary.as_ref()),
     }));
     let gap_shade = Shade {
         name: "GNSS gap or outage".into(),

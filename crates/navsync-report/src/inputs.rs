@@ -199,6 +199,43 @@ pub(crate) fn read_solution(nav: &Path, diag: &mut Diagnostics) -> Result<Epochs
     Ok(ep)
 }
 
+/// Why the solution `nav` (read into `ep`) is incomplete, if it is: its
+/// last line has no line end (cut by a crash or a full disk; the reader
+/// skipped it as a bad line), or it ends more than 1 s before the last
+/// solution summary.json's `end_sow` records (FORMATS.md: navresult.nav
+/// has a line per solution).
+pub(crate) fn incomplete_solution(
+    nav: &Path,
+    ep: &Epochs,
+    summary: Option<&serde_json::Value>,
+) -> Option<String> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::fs::File::open(nav).ok()?;
+    let len = f.metadata().ok()?.len();
+    let mut last = [0u8; 1];
+    if len > 0
+        && f.seek(SeekFrom::Start(len - 1)).is_ok()
+        && f.read_exact(&mut last).is_ok()
+        && last[0] != b'\n'
+    {
+        return Some(format!(
+            "{}: the last line is cut (no line end at byte {len}): the file is incomplete",
+            nav.display()
+        ));
+    }
+    let end_sow = summary?.get("end_sow")?.as_f64()?;
+    let end_rel = rel_s(end_sow, ep.t0_sow);
+    let nav_end = ep.t.last().copied().unwrap_or(f64::NEG_INFINITY);
+    (nav_end < end_rel - 1.0).then(|| {
+        format!(
+            "{} ends at {:.3} s of week, {:.1} s before the last solution summary.json records ({end_sow:.3}): the file is incomplete",
+            nav.display(),
+            ep.t0_sow + nav_end.max(0.0),
+            end_rel - nav_end
+        )
+    })
+}
+
 /// Reads a whitespace/comma table whose every record has exactly
 /// `columns` numbers; `layout` names the expected columns in messages.
 pub(crate) fn read_table(

@@ -193,6 +193,9 @@ pub(crate) struct Evidence {
     pub worst_gap: Option<(f64, f64)>,
     /// The written file against the fixes and the forward pass.
     pub written: Option<crate::written::WrittenEvidence>,
+    /// Why the solution file is incomplete (a cut last line, or it ends
+    /// before summary.json's last solution), if it is.
+    pub solution_incomplete: Option<String>,
 }
 
 /// Rejected fixes: a consistent filter gates at 99.99 % (or IGG-III k1 =
@@ -341,6 +344,14 @@ fn pct(x: f64) -> String {
 /// Weighs the evidence.
 pub(crate) fn assess(ev: &Evidence) -> Verdict {
     let mut checks = Vec::new();
+    if let Some(why) = &ev.solution_incomplete {
+        checks.push(Check {
+            name: "solution file",
+            grade: Some(Grade::Poor),
+            finding: why.clone(),
+            rule: "a solution cut short (an interrupted run, a full disk, an older navsync's leftovers) is no result: run again".into(),
+        });
+    }
     if let Some(f) = &ev.fixes
         && f.fixes > 0
     {

@@ -820,6 +820,8 @@ pub(crate) struct Gathered<'a> {
     pub time_offset: Option<&'a [Vec<f64>]>,
     pub gaps: &'a [Gap],
     pub written: Option<crate::written::WrittenEvidence>,
+    /// [`crate::inputs::incomplete_solution`]'s finding.
+    pub incomplete: Option<String>,
 }
 
 pub(crate) fn evidence(g: Gathered) -> Evidence {
@@ -832,5 +834,6 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         alignment: align_evidence(g.summary),
         worst_gap: worst_gap(g.gaps),
         written: g.written,
+        solution_incomplete: g.incomplete,
     }
 }

@@ -510,7 +510,7 @@ pub fn write_json(report: &McReport, dir: &Path) -> Result<PathBuf, Error> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let p = dir.join("montecarlo.json");
     let json = serde_json::to_string_pretty(report).map_err(|e| Error::Invalid(e.to_string()))?;
-    std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
+    navsync::io::output::write_file(&p, json)?;
     Ok(p)
 }
 

@@ -14,8 +14,6 @@
 //!   `imu_times_truth.txt`: the true time of each of its `imu` records;
 //! - `scenario.json`: every parameter and every drawn error.
 
-use std::fs::File;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::time::Instant;
@@ -621,8 +619,7 @@ impl Simulation {
         report.motion = motion;
 
         let config = self.kf_gins_config(&report, &gnss_spec, &sensor);
-        std::fs::write(dir.join("kf-gins.yaml"), config)
-            .map_err(|e| Error::io(&dir.join("kf-gins.yaml"), e))?;
+        navsync::io::output::write_file(dir.join("kf-gins.yaml"), config)?;
         report.files = written;
         report.files.push("kf-gins.yaml".into());
         report.files.push("scenario.json".into());
@@ -660,7 +657,7 @@ impl Simulation {
         });
         let path = dir.join("scenario.json");
         let text = serde_json::to_string_pretty(&doc).map_err(|e| Error::Invalid(e.to_string()))?;
-        std::fs::write(&path, text).map_err(|e| Error::io(&path, e))?;
+        navsync::io::output::write_file(&path, text)?;
         progress(1.0);
         Ok(report)
     }
@@ -963,7 +960,8 @@ impl Sink {
 
 /// A file written from a buffer that records are formatted into directly.
 struct Chunked {
-    file: File,
+    /// Whole or absent under its name (`navsync::io::output`).
+    file: navsync::io::output::AtomicFile,
     path: PathBuf,
     buf: Vec<u8>,
 }
@@ -972,7 +970,7 @@ const CHUNK: usize = 1 << 18;
 
 impl Chunked {
     fn create(path: PathBuf) -> Result<Self, Error> {
-        let file = File::create(&path).map_err(|e| Error::io(&path, e))?;
+        let file = navsync::io::output::AtomicFile::with_capacity(&path, 0)?;
         Ok(Chunked {
             file,
             path,
@@ -989,9 +987,7 @@ impl Chunked {
     }
 
     fn flush(&mut self) -> Result<(), Error> {
-        self.file
-            .write_all(&self.buf)
-            .map_err(|e| Error::io(&self.path, e))?;
+        self.file.write(&self.buf)?;
         self.buf.clear();
         Ok(())
     }
@@ -1158,8 +1154,8 @@ fn write_files(rx: Receiver<Vec<Out>>, mut f: Files) -> Result<Vec<String>, Erro
     all.extend(f.heading);
     for mut c in all {
         c.flush()?;
-        c.file.flush().map_err(|e| Error::io(&c.path, e))?;
         names.push(c.name());
+        c.file.commit()?;
     }
     Ok(names)
 }

@@ -51,7 +51,6 @@
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::error::Error;
 use crate::filter::dense::{self, Mat};
@@ -75,27 +74,15 @@ pub(crate) struct RecordFile {
 /// Records read or written at a time.
 const BLOCK_BYTES: usize = 1 << 20;
 
-static TEMP_COUNTER: AtomicUsize = AtomicUsize::new(0);
-
 impl RecordFile {
     /// A new, empty file of records of `record_len` values in `dir`.
     pub(crate) fn create(dir: &Path, tag: &str, record_len: usize) -> Result<Self, Error> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.subsec_nanos())
-            .unwrap_or(0);
-        let path = dir.join(format!(
-            ".navsync-{tag}-{}-{}-{nanos}.tmp",
-            std::process::id(),
-            TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        let file = File::options()
-            .read(true)
-            .write(true)
-            .create_new(true)
-            .open(&path)
-            .map_err(|e| Error::io(&path, e))?;
+        // `.navsync-<tag>.<pid>-<k>.tmp`, registered with the output
+        // registry (a signal handler removes it; a later run into the
+        // folder removes it once this process is dead).
+        let path = crate::io::output::temp_path(&dir.join(tag));
+        let file = crate::io::output::create_temp(&path, true)?;
         Ok(RecordFile {
             path,
             record_len,
@@ -178,7 +165,7 @@ impl Drop for RecordFile {
     fn drop(&mut self) {
         self.writer = None;
         self.reader = None;
-        let _ = std::fs::remove_file(&self.path);
+        crate::io::output::remove_temp(&self.path);
     }
 }
 

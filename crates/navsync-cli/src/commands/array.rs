@@ -230,7 +230,7 @@ pub fn run(args: Args) -> Result<()> {
         combined_imu: combined.display().to_string(),
         samples,
     };
-    std::fs::write(
+    navsync::io::output::write_file(
         args.output.join("array.json"),
         serde_json::to_string_pretty(&report)?,
     )?;

@@ -103,7 +103,7 @@ pub fn run(a: Args) -> Result<()> {
     let csv = a.output.join("batch.csv");
     write_csv(&csv, &rows)?;
     let json = a.output.join("batch.json");
-    std::fs::write(&json, serde_json::to_string_pretty(&rows)?)
+    navsync::io::output::write_file(&json, serde_json::to_string_pretty(&rows)?)
         .with_context(|| format!("writing {}", json.display()))?;
     print!("{}", table(&rows));
     let failed = rows.iter().filter(|r| !r.ok).count();
@@ -170,9 +170,7 @@ pub fn table(rows: &[DriveRow]) -> String {
 
 /// batch.csv: every field of the rows, full precision, a header naming units.
 fn write_csv(path: &Path, rows: &[DriveRow]) -> Result<()> {
-    let mut f = std::io::BufWriter::new(
-        std::fs::File::create(path).with_context(|| format!("writing {}", path.display()))?,
-    );
+    let mut f: Vec<u8> = Vec::new();
     let quote = |s: &str| {
         if s.contains([',', '"', '\n']) {
             format!("\"{}\"", s.replace('"', "\"\""))
@@ -216,6 +214,6 @@ fn write_csv(path: &Path, rows: &[DriveRow]) -> Result<()> {
             quote(r.error.as_deref().unwrap_or(""))
         )?;
     }
-    f.flush()?;
+    navsync::io::output::write_file(path, f)?;
     Ok(())
 }

@@ -174,6 +174,7 @@ pub fn run(a: Args) -> Result<()> {
     if a.default_sd.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
         anyhow::bail!("--default-sd: standard deviations must be positive");
     }
+    let _held = super::take_output(&a.output, "convert")?;
     let s = convert::convert_with_topics(format, &a.file, &a.output, &opts, &topics)?;
     for j in &s.time_jumps {
         eprintln!(

@@ -23,6 +23,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
+    let _held = super::take_output(&a.output, "demo")?;
     let opts = DemoOptions {
         output: a.output,
         duration_s: a.duration,

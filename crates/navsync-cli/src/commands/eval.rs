@@ -47,7 +47,7 @@ pub fn run(args: Args) -> Result<()> {
         if let (Some(f), Some(obj)) = (&forward, json.as_object_mut()) {
             obj.insert("forward".into(), serde_json::to_value(f)?);
         }
-        std::fs::write(p, serde_json::to_string_pretty(&json)?)
+        navsync::io::output::write_file(p, serde_json::to_string_pretty(&json)?)
             .with_context(|| format!("writing {}", p.display()))?;
     }
     if !diag.is_empty() {

@@ -121,7 +121,8 @@ pub fn run(a: Args) -> Result<()> {
     };
     let mut out = Vec::with_capacity(points.len() * 200);
     export::write(format, &points, &meta, &mut out);
-    std::fs::write(&output, &out).with_context(|| format!("writing {}", output.display()))?;
+    navsync::io::output::write_file(&output, &out)
+        .with_context(|| format!("writing {}", output.display()))?;
     let with_sd = points.iter().filter(|p| p.sd.is_some()).count();
     println!(
         "{}: {} epochs ({} with σ from {}) → {}",

@@ -519,6 +519,7 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!("configuration notes:");
         print_diagnostics(&diag, 20);
     }
+    let _held = super::take_output(&out_dir, "fuse")?;
     execute(&cfg, &opts, &out_dir)?;
     Ok(())
 }
@@ -553,9 +554,16 @@ pub fn execute(
     if let (Some(m), Some(obj)) = (crate::procstat::peak_rss_mb(), json.as_object_mut()) {
         obj.insert("peak_memory_mb".into(), m.into());
     }
+    // The files this run wrote (relative to the folder): an earlier run's
+    // others are in `.previous/` (navsync::io::output).
+    let mut files = navsync::io::output::written_under(out_dir);
+    files.push("summary.json".into());
+    if let Some(obj) = json.as_object_mut() {
+        obj.insert("files".into(), files.into());
+    }
     let json = serde_json::to_string_pretty(&json)?;
     let summary_path = out_dir.join("summary.json");
-    std::fs::write(&summary_path, json)
+    navsync::io::output::write_file(&summary_path, json)
         .with_context(|| format!("writing {}", summary_path.display()))?;
 
     let s = &summary.stats;

@@ -232,7 +232,7 @@ fn check(a: CheckArgs) -> Result<()> {
     print!("{}", format_check(&report, a.show));
     println!("(checked in {elapsed:.3} s)");
     if let Some(p) = &a.json {
-        std::fs::write(p, serde_json::to_string_pretty(&report)?)
+        navsync::io::output::write_file(p, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", p.display()))?;
     }
     if a.strict && report.verdict == Status::Fail {
@@ -595,7 +595,7 @@ fn rate_study(a: RateStudyArgs) -> Result<()> {
     }
     println!("(last column: drift change against the first rate)");
     if let Some(p) = &a.json {
-        std::fs::write(p, serde_json::to_string_pretty(&rows)?)
+        navsync::io::output::write_file(p, serde_json::to_string_pretty(&rows)?)
             .with_context(|| format!("writing {}", p.display()))?;
     }
     Ok(())

@@ -27,7 +27,8 @@ pub fn run(a: Args) -> Result<()> {
             a.output.display()
         );
     }
-    std::fs::write(&a.output, text).with_context(|| format!("writing {}", a.output.display()))?;
+    navsync::io::output::write_file(&a.output, text)
+        .with_context(|| format!("writing {}", a.output.display()))?;
     println!(
         "navsync init: wrote {} ({} figures). Edit the antenna lever arm and the IMU figures, then:\n  navsync process RAW... --sensor {} --output DIR",
         a.output.display(),

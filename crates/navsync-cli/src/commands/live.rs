@@ -289,9 +289,10 @@ pub fn run(args: Args) -> Result<()> {
     cfg.hdt_sd_deg = args.hdt_sd;
     cfg.record = args.record.clone();
     cfg.record_gnss = args.record_gnss.clone();
-    if let Some(dir) = &args.output {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
+    let _held = match &args.output {
+        Some(dir) => Some(super::take_output(dir, "live")?),
+        None => None,
+    };
     let mut sink = CliSink {
         file: args.output.as_deref().map(FileSink::new),
         print_every: (args.print_rate > 0.0)
@@ -327,7 +328,7 @@ pub fn run(args: Args) -> Result<()> {
     print_recorded(&report.recorded, &args);
     if let Some(dir) = &args.output {
         let p = dir.join("live_report.json");
-        std::fs::write(&p, serde_json::to_string_pretty(&report)?)
+        navsync::io::output::write_file(&p, serde_json::to_string_pretty(&report)?)
             .with_context(|| format!("writing {}", p.display()))?;
         println!(
             "  wrote {}/navresult.nav, imu_err.txt, std.txt, live_report.json",
@@ -460,7 +461,7 @@ fn run_selftest(args: &Args) -> Result<()> {
     );
     print_recorded(&r.live.recorded, args);
     if let Some(p) = &args.json {
-        std::fs::write(p, serde_json::to_string_pretty(&r)?)
+        navsync::io::output::write_file(p, serde_json::to_string_pretty(&r)?)
             .with_context(|| format!("writing {}", p.display()))?;
         println!("wrote {}", p.display());
     }

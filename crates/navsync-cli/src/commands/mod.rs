@@ -43,3 +43,19 @@ pub fn print_diagnostics(d: &navsync::Diagnostics, limit: usize) {
         eprintln!("  … and {} more (all in summary.json)", d.total - limit);
     }
 }
+
+/// Takes `dir` as this run's output folder (created if missing): its lock
+/// (a second writer refuses, naming this run), stale temporaries of
+/// earlier runs removed and an earlier run's files of `command` moved into
+/// `.previous/`, each said on stderr (`navsync::io::output`). Hold the
+/// result until the run is done.
+pub fn take_output(
+    dir: &std::path::Path,
+    command: &str,
+) -> anyhow::Result<navsync::io::output::OutputDir> {
+    let d = navsync::io::output::OutputDir::open(dir, command)?;
+    for n in d.notes() {
+        eprintln!("navsync: {n}");
+    }
+    Ok(d)
+}

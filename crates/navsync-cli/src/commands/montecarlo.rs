@@ -42,6 +42,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<()> {
+    let _held = super::take_output(&args.output, "montecarlo")?;
     let mut layer = base_layer(&args.scenario)?;
     if let Some(d) = args.duration {
         set_path(&mut layer, "duration_s", json!(d))?;

@@ -639,7 +639,8 @@ fn write_report(
     }
     .with_siblings_of_nav();
     let report = navsync_report::build(&inputs)?;
-    std::fs::write(html, &report.html).with_context(|| format!("writing {}", html.display()))?;
+    navsync::io::output::write_file(html, &report.html)
+        .with_context(|| format!("writing {}", html.display()))?;
     let scored = match &report.eval {
         Some(e) => format!("{} epochs scored", e.epochs_compared),
         None => "no reference".into(),
@@ -657,8 +658,7 @@ pub fn run(a: Args) -> Result<()> {
     // The sheet first: a typo should not cost a sync.
     let sheet = SensorSheet::load(&a.sensor)?;
     let fig = sheet.imu_figures(&a.sensor)?;
-    std::fs::create_dir_all(&a.output)
-        .with_context(|| format!("creating {}", a.output.display()))?;
+    let _held = super::take_output(&a.output, "process")?;
     println!("navsync process: inputs");
     let inp = classify(&a.raw)?;
     let data = match (&inp.rig, &inp.autopilot) {
@@ -845,7 +845,7 @@ pub fn run(a: Args) -> Result<()> {
         "warnings": warnings,
     });
     let p = a.output.join("process.json");
-    std::fs::write(&p, serde_json::to_string_pretty(&record)?)
+    navsync::io::output::write_file(&p, serde_json::to_string_pretty(&record)?)
         .with_context(|| format!("writing {}", p.display()))?;
     println!(
         "navsync process: done: {}/fuse/navresult.nav{}, process.json",

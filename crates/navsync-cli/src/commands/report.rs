@@ -89,7 +89,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     .with_siblings_of_nav();
     let report = navsync_report::build(&inputs)?;
-    std::fs::write(&a.output, &report.html)
+    navsync::io::output::write_file(&a.output, &report.html)
         .with_context(|| format!("writing {}", a.output.display()))?;
     let scored = match &report.eval {
         Some(e) => format!("{} epochs scored, ", e.epochs_compared),
@@ -101,6 +101,14 @@ pub fn run(a: Args) -> Result<()> {
         a.output.display(),
         report.html.len() as f64 / 1e3
     );
+    if let Some(c) = report
+        .verdict
+        .checks
+        .iter()
+        .find(|c| c.name == "solution file")
+    {
+        eprintln!("navsync report: {}", c.finding);
+    }
     if !report.diagnostics.is_empty() {
         eprintln!("{} lines skipped:", report.diagnostics.total);
         print_diagnostics(&report.diagnostics, 10);

@@ -334,6 +334,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let scn = scenario_from_args(&args)?;
     let out = args.output.clone().context("--output is required")?;
+    let _held = super::take_output(&out, "simulate")?;
     let sim = Simulation::new(scn)?;
     let argv: Vec<String> = std::env::args().collect();
     let pb = progress::bar("simulate");

@@ -111,6 +111,7 @@ pub fn run(args: Args) -> Result<()> {
     let (Some(rig), Some(out_dir)) = (&args.rig, &args.output) else {
         bail!("sync needs RIG.csv and --output DIR");
     };
+    let _held = super::take_output(out_dir, "sync")?;
     let cfg = SyncConfig {
         mode: match args.mode {
             Mode::Auto => SyncMode::Auto,

@@ -539,7 +539,8 @@ pub fn run(args: Args) -> Result<()> {
                 bf.map(|x| format!("{:.4}", x.1)).unwrap_or_default(),
             );
         }
-        std::fs::write(p, s).with_context(|| format!("writing {}", p.display()))?;
+        navsync::io::output::write_file(p, s)
+            .with_context(|| format!("writing {}", p.display()))?;
         println!("  wrote {}", p.display());
     }
     if let Some(p) = &args.svg {
@@ -572,7 +573,7 @@ pub fn run(args: Args) -> Result<()> {
             "threshold_three_sigma": t3,
             "threshold_slips": ts,
         });
-        std::fs::write(p, serde_json::to_string_pretty(&j)?)
+        navsync::io::output::write_file(p, serde_json::to_string_pretty(&j)?)
             .with_context(|| format!("writing {}", p.display()))?;
         println!("  wrote {}", p.display());
     }
@@ -596,7 +597,7 @@ pub fn run(args: Args) -> Result<()> {
                 x.t_s, x.phase_error_deg, x.bn_hz, x.cn0_est_dbhz, x.aiding_error_hz
             );
         }
-        std::fs::write(&v[1], s).with_context(|| format!("writing {}", v[1]))?;
+        navsync::io::output::write_file(&v[1], s).with_context(|| format!("writing {}", v[1]))?;
         println!("  wrote {} (time series at {cn0} dB-Hz)", v[1]);
     }
     Ok(())

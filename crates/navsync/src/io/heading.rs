@@ -188,7 +188,7 @@ pub fn write_headings(path: &Path, obs: &[HeadingObs]) -> Result<(), Error> {
     for o in obs {
         s.push_str(&heading_line(o));
     }
-    std::fs::write(path, s).map_err(|e| Error::io(path, e))
+    super::output::write_file(path, s)
 }
 
 /// The first line of a heading file navsync writes.

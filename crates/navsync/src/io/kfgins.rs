@@ -10,7 +10,6 @@
 #![warn(missing_docs)]
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use nalgebra::Vector3;
@@ -609,32 +608,31 @@ pub fn format_gnss_line(out: &mut Vec<u8>, fix: &GnssFix) {
     out.push(b'\n');
 }
 
-/// A buffered text writer that reports errors with the file name.
+/// A buffered text writer that reports errors with the file name; the file
+/// appears under its name only when [`TextWriter::finish`] succeeds (an
+/// [`AtomicFile`](super::output::AtomicFile): dropped unfinished, it
+/// leaves nothing).
 pub struct TextWriter {
-    inner: BufWriter<File>,
-    path: std::path::PathBuf,
+    inner: super::output::AtomicFile,
 }
 
 impl TextWriter {
-    /// Creates (or truncates) the file.
+    /// Starts the file (replacing an existing one when finished).
     pub fn create(path: &Path) -> Result<Self, Error> {
-        let file = File::create(path).map_err(|e| Error::io(path, e))?;
         Ok(TextWriter {
-            inner: BufWriter::with_capacity(1 << 20, file),
-            path: path.to_path_buf(),
+            inner: super::output::AtomicFile::with_capacity(path, 1 << 20)?,
         })
     }
 
     /// Appends bytes (buffered).
     pub fn write(&mut self, bytes: &[u8]) -> Result<(), Error> {
-        self.inner
-            .write_all(bytes)
-            .map_err(|e| Error::io(&self.path, e))
+        self.inner.write(bytes)
     }
 
-    /// Flushes the buffer; an error names the file.
-    pub fn finish(mut self) -> Result<(), Error> {
-        self.inner.flush().map_err(|e| Error::io(&self.path, e))
+    /// Flushes the buffer and puts the file under its name; an error names
+    /// the file.
+    pub fn finish(self) -> Result<(), Error> {
+        self.inner.commit()
     }
 }
 

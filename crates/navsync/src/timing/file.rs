@@ -287,7 +287,7 @@ pub fn sync_file(
     report.truth = acc.map(|a| a.finish());
     let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Invalid(e.to_string()))?;
     let rp = out_dir.join("sync_report.json");
-    std::fs::write(&rp, json).map_err(|e| Error::io(&rp, e))?;
+    crate::io::output::write_file(&rp, json)?;
     Ok(SyncSummary {
         report,
         read_diag,
@@ -317,7 +317,7 @@ pub fn write_kfgins_config(template: &Path, out_dir: &Path, r: &SyncReport) -> R
         out.push('\n');
     }
     let p = out_dir.join("kf-gins.yaml");
-    std::fs::write(&p, out).map_err(|e| Error::io(&p, e))
+    crate::io::output::write_file(&p, out)
 }
 
 /// A KF-GINS IMU line, like `io::kfgins::format_imu_line` (every bit kept:
