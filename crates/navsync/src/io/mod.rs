@@ -6,6 +6,7 @@ pub mod config;
 pub mod export;
 pub mod heading;
 pub mod kfgins;
+pub mod plausible;
 pub mod riglog;
 pub mod rtklib;
 pub mod speed;
