@@ -372,8 +372,18 @@ impl Recorder {
         let mut failures = 0usize;
         for k in (0..count - 1).rev() {
             let (node, nominal) = self.read_node(k)?;
-            let (step, ok) = rts_step(&node.p_plus, &next_node, &next);
+            let (mut step, ok) = rts_step(&node.p_plus, &next_node, &next);
             failures += usize::from(!ok);
+            // NaN guard: a step that is not finite restarts the recursion
+            // from the forward estimate here (counted as a failure), so
+            // nothing non-finite is carried back.
+            if !step_is_finite(&step) {
+                failures += usize::from(ok);
+                step = BackwardStep {
+                    e: vec![0.0; n],
+                    p: node.p_plus.clone(),
+                };
+            }
             write_result(&mut out, &node, &step, &nominal)?;
             next = step;
             next_node = node;
@@ -387,6 +397,11 @@ impl Recorder {
             failures,
         })
     }
+}
+
+/// True when the smoothed error and its variances are finite.
+fn step_is_finite(s: &BackwardStep) -> bool {
+    s.e.iter().all(|v| v.is_finite()) && (0..s.e.len()).all(|i| s.p.get(i, i).is_finite())
 }
 
 /// The smoothed error of a node's corrected nominal and its covariance.
