@@ -13,7 +13,7 @@
 #![warn(missing_docs)]
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Read, Write};
 use std::path::Path;
 
 use nalgebra::Vector3;
@@ -34,8 +34,8 @@ const IMU_MAX_STEP_S: f64 = 0.05;
 const FIX_MAX_STEP_S: f64 = 1.5;
 
 /// Reads a KF-GINS IMU file: `sow dθx dθy dθz dvx dvy dvz [odo_speed]`.
-pub struct ImuReader {
-    lines: LineReader<File>,
+pub struct ImuReader<R = File> {
+    lines: LineReader<R>,
     path: std::path::PathBuf,
     weeks: WeekTracker,
     guard: TimeGuard<ImuSample>,
@@ -45,13 +45,24 @@ pub struct ImuReader {
 impl ImuReader {
     /// Opens `path`; times are placed in GPS week `week` (0 when unknown).
     pub fn open(path: &Path, week: i64) -> Result<Self, Error> {
-        Ok(ImuReader {
-            lines: LineReader::open(path)?,
-            path: path.to_path_buf(),
+        Ok(Self::with_lines(LineReader::open(path)?, week))
+    }
+}
+
+impl<R: Read> ImuReader<R> {
+    /// Reads from `reader`, reported as `path`.
+    pub fn from_reader(reader: R, path: &Path, week: i64) -> Self {
+        Self::with_lines(LineReader::new(reader, path), week)
+    }
+
+    fn with_lines(lines: LineReader<R>, week: i64) -> Self {
+        ImuReader {
+            path: lines.path().to_path_buf(),
+            lines,
             weeks: WeekTracker::new(week),
             guard: TimeGuard::new(IMU_MAX_STEP_S),
             count: 0,
-        })
+        }
     }
 
     /// The file being read.
@@ -182,8 +193,8 @@ pub enum GnssLayout {
 }
 
 /// Reads a KF-GINS GNSS file of 7 or 13 columns.
-pub struct GnssReader {
-    lines: LineReader<File>,
+pub struct GnssReader<R = File> {
+    lines: LineReader<R>,
     path: std::path::PathBuf,
     layout: GnssLayout,
     weeks: WeekTracker,
@@ -197,15 +208,26 @@ pub struct GnssReader {
 impl GnssReader {
     /// Opens a KF-GINS GNSS file of this layout; `week` dates its seconds of week.
     pub fn open(path: &Path, week: i64, layout: GnssLayout) -> Result<Self, Error> {
-        Ok(GnssReader {
-            lines: LineReader::open(path)?,
-            path: path.to_path_buf(),
+        Ok(Self::with_lines(LineReader::open(path)?, week, layout))
+    }
+}
+
+impl<R: Read> GnssReader<R> {
+    /// Reads from `reader`, reported as `path`.
+    pub fn from_reader(reader: R, path: &Path, week: i64, layout: GnssLayout) -> Self {
+        Self::with_lines(LineReader::new(reader, path), week, layout)
+    }
+
+    fn with_lines(lines: LineReader<R>, week: i64, layout: GnssLayout) -> Self {
+        GnssReader {
+            path: lines.path().to_path_buf(),
+            lines,
             layout,
             weeks: WeekTracker::new(week),
             guard: TimeGuard::new(FIX_MAX_STEP_S),
             count: 0,
             sd_floor: None,
-        })
+        }
     }
 
     /// The file being read.
@@ -376,8 +398,8 @@ pub struct NavRecord {
 }
 
 /// Streams an 11-column navigation file (result or truth).
-pub struct NavReader {
-    lines: LineReader<File>,
+pub struct NavReader<R = File> {
+    lines: LineReader<R>,
     path: std::path::PathBuf,
     guard: TimeGuard<NavRecord>,
     count: usize,
@@ -388,13 +410,34 @@ pub struct NavReader {
 impl NavReader {
     /// Opens a KF-GINS navigation result (`.nav`).
     pub fn open(path: &Path) -> Result<Self, Error> {
-        Ok(NavReader {
-            lines: LineReader::open(path)?,
-            path: path.to_path_buf(),
+        Ok(Self::with_lines(LineReader::open(path)?))
+    }
+
+    /// Reads the whole file (for truth files that are interpolated).
+    pub fn read_all(path: &Path, diag: &mut Diagnostics) -> Result<Vec<NavRecord>, Error> {
+        let mut r = NavReader::open(path)?;
+        let mut out = Vec::new();
+        while let Some(rec) = r.next_record(diag)? {
+            out.push(rec);
+        }
+        Ok(out)
+    }
+}
+
+impl<R: Read> NavReader<R> {
+    /// Reads from `reader`, reported as `path`.
+    pub fn from_reader(reader: R, path: &Path) -> Self {
+        Self::with_lines(LineReader::new(reader, path))
+    }
+
+    fn with_lines(lines: LineReader<R>) -> Self {
+        NavReader {
+            path: lines.path().to_path_buf(),
+            lines,
             guard: TimeGuard::new(FIX_MAX_STEP_S),
             count: 0,
             weeks: WeekTracker::new(0),
-        })
+        }
     }
 
     /// The file being read.
@@ -526,16 +569,6 @@ impl NavReader {
                 line: line_no,
             }));
         }
-    }
-
-    /// Reads the whole file (for truth files that are interpolated).
-    pub fn read_all(path: &Path, diag: &mut Diagnostics) -> Result<Vec<NavRecord>, Error> {
-        let mut r = NavReader::open(path)?;
-        let mut out = Vec::new();
-        while let Some(rec) = r.next_record(diag)? {
-            out.push(rec);
-        }
-        Ok(out)
     }
 }
 
