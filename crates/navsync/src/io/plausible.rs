@@ -50,12 +50,12 @@ pub fn rate_problem(gyro: &Vector3<f64>, accel: &Vector3<f64>) -> Option<String>
         }
     };
     let (w, f) = (max_abs(gyro), max_abs(accel));
-    if !(w <= MAX_RATE_RAD_S) {
+    if w.is_nan() || w > MAX_RATE_RAD_S {
         return Some(format!(
             "angular rate {w:e} rad/s exceeds the plausible {MAX_RATE_RAD_S} rad/s"
         ));
     }
-    if !(f <= MAX_ACCEL_MPS2) {
+    if f.is_nan() || f > MAX_ACCEL_MPS2 {
         return Some(format!(
             "specific force {f:e} m/s² exceeds the plausible {MAX_ACCEL_MPS2} m/s²"
         ));
@@ -67,7 +67,7 @@ pub fn rate_problem(gyro: &Vector3<f64>, accel: &Vector3<f64>) -> Option<String>
 /// −180° ≤ lon ≤ 360° (0…360° is a common notation), height within
 /// [`MIN_HEIGHT_M`] … [`MAX_HEIGHT_M`].
 pub fn position_problem(lat_deg: f64, lon_deg: f64, h_m: f64) -> Option<String> {
-    if !(lat_deg.abs() <= 90.0) || !((-180.0..=360.0).contains(&lon_deg)) {
+    if !(-90.0..=90.0).contains(&lat_deg) || !(-180.0..=360.0).contains(&lon_deg) {
         return Some(format!(
             "latitude {}° / longitude {}° is not on the earth",
             short(lat_deg),
@@ -95,7 +95,7 @@ fn short(x: f64) -> String {
 /// Why a velocity (m/s) is implausible, if it is.
 pub fn velocity_problem(vel: &[f64; 3]) -> Option<String> {
     let v = vel.iter().map(|x| x * x).sum::<f64>().sqrt();
-    (!(v <= MAX_SPEED_MPS))
+    (v.is_nan() || v > MAX_SPEED_MPS)
         .then(|| format!("speed {v:e} m/s exceeds the plausible {MAX_SPEED_MPS} m/s"))
 }
 

@@ -253,7 +253,7 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
             b'e' | b'E' => {
                 let _ = k;
                 let v = parse_f64(field)?;
-                if !(v.abs() <= MAX_TIME_S) {
+                if v.abs() > MAX_TIME_S {
                     return Err(format!("time {v:e} s is beyond {MAX_TIME_S:e} s"));
                 }
                 return Ok(crate::time::seconds_to_ns(v));
