@@ -51,7 +51,11 @@ fuzz_target!(|data: &[u8]| {
     let mut last = None;
     while let Ok(Some(f)) = r.next_fix(&mut d) {
         assert!(f.pos.lat_rad.is_finite() && f.pos.lon_rad.is_finite() && f.pos.h_m.is_finite());
-        assert!(f.pos_sd.iter().all(|s| s.is_finite() && *s > 0.0), "{:?}", f.pos_sd);
+        assert!(
+            f.pos_sd.iter().all(|s| s.is_finite() && *s > 0.0),
+            "{:?}",
+            f.pos_sd
+        );
         if let (Some(v), Some(s)) = (f.vel, f.vel_sd) {
             assert!(v.iter().chain(s.iter()).all(|x| x.is_finite()));
         }

@@ -56,6 +56,16 @@ pub enum Error {
         /// Which check failed.
         msg: String,
     },
+    /// The navigation state or its covariance broke down (a value not
+    /// finite, off the earth, a variance not positive): the run stops
+    /// rather than write it.
+    #[error("the navigation solution broke down at GPS time {time}: {msg}")]
+    Diverged {
+        /// GPS time of the IMU epoch at which it broke.
+        time: crate::time::GpsTime,
+        /// What broke, and the IMU record that was being processed.
+        msg: String,
+    },
     /// Inconsistent options or arguments; holds the message.
     #[error("{0}")]
     Invalid(String),

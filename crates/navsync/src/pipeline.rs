@@ -794,7 +794,7 @@ impl Producer for ImuBatches {
 
 /// The GNSS file of a run, in the format the options name.
 enum GnssInput {
-    Kfgins(GnssReader),
+    Kfgins(Box<GnssReader>),
     Rtklib(Box<crate::io::rtklib::PosReader>),
 }
 
@@ -810,7 +810,7 @@ impl GnssInput {
                 };
                 let mut r = GnssReader::open(path, opts.week, layout)?;
                 r.sd_floor = opts.gnss_sd_floor;
-                GnssInput::Kfgins(r)
+                GnssInput::Kfgins(Box::new(r))
             }
             GnssFormat::Rtklib => {
                 let mut r = PosReader::open(path, opts.week)?;

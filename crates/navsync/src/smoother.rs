@@ -371,8 +371,18 @@ impl Recorder {
                 this: nominal.yaw_held.then_some(yaw),
                 next: next_held.then_some(yaw),
             };
-            let (step, ok) = rts_step(&node.p_plus, &next_node, &next, held);
+            let (mut step, ok) = rts_step(&node.p_plus, &next_node, &next, held);
             failures += usize::from(!ok);
+            // NaN guard: a step that is not finite restarts the recursion
+            // from the forward estimate here (counted as a failure), so
+            // nothing non-finite is carried back.
+            if !step_is_finite(&step) {
+                failures += usize::from(ok);
+                step = BackwardStep {
+                    e: vec![0.0; n],
+                    p: node.p_plus.clone(),
+                };
+            }
             write_result(&mut out, &node, &step, &nominal)?;
             next = step;
             next_node = node;
@@ -388,6 +398,11 @@ impl Recorder {
             yaw_turn: None,
         })
     }
+}
+
+/// True when the smoothed error and its variances are finite.
+fn step_is_finite(s: &BackwardStep) -> bool {
+    s.e.iter().all(|v| v.is_finite()) && (0..s.e.len()).all(|i| s.p.get(i, i).is_finite())
 }
 
 /// The smoothed error of a node's corrected nominal and its covariance.

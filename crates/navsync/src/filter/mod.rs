@@ -747,6 +747,17 @@ impl ErrorStateFilter {
         })
     }
 
+    /// Why the variances are unusable, if they are: one not finite or
+    /// negative, or a navigation state's (position, velocity, attitude)
+    /// not positive. A cheap check (the diagonal) for every epoch.
+    pub(crate) fn variance_problem(&self) -> Option<String> {
+        (0..self.n).find_map(|i| {
+            let d = self.p.get(i, i);
+            let ok = d.is_finite() && (d > 0.0 || (i >= 9 && d == 0.0));
+            (!ok).then(|| format!("variance of state {i} is {d:e}"))
+        })
+    }
+
     /// Errors unless P is finite, symmetric by construction and positive
     /// definite (Cholesky succeeds after the tiniest relative jitter).
     pub(crate) fn check_covariance(&self, time: GpsTime) -> Result<(), Error> {

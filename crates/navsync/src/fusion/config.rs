@@ -512,6 +512,9 @@ pub struct FusionStats {
     pub gap_total_s: f64,
     /// Longest gap (s).
     pub max_gap_s: f64,
+    /// Gaps with GNSS going on after which the navigation state was
+    /// re-initialised from the fixes (`fusion/gap.rs`).
+    pub gap_reinits: usize,
     pub(crate) covariance_propagations: usize,
     pub(crate) time_offset_held_updates: usize,
     /// Times the time-offset estimate left its search range (± the coarse

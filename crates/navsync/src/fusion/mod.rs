@@ -56,6 +56,7 @@ use crate::time::GpsTime;
 mod aid;
 mod config;
 pub mod course_heading;
+mod gap;
 mod latency;
 #[cfg(test)]
 mod tests;
@@ -364,6 +365,18 @@ impl Core {
         let mut dtheta = sample.dtheta;
         let mut dvel = sample.dvel;
         if dt > self.cfg.gap_factor * self.nominal_dt {
+            if dt >= gap::REINIT_GAP_S && self.reinit_after_gap(sample.time, dt) {
+                self.nav.time = sample.time;
+                self.last_time = sample.time;
+                self.stats.imu_samples += 1;
+                if let Some(why) = state_problem(&self.nav) {
+                    return Err(breakdown(sample, why));
+                }
+                return Ok(Some(NavOutput {
+                    nav: self.nav,
+                    imu: self.imu,
+                }));
+            }
             self.handle_gap(dt, &mut dtheta, &mut dvel);
         }
         if let Some(speed) = sample.odo_speed {
@@ -409,6 +422,12 @@ impl Core {
         if self.filter.pending_dt() >= self.cfg.cov_step_s {
             self.propagate();
             self.stats.covariance_propagations += 1;
+            if let Some(why) = self.filter.variance_problem() {
+                return Err(breakdown(sample, why));
+            }
+        }
+        if let Some(why) = state_problem(&self.nav) {
+            return Err(breakdown(sample, why));
         }
         Ok(Some(NavOutput {
             nav: self.nav,
@@ -806,5 +825,48 @@ impl Fusion {
             rec.push_nav(&o.nav)?;
         }
         Ok(out)
+    }
+}
+
+/// Why the navigation state is broken, if it is: a value not finite, a
+/// latitude beyond ±90°, a height beyond −100 km … 10 000 km or a speed
+/// above 10 km/s (far outside the input limits of `crate::io::plausible`:
+/// a state there has diverged).
+fn state_problem(nav: &NavState) -> Option<String> {
+    let p = &nav.pos;
+    let finite = p.lat_rad.is_finite()
+        && p.lon_rad.is_finite()
+        && p.h_m.is_finite()
+        && nav.vel.iter().all(|v| v.is_finite())
+        && nav.q_nb.coords.iter().all(|v| v.is_finite());
+    if !finite {
+        return Some("position, velocity or attitude is not finite".into());
+    }
+    if p.lat_rad.abs() > std::f64::consts::FRAC_PI_2 || !(-1e5..=1e7).contains(&p.h_m) {
+        return Some(format!(
+            "position latitude {:e}° height {:e} m is off the earth",
+            p.lat_rad.to_degrees(),
+            p.h_m
+        ));
+    }
+    let v = nav.vel.norm();
+    (v > 1e4).then(|| format!("speed {v:e} m/s"))
+}
+
+/// The error for a breakdown while processing `sample`, naming the record.
+fn breakdown(sample: &ImuSample, why: String) -> Error {
+    Error::Diverged {
+        time: sample.time,
+        msg: format!(
+            "{why}, after the IMU record at sow {:.6} (dtheta {:e} {:e} {:e} rad, dvel {:e} {:e} {:e} m/s); \
+             stopped rather than write it: check that record and the ones before it",
+            sample.time.sow(),
+            sample.dtheta.x,
+            sample.dtheta.y,
+            sample.dtheta.z,
+            sample.dvel.x,
+            sample.dvel.y,
+            sample.dvel.z
+        ),
     }
 }

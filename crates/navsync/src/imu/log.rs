@@ -389,6 +389,16 @@ impl ImuLogReader {
             }
         };
         rec.line = line_no;
+        // Plausibility (`crate::io::plausible`): rates, or increments over
+        // at most 1 s, within the limits of any sensor.
+        let v = &rec.values;
+        if let Some(why) = crate::io::plausible::rate_problem(
+            &nalgebra::Vector3::new(v[0], v[1], v[2]),
+            &nalgebra::Vector3::new(v[3], v[4], v[5]),
+        ) {
+            self.bad(diag, line_no, format!("{why}; line skipped"));
+            return Ok(false);
+        }
         if self.n_fields.is_none() {
             self.n_fields = nf;
         }
@@ -803,11 +813,12 @@ mod tests {
         s.push_str("100.410,0.01,0.02\n");
         s.push_str("100.420,0.01,0.02,nan,0.1,0.2,-9.8\n");
         s.push_str("1O0.430,0.01,0.02,0.03,0.1,0.2,-9.8\n");
+        s.push_str("100.435,1e20,0.02,0.03,0.1,0.2,-9.8\n");
         s.push_str(&rate_lines(5, 100.44));
         let p = temp_file("bad.csv", &s);
         let (recs, d) = read_all(&p, Some(ImuLogFormat::RateCsv));
         assert_eq!(recs.unwrap().len(), 45);
-        assert_eq!(d.total, 4);
+        assert_eq!(d.total, 5);
         let m: Vec<String> = d.items.iter().map(|x| x.to_string()).collect();
         assert!(
             m[0].contains("bad.csv:41: field 3: 'x' is not a number"),
@@ -821,6 +832,11 @@ mod tests {
             m[2]
         );
         assert!(m[3].contains("bad.csv:44: field 1 (time)"), "{}", m[3]);
+        assert!(
+            m[4].contains("bad.csv:45: angular rate 1e20 rad/s"),
+            "{}",
+            m[4]
+        );
     }
 
     #[test]

@@ -5,43 +5,64 @@
 //!
 //! Readers stream (one record at a time) and report, then skip, any record
 //! that is bad on its own: too few fields, a field that is not a finite
-//! number, a time that goes backwards or repeats, a GNSS standard deviation
-//! that is not positive. An empty file is an error.
+//! number, a value no sensor or vehicle produces (`super::plausible`: rates
+//! implied by the increments, positions off the earth, speeds), a time that
+//! goes backwards or repeats, or jumps and is not confirmed by the next
+//! line, a GNSS standard deviation that is not positive. An empty file is
+//! an error.
 #![warn(missing_docs)]
 
 use std::fs::File;
+use std::io::Read;
 use std::path::Path;
 
 use nalgebra::Vector3;
 
+use super::plausible::{TimeGuard, Timed, increment_problem, position_problem, velocity_problem};
 use super::text::{
     LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, push_fixed, split_fields,
-    time_order_problem,
 };
 use crate::earth::Geodetic;
 use crate::error::{Diagnostics, Error};
 use crate::time::{GpsTime, WeekTracker};
 use crate::types::{GnssFix, ImuErrors, ImuSample};
 
+/// Steps of an IMU file kept at once (s); a longer one waits for the next
+/// line to confirm it ([`TimeGuard`]).
+const IMU_MAX_STEP_S: f64 = 0.05;
+/// Steps of a GNSS, navigation or truth file kept at once (s).
+const FIX_MAX_STEP_S: f64 = 1.5;
+
 /// Reads a KF-GINS IMU file: `sow dθx dθy dθz dvx dvy dvz [odo_speed]`.
-pub struct ImuReader {
-    lines: LineReader<File>,
+pub struct ImuReader<R = File> {
+    lines: LineReader<R>,
     path: std::path::PathBuf,
     weeks: WeekTracker,
-    last: Option<GpsTime>,
+    guard: TimeGuard<ImuSample>,
     count: usize,
 }
 
 impl ImuReader {
     /// Opens `path`; times are placed in GPS week `week` (0 when unknown).
     pub fn open(path: &Path, week: i64) -> Result<Self, Error> {
-        Ok(ImuReader {
-            lines: LineReader::open(path)?,
-            path: path.to_path_buf(),
+        Ok(Self::with_lines(LineReader::open(path)?, week))
+    }
+}
+
+impl<R: Read> ImuReader<R> {
+    /// Reads from `reader`, reported as `path`.
+    pub fn from_reader(reader: R, path: &Path, week: i64) -> Self {
+        Self::with_lines(LineReader::new(reader, path), week)
+    }
+
+    fn with_lines(lines: LineReader<R>, week: i64) -> Self {
+        ImuReader {
+            path: lines.path().to_path_buf(),
+            lines,
             weeks: WeekTracker::new(week),
-            last: None,
+            guard: TimeGuard::new(IMU_MAX_STEP_S),
             count: 0,
-        })
+        }
     }
 
     /// The file being read.
@@ -54,18 +75,39 @@ impl ImuReader {
         self.count
     }
 
-    /// The next good record; bad records are reported into `diag` and
+    /// The next good record; bad records (unreadable, implausible, a time
+    /// out of order or an unconfirmed jump) are reported into `diag` and
     /// skipped. Errors at the end of an empty file.
     pub fn next_sample(&mut self, diag: &mut Diagnostics) -> Result<Option<ImuSample>, Error> {
         loop {
+            let kept = if let Some(r) = self.guard.take_ready() {
+                r
+            } else if let Some(c) = self.parse_next(diag)? {
+                match self.guard.offer(c, &self.path, diag) {
+                    Some(r) => r,
+                    None => continue,
+                }
+            } else if let Some(r) = self.guard.finish(&self.path, diag) {
+                r
+            } else if self.count == 0 {
+                return Err(Error::NoData {
+                    path: self.path.clone(),
+                    msg: "no IMU records (expected lines of `sow dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z`)".into(),
+                });
+            } else {
+                return Ok(None);
+            };
+            self.weeks.resolve(kept.ns);
+            self.count += 1;
+            return Ok(Some(kept.rec));
+        }
+    }
+
+    /// The next line that parses and is plausible on its own.
+    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<ImuSample>>, Error> {
+        loop {
             let mut f: [&[u8]; 8] = [b""; 8];
             let Some((line, line_no)) = self.lines.next_line()? else {
-                if self.count == 0 {
-                    return Err(Error::NoData {
-                        path: self.path.clone(),
-                        msg: "no IMU records (expected lines of `sow dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z`)".into(),
-                    });
-                }
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
@@ -107,18 +149,33 @@ impl ImuReader {
                 continue;
             }
             let time = self.weeks.peek(ns);
-            if let Some(why) = time_order_problem(self.last, time) {
+            let dtheta = Vector3::new(vals[0], vals[1], vals[2]);
+            let dvel = Vector3::new(vals[3], vals[4], vals[5]);
+            // The interval since the last kept sample; 1 s for the first
+            // (and for one out of order: the guard reports its time).
+            let dt_s = match self.guard.last() {
+                Some(l) if time > l => time.seconds_since(l),
+                _ => 1.0,
+            };
+            let odo_speed = (nf >= 8).then_some(vals[6]);
+            let why = increment_problem(&dtheta, &dvel, dt_s).or_else(|| {
+                odo_speed
+                    .and_then(|v| velocity_problem(&[v, 0.0, 0.0]).map(|w| format!("odometer {w}")))
+            });
+            if let Some(why) = why {
                 diag.push(&self.path, line_no, format!("{why}; line skipped"));
                 continue;
             }
-            let time = self.weeks.resolve(ns);
-            self.last = Some(time);
-            self.count += 1;
-            return Ok(Some(ImuSample {
+            return Ok(Some(Timed {
+                rec: ImuSample {
+                    time,
+                    dtheta,
+                    dvel,
+                    odo_speed,
+                },
+                ns,
                 time,
-                dtheta: Vector3::new(vals[0], vals[1], vals[2]),
-                dvel: Vector3::new(vals[3], vals[4], vals[5]),
-                odo_speed: (nf >= 8).then_some(vals[6]),
+                line: line_no,
             }));
         }
     }
@@ -136,12 +193,12 @@ pub enum GnssLayout {
 }
 
 /// Reads a KF-GINS GNSS file of 7 or 13 columns.
-pub struct GnssReader {
-    lines: LineReader<File>,
+pub struct GnssReader<R = File> {
+    lines: LineReader<R>,
     path: std::path::PathBuf,
     layout: GnssLayout,
     weeks: WeekTracker,
-    last: Option<GpsTime>,
+    guard: TimeGuard<GnssFix>,
     count: usize,
     /// Replace standard deviations below this (m or m/s) instead of skipping
     /// the fix; `None` skips fixes with a non-positive std.
@@ -151,15 +208,26 @@ pub struct GnssReader {
 impl GnssReader {
     /// Opens a KF-GINS GNSS file of this layout; `week` dates its seconds of week.
     pub fn open(path: &Path, week: i64, layout: GnssLayout) -> Result<Self, Error> {
-        Ok(GnssReader {
-            lines: LineReader::open(path)?,
-            path: path.to_path_buf(),
+        Ok(Self::with_lines(LineReader::open(path)?, week, layout))
+    }
+}
+
+impl<R: Read> GnssReader<R> {
+    /// Reads from `reader`, reported as `path`.
+    pub fn from_reader(reader: R, path: &Path, week: i64, layout: GnssLayout) -> Self {
+        Self::with_lines(LineReader::new(reader, path), week, layout)
+    }
+
+    fn with_lines(lines: LineReader<R>, week: i64, layout: GnssLayout) -> Self {
+        GnssReader {
+            path: lines.path().to_path_buf(),
+            lines,
             layout,
             weeks: WeekTracker::new(week),
-            last: None,
+            guard: TimeGuard::new(FIX_MAX_STEP_S),
             count: 0,
             sd_floor: None,
-        })
+        }
     }
 
     /// The file being read.
@@ -167,18 +235,40 @@ impl GnssReader {
         &self.path
     }
 
-    /// The next good fix; bad lines are reported into `diag` and skipped.
+    /// The next good fix; bad lines (unreadable, off the earth, σ not
+    /// positive, a time out of order or an unconfirmed jump) are reported
+    /// into `diag` and skipped.
     pub fn next_fix(&mut self, diag: &mut Diagnostics) -> Result<Option<GnssFix>, Error> {
+        loop {
+            let kept = if let Some(r) = self.guard.take_ready() {
+                r
+            } else if let Some(c) = self.parse_next(diag)? {
+                match self.guard.offer(c, &self.path, diag) {
+                    Some(r) => r,
+                    None => continue,
+                }
+            } else if let Some(r) = self.guard.finish(&self.path, diag) {
+                r
+            } else if self.count == 0 {
+                return Err(Error::NoData {
+                    path: self.path.clone(),
+                    msg: "no GNSS records (expected 7 or 13 columns: `sow lat_deg lon_deg h_m sd_n sd_e sd_d`)"
+                        .into(),
+                });
+            } else {
+                return Ok(None);
+            };
+            self.weeks.resolve(kept.ns);
+            self.count += 1;
+            return Ok(Some(kept.rec));
+        }
+    }
+
+    /// The next line that parses and is plausible on its own.
+    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<GnssFix>>, Error> {
         loop {
             let mut f: [&[u8]; 13] = [b""; 13];
             let Some((line, line_no)) = self.lines.next_line()? else {
-                if self.count == 0 {
-                    return Err(Error::NoData {
-                        path: self.path.clone(),
-                        msg: "no GNSS records (expected 7 or 13 columns: `sow lat_deg lon_deg h_m sd_n sd_e sd_d`)"
-                            .into(),
-                    });
-                }
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
@@ -216,15 +306,8 @@ impl GnssReader {
                 diag.push(&path, line_no, msg);
                 continue;
             }
-            if v[1].abs() > 90.0 || v[2].abs() > 360.0 {
-                diag.push(
-                    &path,
-                    line_no,
-                    format!(
-                        "latitude {} / longitude {} out of range; line skipped",
-                        v[1], v[2]
-                    ),
-                );
+            if let Some(why) = position_problem(v[1], v[2], v[3]) {
+                diag.push(&path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             let (pos_sd, vel, vel_sd) = if nf == 7 {
@@ -247,7 +330,7 @@ impl GnssReader {
                           what: &str,
                           diag: &mut Diagnostics|
              -> Option<Vector3<f64>> {
-                if sd.iter().all(|&s| s > 0.0) {
+                if sd.iter().all(|&s| s > 0.0 && s.is_finite()) {
                     return Some(sd);
                 }
                 match self.sd_floor {
@@ -272,20 +355,22 @@ impl GnssReader {
                 },
                 None => None,
             };
-            let time = self.weeks.peek(ns);
-            if let Some(why) = time_order_problem(self.last, time) {
+            if let Some(why) = vel.and_then(|v| velocity_problem(&[v.x, v.y, v.z])) {
                 diag.push(&path, line_no, format!("{why}; line skipped"));
                 continue;
             }
-            let time = self.weeks.resolve(ns);
-            self.last = Some(time);
-            self.count += 1;
-            return Ok(Some(GnssFix {
+            let time = self.weeks.peek(ns);
+            return Ok(Some(Timed {
+                rec: GnssFix {
+                    time,
+                    pos: Geodetic::from_deg(v[1], v[2], v[3]),
+                    pos_sd,
+                    vel,
+                    vel_sd,
+                },
+                ns,
                 time,
-                pos: Geodetic::from_deg(v[1], v[2], v[3]),
-                pos_sd,
-                vel,
-                vel_sd,
+                line: line_no,
             }));
         }
     }
@@ -313,10 +398,10 @@ pub struct NavRecord {
 }
 
 /// Streams an 11-column navigation file (result or truth).
-pub struct NavReader {
-    lines: LineReader<File>,
+pub struct NavReader<R = File> {
+    lines: LineReader<R>,
     path: std::path::PathBuf,
-    last: Option<GpsTime>,
+    guard: TimeGuard<NavRecord>,
     count: usize,
     /// Follows records of week 0 across a week rollover.
     weeks: WeekTracker,
@@ -325,13 +410,34 @@ pub struct NavReader {
 impl NavReader {
     /// Opens a KF-GINS navigation result (`.nav`).
     pub fn open(path: &Path) -> Result<Self, Error> {
-        Ok(NavReader {
-            lines: LineReader::open(path)?,
-            path: path.to_path_buf(),
-            last: None,
+        Ok(Self::with_lines(LineReader::open(path)?))
+    }
+
+    /// Reads the whole file (for truth files that are interpolated).
+    pub fn read_all(path: &Path, diag: &mut Diagnostics) -> Result<Vec<NavRecord>, Error> {
+        let mut r = NavReader::open(path)?;
+        let mut out = Vec::new();
+        while let Some(rec) = r.next_record(diag)? {
+            out.push(rec);
+        }
+        Ok(out)
+    }
+}
+
+impl<R: Read> NavReader<R> {
+    /// Reads from `reader`, reported as `path`.
+    pub fn from_reader(reader: R, path: &Path) -> Self {
+        Self::with_lines(LineReader::new(reader, path))
+    }
+
+    fn with_lines(lines: LineReader<R>) -> Self {
+        NavReader {
+            path: lines.path().to_path_buf(),
+            lines,
+            guard: TimeGuard::new(FIX_MAX_STEP_S),
             count: 0,
             weeks: WeekTracker::new(0),
-        })
+        }
     }
 
     /// The file being read.
@@ -343,17 +449,41 @@ impl NavReader {
     /// of week 0 (KF-GINS writes no week) is timed in week 0, and in week
     /// 1 after its seconds of week roll over (fall back by more than half
     /// a week), so that a drive across the rollover keeps going forward.
+    /// Records off the earth, faster than [`super::plausible::MAX_SPEED_MPS`] or with a
+    /// time that jumps unconfirmed are reported and skipped too.
     pub fn next_record(&mut self, diag: &mut Diagnostics) -> Result<Option<NavRecord>, Error> {
+        loop {
+            let kept = if let Some(r) = self.guard.take_ready() {
+                r
+            } else if let Some(c) = self.parse_next(diag)? {
+                match self.guard.offer(c, &self.path, diag) {
+                    Some(r) => r,
+                    None => continue,
+                }
+            } else if let Some(r) = self.guard.finish(&self.path, diag) {
+                r
+            } else if self.count == 0 {
+                return Err(Error::NoData {
+                    path: self.path.clone(),
+                    msg: "no navigation records (expected 11 columns: week sow lat lon h vn ve vd roll pitch yaw)"
+                        .into(),
+                });
+            } else {
+                return Ok(None);
+            };
+            if kept.rec.week == 0 {
+                self.weeks.resolve(kept.ns);
+            }
+            self.count += 1;
+            return Ok(Some(kept.rec));
+        }
+    }
+
+    /// The next line that parses and is plausible on its own.
+    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<NavRecord>>, Error> {
         loop {
             let mut f: [&[u8]; 12] = [b""; 12];
             let Some((line, line_no)) = self.lines.next_line()? else {
-                if self.count == 0 {
-                    return Err(Error::NoData {
-                        path: self.path.clone(),
-                        msg: "no navigation records (expected 11 columns: week sow lat lon h vn ve vd roll pitch yaw)"
-                            .into(),
-                    });
-                }
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
@@ -412,35 +542,33 @@ impl NavReader {
             } else {
                 GpsTime::from_week_ns(week, ns)
             };
-            if let Some(why) = time_order_problem(self.last, time) {
+            let vel = [v[5], v[6], v[7]];
+            if let Some(why) = position_problem(v[2], v[3], v[4])
+                .or_else(|| velocity_problem(&vel))
+                .or_else(|| {
+                    // Attitude in degrees: roll and yaw within ±360, pitch ±90.
+                    (v[8].abs() > 360.0 || v[9].abs() > 90.0 || v[10].abs() > 360.0)
+                        .then(|| format!("attitude {:?}° is out of range", [v[8], v[9], v[10]]))
+                })
+            {
                 diag.push(&self.path, line_no, format!("{why}; line skipped"));
                 continue;
             }
-            if week == 0 {
-                self.weeks.resolve(ns);
-            }
-            self.last = Some(time);
-            self.count += 1;
-            return Ok(Some(NavRecord {
-                week,
+            return Ok(Some(Timed {
+                rec: NavRecord {
+                    week,
+                    time,
+                    lat_deg: v[2],
+                    lon_deg: v[3],
+                    h_m: v[4],
+                    vel,
+                    att_deg: [v[8], v[9], v[10]],
+                },
+                ns,
                 time,
-                lat_deg: v[2],
-                lon_deg: v[3],
-                h_m: v[4],
-                vel: [v[5], v[6], v[7]],
-                att_deg: [v[8], v[9], v[10]],
+                line: line_no,
             }));
         }
-    }
-
-    /// Reads the whole file (for truth files that are interpolated).
-    pub fn read_all(path: &Path, diag: &mut Diagnostics) -> Result<Vec<NavRecord>, Error> {
-        let mut r = NavReader::open(path)?;
-        let mut out = Vec::new();
-        while let Some(rec) = r.next_record(diag)? {
-            out.push(rec);
-        }
-        Ok(out)
     }
 }
 
@@ -705,7 +833,75 @@ mod tests {
         assert_eq!(samples.len(), 4, "{samples:?}");
         assert!(samples.iter().all(|s| s.time.week() == 0));
         assert_eq!(d.total, 1, "{d:?}");
-        assert!(d.items[0].to_string().contains(":3: time goes backwards"));
+        assert!(
+            d.items[0].to_string().contains(":3: time goes backwards"),
+            "{d:?}"
+        );
+    }
+
+    #[test]
+    fn implausible_values_and_unconfirmed_time_jumps_cost_their_own_line() {
+        // Line 3: a gyro increment of 1e20 rad; line 5: a time of 1e308 s;
+        // line 7: a time garbled 90 000 s ahead; line 9 ends a real 60 s gap.
+        let content = "500000.000 0 0 0 0 0 -0.049\n\
+            500000.005 0 0 0 0 0 -0.049\n\
+            500000.010 1e20 0 0 0 0 -0.049\n\
+            500000.015 0 0 0 0 0 -0.049\n\
+            1e308 0 0 0 0 0 -0.049\n\
+            500000.020 0 0 0 0 0 -0.049\n\
+            590000.025 0 0 0 0 0 -0.049\n\
+            500000.030 0 0 0 0 0 -0.049\n\
+            500060.030 0 0 0 0 0 -0.049\n\
+            500060.035 0 0 0 0 0 -0.049\n";
+        let (res, d) = read_imu(content);
+        let t: Vec<f64> = res.unwrap().iter().map(|s| s.time.sow()).collect();
+        assert_eq!(
+            t,
+            [
+                500000.0, 500000.005, 500000.015, 500000.02, 500000.03, 500060.03, 500060.035
+            ]
+        );
+        let msgs: Vec<String> = d.items.iter().map(|x| x.to_string()).collect();
+        assert_eq!(msgs.len(), 3, "{msgs:?}");
+        assert!(
+            msgs[0].contains(":3: angular rate 2e22 rad/s"),
+            "{}",
+            msgs[0]
+        );
+        assert!(
+            msgs[1].contains(":5: field 1 (sow): time 1e308 s"),
+            "{}",
+            msgs[1]
+        );
+        assert!(
+            msgs[2].contains(":7: time") && msgs[2].contains("does not go on from it"),
+            "{}",
+            msgs[2]
+        );
+    }
+
+    #[test]
+    fn gnss_fixes_off_the_earth_or_jumping_are_skipped() {
+        let content = "100.0 30.0 114.0 20.0 0.02 0.02 0.03\n\
+            101.0 143545.0 114.0 20.0 0.02 0.02 0.03\n\
+            102.0 30.0 114.0 1e308 0.02 0.02 0.03\n\
+            103.0 30.0 114.0 20.0 0.02 1e308 0.03\n\
+            9e7 30.0 114.0 20.0 0.02 0.02 0.03\n\
+            104.0 30.0 114.0 20.0 0.02 0.02 0.03\n";
+        let p = temp_file("gnss.txt", content);
+        let mut d = Diagnostics::default();
+        let mut r = GnssReader::open(&p, 0, GnssLayout::Cpp).unwrap();
+        let mut t = Vec::new();
+        while let Some(f) = r.next_fix(&mut d).unwrap() {
+            t.push(f.time.sow());
+        }
+        // 1e308 as a σ is finite; the fusion refuses σ > 1 km with its own note.
+        assert_eq!(t, [100.0, 103.0, 104.0]);
+        let msgs: Vec<String> = d.items.iter().map(|x| x.to_string()).collect();
+        assert_eq!(msgs.len(), 3, "{msgs:?}");
+        assert!(msgs[0].contains(":2: latitude 143545"), "{}", msgs[0]);
+        assert!(msgs[1].contains(":3: height 1e308 m"), "{}", msgs[1]);
+        assert!(msgs[2].contains(":5: time"), "{}", msgs[2]);
     }
 
     #[test]

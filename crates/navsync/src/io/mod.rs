@@ -7,6 +7,7 @@ pub mod export;
 pub mod heading;
 pub mod kfgins;
 pub mod output;
+pub mod plausible;
 pub mod riglog;
 pub mod rtklib;
 pub mod speed;

@@ -5,7 +5,8 @@
 //! reported as warnings (`# imu_rate_hz: 200` is understood). Records are
 //! returned one at a time in file order. A record that is bad on its own
 //! (unknown type, wrong field count, a field that is not a number, a
-//! counter that does not fit the counter's width) is reported with file and
+//! counter that does not fit the counter's width, a value no sensor
+//! produces: `crate::io::plausible`) is reported with file and
 //! line into [`Diagnostics`] and skipped: nothing else is lost. So is a last
 //! line without newline (a logger killed mid-write): it may parse and still
 //! be cut short.
@@ -18,8 +19,11 @@ use std::path::{Path, PathBuf};
 use super::text::{
     LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, plain_number, split_fields,
 };
+use nalgebra::Vector3;
+
 use crate::error::{Diagnostics, Error};
 use crate::io::heading::{HeadingObs, HeadingSource, sd_problem};
+use crate::io::plausible;
 use crate::time::{GpsTime, NS_PER_WEEK};
 use crate::words;
 
@@ -604,7 +608,9 @@ impl<R: Read> RigLogReader<R> {
         if let Some((line, no, terminated)) = self.pending.take() {
             if !terminated {
                 torn_line(&line, no, &self.path, diag);
-            } else if let Some(r) = parse_record(&line, no, &self.path, self.counter_max, diag) {
+            } else if let Some(r) = parse_record(&line, no, &self.path, self.counter_max, diag)
+                && self.plausible(&r, no, diag)
+            {
                 self.records += 1;
                 return Ok(Some((r, no)));
             }
@@ -622,10 +628,41 @@ impl<R: Read> RigLogReader<R> {
                 return Ok(None);
             }
             let rec = parse_record(line, no, &self.path, self.counter_max, diag);
-            if let Some(r) = rec {
+            if let Some(r) = rec
+                && self.plausible(&r, no, diag)
+            {
                 self.records += 1;
                 return Ok(Some((r, no)));
             }
+        }
+    }
+
+    /// False (reported) for a record no sensor produces
+    /// (`crate::io::plausible`): rates beyond its limits, increments beyond
+    /// them over ten nominal periods (1 s when the header gives no rate),
+    /// a fix off the earth.
+    fn plausible(&self, r: &RigRecord, no: usize, diag: &mut Diagnostics) -> bool {
+        let why = match r {
+            RigRecord::Imu { values, .. } => {
+                let g = Vector3::new(values[0], values[1], values[2]);
+                let a = Vector3::new(values[3], values[4], values[5]);
+                match self.header.imu_kind {
+                    ImuKind::Rate => plausible::rate_problem(&g, &a),
+                    ImuKind::Increment => {
+                        let dt_s = self.header.imu_rate_hz.map_or(1.0, |hz| 10.0 / hz);
+                        plausible::increment_problem(&g, &a, dt_s)
+                    }
+                }
+            }
+            RigRecord::Gnss(g) => plausible::position_problem(g.lat_deg, g.lon_deg, g.h_m),
+            _ => None,
+        };
+        match why {
+            Some(why) => {
+                diag.push(&self.path, no, format!("{why}; line skipped"));
+                false
+            }
+            None => true,
         }
     }
 }

@@ -84,6 +84,10 @@ impl SpeedStream {
                     continue;
                 }
             };
+            if let Some(why) = super::plausible::velocity_problem(&[v, 0.0, 0.0]) {
+                diag.push(&self.path, no, format!("{why}; line skipped"));
+                continue;
+            }
             let t = self.weeks.peek(ns);
             let last = self.next.or(self.prev).map(|x| x.0);
             if last.is_some_and(|l| t <= l) {

@@ -273,6 +273,11 @@ pub fn parse_f64(field: &[u8]) -> Result<f64, String> {
     }
 }
 
+/// Largest time field accepted (s): GPS seconds since 1980 until 2106;
+/// beyond it (a corrupt 1e308) a time is one bad field, and a week plus it
+/// stays far inside `i64` nanoseconds.
+pub const MAX_TIME_S: f64 = 4e9;
+
 /// Parses decimal seconds (e.g. `100000.005000000`) into integer
 /// nanoseconds exactly, rounding digits beyond the ninth decimal. Accepts an
 /// exponent form through `f64` as a fallback.
@@ -310,6 +315,9 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
             b'e' | b'E' => {
                 let _ = k;
                 let v = parse_f64(field)?;
+                if v.abs() > MAX_TIME_S {
+                    return Err(format!("time {v:e} s is beyond {MAX_TIME_S:e} s"));
+                }
                 return Ok(crate::time::seconds_to_ns(v));
             }
             _ => {
@@ -329,6 +337,9 @@ pub fn parse_seconds_ns(field: &[u8]) -> Result<i64, String> {
     while frac_digits < 9 {
         frac *= 10;
         frac_digits += 1;
+    }
+    if int_part as f64 > MAX_TIME_S {
+        return Err(format!("time {int_part} s is beyond {MAX_TIME_S:e} s"));
     }
     let mut ns = int_part
         .checked_mul(crate::time::NS_PER_S)
@@ -386,6 +397,8 @@ mod tests {
         assert_eq!(parse_seconds_ns(b"12").unwrap(), 12_000_000_000);
         assert_eq!(parse_seconds_ns(b"1.5e3").unwrap(), 1_500_000_000_000);
         assert!(parse_seconds_ns(b"12a").is_err());
+        assert!(parse_seconds_ns(b"1e308").is_err());
+        assert!(parse_seconds_ns(b"99999999999").is_err());
         assert!(parse_seconds_ns(b".").is_err());
         assert!(parse_seconds_ns(b"").is_err());
         assert!(parse_seconds_ns(b"99999999999999999999").is_err());
