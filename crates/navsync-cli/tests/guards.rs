@@ -274,8 +274,11 @@ fn export_skips_positions_off_the_earth() {
         .arg("--output")
         .arg(&gpx));
     assert!(ok, "{err}");
+    // The navigation reader refuses the line at the door (io::plausible);
+    // export's own check would say "not exported".
     assert!(
-        err.contains("latitude 95° outside −90…90°; not exported"),
+        err.contains("latitude 95°")
+            && (err.contains("not on the earth; line skipped") || err.contains("not exported")),
         "{err}"
     );
     assert!(out.contains(&format!("{} epochs", n - 1)), "{out}");

@@ -154,7 +154,8 @@ fn a_ros1_bag_is_processed_with_its_odometry_as_the_odometer() {
     let p = json(&out.join("process.json"));
     let notes = p["notes"].to_string();
     assert!(
-        notes.contains("used as the odometer") && notes.contains("σ 0.050 m/s"),
+        notes.contains("used as the odometer")
+            && notes.contains("σ 0.050 m/s (its covariance's, floored at 0.05 m/s)"),
         "{notes}"
     );
     assert!(notes.contains("altitude datum: ellipsoid"), "{notes}");

@@ -696,9 +696,9 @@ mod tests {
         for (bad, why) in [
             ("x", "'x' is not a number"),
             ("0.1,0.2,0.3", "expected SD or GYRO_SD,ACCEL_SD"),
-            ("0", "must be positive"),
-            ("-0.1", "must be positive"),
-            ("nan", "must be positive"),
+            ("0", "out of range; expected a number in"),
+            ("-0.1", "out of range; expected a number in"),
+            ("nan", "out of range; expected a number in"),
         ] {
             let e = parse_sd_pair(bad).unwrap_err();
             assert!(e.contains(why), "{bad}: {e}");

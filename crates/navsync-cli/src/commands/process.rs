@@ -528,12 +528,17 @@ fn convert_stage(
     })
 }
 
+/// The smallest σ (m/s) a wheel odometer's speed is given: quantisation of
+/// the wheel ticks and slip leave a few cm/s on any real vehicle.
+const BAG_ODOMETER_SD_FLOOR_MPS: f64 = 0.05;
+
 /// The odometer: the sensor sheet's, else the speeds a ROS 1 bag gave, at
-/// their covariance's median σ but never below the sheet's default
-/// 0.1 m/s: a ROS driver's twist covariance is a tuning constant, not a
-/// measured σ (the Husky's says 0.032 m/s while its skid-steer wheels
-/// read at most 1.02 m/s where GNSS saw 1.7; at that σ the forward
-/// solution ran 9.9 m RMS from the fixes, at 0.1 m/s 1.6 m).
+/// their covariance's median σ but never below [`BAG_ODOMETER_SD_FLOOR_MPS`]:
+/// a ROS driver's twist covariance is a tuning constant, not a measured σ
+/// (the Husky's says 0.032 m/s while its skid-steer wheels read at most
+/// 1.02 m/s where GNSS saw 1.7; at that σ the forward solution ran 9.9 m
+/// RMS from the fixes, at 0.05 m/s 1.7 m). Without a covariance, the
+/// sheet's default 0.1 m/s.
 fn odometer_settings(
     sheet: &SensorSheet,
     data: &Data,
@@ -548,7 +553,7 @@ fn odometer_settings(
     let (path, sd) = data.speed.as_ref()?;
     let mut o = navsync::reduced::OdometerSettings::new(path.clone());
     if let Some(sd) = sd.filter(|s| s.is_finite() && *s > 0.0) {
-        o.sd_mps = o.sd_mps.max(sd);
+        o.sd_mps = sd.max(BAG_ODOMETER_SD_FLOOR_MPS);
     }
     Some(o)
 }
@@ -715,7 +720,7 @@ pub fn run(a: Args) -> Result<()> {
                 .unwrap_or_default(),
             odometer.as_ref().map(|o| o.sd_mps).unwrap_or_default(),
             if data.speed.as_ref().is_some_and(|s| s.1.is_some()) {
-                " (its covariance's, floored at 0.1 m/s)"
+                " (its covariance's, floored at 0.05 m/s)"
             } else {
                 " (the bag gives none: the sheet default)"
             }

@@ -106,6 +106,12 @@ pub fn sd_problem(what: &str, sd: &[f64]) -> Option<String> {
         .then(|| format!("{what} standard deviation {sd:?} is not finite and positive"))
 }
 
+/// The last record of a file, held for its jump, is kept when it steps
+/// forward by at most this many times the step limit…
+pub(crate) const END_STEP_FACTOR: i64 = 10;
+/// …or this many seconds, whichever is more.
+pub(crate) const END_STEP_MIN_S: f64 = 60.0;
+
 /// A parsed record with its time and line, as the [`TimeGuard`] holds it.
 #[derive(Clone, Debug)]
 pub(crate) struct Timed<T> {
@@ -223,15 +229,24 @@ impl<T> TimeGuard<T> {
     }
 
     /// At the end of the file: a held record is kept when it is the only
-    /// one (nothing contradicts it), otherwise reported and skipped (no
-    /// line confirms its jump).
+    /// one (nothing contradicts it) or when it steps forward by no more
+    /// than [`END_STEP_FACTOR`] × the step limit, at least
+    /// [`END_STEP_MIN_S`] (a last fix after a short outage is not a
+    /// corrupt line); otherwise reported and skipped (no line confirms its
+    /// jump).
     pub fn finish(&mut self, path: &Path, diag: &mut Diagnostics) -> Option<Timed<T>> {
         if let Some(r) = self.take_ready() {
             return Some(r);
         }
         let p = self.pending.take()?;
+        let end_limit_ns = (self.max_step_ns.saturating_mul(END_STEP_FACTOR))
+            .max(crate::time::seconds_to_ns(END_STEP_MIN_S));
         match self.last {
             None => {
+                self.last = Some(p.time);
+                Some(p)
+            }
+            Some(l) if p.time > l && p.time - l <= end_limit_ns => {
                 self.last = Some(p.time);
                 Some(p)
             }
@@ -307,6 +322,10 @@ mod tests {
             d.items[1].to_string().contains(":5: time")
                 && d.items[1].to_string().contains("no line follows")
         );
+        // A last record after a short gap (a fix after a 30 s outage) is
+        // kept: up to 10 × the step limit or 60 s.
+        assert_eq!(run(&[1.0, 2.0, 3.0, 33.0], 1.5).0, vec![1, 2, 3, 4]);
+        assert_eq!(run(&[1.0, 2.0, 3.0, 3.0 + 61.0], 1.5).0, vec![1, 2, 3]);
         // A file of one record keeps it; backwards and repeated lines are skipped.
         assert_eq!(run(&[7.0], 0.05).0, vec![1]);
         let (kept, d) = run(&[1.0, 1.005, 1.005, 0.5, 1.010], 0.05);
