@@ -13,6 +13,7 @@
 //! - [`imu`], [`gnss`], [`clock`], [`rig`]: the sensor and rig models
 //!   (the IMU presets' datasheet figures come from the core,
 //!   `navsync::imu::spec`); [`rng`]: one random stream per error source;
+//! - [`faults`]: GNSS receiver faults injected into any GNSS file, labelled;
 //! - [`scenario`], [`run`]: what to simulate and the run that writes the
 //!   files; [`speed`]: an odometer file from a truth file;
 //!   [`synthetic`]: deterministic IMU test signals (benchmarks);
@@ -30,6 +31,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod clock;
+pub mod faults;
 pub mod fitted;
 pub mod gnss;
 pub mod imu;
