@@ -61,6 +61,9 @@ enum Command {
     Imu(commands::imu::Args),
     /// Simulate a drive: exact truth, IMU, GNSS, clocks and a raw rig log.
     Simulate(commands::simulate::Args),
+    /// Inject GNSS receiver faults (spikes, false RTK fixes, ramps, stale
+    /// repeats) into a GNSS file, with one label per faulty fix.
+    Faults(commands::faults::Args),
     /// Simulate → sync → fuse → eval over many seeds in parallel: accuracy
     /// percentiles and the filter's consistency (NEES).
     Montecarlo(commands::montecarlo::Args),
@@ -94,6 +97,7 @@ fn main() {
         Command::SpeedSim(a) => commands::speed_sim::run(a),
         Command::Imu(a) => commands::imu::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
+        Command::Faults(a) => commands::faults::run(a),
         Command::Montecarlo(a) => commands::montecarlo::run(a),
         Command::Batch(a) => commands::batch::run(a),
         Command::Live(a) => commands::live::run(a),

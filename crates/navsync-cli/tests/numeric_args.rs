@@ -145,6 +145,12 @@ impl Fixture {
                 f("--output", self.out("")),
                 s("--force"),
             ],
+            "faults" => vec![
+                f("--gnss", self.sim("gnss.txt")),
+                f("--output", self.out("")),
+                f("--skip-start", "1".into()),
+                f("--count", "1".into()),
+            ],
             "speed-sim" => vec![
                 f("--truth", self.sim("truth.nav")),
                 f("--out", self.out(".txt")),

@@ -523,7 +523,7 @@ fn place_drawn(
             return Err(Error::NoData {
                 path: path.to_path_buf(),
                 msg: format!(
-                    "no room for episode {} of {} ({} of {n} fixes): {} fixes over {:.0} s, none faulted in the first {} s, {} s clean between episodes, none across a gap over {GAP_FACTOR} × the {interval_s} s interval; ask for fewer (--count) or shorter episodes",
+                    "no room for episode {} of {} ({}, {n} fixes): {} fixes over {:.0} s, none faulted in the first {} s, {} s clean between episodes, none across a gap over {GAP_FACTOR} × the {interval_s} s interval; ask for fewer (--count) or shorter episodes",
                     placed.len() + 1,
                     o.count,
                     draft.class.name(),

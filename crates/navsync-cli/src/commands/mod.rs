@@ -7,6 +7,7 @@ pub mod convert;
 pub mod demo;
 pub mod eval;
 pub mod export;
+pub mod faults;
 pub mod fuse;
 pub mod imu;
 pub mod init;
