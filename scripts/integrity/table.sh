@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# The GNSS integrity bed (issue 33): labelled receiver faults (`navsync
+# faults`: spikes, false RTK fixes, ramps, stale repeats) injected into
+#   - dataset2's real trajectory with its real fixes (KF-GINS-Matlab
+#     dataset2; an exact IMU simulated along it, as scripts/real-gnss/
+#     table.sh), IMU grades adis16465, icm20602, nav;
+#   - a simulated driving-speed drive (the test-track scenario, 600 s,
+#     up to 22 m/s, 1 Hz RTK), adis16465 and icm20602;
+# each with several fault seeds (sizes, durations, directions and
+# placements drawn per seed), fused forward and smoothed (`fuse --smooth`)
+# with clean fixes, faulty fixes (default weighting), the oracle (the same
+# faulty file with the labelled fixes left out) and KF-GINS's rule
+# (`--gnss-weighting off`) with the faults. Prints one table (horizontal
+# RMS by `navsync eval` against the truth; the ratios are the worst seed's;
+# flagged = status other than `used` in the forward gnss_residuals.txt, or
+# refused before weighing; see bed.py) and keeps the per-seed rows in
+# $W/rows.txt.
+#
+# Usage (from the repository root): scripts/integrity/table.sh
+# QUICK=1: one fault seed per bed instead of five (~1 min instead of ~4);
+# FAULT_SEEDS="1 2 3": the fault seeds; BEDS="d2-adis16465 drive-icm20602":
+# the beds; EXTRA="--nhc": more fuse options for every run.
+# Needs: cargo build --release; python3.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+B=${NAVSYNC:-target/release/navsync}
+D=../shared/data/kfgins-matlab-dataset2
+W=${WORK:-target/integrity}
+HERE=scripts/integrity
+EXTRA=${EXTRA:-}
+VEL=${VEL:---no-gnss-velocity}
+if [ "${QUICK:-0}" = 1 ]; then FAULT_SEEDS=${FAULT_SEEDS:-1}; else FAULT_SEEDS=${FAULT_SEEDS:-1 2 3 4 5}; fi
+BEDS=${BEDS:-d2-adis16465 d2-icm20602 d2-nav drive-adis16465 drive-icm20602}
+mkdir -p "$W"
+W=$(cd "$W" && pwd)
+rows="$W/rows.txt"
+echo "# bed seed clean_f clean_s faulty_f faulty_s oracle_f oracle_s off_f big big_flagged clean_flagged_faulty clean_flagged_clean fixes" > "$rows"
+field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))$2)" "$1"; }
+hrms() { "$B" eval --truth "$1" --nav "$2" --json "$2.eval.json" >/dev/null; field "$2.eval.json" "['pos_horizontal_m']['rms']"; }
+# fuse CFG OUT WEIGHTING → "forward_rms smoothed_rms"
+fuse() {
+  "$B" fuse --config "$1" --output "$2" --gnss-weighting "$3" --smooth $VEL $EXTRA >/dev/null 2>"$2.log" \
+    || { echo "fuse failed ($2.log):" >&2; tail -3 "$2.log" >&2; exit 1; }
+  echo "$(hrms "$truth" "$2/forward/navresult.nav") $(hrms "$truth" "$2/navresult.nav")"
+}
+start=$SECONDS
+for bed in $BEDS; do
+  grade=${bed#*-}
+  sim="$W/$bed"
+  case $bed in
+    d2-*) "$B" simulate --from-nav "$D/truth.nav" --gnss-real "$D/GNSS-POSVEL.txt" \
+            --gnss-real-layout matlab --set 'gnss.lever_arm_m=[-0.37,0.008,0.353]' \
+            --imu-grade "$grade" --seed 1 --quiet --output "$sim"
+          count=4 ;;
+    drive-*) "$B" simulate --scenario test-track --duration 600 --imu-grade "$grade" \
+            --seed 1 --quiet --output "$sim"
+          count=8 ;;
+    *) echo "unknown bed $bed" >&2; exit 2 ;;
+  esac
+  truth="$sim/truth.nav"
+  read -r clean_f clean_s < <(fuse "$sim/kf-gins.yaml" "$sim/clean" robust)
+  for seed in $FAULT_SEEDS; do
+    run="$sim/faults-$seed"
+    "$B" faults --gnss "$sim/gnss.txt" --output "$run" --seed "$seed" --count "$count" >/dev/null
+    python3 $HERE/bed.py drop "$run/gnss.txt" "$run/faults.txt" "$run/gnss-oracle.txt"
+    python3 $HERE/bed.py config "$sim/kf-gins.yaml" "$run/kf-gins.yaml" "$sim/imu.txt" "$run/gnss.txt"
+    python3 $HERE/bed.py config "$sim/kf-gins.yaml" "$run/kf-gins-oracle.yaml" "$sim/imu.txt" "$run/gnss-oracle.txt"
+    read -r faulty_f faulty_s < <(fuse "$run/kf-gins.yaml" "$run/default" robust)
+    read -r oracle_f oracle_s < <(fuse "$run/kf-gins-oracle.yaml" "$run/oracle" robust)
+    read -r off_f _ < <(fuse "$run/kf-gins.yaml" "$run/off" off)
+    fl=$(python3 $HERE/bed.py flags "$sim/gnss.txt" "$run/faults.txt" \
+      "$sim/clean/forward/gnss_residuals.txt" "$run/default/forward/gnss_residuals.txt")
+    echo "$bed $seed $clean_f $clean_s $faulty_f $faulty_s $oracle_f $oracle_s $off_f $fl" >> "$rows"
+    [ "${VERBOSE:-0}" = 1 ] && tail -1 "$rows" >&2
+  done
+done
+python3 $HERE/bed.py table "$rows"
+echo "($(( SECONDS - start )) s; per-seed rows in $rows)"
