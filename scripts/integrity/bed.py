@@ -11,6 +11,9 @@
                                in CLEAN, all fixes (CLEAN and FAULTY are
                                gnss_residuals.txt files)
   table ROWS                   the bed table from the rows table.sh wrote
+  classes W BED...             per bed and class: faulty fixes (≥ 0.3 m)
+                               flagged by the default forward run, pooled
+                               over the fault seeds found in W/BED/faults-*
 
 A fix is flagged when its position line in gnss_residuals.txt (docs/FORMATS.md:
 `sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status`)
@@ -113,6 +116,24 @@ def table(rows_path):
               f"| {mean(3):.3f} m | {mean(5):.3f} m | {worst(lambda r: r[3] / (r[5] + 0.03)):.2f} |")
 
 
+def classes(work, *beds):
+    import glob
+    import os
+    names = ("spike", "false-fix", "ramp", "stale")
+    print("| bed | " + " | ".join(names) + " |")
+    print("|" + "---|" * (len(names) + 1))
+    for bed in beds:
+        got = {c: [0, 0] for c in names}
+        for run in sorted(glob.glob(os.path.join(work, bed, "faults-*"))):
+            st = statuses(os.path.join(run, "default", "forward", "gnss_residuals.txt"))
+            for k, (c, size) in labels(os.path.join(run, "faults.txt")).items():
+                if size >= BIG_M:
+                    got[c][0] += st.get(k, "refused") != "used"
+                    got[c][1] += 1
+        cell = lambda f, n: f"{100.0 * f / n:.0f} % of {n}" if n else "–"
+        print(f"| {bed} | " + " | ".join(cell(*got[c]) for c in names) + " |")
+
+
 if __name__ == "__main__":
     cmd, args = sys.argv[1], sys.argv[2:]
-    {"config": config, "drop": drop, "flags": flags, "table": table}[cmd](*args)
+    {"config": config, "drop": drop, "flags": flags, "table": table, "classes": classes}[cmd](*args)

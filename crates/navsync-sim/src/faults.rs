@@ -302,8 +302,9 @@ struct Input<'a> {
     fixes: Vec<Fix>,
 }
 
-/// A step longer than this many nominal intervals is a gap.
-const GAP_FACTOR: f64 = 1.5;
+/// A step longer than this many nominal intervals is a gap (one missing
+/// epoch is not: real RTK logs drop single epochs often, e.g. dataset2).
+const GAP_FACTOR: f64 = 2.5;
 
 fn io_err(path: &Path, e: std::io::Error) -> Error {
     Error::Io {
@@ -887,12 +888,17 @@ mod tests {
     use navsync::testfiles::TestDir;
 
     /// A 1 Hz drive of `n` fixes heading north-east at ~10 m/s, 13 columns
-    /// (KF-GINS-Matlab order), with a 20 s gap after fix 150 and a comment.
+    /// (KF-GINS-Matlab order), with a 20 s gap after fix 150, one missing
+    /// epoch before fix 300 and a comment.
     fn drive(n: usize) -> String {
         let mut s = String::from("# sow lat lon h sd… vel…\n");
         let mut t = 200_000.0;
         for k in 0..n {
-            t += if k == 150 { 21.0 } else { 1.0 };
+            t += match k {
+                150 => 21.0,
+                300 => 2.0,
+                _ => 1.0,
+            };
             let lat = 30.5 + k as f64 * 6.4e-5;
             let lon = 114.3 + k as f64 * 7.4e-5;
             s += &format!(
@@ -1085,7 +1091,7 @@ mod tests {
         let input = drive(400);
         let p = file(&input);
         let plan = TestDir::new("faults-plan").at("plan.txt");
-        std::fs::write(&plan, "# class start duration [n e d]\nfalse-fix 200080.000000 10 3 -4 0.5\nspike 200300.0 0\nstale 200120 4\n").unwrap();
+        std::fs::write(&plan, "# class start duration [n e d]\nfalse-fix 200080.000000 10 3 -4 0.5\nspike 200300.0 0\nstale 200120 4\nramp 200315 10\n").unwrap();
         let o = FaultOptions {
             plan: Some(read_plan(&plan).unwrap()),
             ..FaultOptions::default()
@@ -1101,7 +1107,8 @@ mod tests {
             [
                 (FaultClass::FalseFix, 200080.0, 10),
                 (FaultClass::Stale, 200120.0, 4),
-                (FaultClass::Spike, 200300.0, 1)
+                (FaultClass::Spike, 200300.0, 1),
+                (FaultClass::Ramp, 200315.0, 10)
             ]
         );
         let l = &inj.labels[0];
