@@ -11,6 +11,8 @@
                                in CLEAN, all fixes (CLEAN and FAULTY are
                                gnss_residuals.txt files)
   table ROWS                   the bed table from the rows table.sh wrote
+  seeds ROWS                   per bed and fault seed: forward clean, faults
+                               default, oracle, KF-GINS rule
   classes W BED...             per bed and class: faulty fixes (≥ 0.3 m)
                                flagged by the default forward run, pooled
                                over the fault seeds found in W/BED/faults-*
@@ -111,9 +113,20 @@ def table(rows_path):
         big = sum(r[7] for r in rows)
         pct = 100.0 * sum(r[8] for r in rows) / big if big else float("nan")
         extra = 100.0 * sum(r[9] - r[10] for r in rows) / sum(r[11] for r in rows)
-        print(f"| {bed} ({len(rows)} seeds) | {mean(0):.3f} m | **{mean(2):.3f} m** | {mean(4):.3f} m "
+        print(f"| {bed} ({len(rows)} seed{'s' if len(rows) > 1 else ''}) | {mean(0):.3f} m | **{mean(2):.3f} m** | {mean(4):.3f} m "
               f"| {worst(lambda r: r[2] / r[4]):.2f} | {mean(6):.3f} m | {pct:.0f} % of {big:.0f} | {extra:+.1f} % "
               f"| {mean(3):.3f} m | {mean(5):.3f} m | {worst(lambda r: r[3] / (r[5] + 0.03)):.2f} |")
+
+
+def seeds(rows_path):
+    print("| bed | seed | clean | faults default | oracle | def/oracle | KF-GINS rule + faults |")
+    print("|---|---|---|---|---|---|---|")
+    for line in open(rows_path):
+        if line.startswith("#") or not line.strip():
+            continue
+        f = line.split()
+        r = [float(x) for x in f[2:]]
+        print(f"| {f[0]} | {f[1]} | {r[0]:.3f} | {r[2]:.3f} | {r[4]:.3f} | {r[2] / r[4]:.2f} | {r[6]:.3f} |")
 
 
 def classes(work, *beds):
@@ -136,4 +149,4 @@ def classes(work, *beds):
 
 if __name__ == "__main__":
     cmd, args = sys.argv[1], sys.argv[2:]
-    {"config": config, "drop": drop, "flags": flags, "table": table, "classes": classes}[cmd](*args)
+    {"config": config, "drop": drop, "flags": flags, "table": table, "seeds": seeds, "classes": classes}[cmd](*args)

@@ -14,7 +14,8 @@
 # RMS by `navsync eval` against the truth; the ratios are the worst seed's;
 # flagged = status other than `used` in the forward gnss_residuals.txt, or
 # refused before weighing; see bed.py) and keeps the per-seed rows in
-# $W/rows.txt; then the faulty fixes flagged by class.
+# $W/rows.txt; then the faulty fixes flagged by class, and each seed's
+# forward figures.
 #
 # Usage (from the repository root): scripts/integrity/table.sh
 # QUICK=1: one fault seed per bed instead of five (~35 s instead of
@@ -48,6 +49,7 @@ start=$SECONDS
 for bed in $BEDS; do
   grade=${bed#*-}
   sim="$W/$bed"
+  rm -rf "$sim"   # this script's own folder: no earlier run's files to move aside
   case $bed in
     d2-*) "$B" simulate --from-nav "$D/truth.nav" --gnss-real "$D/GNSS-POSVEL.txt" \
             --gnss-real-layout matlab --set 'gnss.lever_arm_m=[-0.37,0.008,0.353]' \
@@ -79,4 +81,7 @@ python3 $HERE/bed.py table "$rows"
 echo
 echo "faulty fixes (≥ 0.3 m) flagged, by class:"
 python3 $HERE/bed.py classes "$W" $BEDS
+echo
+echo "per fault seed (forward horizontal RMS, m):"
+python3 $HERE/bed.py seeds "$rows"
 echo "($(( SECONDS - start )) s; per-seed rows in $rows)"
