@@ -765,7 +765,7 @@ pub fn labels_text(inj: &Injection, input: &Path, o: &FaultOptions) -> String {
         "# navsync faults: GNSS faults injected into {} (seed {}); every parameter in faults.json\n\
          # one line per faulty fix: sow class episode offset_n_m offset_e_m offset_d_m\n\
          # offset = written − original antenna position, NED (m), exact through ECEF; fixes not listed are unchanged\n\
-         # classes (issue 33, GNSS integrity):\n",
+         # classes (what each models):\n",
         input.display(),
         o.seed
     );
