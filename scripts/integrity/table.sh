@@ -21,7 +21,9 @@
 # QUICK=1: one fault seed per bed instead of five (~35 s instead of
 # ~2.5 min on 2 shared cores); VERBOSE=1: each row as it is measured;
 # FAULT_SEEDS="1 2 3": the fault seeds; BEDS="d2-adis16465 drive-icm20602":
-# the beds; EXTRA="--nhc": more fuse options for every run.
+# the beds; EXTRA="--nhc": more fuse options for every run; KEEP=1: keep
+# every run's navresult.nav, std.txt, imu_err.txt (~2.4 GB for the full set;
+# without it ~215 MB: the simulated inputs, residuals, summaries, scores).
 # Needs: cargo build --release; python3.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -44,6 +46,10 @@ fuse() {
   "$B" fuse --config "$1" --output "$2" --gnss-weighting "$3" --smooth $VEL $EXTRA >/dev/null 2>"$2.log" \
     || { echo "fuse failed ($2.log):" >&2; tail -3 "$2.log" >&2; exit 1; }
   echo "$(hrms "$truth" "$2/forward/navresult.nav") $(hrms "$truth" "$2/navresult.nav")"
+  # The 200 Hz solutions are scored: drop them (~35 MB a run) unless KEEP=1.
+  if [ "${KEEP:-0}" != 1 ]; then
+    rm -f "$2"/{,forward/}{navresult.nav,std.txt,imu_err.txt}
+  fi
 }
 start=$SECONDS
 for bed in $BEDS; do
