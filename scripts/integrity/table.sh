@@ -18,8 +18,8 @@
 # forward figures.
 #
 # Usage (from the repository root): scripts/integrity/table.sh
-# QUICK=1: one fault seed per bed instead of five (~35 s instead of
-# ~2.5 min on 2 shared cores); VERBOSE=1: each row as it is measured;
+# QUICK=1: one fault seed per bed instead of five (~30 s instead of
+# ~1.5–2.5 min on 2 shared cores); VERBOSE=1: each row as it is measured;
 # FAULT_SEEDS="1 2 3": the fault seeds; BEDS="d2-adis16465 drive-icm20602":
 # the beds; EXTRA="--nhc": more fuse options for every run; KEEP=1: keep
 # every run's navresult.nav, std.txt, imu_err.txt (~2.4 GB for the full set;
