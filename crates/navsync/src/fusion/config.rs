@@ -207,6 +207,11 @@ pub struct FixRecord {
     pub(crate) weight: [f64; 3],
     /// What became of it.
     pub status: FixStatus,
+    /// Why (the integrity monitor's or the robust weighting's reason).
+    pub reason: crate::fusion::FaultReason,
+    /// Horizontal protection level after it (m): K·√(λ·largest eigenvalue
+    /// of the horizontal position covariance), K = [`crate::fusion::PROTECTION_K`].
+    pub hpl_m: f64,
 }
 
 /// A receiver's time-correlated position error (multipath, atmosphere,
@@ -489,6 +494,11 @@ pub struct FusionStats {
     pub gnss_fixes_duplicate: usize,
     /// Fixes ignored as stale: position repeated while the solution moved > 1 m.
     pub gnss_fixes_stale: usize,
+    /// Fixes the integrity monitor excluded (jumps, runs, ramps).
+    pub gnss_fixes_excluded: usize,
+    /// GNSS fault episodes (spikes, runs at a false level, ramps, stale
+    /// outputs): `fusion::aid::integrity`.
+    pub gnss_fault_episodes: Vec<crate::fusion::FaultEpisode>,
     /// Non-holonomic constraint updates applied.
     pub nhc_updates: usize,
     /// Odometer speed updates applied.

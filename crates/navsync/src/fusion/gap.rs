@@ -152,6 +152,8 @@ impl Core {
             att_sd[1].to_degrees(),
             n
         ));
+        // The INS was replaced: nothing before is a reference for faults.
+        self.aid.gnss.monitor.reset();
         true
     }
 }

@@ -63,6 +63,9 @@ mod tests;
 
 pub use aid::gnss::MAX_GNSS_SD_M;
 use aid::gnss::invalid_fix;
+pub use aid::integrity::{
+    EpisodeClass, EpisodeEnd, FaultEpisode, FaultReason, MAX_EPISODE_S, PROTECTION_K,
+};
 use aid::time_offset::Kinematics;
 use aid::{AidSources, DelayBuffer, Timed};
 pub use config::*;

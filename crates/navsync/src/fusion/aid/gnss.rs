@@ -7,7 +7,9 @@
 //! Position and velocity are one source: a fix's velocity row is fused
 //! only after its position was used, with the same held states.
 
+use super::integrity::{FaultMonitor, FaultReason, Judgement, PROTECTION_K, StateSpread};
 use super::*;
+use crate::filter::idx;
 use std::collections::VecDeque;
 
 /// A GNSS position fix the gate rejected (or robust weighting rejected or
@@ -221,6 +223,12 @@ pub(in crate::fusion) struct GnssSource {
     /// repeated ones.
     pub(in crate::fusion) last_fix: Option<(GpsTime, Geodetic, Geodetic)>,
     pub(in crate::fusion) counts: GnssCounts,
+    /// The fault-episode monitor (robust weighting).
+    pub(in crate::fusion) monitor: FaultMonitor,
+    /// A fix the monitor vouched for: used whatever the robust weights say.
+    forced: Option<FaultReason>,
+    /// When the last position fix was received (used or not).
+    last_received: Option<GpsTime>,
 }
 
 /// What became of the fixes this source weighed.
@@ -235,6 +243,8 @@ pub(in crate::fusion) struct GnssCounts {
     velocity_downweighted: usize,
     gate_reopened: usize,
     stale: usize,
+    /// Fixes the integrity monitor excluded.
+    excluded: usize,
     /// Fixes that measured the INS overconfidence.
     overconfidence_fixes: usize,
 }
@@ -254,6 +264,7 @@ impl GnssSource {
         GnssSource {
             gate,
             noise_scale: [([(prior, prior); 3], cfg.init_nav.time); 2],
+            monitor: FaultMonitor::new(cfg.noise.vrw.max()),
             ..Default::default()
         }
     }
@@ -289,6 +300,8 @@ impl AidSource for GnssSource {
         stats.gnss_velocity_downweighted = c.velocity_downweighted;
         stats.gate_reopened = c.gate_reopened;
         stats.gnss_fixes_stale = c.stale;
+        stats.gnss_fixes_excluded = c.excluded;
+        stats.gnss_fault_episodes = self.monitor.all_episodes();
         stats.gnss_ins_overconfidence =
             (c.overconfidence_fixes > 0).then(|| crate::fusion::InsOverconfidence {
                 scale: self.overconfidence_scale(),
@@ -372,6 +385,21 @@ impl GnssSource {
             return false;
         }
         self.counts.stale += 1;
+        self.monitor.note_stale(fix.time);
+        core.propagate();
+        let obs = Self::position_obs(core, fix);
+        core.fix_log.push(FixRecord {
+            time: fix.time,
+            sow: fix.time.sow(),
+            kind: "position",
+            innovation: [obs.z[0], obs.z[1], obs.z[2]],
+            sd: [0, 1, 2].map(|i| obs.r.get(i, i).sqrt()),
+            nis: nis_of(&core.filter.innovation_covariance(&obs), &obs.z).unwrap_or(f64::INFINITY),
+            weight: [0.0; 3],
+            status: FixStatus::Rejected,
+            reason: FaultReason::Stale,
+            hpl_m: protection_level(core, self.overconfidence_scale()),
+        });
         core.notes.push(format!(
             "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.1} m: a stale receiver output; ignored",
             fix.time
@@ -398,6 +426,8 @@ impl GnssSource {
             nis: outcome.nis,
             weight: [1.0; 3],
             status: FixStatus::Used,
+            reason: FaultReason::None,
+            hpl_m: protection_level(core, 1.0),
         };
         if !outcome.accepted
             && let Some(threshold) = gate
@@ -484,7 +514,25 @@ impl GnssSource {
     ) -> Result<(), Error> {
         let frozen = core.frozen_states();
         let obs = Self::position_obs(core, fix);
+        if self.judge_integrity(core, &obs, fix.time)? {
+            self.last_received = Some(fix.time);
+            return Ok(());
+        }
         let status = self.robust_apply(core, obs, 0, fix.time, rw, &frozen)?;
+        self.forced = None;
+        self.last_received = Some(fix.time);
+        if matches!(status, FixStatus::Used | FixStatus::DriftAccepted)
+            && let Some(memo) = self.last_residual[0].filter(|m| m.time == fix.time)
+        {
+            let spread = state_spread(core);
+            self.monitor.add_anchor(
+                fix.time,
+                memo.residual,
+                memo.hph_post,
+                memo.r_stated,
+                spread,
+            );
+        }
         match status {
             FixStatus::Rejected => {
                 self.counts.fixes_rejected += 1;
@@ -610,11 +658,15 @@ impl GnssSource {
             nis,
             weight: [0.0; 3],
             status: FixStatus::Used,
+            reason: self.forced.unwrap_or_default(),
+            hpl_m: 0.0,
         };
         // A disagreement that persists smoothly (down-weighted or rejected
         // fixes that agree with each other) is the INS drifting.
         let mut drift = false;
-        if slot == 0 {
+        if slot == 0 && self.forced.is_some() {
+            drift = true;
+        } else if slot == 0 {
             if w.iter().any(|w| *w < 1.0) {
                 drift = self.robust_drift_check(core, &obs, &s_stated, time, rw)?;
             } else {
@@ -629,6 +681,8 @@ impl GnssSource {
             hph = Matrix3::from_fn(|r, c| s.get(r, c)) - Matrix3::from_diagonal(&r_stated);
         } else if w.iter().all(|w| *w == 0.0) {
             record.status = FixStatus::Rejected;
+            record.reason = FaultReason::Outlier;
+            record.hpl_m = protection_level(core, ins_scale);
             core.fix_log.push(record);
             core.notes.push(format!(
                 "GNSS {kind} at {time} rejected by robust weighting (innovation {:.3}, NIS {:.1}; beyond {} σ)",
@@ -655,7 +709,12 @@ impl GnssSource {
         {
             record.status = FixStatus::DownWeighted;
         }
-        core.apply(&obs, None, frozen)?;
+        let outcome = core.apply(&obs, None, frozen)?;
+        if outcome.accepted {
+            self.monitor
+                .record_correction(time, &outcome.dx, idx::POS, idx::VEL);
+        }
+        record.hpl_m = protection_level(core, ins_scale);
         // Posterior residual z⁺ = R' S⁻¹ z and H P⁺ Hᵀ = HPHᵀ S⁻¹ R'.
         let r_mat = Matrix3::from_diagonal(&r_eff);
         self.last_residual[slot] = (hph + r_mat).try_inverse().map(|s_inv| {
@@ -678,6 +737,75 @@ impl GnssSource {
         }
         core.fix_log.push(record);
         Ok(record.status)
+    }
+
+    /// Puts a position fix before the fault monitor
+    /// ([`super::integrity`]). Returns true when the fix was excluded
+    /// (recorded and counted here); a fix the monitor vouches for after an
+    /// episode is marked to be used whatever its weights, with P inflated
+    /// so that its innovation fits.
+    fn judge_integrity(
+        &mut self,
+        core: &mut Core,
+        obs: &Observation,
+        time: GpsTime,
+    ) -> Result<bool, Error> {
+        core.propagate();
+        let s = core.filter.innovation_covariance(obs);
+        let r = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
+        let hph = Matrix3::from_fn(|i, j| s.get(i, j)) - Matrix3::from_diagonal(&r);
+        let z = Vector3::new(obs.z[0], obs.z[1], obs.z[2]);
+        let lambda = self.overconfidence_scale();
+        match self.monitor.judge(time, &z, &hph, &r, lambda) {
+            Judgement::Clean => Ok(false),
+            Judgement::Exclude(reason) => {
+                self.counts.excluded += 1;
+                self.counts.fixes_rejected += 1;
+                let nis = nis_of(&s, &obs.z).unwrap_or(f64::INFINITY);
+                core.fix_log.push(FixRecord {
+                    time,
+                    sow: time.sow(),
+                    kind: "position",
+                    innovation: [z[0], z[1], z[2]],
+                    sd: [r[0].sqrt(), r[1].sqrt(), r[2].sqrt()],
+                    nis,
+                    weight: [0.0; 3],
+                    status: FixStatus::Rejected,
+                    reason,
+                    hpl_m: protection_level(core, lambda),
+                });
+                core.notes.push(format!(
+                    "GNSS fix at {time} excluded by the integrity monitor ({}: innovation {:.3} m, NIS {nis:.1})",
+                    reason.word(),
+                    z.norm()
+                ));
+                Ok(true)
+            }
+            Judgement::RampEnd { offset } => {
+                grow_position_variance(core, &offset);
+                core.notes.push(format!(
+                    "GNSS fix at {time} jumped {:.3} m back to where the fixes were seconds before: those since drifted away (a ramp the filter followed); used, position variance grown to fit",
+                    offset.norm()
+                ));
+                self.forced = Some(FaultReason::Persisted);
+                Ok(false)
+            }
+            Judgement::Persisted { unbridged, offset } => {
+                grow_position_variance(core, &offset);
+                core.notes.push(if unbridged {
+                    format!(
+                        "GNSS fix at {time}: a fault episode lasted longer than the IMU can bridge ({} s); the fixes are followed again and the solution in the episode is uncertain",
+                        super::integrity::MAX_EPISODE_S
+                    )
+                } else {
+                    format!(
+                        "GNSS fix at {time}: the fixes stayed at their new level until the INS's predicted drift covered it; used again (covariance inflated to fit)"
+                    )
+                });
+                self.forced = Some(FaultReason::Persisted);
+                Ok(false)
+            }
+        }
     }
 
     /// The median of the kept overconfidence ratios, within
@@ -714,8 +842,11 @@ impl GnssSource {
         r_stated: &Vector3<f64>,
     ) -> f64 {
         let lambda = self.overconfidence_scale();
-        let after_gap =
-            self.last_residual[0].is_none_or(|prev| time.seconds_since(prev.time) > PAIR_MAX_GAP_S);
+        // A gap in the fixes received, not one the fault monitor made by
+        // excluding fixes (the INS may have been led off by them).
+        let after_gap = self
+            .last_received
+            .is_none_or(|prev| time.seconds_since(prev) > PAIR_MAX_GAP_S);
         let tr_r = r_stated.sum();
         let tr_hph = hph.trace();
         if after_gap && tr_r < tr_hph && tr_hph > 0.0 {
@@ -852,6 +983,44 @@ impl GnssSource {
     }
 }
 
+/// The horizontal protection level (m): K·√(λ·μ), μ the larger
+/// eigenvalue of the horizontal position covariance, K = [`PROTECTION_K`].
+fn protection_level(core: &Core, lambda: f64) -> f64 {
+    let p = core.filter.covariance();
+    let (a, b, d) = (
+        p.get(idx::POS, idx::POS),
+        p.get(idx::POS, idx::POS + 1),
+        p.get(idx::POS + 1, idx::POS + 1),
+    );
+    let mu = 0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt();
+    PROTECTION_K * (lambda.max(1.0) * mu.max(0.0)).sqrt()
+}
+
+/// Grows the position variance by the square of `offset` (NED, m): the
+/// INS's position is off by about that much, while its velocity and
+/// attitude keep what they knew.
+fn grow_position_variance(core: &mut Core, offset: &Vector3<f64>) {
+    let p = core.filter.covariance_mut();
+    for i in 0..3 {
+        let k = idx::POS + i;
+        p.set(k, k, p.get(k, k) + offset[i] * offset[i]);
+    }
+}
+
+/// The state's σ the fault monitor's growth model needs, now.
+fn state_spread(core: &Core) -> StateSpread {
+    let f = &core.filter;
+    StateSpread {
+        vel_sd: Vector3::new(f.sd(idx::VEL), f.sd(idx::VEL + 1), f.sd(idx::VEL + 2)),
+        tilt_sd: f.sd(idx::ATT).max(f.sd(idx::ATT + 1)),
+        // An unknown yaw (held) is not a heading error to grow with.
+        yaw_sd: f.sd(idx::ATT + 2).min(std::f64::consts::PI),
+        accel_bias_sd: f.sd(idx::BA).max(f.sd(idx::BA + 1)).max(f.sd(idx::BA + 2)),
+        gyro_bias_sd: f.sd(idx::BG).max(f.sd(idx::BG + 1)).max(f.sd(idx::BG + 2)),
+        speed_mps: core.nav.vel.xy().norm(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -891,12 +1060,7 @@ mod tests {
         // A fix a second after a used one measures nothing: the INS had no
         // gap to drift through.
         let before = g.overconfidence.clone();
-        g.last_residual[0] = Some(ResidualMemo {
-            time: t0.add_seconds(599.0),
-            residual: Vector3::zeros(),
-            hph_post: Vector3::zeros(),
-            r_stated: r,
-        });
+        g.last_received = Some(t0.add_seconds(599.0));
         g.ins_overconfidence(t0.add_seconds(600.0), &fix(50.0), &hph, &r);
         assert_eq!(g.overconfidence, before);
 
