@@ -22,7 +22,11 @@ markdown source, invisible on the rendered page):
 
 In a ```console block, lines starting with `$ ` are the commands and the
 other lines their expected output (each contained in it). Text is compared
-with runs of white space collapsed. ```python blocks are listed, not run.
+with runs of white space collapsed. A page's ```python blocks run after its
+shell blocks, in one interpreter (a block uses the names defined above it),
+in a temporary directory, with the interpreter that imports the navsync
+package ($NAVSYNC_PYTHON or target/venv/bin/python); without one they are
+listed as skipped.
 
 Afterwards the repository must hold no file it did not hold before (outside
 target/): commands that write go to target/ or a temporary directory.
@@ -168,6 +172,142 @@ def run(block, env):
     return True, dt, out, ""
 
 
+# Guarded: worker processes that re-import the main module (Dask's
+# LocalCluster spawns them) must not run the blocks again.
+PY_DRIVER = r"""
+import sys, json, traceback
+if __name__ == "__main__":
+    g = {"__name__": "__docs_check__"}
+    for where, code in json.load(open(sys.argv[1])):
+        try:
+            exec(compile(code, where, "exec"), g)
+        except BaseException:
+            traceback.print_exc()
+            print("@@fail " + where, flush=True)
+            sys.exit(1)
+        print("@@ok " + where, flush=True)
+"""
+
+
+def python_exe():
+    """The interpreter with the navsync package: $NAVSYNC_PYTHON, else
+    target/venv/bin/python (.ci/run makes it with CI=true), else None."""
+    exe = os.environ.get("NAVSYNC_PYTHON") or str(ROOT / "target" / "venv" / "bin" / "python")
+    if not os.path.isfile(exe):
+        return None
+    r = subprocess.run([exe, "-c", "import navsync"], capture_output=True)
+    return exe if r.returncode == 0 else None
+
+
+class Checker:
+    def __init__(self, env, listing):
+        self.env, self.listing = env, listing
+        self.ran = self.failed = 0
+        self.skipped = []
+        self.last_out = None
+        self.py = None if listing else python_exe()
+
+    def fail(self, where, why, text, out):
+        self.failed += 1
+        print(f"FAIL {where}: {why}\n  block:")
+        for line in text.rstrip().splitlines():
+            print(f"    {line}")
+        print("  last output:")
+        for line in out.rstrip().splitlines()[-15:]:
+            print(f"    {line}")
+
+    def skip_reason(self, b):
+        reason = b.marker("skip")[0][1] if b.marker("skip") else None
+        for _, path in b.marker("needs"):
+            if not (ROOT / path).exists():
+                reason = reason or f"needs {path}, absent here"
+        if b.lang == "python" and not reason and not self.listing and self.py is None:
+            reason = "needs the navsync Python package (target/venv, which .ci/run makes with CI=true, or NAVSYNC_PYTHON)"
+        return reason
+
+    def output_block(self, b):
+        if self.listing:
+            print(f"     {b.where}: printed figures checked against the block run before it")
+        elif self.last_out is None:
+            self.fail(b.where, "an output block with no command run before it", b.text, "")
+        else:
+            gone = missing(b.text.splitlines(), self.last_out)
+            if gone:
+                self.fail(b.where, "the command above no longer prints: " + "; ".join(gone), b.text, "")
+            else:
+                print(f"ok   {b.where}: {len(b.text.strip().splitlines())} printed lines match")
+
+    def shell_block(self, b, first):
+        if self.listing:
+            print(f"run  {b.where}: {first}")
+            return
+        ok, dt, out, why = run(b, self.env)
+        self.ran += 1
+        self.last_out = out
+        if ok:
+            print(f"ok   {b.where} ({dt:.1f} s): {first}")
+        else:
+            self.fail(f"{b.where} ({dt:.1f} s)", why, b.text, out)
+
+    def python_blocks(self, blocks):
+        """A page's Python blocks in one interpreter, in order (a block uses
+        the names of those above it), in a temporary directory."""
+        if not blocks:
+            return
+        if self.listing:
+            for b in blocks:
+                print(f"run  {b.where}: python")
+            return
+        import json
+        import shutil
+        import tempfile
+        work = tempfile.mkdtemp(prefix="docs-check-py-")
+        try:
+            spec = Path(work) / "blocks.json"
+            spec.write_text(json.dumps([(b.where, b.text) for b in blocks]))
+            driver = Path(work) / "driver.py"
+            driver.write_text(PY_DRIVER)
+            t0 = time.monotonic()
+            try:
+                r = subprocess.run([self.py, str(driver), str(spec)], cwd=work, env=self.env,
+                                   stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                                   timeout=DEFAULT_TIMEOUT_S * len(blocks))
+                out, code = r.stdout + r.stderr, r.returncode
+            except subprocess.TimeoutExpired as e:
+                out, code = str(e.stdout or ""), -1
+            dt = time.monotonic() - t0
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+        done = {line[5:] for line in out.splitlines() if line.startswith("@@ok ")}
+        for b in blocks:
+            self.ran += 1
+            if b.where in done:
+                print(f"ok   {b.where} (python, {dt:.1f} s for the page): {b.text.splitlines()[0]}")
+            else:
+                self.fail(f"{b.where} (python)", "exception or exit " + str(code), b.text, out)
+                self.ran += len(blocks) - blocks.index(b) - 1
+                break
+
+    def page(self, f):
+        python = []
+        for b in blocks_of(f):
+            first = b.text.strip().splitlines()[0] if b.text.strip() else ""
+            if b.marker("output"):
+                self.output_block(b)
+                continue
+            if b.lang not in SHELL_LANGS | {"python"}:
+                continue
+            reason = self.skip_reason(b)
+            if reason:
+                self.skipped.append((b.where, first, reason))
+                print(f"skip {b.where}: {reason}")
+            elif b.lang == "python":
+                python.append(b)
+            else:
+                self.shell_block(b, first)
+        self.python_blocks(python)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--list", action="store_true", help="list the blocks and markers, run nothing")
@@ -179,75 +319,23 @@ def main():
     if not a.list and not (bin_dir / "navsync").is_file():
         sys.exit(f"{bin_dir / 'navsync'} not found: run `cargo build --release` first")
     before = set() if a.list else repo_files()
-    ran = failed = 0
-    skipped, not_run = [], []
+    c = Checker(env, a.list)
     t_all = time.monotonic()
-    last_out = None
     for f in files:
-        for b in blocks_of(f):
-            first = b.text.strip().splitlines()[0] if b.text.strip() else ""
-            if b.marker("output"):
-                if a.list:
-                    print(f"{b.where}: figures checked against the block above")
-                    continue
-                if last_out is None:
-                    print(f"FAIL {b.where}: an output block with no command run before it")
-                    failed += 1
-                    continue
-                gone = missing(b.text.splitlines(), last_out)
-                if gone:
-                    failed += 1
-                    print(f"FAIL {b.where}: the command above no longer prints:")
-                    for g in gone:
-                        print(f"    {g}")
-                else:
-                    print(f"ok   {b.where}: {len(b.text.strip().splitlines())} printed lines match")
-                continue
-            if b.lang not in SHELL_LANGS:
-                if b.lang == "python":
-                    not_run.append((b.where, "python: not run (a snippet; python/tests run the package)"))
-                continue
-            reason = None
-            if b.marker("skip"):
-                reason = b.marker("skip")[0][1]
-            for _, path in b.marker("needs"):
-                if not (ROOT / path).exists():
-                    reason = reason or f"needs {path}, absent here"
-            if reason:
-                skipped.append((b.where, first, reason))
-                print(f"skip {b.where}: {reason}")
-                continue
-            if a.list:
-                print(f"run  {b.where}: {first}")
-                continue
-            ok, dt, out, why = run(b, env)
-            ran += 1
-            last_out = out
-            if ok:
-                print(f"ok   {b.where} ({dt:.1f} s): {first}")
-            else:
-                failed += 1
-                print(f"FAIL {b.where} ({dt:.1f} s): {why}\n  block:")
-                for line in b.text.rstrip().splitlines():
-                    print(f"    {line}")
-                print("  last output:")
-                for line in out.rstrip().splitlines()[-15:]:
-                    print(f"    {line}")
+        c.page(f)
     if a.list:
         return 0
     left = sorted(repo_files() - before)
     if left:
-        failed += 1
+        c.failed += 1
         print("FAIL the docs' commands left files in the repository (write to target/ or /tmp):")
         for p in left:
             print(f"    {p}")
-    print(f"\ndocs-check: {ran} blocks run, {failed} failed, {len(skipped)} skipped, "
+    print(f"\ndocs-check: {c.ran} blocks run, {c.failed} failed, {len(c.skipped)} skipped, "
           f"{time.monotonic() - t_all:.0f} s")
-    for where, first, reason in skipped:
+    for where, first, reason in c.skipped:
         print(f"  skipped {where}: {reason}  [{first}]")
-    for where, reason in not_run:
-        print(f"  {reason}: {where}")
-    return 1 if failed else 0
+    return 1 if c.failed else 0
 
 
 if __name__ == "__main__":
