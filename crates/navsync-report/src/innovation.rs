@@ -35,8 +35,11 @@ pub(crate) struct FixSample {
     pub vel_ne_mps: [f64; 2],
 }
 
-/// False-alarm rate of each signature test on a consistent run.
-pub(crate) const FALSE_ALARM: f64 = 1e-3;
+/// False-alarm rate of each signature test on a consistent run. The
+/// verdict may call at most 5 % of consistent runs "not good" (issue 34);
+/// the two signature tests take 2 % of that, the χ² and envelope checks
+/// the rest.
+pub(crate) const FALSE_ALARM: f64 = 1e-2;
 /// Below this many effective samples the test is not made.
 pub(crate) const MIN_EFFECTIVE_FIXES: f64 = 30.0;
 
@@ -261,15 +264,15 @@ mod tests {
     }
 
     /// A consistent run: no signature at the false-alarm rate, over many
-    /// seeds (at 1e-3 two tests on 50 runs would alarm by chance 10 % of
-    /// the time; more than 2 alarms would be a broken test).
+    /// seeds (two tests at 1 % on 100 runs: 2 alarms expected, more than
+    /// 6 has a chance below 0.5 % and means a broken test).
     #[test]
     fn a_clean_run_shows_neither() {
-        let alarms = (0..50)
+        let alarms = (0..100)
             .filter_map(|s| analyse(&drive(400, [0.0, 0.0], 0.0, 0.028, 100 + s)))
             .filter(|e| e.lever_p < FALSE_ALARM || e.offset_p < FALSE_ALARM)
             .count();
-        assert!(alarms <= 2, "{alarms} false alarms in 50 clean runs");
+        assert!(alarms <= 6, "{alarms} false alarms in 100 clean runs");
     }
 
     #[test]

@@ -537,7 +537,8 @@ fn signature_checks(
 ) {
     use crate::innovation::FALSE_ALARM;
     let rule = format!(
-        "present when its F test passes at a {FALSE_ALARM:.0e} false-alarm rate; then caution when the error it implies costs more than {LOSS_CAUTION}× the filter's σ (√(1 + (e/σ)²)), poor above {LOSS_POOR}×"
+        "present when its F test passes at a {:.0} % false-alarm rate; then caution when the error it implies costs more than {LOSS_CAUTION}× the filter's σ (√(1 + (e/σ)²)), poor above {LOSS_POOR}×",
+        FALSE_ALARM * 100.0
     );
     let grade = |p: f64, err: f64| {
         if p >= FALSE_ALARM {
@@ -566,7 +567,7 @@ fn signature_checks(
     });
     if g > Grade::Good {
         causes.push(format!(
-            "antenna lever arm: the innovations turn with the heading; the antenna looks about {df:+.2} m forward, {dr:+.2} m right of the sheet's antenna_lever_m (an underestimate: the filter absorbs part of it). Measure it; lever-arm states in the filter would estimate it, navsync has none yet"
+            "antenna lever arm: the innovations turn with the heading; the antenna looks about {df:+.2} m forward, {dr:+.2} m right of the sheet's antenna_lever_m (an underestimate: the filter absorbs part of it). Measure it; lever-arm states in the filter would estimate it (navsync has none yet). At a steady speed a GNSS time offset looks the same along the track (v·δt): if the lever arm is right, estimate the offset (time_offset: estimate: true)"
         ));
     }
     let g = grade(e.offset_p, e.offset_error_m());
@@ -1217,7 +1218,7 @@ mod tests {
         assert_eq!(grade_of_lever(small(0.03)).0, Some(Grade::Good));
         assert_eq!(grade_of_lever(small(0.08)).0, Some(Grade::Caution));
         let unseen = InnovationEvidence {
-            lever_p: 0.01,
+            lever_p: 0.02,
             ..base.clone()
         };
         assert_eq!(grade_of_lever(unseen).0, Some(Grade::Good));
