@@ -393,7 +393,7 @@ pub(crate) fn autocorrelation(x: &[f64], k: usize) -> f64 {
     }
     let m = x.iter().sum::<f64>() / x.len() as f64;
     let var: f64 = x.iter().map(|v| (v - m).powi(2)).sum();
-    if !(var > 0.0) {
+    if var.is_nan() || var <= 0.0 {
         return 0.0;
     }
     x[k..]
@@ -419,9 +419,9 @@ pub(crate) fn effective_count(x: &[f64]) -> f64 {
     let n = x.len();
     let mut tau = 1.0;
     let mut k = 1;
-    while k + 1 <= n / 4 {
+    while k < n / 4 {
         let pair = autocorrelation(x, k) + autocorrelation(x, k + 1);
-        if !(pair > 0.0) {
+        if pair.is_nan() || pair <= 0.0 {
             break;
         }
         tau += 2.0 * pair;
