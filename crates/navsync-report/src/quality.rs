@@ -458,7 +458,7 @@ fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Vec<String>) {
     let which_small = if white {
         "the fixes' stated σ are too small (innovations white: the fixes' own noise)"
     } else {
-        "the IMU noise figures are too optimistic, e.g. a better IMU's than the data's (innovations correlated from fix to fix: the INS drifts more than stated)"
+        "the innovations are correlated from fix to fix: something drifts between fixes that the filter does not model as it is: IMU noise figures too optimistic (a better IMU's than the data's), or an unestimated GNSS time offset or lever-arm error the signatures below could not separate on this drive"
     };
     let (grade, how) = if mean > poor {
         (
