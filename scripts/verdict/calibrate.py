@@ -14,6 +14,7 @@ import csv
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -25,6 +26,7 @@ SCENARIOS = os.environ["SCENARIOS"].split()
 GRADES = os.environ["GRADES"].split()
 DURATION = os.environ["DURATION"]
 JOBS = int(os.environ["JOBS"])
+KEEP = os.environ.get("KEEP", "") not in ("", "0")
 
 # The simulator's antenna (navsync-sim GnssSpec default), FRD metres.
 LEVER = [0.1, 0.5, -1.2]
@@ -86,6 +88,9 @@ def process(job):
         return {"verdict": "failed", "hrms": float("nan"), "reasons": "process exit %d" % rc}
     v = verdict_of(out / "report.html")
     h = hrms(sim / "truth.nav", out / "fuse" / "navresult.nav", out / "eval.json")
+    if not KEEP:  # a run's files are ~30 MB; keep the page and the log
+        for sub in ("fuse", "sync", ".previous"):
+            shutil.rmtree(out / sub, ignore_errors=True)
     bad = [c for c in v["checks"] if c.get("grade") not in (None, "good")]
     return {"verdict": v["grade"], "hrms": h,
             "reasons": "; ".join(f"{c['name']}={c['grade']}" for c in bad),
@@ -174,6 +179,15 @@ def main():
         if sel:
             print(f"| {lab} | {len(sel)} | " + " | ".join(
                 str(sum(r["verdict"] == g for r in sel)) for g in grades) + " |")
+
+    print("\nBy defect (loss min … max; verdicts good / caution / poor):\n")
+    print("| defect | runs | loss | good / caution / poor |")
+    print("|---|---|---|---|")
+    for name in dict.fromkeys(r["defect"] for r in rows):
+        sel = [r for r in rows if r["defect"] == name]
+        ls = sorted(float(r["loss"]) for r in sel)
+        print(f"| {name} | {len(sel)} | {ls[0]:.2f} … {ls[-1]:.2f} | "
+              + " / ".join(str(sum(r["verdict"] == g for r in sel)) for g in ("good", "caution", "poor")) + " |")
 
     def rate(sel, ok):
         return f"{sum(map(ok, sel))}/{len(sel)}" + (f" ({100 * sum(map(ok, sel)) / len(sel):.0f} %)" if sel else "")

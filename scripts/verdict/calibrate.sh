@@ -9,11 +9,13 @@
 # Usage (repository root, after cargo build --release):
 #   scripts/verdict/calibrate.sh [WORK_DIR]      (default target/verdict-bed)
 # SEEDS="1 2 3", SCENARIOS="test-track urban", GRADES="adis16465 icm20602 nav",
-# DURATION=300, JOBS=2 override the bed. Needs bash and python3 (stdlib).
+# DURATION=300, JOBS=2 override the bed; KEEP=1 keeps every run's fuse/ and
+# sync/ (about 30 MB a run; the simulations take about 2.4 GB). Needs bash
+# and python3 (stdlib).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 export NAVSYNC=$(realpath "${NAVSYNC:-target/release/navsync}")
 export WORK=$(realpath -m "${1:-target/verdict-bed}")
 export SEEDS=${SEEDS:-1 2 3} SCENARIOS=${SCENARIOS:-test-track urban}
-export GRADES=${GRADES:-adis16465 icm20602 nav} DURATION=${DURATION:-300} JOBS=${JOBS:-2}
+export GRADES=${GRADES:-adis16465 icm20602 nav} DURATION=${DURATION:-300} JOBS=${JOBS:-2} KEEP=${KEEP:-}
 exec python3 scripts/verdict/calibrate.py
