@@ -407,3 +407,54 @@ fn imu_on_an_unknown_clock_on_a_straight_road_is_refused() {
         "{err}"
     );
 }
+
+/// A sheet left with its zero antenna lever arm (the simulator's antenna
+/// is 1.3 m from the IMU): warned at the start, and the verdict is not
+/// "good" and names the lever arm (issue 34).
+#[test]
+fn a_zero_lever_arm_is_warned_and_not_good() {
+    let d = temp_dir("zero-lever");
+    let sim = simulate(&d, "test-track", "120");
+    let p = d.join("sensor.yaml");
+    let (ok, _, err) = run(bin().args([
+        "init",
+        "--preset",
+        "adis16465",
+        "--output",
+        p.to_str().unwrap(),
+    ]));
+    assert!(ok, "{err}");
+    let out = d.join("out");
+    let (ok, stdout, err) = run(bin().args([
+        "process",
+        sim.join("rig.csv").to_str().unwrap(),
+        "--sensor",
+        p.to_str().unwrap(),
+        "--output",
+        out.to_str().unwrap(),
+    ]));
+    assert!(ok, "{stdout}{err}");
+    assert!(
+        err.contains("WARNING") && err.contains("antenna lever arm is [0, 0, 0]"),
+        "{err}"
+    );
+    let verdict = stdout
+        .lines()
+        .find_map(|l| l.split_once("verdict: ").map(|(_, v)| v.trim().to_string()))
+        .unwrap_or_default();
+    assert!(
+        !verdict.is_empty() && verdict != "good",
+        "verdict {verdict:?}\n{stdout}"
+    );
+    assert!(
+        stdout.contains("likely cause: antenna lever arm"),
+        "{stdout}"
+    );
+    let w = json(&out.join("process.json"));
+    assert!(
+        w["warnings"].as_array().is_some_and(|a| a
+            .iter()
+            .any(|x| x.as_str().is_some_and(|s| s.contains("lever arm")))),
+        "{w}"
+    );
+}

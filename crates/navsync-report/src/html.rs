@@ -553,19 +553,32 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         dt.get(dt.len() / 2).copied()
     };
     let gaps = sections::gaps(&fix_times, &outage_spans, &sigma_h, t0);
-    let biases = sections::bias_checks(summary.as_ref(), imu_err_full.as_deref());
-    // The written file itself against the fixes and the forward pass.
-    let written = match (&inp.gnss, ep.origin) {
-        (Some(g), Some(o)) => {
-            let fixes = crate::written::read_fixes(g, &o, &mut diag)?;
-            let track = crate::written::Track::read(&inp.nav, &o, &mut diag)?;
-            let forward = inp
-                .forward_nav
+    // The written file and the forward pass it came from (the same file
+    // when not smoothed): heading, velocity and tilt for the checks below.
+    let (track, forward_track) = match ep.origin {
+        Some(o) => (
+            Some(crate::written::Track::read(&inp.nav, &o, &mut diag)?),
+            inp.forward_nav
                 .as_deref()
                 .map(|p| crate::written::Track::read(p, &o, &mut diag))
-                .transpose()?;
-            crate::written::evidence(&track, forward.as_ref(), &fixes, std_full.as_deref())
+                .transpose()?,
+        ),
+        None => (None, None),
+    };
+    // The written file itself against the fixes and the forward pass.
+    let written = match (&inp.gnss, ep.origin, &track) {
+        (Some(g), Some(o), Some(track)) => {
+            let fixes = crate::written::read_fixes(g, &o, &mut diag)?;
+            crate::written::evidence(track, forward_track.as_ref(), &fixes, std_full.as_deref())
         }
+        _ => None,
+    };
+    let filter_track = forward_track.as_ref().or(track.as_ref());
+    let filter_std = forward_std_full.as_deref().or(std_full.as_deref());
+    let tilt = filter_track.and_then(|t| t.median_roll_pitch_rad());
+    let biases = sections::bias_checks(summary.as_ref(), imu_err_full.as_deref(), tilt);
+    let innovation = match (filter_track, filter_std) {
+        (Some(t), Some(s)) => crate::innovation::analyse(&crate::innovation::samples(&fixes, t, s)),
         _ => None,
     };
     let verdict = quality::assess(&sections::evidence(sections::Gathered {
@@ -578,6 +591,7 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         gaps: &gaps,
         written,
         incomplete: incomplete_solution(&inp.nav, &ep, summary.as_ref()),
+        innovation,
     }));
     let gap_shade = Shade {
         name: "GNSS gap or outage".into(),

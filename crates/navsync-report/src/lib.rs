@@ -9,6 +9,7 @@
 pub mod demo;
 pub mod drive;
 pub(crate) mod html;
+pub(crate) mod innovation;
 pub(crate) mod inputs;
 pub(crate) mod plot;
 pub(crate) mod quality;

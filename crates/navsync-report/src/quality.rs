@@ -108,6 +108,10 @@ pub struct Check {
 pub struct Verdict {
     pub grade: Grade,
     pub checks: Vec<Check>,
+    /// The likely causes of the checks that failed, most specific first
+    /// (not in the page's JSON block, whose format is fixed: FORMATS.md).
+    #[serde(skip)]
+    pub causes: Vec<String>,
 }
 
 /// What the GNSS position fixes said (from `gnss_residuals.txt`).
@@ -140,6 +144,32 @@ pub(crate) struct BiasCheck {
     pub final_sd: f64,
     /// Largest |estimate − centre| / σ(t) over the run.
     pub max_sigmas: f64,
+    /// Gravity's share of the envelope ([`gravity_coupling_sd`]), in
+    /// `unit`; σ(t) is √(bias_prior_sd² + cross_sd²).
+    pub cross_sd: f64,
+}
+
+/// Standard gravity in mGal (1 mGal = 1e-5 m/s²).
+const G_MGAL: f64 = 9.806_65e5;
+
+/// The σ (mGal) of what gravity puts on accelerometer `axis` through the
+/// triad's axis misalignment (σ `misalign_sd_rad` per off-diagonal term)
+/// and the axis's scale factor (σ `scale_sd_ppm`), with gravity along the
+/// unit vector `down_b` in the IMU's axes: f_i = Σ_j M_ij g_j, so
+/// σ² = g² (σ_m² Σ_{j≠i} u_j² + σ_s² u_i²) (the sensor model of Groves
+/// 2013, §4.4.5, eq. 4.16). A bias state absorbs both while the attitude
+/// stays near its usual tilt: a level ADIS16465 (0.05° misalignment) puts
+/// 856 mGal on its x and y axes against a 100 mGal turn-on bias σ.
+pub(crate) fn gravity_coupling_sd(
+    down_b: [f64; 3],
+    axis: usize,
+    misalign_sd_rad: f64,
+    scale_sd_ppm: f64,
+) -> f64 {
+    let u_i2 = down_b.get(axis).map_or(0.0, |u| u * u).min(1.0);
+    let m = misalign_sd_rad.max(0.0);
+    let s = scale_sd_ppm.max(0.0) * 1e-6;
+    G_MGAL * (m * m * (1.0 - u_i2) + s * s * u_i2).sqrt()
 }
 
 /// The configured spread of a bias `t_s` after the start: a first-order
@@ -196,6 +226,10 @@ pub(crate) struct Evidence {
     /// Why the solution file is incomplete (a cut last line, or it ends
     /// before summary.json's last solution), if it is.
     pub solution_incomplete: Option<String>,
+    /// The innovations against the lever-arm and time-offset signatures.
+    pub innovation: Option<crate::innovation::InnovationEvidence>,
+    /// The configured antenna lever arm (summary.json), FRD (m).
+    pub antenna_lever_m: Option<[f64; 3]>,
 }
 
 /// Rejected fixes: a consistent filter gates at 99.99 % (or IGG-III k1 =
@@ -216,6 +250,16 @@ pub(crate) const DOWN_WEIGHTED_POOR: f64 = 0.25;
 /// the interval too narrow: outside it is a caution, not a failure.
 pub(crate) const NIS_CONF: f64 = 0.95;
 pub(crate) const NIS_MEAN_POOR_FACTOR: f64 = 3.0;
+/// A NIS mean within this factor of its expected value (σ figures right
+/// within √2) is good even outside the χ² interval: a datasheet's figures
+/// and a receiver's σ are not known better, and a GNSS error correlated
+/// over tens of seconds (RTK multipath) lifts the mean by some 20 % on a
+/// consistent filter.
+pub(crate) const NIS_TOLERANCE: f64 = 2.0;
+/// An unmodelled error that makes the solution this many times worse than
+/// the filter's σ: caution, poor.
+pub(crate) const LOSS_CAUTION: f64 = 2.0;
+pub(crate) const LOSS_POOR: f64 = 5.0;
 /// Final horizontal σ against the fixes' stated σ: a filter updated by a
 /// fix ends at or below its σ; above 1.5× the last fixes did not constrain
 /// it, above 5× the solution is running on the INS alone.
@@ -341,9 +385,218 @@ fn pct(x: f64) -> String {
     format!("{:.2} %", 100.0 * x)
 }
 
+/// The lag-`k` autocorrelation of `x` (0 for fewer than k + 2 values or
+/// no spread).
+pub(crate) fn autocorrelation(x: &[f64], k: usize) -> f64 {
+    if x.len() < k + 2 {
+        return 0.0;
+    }
+    let m = x.iter().sum::<f64>() / x.len() as f64;
+    let var: f64 = x.iter().map(|v| (v - m).powi(2)).sum();
+    if var.is_nan() || var <= 0.0 {
+        return 0.0;
+    }
+    x[k..]
+        .iter()
+        .zip(x)
+        .map(|(a, b)| (a - m) * (b - m))
+        .sum::<f64>()
+        / var
+}
+
+/// The lag-1 autocorrelation of `x`.
+pub(crate) fn lag1_autocorrelation(x: &[f64]) -> f64 {
+    autocorrelation(x, 1)
+}
+
+/// How many independent values a correlated sequence `x` is worth:
+/// n / τ with the integrated autocorrelation time τ = 1 + 2 Σ ρ_k, summed
+/// over pairs ρ_{2m−1} + ρ_{2m} while they stay positive (Geyer's initial
+/// positive sequence, "Practical Markov chain Monte Carlo", Statistical
+/// Science 1992, §3.3), up to lag n/4. A GNSS error correlated over a
+/// minute makes 1 Hz fixes worth far fewer than their count.
+pub(crate) fn effective_count(x: &[f64]) -> f64 {
+    let n = x.len();
+    let mut tau = 1.0;
+    let mut k = 1;
+    while k < n / 4 {
+        let pair = autocorrelation(x, k) + autocorrelation(x, k + 1);
+        if pair.is_nan() || pair <= 0.0 {
+            break;
+        }
+        tau += 2.0 * pair;
+        k += 2;
+    }
+    (n as f64 / tau).clamp(1.0_f64.min(n as f64), n as f64)
+}
+
+/// The NIS mean against χ² with the fixes' correlation taken into account,
+/// and which way the σ figures are off.
+fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Vec<String>) {
+    let n = nis.len();
+    if n == 0 {
+        return;
+    }
+    let mean = nis.iter().sum::<f64>() / n as f64;
+    // Correlated NIS values are fewer independent ones
+    // ([`effective_count`]), for the interval only.
+    let rho = lag1_autocorrelation(nis);
+    let n_eff = effective_count(nis);
+    let a = 0.5 * (1.0 - NIS_CONF);
+    let k = n_eff * POSITION_DOF;
+    let (Some(lo), Some(hi)) = (chi2_quantile(a, k), chi2_quantile(1.0 - a, k)) else {
+        return;
+    };
+    let (lo, hi) = (lo / n_eff, hi / n_eff);
+    let poor = NIS_MEAN_POOR_FACTOR * POSITION_DOF;
+    let tol_hi = NIS_TOLERANCE * POSITION_DOF;
+    let tol_lo = POSITION_DOF / NIS_TOLERANCE;
+    // White innovations (lag-1 autocorrelation inside ±3/√n, Bartlett's
+    // σ of a white sequence's autocorrelation) are the fixes' own noise;
+    // correlated ones grow between fixes: the INS's drift.
+    let white = rho < 3.0 / (n as f64).sqrt();
+    let which_small = if white {
+        "the fixes' stated σ are too small (innovations white: the fixes' own noise)"
+    } else {
+        "the innovations are correlated from fix to fix: something drifts between fixes that the filter does not model as it is: IMU noise figures too optimistic (a better IMU's than the data's), or an unestimated GNSS time offset or lever-arm error the signatures below could not separate on this drive"
+    };
+    let (grade, how) = if mean > poor {
+        (
+            Grade::Poor,
+            format!("the filter's σ understate the errors: {which_small}"),
+        )
+    } else if mean > hi && mean > tol_hi {
+        (
+            Grade::Caution,
+            format!("σ figures optimistic: {which_small}"),
+        )
+    } else if mean < lo && mean < tol_lo {
+        (
+            Grade::Caution,
+            "σ figures pessimistic: the fixes' stated σ (or the IMU noise figures) are larger than the errors".to_string(),
+        )
+    } else if mean > hi || mean < lo {
+        (
+            Grade::Good,
+            format!(
+                "outside the interval but within a factor {NIS_TOLERANCE} of {POSITION_DOF:.0}: σ right within √{NIS_TOLERANCE}"
+            ),
+        )
+    } else {
+        (Grade::Good, "consistent".to_string())
+    };
+    if grade > Grade::Good {
+        causes.push(format!("noise figures: {how}"));
+    }
+    checks.push(Check {
+        name: "NIS mean",
+        grade: Some(grade),
+        finding: format!(
+            "{mean:.2} over {n} fixes (lag-1 autocorrelation {rho:.2}, {n_eff:.0} independent; expected {POSITION_DOF:.0}, 95 % interval {lo:.2} … {hi:.2}): {how}"
+        ),
+        rule: format!(
+            "good inside the interval χ²(3n′)/n′ (n′ fixes after the reduction for autocorrelation) or within a factor {NIS_TOLERANCE} of 3; poor above {poor:.0}; caution otherwise"
+        ),
+    });
+}
+
+/// A zero antenna lever arm is almost never the rig's: it is the sheet's
+/// default, left unmeasured. Every centimetre of it goes into the position
+/// and the filter cannot see it on a drive without varied turns.
+fn lever_arm_checks(ev: &Evidence, checks: &mut Vec<Check>, causes: &mut Vec<String>) {
+    let Some(l) = ev.antenna_lever_m else { return };
+    let zero = l.iter().all(|x| *x == 0.0);
+    checks.push(Check {
+        name: "antenna lever arm",
+        grade: Some(if zero { Grade::Caution } else { Grade::Good }),
+        finding: if zero {
+            "[0, 0, 0] in the configuration: unmeasured? The lever arm goes straight into the position (a 0.5 m antenna offset is a 0.5 m error); if the antenna really is within a few cm of the IMU, this caution can be ignored".into()
+        } else {
+            format!("[{:.3}, {:.3}, {:.3}] m (forward, right, down)", l[0], l[1], l[2])
+        },
+        rule: "caution when zero (the sheet's default, not a measurement)".into(),
+    });
+    if zero {
+        causes.push("antenna lever arm: zero in the sheet (antenna_lever_m), measure it".into());
+    }
+}
+
+/// The loss of accuracy an unmodelled error `e_m` adds to a solution of
+/// σ `sd_m`: √(1 + (e/σ)²).
+pub(crate) fn loss_factor(e_m: f64, sd_m: f64) -> f64 {
+    (1.0 + (e_m / sd_m.max(1e-6)).powi(2)).sqrt()
+}
+
+/// The lever-arm and time-offset signatures of the innovations
+/// ([`crate::innovation`]): present at the false-alarm rate, and graded by
+/// the accuracy they cost against what the filter claims.
+fn signature_checks(
+    e: &crate::innovation::InnovationEvidence,
+    checks: &mut Vec<Check>,
+    causes: &mut Vec<String>,
+) {
+    use crate::innovation::FALSE_ALARM;
+    let rule = format!(
+        "present when its F test passes at a {:.0} % false-alarm rate; then caution when the error it implies costs more than {LOSS_CAUTION}× the filter's σ (√(1 + (e/σ)²)), poor above {LOSS_POOR}×",
+        FALSE_ALARM * 100.0
+    );
+    let grade = |p: f64, err: f64| {
+        if p >= FALSE_ALARM {
+            Grade::Good
+        } else {
+            grade_of(loss_factor(err, e.filter_h_sd_m), LOSS_CAUTION, LOSS_POOR)
+        }
+    };
+    let [df, dr] = e.lever_error_fr_m;
+    let g = grade(e.lever_p, e.lever_error_m());
+    checks.push(Check {
+        name: "innovations vs heading (lever arm)",
+        grade: Some(g),
+        finding: format!(
+            "{} (p = {:.1e} over {} fixes, {:.0} independent): the antenna looks {:+.3} m forward, {:+.3} m right of where the sheet puts it, {:.3} m against the filter's σ {:.3} m",
+            if e.lever_p < FALSE_ALARM { "present" } else { "not present" },
+            e.lever_p,
+            e.fixes,
+            e.effective_fixes,
+            df,
+            dr,
+            e.lever_error_m(),
+            e.filter_h_sd_m
+        ),
+        rule: rule.clone(),
+    });
+    if g > Grade::Good {
+        causes.push(format!(
+            "antenna lever arm: the innovations turn with the heading; the antenna looks about {df:+.2} m forward, {dr:+.2} m right of the sheet's antenna_lever_m (an underestimate: the filter absorbs part of it). Measure it; lever-arm states in the filter would estimate it (navsync has none yet). At a steady speed a GNSS time offset looks the same along the track (v·δt): if the lever arm is right, estimate the offset (time_offset: estimate: true)"
+        ));
+    }
+    let g = grade(e.offset_p, e.offset_error_m());
+    checks.push(Check {
+        name: "innovations vs speed (time offset)",
+        grade: Some(g),
+        finding: format!(
+            "{} (p = {:.1e}): GNSS tags look {:+.1} ms late, {:.3} m at the RMS speed {:.1} m/s against the filter's σ {:.3} m",
+            if e.offset_p < FALSE_ALARM { "present" } else { "not present" },
+            e.offset_p,
+            e.offset_s * 1e3,
+            e.offset_error_m(),
+            e.speed_rms_mps,
+            e.filter_h_sd_m
+        ),
+        rule,
+    });
+    if g > Grade::Good {
+        causes.push(format!(
+            "GNSS time offset: the innovations grow with the speed along the track; the tags look {:+.0} ms late. Estimate it (sheet: time_offset: estimate: true; fuse --estimate-time-offset) or synchronize with 1PPS",
+            e.offset_s * 1e3
+        ));
+    }
+}
+
 /// Weighs the evidence.
 pub(crate) fn assess(ev: &Evidence) -> Verdict {
     let mut checks = Vec::new();
+    let mut causes = Vec::new();
     if let Some(why) = &ev.solution_incomplete {
         checks.push(Check {
             name: "solution file",
@@ -383,30 +636,7 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
                 pct(DOWN_WEIGHTED_POOR)
             ),
         });
-        if let Some((lo, hi)) = nis_mean_interval(f.nis.len(), POSITION_DOF, NIS_CONF) {
-            let mean = f.nis.iter().sum::<f64>() / f.nis.len() as f64;
-            let poor = NIS_MEAN_POOR_FACTOR * POSITION_DOF;
-            let (grade, how) = if mean > poor {
-                (Grade::Poor, "the filter's σ understate the errors")
-            } else if mean > hi {
-                (Grade::Caution, "σ figures optimistic")
-            } else if mean < lo {
-                (Grade::Caution, "σ figures pessimistic (conservative)")
-            } else {
-                (Grade::Good, "consistent")
-            };
-            checks.push(Check {
-                name: "NIS mean",
-                grade: Some(grade),
-                finding: format!(
-                    "{mean:.2} over {} fixes (expected {POSITION_DOF:.0}, 95 % interval {lo:.2} … {hi:.2}): {how}",
-                    f.nis.len()
-                ),
-                rule: format!(
-                    "good inside the interval χ²(3n)/n; poor above {poor:.0}; caution otherwise"
-                ),
-            });
-        }
+        nis_check(&f.nis, &mut checks, &mut causes);
         if let Some(sd) = ev.final_h_sd_m
             && f.median_fix_h_sd_m > 0.0
         {
@@ -466,6 +696,18 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
                 "good when every estimate stays within ±{BIAS_SIGMAS:.0}σ of the configuration"
             ),
         });
+    }
+    lever_arm_checks(ev, &mut checks, &mut causes);
+    if let Some(e) = &ev.innovation {
+        signature_checks(e, &mut checks, &mut causes);
+    }
+    if checks
+        .iter()
+        .any(|c| c.name == "IMU biases vs datasheet" && c.grade > Some(Grade::Good))
+    {
+        causes.push(
+            "IMU biases outside the datasheet envelope: the IMU is not the one the sheet describes, or the biases absorb another error (lever arm, time offset, mounting)".into(),
+        );
     }
     if let Some(s) = &ev.sync {
         if let Some(l) = s.imu_loss_fraction {
@@ -546,7 +788,11 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
             rule: "caution without evidence".into(),
         });
     }
-    Verdict { grade, checks }
+    Verdict {
+        grade,
+        checks,
+        causes,
+    }
 }
 
 #[cfg(test)]
@@ -683,18 +929,28 @@ mod tests {
         assert_eq!(v.grade, Grade::Poor);
         assert_eq!(graded(&v, "GNSS fixes rejected").grade, Some(Grade::Poor));
 
-        // NIS mean: 3.6 over 600 fixes is outside χ²(1800)/600 (≈ 2.80 … 3.20).
+        // NIS mean: 7 over 600 fixes is outside χ²(1800)/600 (≈ 2.80 … 3.20)
+        // and more than twice 3: caution, naming the σ figures.
         let mut e = good.clone();
-        e.fixes = Some(fixes(600, 0, 0, 3.6));
+        e.fixes = Some(fixes(600, 0, 0, 7.0));
         let v = assess(&e);
         assert_eq!(graded(&v, "NIS mean").grade, Some(Grade::Caution), "{v:#?}");
-        // …but inside it over 10 fixes (≈ 1.6 … 4.6).
-        e.fixes = Some(fixes(10, 0, 0, 3.6));
+        assert!(
+            v.causes.iter().any(|c| c.starts_with("noise figures")),
+            "{v:#?}"
+        );
+        // …but inside it over 2 fixes (≈ 0.21 … 7.22).
+        e.fixes = Some(fixes(2, 0, 0, 7.0));
+        assert_eq!(graded(&assess(&e), "NIS mean").grade, Some(Grade::Good));
+        // 3.6: outside the interval, within the factor 2: good.
+        e.fixes = Some(fixes(600, 0, 0, 3.6));
         assert_eq!(graded(&assess(&e), "NIS mean").grade, Some(Grade::Good));
         e.fixes = Some(fixes(600, 0, 0, 12.0));
         assert_eq!(assess(&e).grade, Grade::Poor);
         e.fixes = Some(fixes(600, 0, 0, 1.0));
-        assert_eq!(graded(&assess(&e), "NIS mean").grade, Some(Grade::Caution));
+        let v = assess(&e);
+        assert_eq!(graded(&v, "NIS mean").grade, Some(Grade::Caution));
+        assert!(graded(&v, "NIS mean").finding.contains("pessimistic"));
 
         // The final σ against the fixes' σ.
         let mut e = good.clone();
@@ -716,6 +972,7 @@ mod tests {
                 final_estimate: 35.0,
                 final_sd: 10.0,
                 max_sigmas: 3.5,
+                cross_sd: 0.0,
             },
             BiasCheck {
                 axis: "accel x".into(),
@@ -727,6 +984,7 @@ mod tests {
                 final_estimate: 50.0,
                 final_sd: 100.0,
                 max_sigmas: 0.9,
+                cross_sd: 0.0,
             },
         ];
         let v = assess(&e);
@@ -834,5 +1092,151 @@ mod tests {
             ..base
         };
         assert_eq!(grade(fast), Grade::Poor);
+    }
+
+    /// Gravity through misalignment and scale: a level IMU's x and y axes
+    /// see g·σ_m, its z axis g·σ_s; on its side (roll 90°) y takes z's role.
+    #[test]
+    fn gravity_couples_into_the_accelerometer_envelope() {
+        let m = 0.05f64.to_radians();
+        let level = [0.0, 0.0, 1.0];
+        let gx = gravity_coupling_sd(level, 0, m, 500.0);
+        assert!(close(gx, 9.806_65e5 * m, 1e-12), "{gx}");
+        assert!(close(gx, 855.8, 1e-3), "{gx}");
+        assert!(close(gravity_coupling_sd(level, 2, m, 500.0), 490.33, 1e-4));
+        let side = [0.0, 1.0, 0.0];
+        assert!(close(gravity_coupling_sd(side, 1, m, 500.0), 490.33, 1e-4));
+        assert!(close(gravity_coupling_sd(side, 2, m, 500.0), gx, 1e-12));
+        assert_eq!(gravity_coupling_sd(level, 0, 0.0, 0.0), 0.0);
+    }
+
+    /// Correlated NIS values are fewer independent ones: the same mean that
+    /// is outside the interval of 600 independent fixes is inside that of
+    /// 600 strongly correlated ones.
+    #[test]
+    fn the_nis_interval_widens_for_correlated_fixes() {
+        assert!(lag1_autocorrelation(&[1.0, 2.0]).abs() < 1e-12);
+        let alternating: Vec<f64> = (0..100).map(|k| (k % 2) as f64).collect();
+        assert!(lag1_autocorrelation(&alternating) < -0.9);
+        // White: about n; an AR(1) with φ = 0.9: n (1 − φ)/(1 + φ) ≈ n/19.
+        let mut r = navsync_sim::rng::stream(7, "nis test");
+        let white: Vec<f64> = (0..4000)
+            .map(|_| navsync_sim::rng::normal(&mut r))
+            .collect();
+        let w = effective_count(&white);
+        assert!(w > 3000.0 && w <= 4000.0, "{w}");
+        let mut x = 0.0;
+        let ar: Vec<f64> = white
+            .iter()
+            .map(|e| {
+                x = 0.9 * x + e;
+                x
+            })
+            .collect();
+        let a = effective_count(&ar);
+        assert!(a > 4000.0 / 19.0 / 1.6 && a < 4000.0 / 19.0 * 1.6, "{a}");
+        let nis_of = |slow: bool| -> Vec<f64> {
+            // 1.2 and 11.2 (mean 6.2, just over twice 3), alternating
+            // from fix to fix or in two blocks of 300 fixes.
+            (0..600)
+                .map(|k| {
+                    let phase = if slow { (k / 300) % 2 } else { k % 2 };
+                    if phase == 0 { 1.0 } else { 11.0 }
+                })
+                .collect()
+        };
+        let check = |nis: Vec<f64>| {
+            let (mut c, mut causes) = (Vec::new(), Vec::new());
+            nis_check(&nis, &mut c, &mut causes);
+            c.remove(0)
+        };
+        let fast = check(nis_of(false).into_iter().map(|x| x + 0.2).collect());
+        let slow = check(nis_of(true).into_iter().map(|x| x + 0.2).collect());
+        assert_eq!(fast.grade, Some(Grade::Caution), "{fast:?}");
+        assert_eq!(slow.grade, Some(Grade::Good), "{slow:?}");
+        assert!(slow.finding.contains("independent"), "{slow:?}");
+    }
+
+    #[test]
+    fn a_zero_lever_arm_is_a_caution_with_its_cause() {
+        let mut e = Evidence {
+            fixes: Some(fixes(600, 0, 3, 3.0)),
+            final_h_sd_m: Some(0.8),
+            antenna_lever_m: Some([0.0; 3]),
+            ..Evidence::default()
+        };
+        let v = assess(&e);
+        assert_eq!(v.grade, Grade::Caution, "{v:#?}");
+        assert!(v.causes.iter().any(|c| c.contains("antenna_lever_m")));
+        e.antenna_lever_m = Some([0.1, 0.5, -1.2]);
+        let v = assess(&e);
+        assert_eq!(v.grade, Grade::Good, "{v:#?}");
+        assert!(v.causes.is_empty());
+    }
+
+    /// The signatures grade by the accuracy they cost: a lever-arm error
+    /// of 0.5 m against a 2 cm solution is poor, 3 cm is a caution, 1 cm
+    /// harmless; an insignificant one is good whatever its size.
+    #[test]
+    fn innovation_signatures_are_graded_by_their_cost() {
+        use crate::innovation::InnovationEvidence;
+        let base = InnovationEvidence {
+            fixes: 300,
+            effective_fixes: 150.0,
+            lever_error_fr_m: [0.4, -0.3],
+            lever_p: 1e-9,
+            offset_s: 0.0,
+            offset_p: 0.5,
+            speed_rms_mps: 10.0,
+            filter_h_sd_m: 0.02,
+        };
+        let grade_of_lever = |e: InnovationEvidence| {
+            let ev = Evidence {
+                innovation: Some(e),
+                ..Evidence::default()
+            };
+            let v = assess(&ev);
+            (graded(&v, "innovations vs heading (lever arm)").grade, v)
+        };
+        let (g, v) = grade_of_lever(base.clone());
+        assert_eq!(g, Some(Grade::Poor));
+        assert!(v.causes[0].starts_with("antenna lever arm"), "{v:#?}");
+        assert!(
+            graded(&v, "innovations vs heading (lever arm)")
+                .finding
+                .contains("+0.400 m forward")
+        );
+        assert_eq!(
+            graded(&v, "innovations vs speed (time offset)").grade,
+            Some(Grade::Good)
+        );
+        let small = |m: f64| InnovationEvidence {
+            lever_error_fr_m: [m, 0.0],
+            ..base.clone()
+        };
+        // √(1 + 1.5²) = 1.8: good; √(1 + 4²) = 4.1: caution.
+        assert_eq!(grade_of_lever(small(0.03)).0, Some(Grade::Good));
+        assert_eq!(grade_of_lever(small(0.08)).0, Some(Grade::Caution));
+        let unseen = InnovationEvidence {
+            lever_p: 0.02,
+            ..base.clone()
+        };
+        assert_eq!(grade_of_lever(unseen).0, Some(Grade::Good));
+        // A time offset of 30 ms at 10 m/s: 0.3 m against 2 cm, poor.
+        let late = InnovationEvidence {
+            lever_p: 0.5,
+            offset_s: 0.03,
+            offset_p: 1e-6,
+            ..base
+        };
+        let v = assess(&Evidence {
+            innovation: Some(late),
+            ..Evidence::default()
+        });
+        assert_eq!(
+            graded(&v, "innovations vs speed (time offset)").grade,
+            Some(Grade::Poor)
+        );
+        assert!(v.causes[0].starts_with("GNSS time offset"), "{v:#?}");
     }
 }

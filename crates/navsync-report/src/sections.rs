@@ -106,7 +106,18 @@ fn triplet(v: Option<&Value>) -> Option<[f64; 3]> {
 /// the configured initial bias ± σ(t) relaxing from the configured initial
 /// σ to the bias instability ([`quality::bias_prior_sd`]). Empty when
 /// either is missing (summaries written before `imu_model` existed).
-pub(crate) fn bias_checks(summary: Option<&Value>, imu_err: Option<&[Vec<f64>]>) -> Vec<BiasCheck> {
+///
+/// An accelerometer axis also carries gravity through the axes'
+/// misalignment and its own scale factor; the filter has no misalignment
+/// state and cannot tell a scale factor from a bias along a steady gravity,
+/// so both widen that axis's envelope ([`quality::gravity_coupling_sd`]),
+/// from gravity's direction in the IMU's axes at the run's median
+/// `roll_pitch_rad` (level when unknown).
+pub(crate) fn bias_checks(
+    summary: Option<&Value>,
+    imu_err: Option<&[Vec<f64>]>,
+    roll_pitch_rad: Option<[f64; 2]>,
+) -> Vec<BiasCheck> {
     let (Some(model), Some(rows)) = (summary.and_then(|s| s.get("imu_model")), imu_err) else {
         return Vec::new();
     };
@@ -133,9 +144,29 @@ pub(crate) fn bias_checks(summary: Option<&Value>, imu_err: Option<&[Vec<f64>]>)
         ) else {
             continue;
         };
+        let misalign_sd_rad = summary
+            .and_then(|s| s.pointer("/options/accel_misalignment_sd_deg"))
+            .and_then(Value::as_f64)
+            .unwrap_or(0.0)
+            .to_radians();
+        let scale_sd_ppm = triplet(model.get("accel_scale_sd_ppm")).unwrap_or([0.0; 3]);
+        let [roll, pitch] = roll_pitch_rad.unwrap_or([0.0, 0.0]);
+        // Gravity's direction in the IMU's axes (Groves 2013, eq. 5.56 at rest).
+        let down_b = [
+            -pitch.sin(),
+            roll.sin() * pitch.cos(),
+            roll.cos() * pitch.cos(),
+        ];
         for (a, axis) in ["x", "y", "z"].iter().enumerate() {
-            let sd_at =
-                |sow: f64| quality::bias_prior_sd(init_sd[a], instab[a], tau, rel_s(sow, t_first));
+            let cross_sd = if what == "accel" {
+                quality::gravity_coupling_sd(down_b, a, misalign_sd_rad, scale_sd_ppm[a])
+            } else {
+                0.0
+            };
+            let sd_at = |sow: f64| {
+                quality::bias_prior_sd(init_sd[a], instab[a], tau, rel_s(sow, t_first))
+                    .hypot(cross_sd)
+            };
             let col = 1 + 3 * g + a;
             let max_sigmas = rows
                 .iter()
@@ -156,6 +187,7 @@ pub(crate) fn bias_checks(summary: Option<&Value>, imu_err: Option<&[Vec<f64>]>)
                 final_estimate: last[col],
                 final_sd,
                 max_sigmas,
+                cross_sd,
             });
         }
     }
@@ -262,6 +294,13 @@ pub(crate) fn verdict_section(html: &mut String, v: &Verdict, with_truth: bool) 
         html.push_str("<p>Every graded check passed.</p>\n");
     } else {
         let _ = writeln!(html, "<p>Because of: {}.</p>", reasons.join("; "));
+    }
+    if !v.causes.is_empty() {
+        html.push_str("<p>Likely causes:</p>\n<ul>\n");
+        for c in &v.causes {
+            let _ = writeln!(html, "<li>{}</li>", escape(c));
+        }
+        html.push_str("</ul>\n");
     }
     let _ = writeln!(
         html,
@@ -630,7 +669,8 @@ pub(crate) fn imu_envelope_section(
                             b.instability_sd,
                             b.corr_time_s,
                             t_run,
-                        );
+                        )
+                        .hypot(b.cross_sd);
                         (t, b.center - k * sd, b.center + k * sd)
                     })
                     .collect()
@@ -673,7 +713,7 @@ pub(crate) fn imu_envelope_section(
         html,
         "imu-envelope",
         "IMU biases against the datasheet",
-        "Estimates (imu_err.txt) against the configured spread of each bias about the configured initial bias (initgyrbias, initaccbias): σ(t)² = σ₀² e^(−2t/τ) + σ_GM² (1 − e^(−2t/τ)), from the initial σ (initbgstd, initbastd) toward the bias instability (imunoise gbstd, abstd) with the correlation time τ (corrtime), the first-order Gauss–Markov model the filter uses, as summary.json's imu_model records them.",
+        "Estimates (imu_err.txt) against the configured spread of each bias about the configured initial bias (initgyrbias, initaccbias): σ(t)² = σ₀² e^(−2t/τ) + σ_GM² (1 − e^(−2t/τ)), from the initial σ (initbgstd, initbastd) toward the bias instability (imunoise gbstd, abstd) with the correlation time τ (corrtime), the first-order Gauss–Markov model the filter uses, as summary.json's imu_model records them; an accelerometer's envelope adds gravity through the axes' misalignment and its scale factor, g √(σ_m² (1 − u_i²) + σ_s² u_i²) with u gravity's direction in the IMU's axes (the filter estimates neither a misalignment nor a scale factor apart from a bias along a steady gravity).",
         &svg,
     );
     html.push_str("<table class=\"metrics\"><tr><th>bias</th><th>unit</th><th>configured</th><th>σ at start</th><th>instability σ</th><th>σ at end</th><th>final estimate</th><th>final (σ)</th><th>largest (σ)</th><th>inside ±3σ throughout</th></tr>\n");
@@ -822,6 +862,7 @@ pub(crate) struct Gathered<'a> {
     pub written: Option<crate::written::WrittenEvidence>,
     /// [`crate::inputs::incomplete_solution`]'s finding.
     pub incomplete: Option<String>,
+    pub innovation: Option<crate::innovation::InnovationEvidence>,
 }
 
 pub(crate) fn evidence(g: Gathered) -> Evidence {
@@ -835,5 +876,7 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         worst_gap: worst_gap(g.gaps),
         written: g.written,
         solution_incomplete: g.incomplete,
+        innovation: g.innovation,
+        antenna_lever_m: g.summary.and_then(|s| triplet(s.get("antenna_lever_m"))),
     }
 }

@@ -19,6 +19,9 @@ pub(crate) struct Track {
     pub sow: Vec<f64>,
     pub ne: Vec<(f64, f64)>,
     pub speed_mps: Vec<f64>,
+    /// Velocity north, east (m/s) and roll, pitch, yaw (rad).
+    pub vel_ne_mps: Vec<[f64; 2]>,
+    pub att_rad: Vec<[f64; 3]>,
 }
 
 impl Track {
@@ -38,6 +41,8 @@ impl Track {
             t.sow.push(rec.time.sow());
             t.ne.push((d.x, d.y));
             t.speed_mps.push(rec.vel[0].hypot(rec.vel[1]));
+            t.vel_ne_mps.push([rec.vel[0], rec.vel[1]]);
+            t.att_rad.push(rec.att_deg.map(f64::to_radians));
         }
         Ok(t)
     }
@@ -56,6 +61,36 @@ impl Track {
         let u = if t1 > t0 { (sow - t0) / (t1 - t0) } else { 0.0 };
         let (a, b) = (self.ne[k - 1], self.ne[k]);
         Some((a.0 + u * (b.0 - a.0), a.1 + u * (b.1 - a.1)))
+    }
+
+    /// The index of the epoch nearest `sow`, if one is within `max_s`.
+    pub(crate) fn nearest(&self, sow: f64, max_s: f64) -> Option<usize> {
+        let k = self.sow.partition_point(|&t| t < sow);
+        [k.checked_sub(1), Some(k)]
+            .into_iter()
+            .flatten()
+            .filter(|&i| i < self.sow.len() && (self.sow[i] - sow).abs() <= max_s)
+            .min_by(|&a, &b| {
+                (self.sow[a] - sow)
+                    .abs()
+                    .total_cmp(&(self.sow[b] - sow).abs())
+            })
+    }
+
+    /// The median roll and pitch (rad): the IMU's usual tilt, from which
+    /// gravity's direction in its axes follows.
+    pub(crate) fn median_roll_pitch_rad(&self) -> Option<[f64; 2]> {
+        let med = |i: usize| {
+            let mut v: Vec<f64> = self
+                .att_rad
+                .iter()
+                .map(|a| a[i])
+                .filter(|x| x.is_finite())
+                .collect();
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied()
+        };
+        Some([med(0)?, med(1)?])
     }
 }
 
@@ -183,6 +218,8 @@ mod tests {
             sow: points.iter().map(|p| p.0).collect(),
             ne: points.iter().map(|p| (p.1, p.2)).collect(),
             speed_mps: vec![1.0; points.len()],
+            vel_ne_mps: vec![[1.0, 0.0]; points.len()],
+            att_rad: vec![[0.0; 3]; points.len()],
         }
     }
 
@@ -194,6 +231,10 @@ mod tests {
         assert_eq!(t.at(9.0, 2.0), None);
         assert_eq!(t.at(15.0, 2.0), None);
         assert_eq!(t.at(21.0, 2.0), None);
+        assert_eq!(t.nearest(10.6, 0.5), Some(1));
+        assert_eq!(t.nearest(10.4, 0.5), Some(0));
+        assert_eq!(t.nearest(15.0, 0.5), None);
+        assert_eq!(t.nearest(25.0, 10.0), Some(2));
     }
 
     #[test]

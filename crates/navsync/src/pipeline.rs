@@ -409,6 +409,9 @@ pub struct FuseSummary {
     /// The configuration's IMU error model (the datasheet figures a report
     /// compares the estimates with).
     pub imu_model: ImuModelSummary,
+    /// The configuration's antenna lever arm, IMU to antenna, FRD (m;
+    /// KF-GINS `antlever`): the report's verdict warns of a zero one.
+    pub antenna_lever_m: [f64; 3],
     /// The options of the run.
     pub options: FuseOptions,
     /// Wall time of the run (s).
@@ -1181,6 +1184,7 @@ fn run_inner(
         alignment,
         heading_acquired: fusion.heading_acquired(),
         imu_model: ImuModelSummary::of(cfg),
+        antenna_lever_m: cfg.antenna_lever.into(),
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,

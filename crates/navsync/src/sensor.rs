@@ -558,6 +558,20 @@ impl SensorSheet {
     }
 }
 
+/// A warning for a zero antenna lever arm in `source` (a sensor sheet's
+/// `antenna_lever_m`, a KF-GINS `antlever`): the default left unmeasured,
+/// as a rule, and every centimetre of it goes into the position.
+pub fn zero_lever_warning(lever_m: [f64; 3], source: &Path) -> Option<String> {
+    lever_m.iter().all(|x| *x == 0.0).then(|| {
+        format!(
+            "{}: the antenna lever arm is [0, 0, 0]: unmeasured? Its error goes straight into the \
+             position (a 0.5 m offset is a 0.5 m error) and the filter cannot estimate it; measure \
+             the IMU-to-antenna offset (forward, right, down) and enter it",
+            source.display()
+        )
+    })
+}
+
 /// Relative difference between a sheet's IMU rate and the measured one
 /// beyond which [`SensorSheet::rate_mismatch`] warns: a clock error is
 /// ppm to a few %, a wrong rate (50 Hz for 200 Hz) is a factor.
@@ -729,6 +743,11 @@ mod tests {
             let f = s.imu_figures(Path::new("sensor.yaml")).unwrap();
             assert_eq!(f, ImuFigures::preset(p).unwrap(), "{p}");
             assert_eq!(s.antenna_lever_m, [0.0; 3]);
+            assert!(
+                zero_lever_warning(s.antenna_lever_m, Path::new("s.yaml"))
+                    .is_some_and(|w| w.contains("s.yaml") && w.contains("[0, 0, 0]"))
+            );
+            assert!(zero_lever_warning([0.0, 0.0, -0.01], Path::new("s.yaml")).is_none());
             assert!(!s.nhc && s.odometer.is_none() && s.time_offset.is_none());
         }
         // The preset alone gives the same figures.

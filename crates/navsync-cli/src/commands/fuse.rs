@@ -491,6 +491,9 @@ impl Args {
 pub fn run(args: Args) -> Result<()> {
     let mut diag = Diagnostics::default();
     let cfg = KfGinsConfig::load(&args.config, &mut diag)?;
+    if let Some(w) = navsync::sensor::zero_lever_warning(cfg.antenna_lever_m(), &args.config) {
+        eprintln!("navsync fuse: WARNING: {w}");
+    }
     let mut opts = args.options()?;
     opts.validate()?;
     let by_extension = cfg

@@ -660,6 +660,9 @@ fn write_report(
         report.html.len() as f64 / 1e3,
         report.verdict.grade.words()
     );
+    for c in &report.verdict.causes {
+        println!("  likely cause: {c}");
+    }
     Ok(())
 }
 
@@ -667,6 +670,10 @@ pub fn run(a: Args) -> Result<()> {
     // The sheet first: a typo should not cost a sync.
     let sheet = SensorSheet::load(&a.sensor)?;
     let fig = sheet.imu_figures(&a.sensor)?;
+    let lever_warning = navsync::sensor::zero_lever_warning(sheet.antenna_lever_m, &a.sensor);
+    if let Some(w) = &lever_warning {
+        eprintln!("navsync process: WARNING: {w}");
+    }
     let _held = super::take_output(&a.output, "process")?;
     println!("navsync process: inputs");
     let inp = classify(&a.raw)?;
@@ -778,7 +785,7 @@ pub fn run(a: Args) -> Result<()> {
     );
     let summary = super::fuse::execute(&cfg, &opts, &fuse_dir)?;
 
-    let mut warnings: Vec<String> = rate_warning.into_iter().collect();
+    let mut warnings: Vec<String> = lever_warning.into_iter().chain(rate_warning).collect();
     if let Some(al) = &summary.alignment
         && al.method == AlignMethod::NoMotion
     {

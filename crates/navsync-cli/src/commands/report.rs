@@ -101,6 +101,9 @@ pub fn run(a: Args) -> Result<()> {
         a.output.display(),
         report.html.len() as f64 / 1e3
     );
+    for c in &report.verdict.causes {
+        println!("  likely cause: {c}");
+    }
     if let Some(c) = report
         .verdict
         .checks

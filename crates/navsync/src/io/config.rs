@@ -136,6 +136,11 @@ pub struct KfGinsConfig {
 }
 
 impl KfGinsConfig {
+    /// The antenna lever arm (`antlever`), IMU to antenna, FRD (m).
+    pub fn antenna_lever_m(&self) -> [f64; 3] {
+        self.antenna_lever.into()
+    }
+
     /// Reads and checks a KF-GINS YAML file. Problems that do not stop the
     /// run (unknown keys, a path found next to the config rather than in
     /// the working directory) go into `diag`.
