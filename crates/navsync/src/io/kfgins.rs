@@ -79,35 +79,43 @@ impl<R: Read> ImuReader<R> {
     /// out of order or an unconfirmed jump) are reported into `diag` and
     /// skipped. Errors at the end of an empty file.
     pub fn next_sample(&mut self, diag: &mut Diagnostics) -> Result<Option<ImuSample>, Error> {
-        loop {
-            let kept = if let Some(r) = self.guard.take_ready() {
-                r
-            } else if let Some(c) = self.parse_next(diag)? {
-                match self.guard.offer(c, &self.path, diag) {
-                    Some(r) => r,
-                    None => continue,
-                }
-            } else if let Some(r) = self.guard.finish(&self.path, diag) {
-                r
-            } else if self.count == 0 {
+        let Self {
+            lines,
+            path,
+            weeks,
+            guard,
+            ..
+        } = self;
+        let path: &Path = path;
+        let kept = guard.next(path, diag, |last, d| {
+            Self::parse_next(lines, path, weeks, last, d)
+        })?;
+        let Some(kept) = kept else {
+            if self.count == 0 {
                 return Err(Error::NoData {
                     path: self.path.clone(),
                     msg: "no IMU records (expected lines of `sow dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z`)".into(),
                 });
-            } else {
-                return Ok(None);
-            };
-            self.weeks.resolve(kept.ns);
-            self.count += 1;
-            return Ok(Some(kept.rec));
-        }
+            }
+            return Ok(None);
+        };
+        self.weeks.resolve(kept.ns);
+        self.count += 1;
+        Ok(Some(kept.rec))
     }
 
     /// The next line that parses and is plausible on its own.
-    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<ImuSample>>, Error> {
+    /// `last`: the time of the last sample kept.
+    fn parse_next(
+        lines: &mut LineReader<R>,
+        path: &Path,
+        weeks: &mut WeekTracker,
+        last: Option<GpsTime>,
+        diag: &mut Diagnostics,
+    ) -> Result<Option<Timed<ImuSample>>, Error> {
         loop {
             let mut f: [&[u8]; 8] = [b""; 8];
-            let Some((line, line_no)) = self.lines.next_line()? else {
+            let Some((line, line_no)) = lines.next_line()? else {
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
@@ -116,7 +124,7 @@ impl<R: Read> ImuReader<R> {
             let nf = split_fields(line, &mut f);
             if nf < 7 {
                 diag.push(
-                    &self.path,
+                    path,
                     line_no,
                     format!("expected 7 fields (sow, 3 angle and 3 velocity increments), found {nf}; line skipped"),
                 );
@@ -125,11 +133,7 @@ impl<R: Read> ImuReader<R> {
             let ns = match parse_seconds_ns(f[0]) {
                 Ok(v) => v,
                 Err(e) => {
-                    diag.push(
-                        &self.path,
-                        line_no,
-                        format!("field 1 (sow): {e}; line skipped"),
-                    );
+                    diag.push(path, line_no, format!("field 1 (sow): {e}; line skipped"));
                     continue;
                 }
             };
@@ -145,15 +149,15 @@ impl<R: Read> ImuReader<R> {
                 }
             }
             if let Some(msg) = bad {
-                diag.push(&self.path, line_no, msg);
+                diag.push(path, line_no, msg);
                 continue;
             }
-            let time = self.weeks.peek(ns);
+            let time = weeks.peek(ns);
             let dtheta = Vector3::new(vals[0], vals[1], vals[2]);
             let dvel = Vector3::new(vals[3], vals[4], vals[5]);
             // The interval since the last kept sample; 1 s for the first
             // (and for one out of order: the guard reports its time).
-            let dt_s = match self.guard.last() {
+            let dt_s = match last {
                 Some(l) if time > l => time.seconds_since(l),
                 _ => 1.0,
             };
@@ -163,7 +167,7 @@ impl<R: Read> ImuReader<R> {
                     .and_then(|v| velocity_problem(&[v, 0.0, 0.0]).map(|w| format!("odometer {w}")))
             });
             if let Some(why) = why {
-                diag.push(&self.path, line_no, format!("{why}; line skipped"));
+                diag.push(path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             return Ok(Some(Timed {
@@ -239,46 +243,55 @@ impl<R: Read> GnssReader<R> {
     /// positive, a time out of order or an unconfirmed jump) are reported
     /// into `diag` and skipped.
     pub fn next_fix(&mut self, diag: &mut Diagnostics) -> Result<Option<GnssFix>, Error> {
-        loop {
-            let kept = if let Some(r) = self.guard.take_ready() {
-                r
-            } else if let Some(c) = self.parse_next(diag)? {
-                match self.guard.offer(c, &self.path, diag) {
-                    Some(r) => r,
-                    None => continue,
-                }
-            } else if let Some(r) = self.guard.finish(&self.path, diag) {
-                r
-            } else if self.count == 0 {
+        let Self {
+            lines,
+            path,
+            layout,
+            weeks,
+            guard,
+            sd_floor,
+            ..
+        } = self;
+        let path: &Path = path;
+        let kept = guard.next(path, diag, |_, d| {
+            Self::parse_next(lines, path, weeks, *layout, *sd_floor, d)
+        })?;
+        let Some(kept) = kept else {
+            if self.count == 0 {
                 return Err(Error::NoData {
                     path: self.path.clone(),
                     msg: "no GNSS records (expected 7 or 13 columns: `sow lat_deg lon_deg h_m sd_n sd_e sd_d`)"
                         .into(),
                 });
-            } else {
-                return Ok(None);
-            };
-            self.weeks.resolve(kept.ns);
-            self.count += 1;
-            return Ok(Some(kept.rec));
-        }
+            }
+            return Ok(None);
+        };
+        self.weeks.resolve(kept.ns);
+        self.count += 1;
+        Ok(Some(kept.rec))
     }
 
     /// The next line that parses and is plausible on its own.
-    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<GnssFix>>, Error> {
+    fn parse_next(
+        lines: &mut LineReader<R>,
+        path: &Path,
+        weeks: &mut WeekTracker,
+        layout: GnssLayout,
+        sd_floor: Option<f64>,
+        diag: &mut Diagnostics,
+    ) -> Result<Option<Timed<GnssFix>>, Error> {
         loop {
             let mut f: [&[u8]; 13] = [b""; 13];
-            let Some((line, line_no)) = self.lines.next_line()? else {
+            let Some((line, line_no)) = lines.next_line()? else {
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
                 continue;
             }
-            let path = self.path.clone();
             let nf = split_fields(line, &mut f);
             if nf != 7 && nf != 13 {
                 diag.push(
-                    &path,
+                    path,
                     line_no,
                     format!("expected 7 or 13 fields, found {nf}; line skipped"),
                 );
@@ -287,7 +300,7 @@ impl<R: Read> GnssReader<R> {
             let ns = match parse_seconds_ns(f[0]) {
                 Ok(v) => v,
                 Err(e) => {
-                    diag.push(&path, line_no, format!("field 1 (sow): {e}; line skipped"));
+                    diag.push(path, line_no, format!("field 1 (sow): {e}; line skipped"));
                     continue;
                 }
             };
@@ -303,17 +316,17 @@ impl<R: Read> GnssReader<R> {
                 }
             }
             if let Some(msg) = bad {
-                diag.push(&path, line_no, msg);
+                diag.push(path, line_no, msg);
                 continue;
             }
             if let Some(why) = position_problem(v[1], v[2], v[3]) {
-                diag.push(&path, line_no, format!("{why}; line skipped"));
+                diag.push(path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             let (pos_sd, vel, vel_sd) = if nf == 7 {
                 (Vector3::new(v[4], v[5], v[6]), None, None)
             } else {
-                match self.layout {
+                match layout {
                     GnssLayout::Cpp => (
                         Vector3::new(v[7], v[8], v[9]),
                         Some(Vector3::new(v[4], v[5], v[6])),
@@ -333,11 +346,11 @@ impl<R: Read> GnssReader<R> {
                 if sd.iter().all(|&s| s > 0.0 && s.is_finite()) {
                     return Some(sd);
                 }
-                match self.sd_floor {
+                match sd_floor {
                     Some(floor) => Some(sd.map(|s| s.max(floor))),
                     None => {
                         diag.push(
-                            &path,
+                            path,
                             line_no,
                             format!("{what} standard deviation {:?} is not positive; fix skipped (see --gnss-sd-floor)", sd.as_slice()),
                         );
@@ -356,10 +369,10 @@ impl<R: Read> GnssReader<R> {
                 None => None,
             };
             if let Some(why) = vel.and_then(|v| velocity_problem(&[v.x, v.y, v.z])) {
-                diag.push(&path, line_no, format!("{why}; line skipped"));
+                diag.push(path, line_no, format!("{why}; line skipped"));
                 continue;
             }
-            let time = self.weeks.peek(ns);
+            let time = weeks.peek(ns);
             return Ok(Some(Timed {
                 rec: GnssFix {
                     time,
@@ -452,38 +465,42 @@ impl<R: Read> NavReader<R> {
     /// Records off the earth, faster than [`super::plausible::MAX_SPEED_MPS`] or with a
     /// time that jumps unconfirmed are reported and skipped too.
     pub fn next_record(&mut self, diag: &mut Diagnostics) -> Result<Option<NavRecord>, Error> {
-        loop {
-            let kept = if let Some(r) = self.guard.take_ready() {
-                r
-            } else if let Some(c) = self.parse_next(diag)? {
-                match self.guard.offer(c, &self.path, diag) {
-                    Some(r) => r,
-                    None => continue,
-                }
-            } else if let Some(r) = self.guard.finish(&self.path, diag) {
-                r
-            } else if self.count == 0 {
+        let Self {
+            lines,
+            path,
+            weeks,
+            guard,
+            ..
+        } = self;
+        let path: &Path = path;
+        let kept = guard.next(path, diag, |_, d| Self::parse_next(lines, path, weeks, d))?;
+        let Some(kept) = kept else {
+            if self.count == 0 {
                 return Err(Error::NoData {
                     path: self.path.clone(),
                     msg: "no navigation records (expected 11 columns: week sow lat lon h vn ve vd roll pitch yaw)"
                         .into(),
                 });
-            } else {
-                return Ok(None);
-            };
-            if kept.rec.week == 0 {
-                self.weeks.resolve(kept.ns);
             }
-            self.count += 1;
-            return Ok(Some(kept.rec));
+            return Ok(None);
+        };
+        if kept.rec.week == 0 {
+            self.weeks.resolve(kept.ns);
         }
+        self.count += 1;
+        Ok(Some(kept.rec))
     }
 
     /// The next line that parses and is plausible on its own.
-    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<NavRecord>>, Error> {
+    fn parse_next(
+        lines: &mut LineReader<R>,
+        path: &Path,
+        weeks: &mut WeekTracker,
+        diag: &mut Diagnostics,
+    ) -> Result<Option<Timed<NavRecord>>, Error> {
         loop {
             let mut f: [&[u8]; 12] = [b""; 12];
-            let Some((line, line_no)) = self.lines.next_line()? else {
+            let Some((line, line_no)) = lines.next_line()? else {
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
@@ -492,7 +509,7 @@ impl<R: Read> NavReader<R> {
             let nf = split_fields(line, &mut f);
             if nf < 11 {
                 diag.push(
-                    &self.path,
+                    path,
                     line_no,
                     format!("expected 11 fields, found {nf}; line skipped"),
                 );
@@ -502,7 +519,7 @@ impl<R: Read> NavReader<R> {
                 Ok(w) if w >= 0.0 && w.fract() == 0.0 => w as i64,
                 _ => {
                     diag.push(
-                        &self.path,
+                        path,
                         line_no,
                         "field 1 (week) is not a whole number; line skipped",
                     );
@@ -512,11 +529,7 @@ impl<R: Read> NavReader<R> {
             let ns = match parse_seconds_ns(f[1]) {
                 Ok(v) => v,
                 Err(e) => {
-                    diag.push(
-                        &self.path,
-                        line_no,
-                        format!("field 2 (sow): {e}; line skipped"),
-                    );
+                    diag.push(path, line_no, format!("field 2 (sow): {e}; line skipped"));
                     continue;
                 }
             };
@@ -532,13 +545,13 @@ impl<R: Read> NavReader<R> {
                 }
             }
             if let Some(msg) = bad {
-                diag.push(&self.path, line_no, msg);
+                diag.push(path, line_no, msg);
                 continue;
             }
             // Week 0: a time far back in mid-week is a bad line, not a new
             // week (see `WeekTracker`).
             let time = if week == 0 {
-                self.weeks.peek(ns)
+                weeks.peek(ns)
             } else {
                 GpsTime::from_week_ns(week, ns)
             };
@@ -551,7 +564,7 @@ impl<R: Read> NavReader<R> {
                         .then(|| format!("attitude {:?}° is out of range", [v[8], v[9], v[10]]))
                 })
             {
-                diag.push(&self.path, line_no, format!("{why}; line skipped"));
+                diag.push(path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             return Ok(Some(Timed {

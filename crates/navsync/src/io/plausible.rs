@@ -16,7 +16,7 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use crate::error::Diagnostics;
+use crate::error::{Diagnostics, Error};
 use crate::time::GpsTime;
 
 /// Largest plausible angular rate (rad/s), see the module docs.
@@ -226,6 +226,30 @@ impl<T> TimeGuard<T> {
         }
         self.last = Some(c.time);
         Some(c)
+    }
+
+    /// The next record to keep, or `None` at the end: the one driver loop
+    /// of every reader. `parse` gives the next record that parses and is
+    /// plausible on its own (it gets the time of the last record kept, for
+    /// checks on the step), `None` at the end of the file; each goes
+    /// through [`Self::offer`], the end through [`Self::finish`].
+    pub fn next(
+        &mut self,
+        path: &Path,
+        diag: &mut Diagnostics,
+        mut parse: impl FnMut(Option<GpsTime>, &mut Diagnostics) -> Result<Option<Timed<T>>, Error>,
+    ) -> Result<Option<Timed<T>>, Error> {
+        loop {
+            if let Some(r) = self.take_ready() {
+                return Ok(Some(r));
+            }
+            let Some(c) = parse(self.last, diag)? else {
+                return Ok(self.finish(path, diag));
+            };
+            if let Some(r) = self.offer(c, path, diag) {
+                return Ok(Some(r));
+            }
+        }
     }
 
     /// At the end of the file: a held record is kept when it is the only
