@@ -92,6 +92,16 @@ const IMU_FIGURE_RANGE: [(f64, f64); 10] = [
     (0.0, crate::pipeline::MAX_ACCEL_MISALIGNMENT_DEG), // accel_misalignment_deg
 ];
 
+/// The range [`IMU_FIGURE_RANGE`] gives the figure `key` (a key of the
+/// sheet's `imu` block), for other readers of datasheet figures (the
+/// KF-GINS configuration's `imunoise`).
+pub(crate) fn figure_range(key: &str) -> (f64, f64) {
+    let keys = IMU_KEYS[2..].iter().map(|(k, _)| *k);
+    keys.zip(IMU_FIGURE_RANGE)
+        .find(|(k, _)| *k == key)
+        .map_or((0.0, f64::MAX), |(_, r)| r)
+}
+
 /// The IMU rate range (Hz) a sheet may give.
 const RATE_RANGE_HZ: (f64, f64) = (1.0, 1e5);
 /// Largest odometer speed σ (m/s) and time-offset σ (s) a sheet may give.
