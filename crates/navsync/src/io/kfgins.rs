@@ -18,7 +18,9 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use super::plausible::{TimeGuard, Timed, increment_problem, position_problem, velocity_problem};
+use super::plausible::{
+    Preceding, TimeGuard, Timed, increment_problem, position_problem, velocity_problem,
+};
 use super::text::{
     LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, push_fixed, split_fields,
 };
@@ -79,38 +81,52 @@ impl<R: Read> ImuReader<R> {
     /// out of order or an unconfirmed jump) are reported into `diag` and
     /// skipped. Errors at the end of an empty file.
     pub fn next_sample(&mut self, diag: &mut Diagnostics) -> Result<Option<ImuSample>, Error> {
-        let Self {
-            lines,
-            path,
-            weeks,
-            guard,
-            ..
-        } = self;
-        let path: &Path = path;
-        let kept = guard.next(path, diag, |last, d| {
-            Self::parse_next(lines, path, weeks, last, d)
-        })?;
-        let Some(kept) = kept else {
-            if self.count == 0 {
-                return Err(Error::NoData {
-                    path: self.path.clone(),
-                    msg: "no IMU records (expected lines of `sow dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z`)".into(),
-                });
+        loop {
+            let Self {
+                lines,
+                path,
+                weeks,
+                guard,
+                ..
+            } = self;
+            let path: &Path = path;
+            let kept = guard.next(path, diag, |prev, d| {
+                Self::parse_next(lines, path, weeks, prev, d)
+            })?;
+            let Some(kept) = kept else {
+                if self.count == 0 {
+                    return Err(Error::NoData {
+                        path: self.path.clone(),
+                        msg: "no IMU records (expected lines of `sow dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z`)".into(),
+                    });
+                }
+                return Ok(None);
+            };
+            // The first sample has no interval of its own: it was checked
+            // over 1 s; now the next sample is known, over the interval to it.
+            if self.count == 0
+                && let Some(next) = self.guard.following()
+                && let Some(why) = increment_problem(
+                    &kept.rec.dtheta,
+                    &kept.rec.dvel,
+                    next.seconds_since(kept.time),
+                )
+            {
+                diag.push(&self.path, kept.line, format!("{why}; line skipped"));
+                continue;
             }
-            return Ok(None);
-        };
-        self.weeks.resolve(kept.ns);
-        self.count += 1;
-        Ok(Some(kept.rec))
+            self.weeks.resolve(kept.ns);
+            self.count += 1;
+            return Ok(Some(kept.rec));
+        }
     }
 
-    /// The next line that parses and is plausible on its own.
-    /// `last`: the time of the last sample kept.
+    /// `prev`: what the sample would follow (its increments' interval).
     fn parse_next(
         lines: &mut LineReader<R>,
         path: &Path,
         weeks: &mut WeekTracker,
-        last: Option<GpsTime>,
+        prev: Preceding,
         diag: &mut Diagnostics,
     ) -> Result<Option<Timed<ImuSample>>, Error> {
         loop {
@@ -155,12 +171,11 @@ impl<R: Read> ImuReader<R> {
             let time = weeks.peek(ns);
             let dtheta = Vector3::new(vals[0], vals[1], vals[2]);
             let dvel = Vector3::new(vals[3], vals[4], vals[5]);
-            // The interval since the last kept sample; 1 s for the first
-            // (and for one out of order: the guard reports its time).
-            let dt_s = match last {
-                Some(l) if time > l => time.seconds_since(l),
-                _ => 1.0,
-            };
+            // The interval since the sample this one follows (the held one
+            // when this confirms it: a real gap ends there); 1 s for the
+            // first (rechecked in `next_sample`) and for one out of order
+            // (the guard reports its time).
+            let dt_s = prev.before(time).map_or(1.0, |p| time.seconds_since(p));
             let odo_speed = (nf >= 8).then_some(vals[6]);
             let why = increment_problem(&dtheta, &dvel, dt_s).or_else(|| {
                 odo_speed
@@ -890,6 +905,60 @@ mod tests {
             msgs[2].contains(":7: time") && msgs[2].contains("does not go on from it"),
             "{}",
             msgs[2]
+        );
+    }
+
+    /// Increments are checked over the interval to the sample they follow,
+    /// also when that one was held for its jump (the file's first sample,
+    /// the end of a real gap); the first is checked over the interval to
+    /// the next. Found by the `kfgins_text` fuzz target: line 2 below, 1.08
+    /// rad in 15 ms (72 rad/s), was checked over 1 s and kept.
+    #[test]
+    fn increments_are_checked_over_the_interval_they_follow() {
+        let rates = |content: &str| {
+            let (res, d) = read_imu(content);
+            let t: Vec<f64> = res.unwrap().iter().map(|s| s.time.sow()).collect();
+            let msgs: Vec<String> = d.items.iter().map(|x| x.to_string()).collect();
+            (t, msgs)
+        };
+        // The fuzzer's case: line 2 follows the held first line.
+        let (t, msgs) = rates(
+            "100000.0050007 3.5e-06 -1.9e-07 -2.2e-06 5.8e-07 3.4e-05 -4.9e-02\n\
+             100000.020 1.0845 2.3e-07 3.6e-06 -1.9e-07 -2.2e-06 -4.9e-02\n\
+             100000.025 0 0 0 0 0 -0.049\n",
+        );
+        assert_eq!(t, [100000.0050007, 100000.025]);
+        assert_eq!(msgs.len(), 1, "{msgs:?}");
+        assert!(msgs[0].contains(":2: angular rate 7.2"), "{}", msgs[0]);
+        // After a real 0.1 s gap (line 3 held, line 4 confirms it), 0.5 rad
+        // in 5 ms (100 rad/s) is implausible; over the 105 ms since line 2
+        // it would not be.
+        let (t, msgs) = rates(
+            "200000.000 0 0 0 0 0 -0.049\n\
+             200000.005 0 0 0 0 0 -0.049\n\
+             200000.105 0 0 0 0 0 -0.049\n\
+             200000.110 0.5 0 0 0 0 -0.049\n\
+             200000.115 0 0 0 0 0 -0.049\n",
+        );
+        assert_eq!(t, [200000.0, 200000.005, 200000.105, 200000.115]);
+        assert_eq!(msgs.len(), 1, "{msgs:?}");
+        assert!(
+            msgs[0].contains(":4: angular rate 1e2 rad/s"),
+            "{}",
+            msgs[0]
+        );
+        // The first sample: 1 rad in 5 ms is checked against the next line.
+        let (t, msgs) = rates(
+            "300000.000 1.0 0 0 0 0 -0.049\n\
+             300000.005 0 0 0 0 0 -0.049\n\
+             300000.010 0 0 0 0 0 -0.049\n",
+        );
+        assert_eq!(t, [300000.005, 300000.01]);
+        assert_eq!(msgs.len(), 1, "{msgs:?}");
+        assert!(
+            msgs[0].contains(":1: angular rate 2e2 rad/s"),
+            "{}",
+            msgs[0]
         );
     }
 
