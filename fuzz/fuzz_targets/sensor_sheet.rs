@@ -60,7 +60,10 @@ fuzz_target!(|data: &[u8]| {
         assert!(v.iter().all(|x| (x * x).is_finite() && *x > 0.0), "{n:?}");
     }
     assert!(n.corr_time_s.is_finite() && n.corr_time_s > 0.0, "{n:?}");
-    assert!((n.gyro_bias_sd.x.powi(2) / n.corr_time_s).is_finite(), "{n:?}");
+    assert!(
+        (n.gyro_bias_sd.x.powi(2) / n.corr_time_s).is_finite(),
+        "{n:?}"
+    );
     for v in [
         s.pos,
         s.vel,
