@@ -1,7 +1,8 @@
 //! Fuzzes the sensor sheet (`navsync::sensor::SensorSheet::parse`) on raw
 //! YAML, or on a real sheet (`navsync init`'s template) with fuzzed bytes
 //! spliced into its values. Beyond "no panic": a sheet accepted gives
-//! finite, positive noise figures and initial σ, and finite lever arms.
+//! positive noise figures and initial σ whose squares (the filter's
+//! covariance) are finite, and finite lever arms.
 #![no_main]
 
 use std::path::Path;
@@ -55,9 +56,14 @@ fuzz_target!(|data: &[u8]| {
         n.gyro_scale_sd,
         n.accel_scale_sd,
     ] {
-        assert!(v.iter().all(|x| x.is_finite() && *x > 0.0), "{n:?}");
+        // Squared: the filter's covariance must not overflow (1e308 did).
+        assert!(v.iter().all(|x| (x * x).is_finite() && *x > 0.0), "{n:?}");
     }
     assert!(n.corr_time_s.is_finite() && n.corr_time_s > 0.0, "{n:?}");
+    assert!(
+        (n.gyro_bias_sd.x.powi(2) / n.corr_time_s).is_finite(),
+        "{n:?}"
+    );
     for v in [
         s.pos,
         s.vel,
@@ -67,7 +73,7 @@ fuzz_target!(|data: &[u8]| {
         s.gyro_scale,
         s.accel_scale,
     ] {
-        assert!(v.iter().all(|x| x.is_finite() && *x > 0.0), "{s:?}");
+        assert!(v.iter().all(|x| (x * x).is_finite() && *x > 0.0), "{s:?}");
     }
     assert!(
         sheet
@@ -77,6 +83,6 @@ fuzz_target!(|data: &[u8]| {
             .all(|x| x.is_finite())
     );
     if let Some(r) = sheet.imu.rate_hz {
-        assert!(r.is_finite() && r > 0.0);
+        assert!(r.is_finite() && r > 0.0 && (1.0 / r) > 0.0);
     }
 });

@@ -312,6 +312,49 @@ fn a_sheet_rate_far_from_the_data_is_warned_about() {
     );
 }
 
+/// An absurd figure in the sheet stops `process` before any work, naming
+/// the file and the key (1e308 and `.inf` passed "finite and ≥ 0" or
+/// overflowed the covariance before).
+#[test]
+fn process_refuses_an_absurd_sheet_figure_naming_the_key() {
+    let dir = temp_dir("sheet-absurd");
+    let sheet = dir.join("sensor.yaml");
+    let (ok, _, err) = run(bin()
+        .args(["init", "--preset", "adis16465", "--output"])
+        .arg(&sheet));
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&sheet).unwrap();
+    for (from, to, key) in [
+        (
+            "arw_deg_sqrt_h: 0.15",
+            "arw_deg_sqrt_h: 1e308",
+            "'imu.arw_deg_sqrt_h'",
+        ),
+        (
+            "gyro_scale_ppm: 500.0",
+            "gyro_scale_ppm: .inf",
+            "'imu.gyro_scale_ppm'",
+        ),
+        ("# rate_hz: 200", "rate_hz: 1e308", "'imu.rate_hz'"),
+    ] {
+        assert!(text.contains(from), "{from}");
+        std::fs::write(&sheet, text.replace(from, to)).unwrap();
+        let (ok, _, err) = run(bin()
+            .arg("process")
+            .arg(dir.join("rig.csv"))
+            .arg("--sensor")
+            .arg(&sheet)
+            .arg("--output")
+            .arg(dir.join("run")));
+        assert!(!ok);
+        assert!(
+            err.contains("sensor.yaml") && err.contains(key),
+            "{to}: {err}"
+        );
+        assert!(!dir.join("run").exists(), "{to}");
+    }
+}
+
 #[test]
 fn convert_reports_a_gps_week_jump_of_concatenated_logs() {
     use navsync_receivers::ubx::{NavPvt, NavTimeGps, UbxMessage};

@@ -72,6 +72,42 @@ pub(crate) const IMU_KEYS: &[(&str, &str)] = &[
     ),
 ];
 
+/// The range each IMU figure must lie in, in the order of
+/// `ImuFigures::as_pairs`. The upper bounds are far beyond any IMU (the
+/// worst consumer MEMS parts, e.g. an ICM-20602 at 0.24 deg/√h and
+/// 1 % scale error, sit 2–4 orders of magnitude below): a figure above
+/// one is a unit slip or a typo (1e308), and would overflow the filter's
+/// covariance. The correlation time's floor of 1 s keeps the
+/// Gauss–Markov driving noise (2σ²/T) finite.
+const IMU_FIGURE_RANGE: [(f64, f64); 10] = [
+    (0.0, 1e3),                                         // arw_deg_sqrt_h
+    (0.0, 1e2),                                         // vrw_mps_sqrt_h
+    (0.0, 1e5),                                         // gyro_bias_instability_deg_h (≈ 28 deg/s)
+    (0.0, 1e6),                                         // accel_bias_instability_mgal (≈ 1 g)
+    (0.0, 1e5),                                         // gyro_turn_on_bias_deg_h
+    (0.0, 1e6),                                         // accel_turn_on_bias_mgal
+    (0.0, 1e5),                                         // gyro_scale_ppm (10 %)
+    (0.0, 1e5),                                         // accel_scale_ppm
+    (1.0, 1e7),                                         // bias_corr_time_s (≈ 4 months)
+    (0.0, crate::pipeline::MAX_ACCEL_MISALIGNMENT_DEG), // accel_misalignment_deg
+];
+
+/// The range [`IMU_FIGURE_RANGE`] gives the figure `key` (a key of the
+/// sheet's `imu` block), for other readers of datasheet figures (the
+/// KF-GINS configuration's `imunoise`).
+pub(crate) fn figure_range(key: &str) -> (f64, f64) {
+    let keys = IMU_KEYS[2..].iter().map(|(k, _)| *k);
+    keys.zip(IMU_FIGURE_RANGE)
+        .find(|(k, _)| *k == key)
+        .map_or((0.0, f64::MAX), |(_, r)| r)
+}
+
+/// The IMU rate range (Hz) a sheet may give.
+const RATE_RANGE_HZ: (f64, f64) = (1.0, 1e5);
+/// Largest odometer speed σ (m/s) and time-offset σ (s) a sheet may give.
+const MAX_ODO_SD_MPS: f64 = 100.0;
+const MAX_TIME_OFFSET_SD_S: f64 = 10.0;
+
 /// The IMU as the sheet gives it: every figure optional here, so that a
 /// preset can fill what is left out; [`SensorSheet::imu_figures`] says
 /// which is missing.
@@ -399,32 +435,19 @@ impl SensorSheet {
             bias_corr_time_s: v[8],
             accel_misalignment_deg: v[9],
         };
-        for (k, x) in f.as_pairs() {
-            if !(x.is_finite() && x >= 0.0) {
+        for ((k, x), (lo, hi)) in f.as_pairs().into_iter().zip(IMU_FIGURE_RANGE) {
+            // NaN fails the range test too (`.nan` and `.inf` are YAML numbers).
+            if !(lo..=hi).contains(&x) {
+                let why = if k == "accel_misalignment_deg" {
+                    " (a datasheet's cross-axis misalignment is a fraction of a degree)"
+                } else {
+                    " (beyond any IMU: check the key's unit)"
+                };
                 return Err(Error::config(
                     path,
-                    format!("key 'imu.{k}' must be a number ≥ 0, got {x}"),
+                    format!("key 'imu.{k}' must be within [{lo}, {hi}]{why}, got {x}"),
                 ));
             }
-        }
-        if f.accel_misalignment_deg > crate::pipeline::MAX_ACCEL_MISALIGNMENT_DEG {
-            return Err(Error::config(
-                path,
-                format!(
-                    "key 'imu.accel_misalignment_deg' must be at most {}° (a datasheet's cross-axis misalignment is a fraction of a degree), got {}",
-                    crate::pipeline::MAX_ACCEL_MISALIGNMENT_DEG,
-                    f.accel_misalignment_deg
-                ),
-            ));
-        }
-        if f.bias_corr_time_s <= 0.0 {
-            return Err(Error::config(
-                path,
-                format!(
-                    "key 'imu.bias_corr_time_s' must be positive, got {}",
-                    f.bias_corr_time_s
-                ),
-            ));
         }
         Ok(f)
     }
@@ -433,10 +456,14 @@ impl SensorSheet {
     pub fn validate(&self, path: &Path) -> Result<(), Error> {
         self.imu_figures(path)?;
         let bad = |k: &str, m: String| Err(Error::config(path, format!("key '{k}' {m}")));
+        let (lo, hi) = RATE_RANGE_HZ;
         if let Some(r) = self.imu.rate_hz
-            && !(r.is_finite() && r > 0.0)
+            && !(lo..=hi).contains(&r)
         {
-            return bad("imu.rate_hz", format!("must be positive (Hz), got {r}"));
+            return bad(
+                "imu.rate_hz",
+                format!("must be within [{lo}, {hi}] Hz, got {r}"),
+            );
         }
         for (k, v, lim) in [
             ("antenna_lever_m", self.antenna_lever_m, 100.0),
@@ -478,10 +505,10 @@ impl SensorSheet {
             );
         }
         if let Some(o) = &self.odometer {
-            if !(o.sd_mps.is_finite() && o.sd_mps > 0.0) {
+            if !(o.sd_mps > 0.0 && o.sd_mps <= MAX_ODO_SD_MPS) {
                 return bad(
                     "odometer.sd_mps",
-                    format!("must be positive, got {}", o.sd_mps),
+                    format!("must be within (0, {MAX_ODO_SD_MPS}] m/s, got {}", o.sd_mps),
                 );
             }
             if o.lever_m
@@ -495,11 +522,14 @@ impl SensorSheet {
             }
         }
         if let Some(t) = &self.time_offset
-            && !(t.sd_s.is_finite() && t.sd_s > 0.0)
+            && !(t.sd_s > 0.0 && t.sd_s <= MAX_TIME_OFFSET_SD_S)
         {
             return bad(
                 "time_offset.sd_s",
-                format!("must be positive, got {}", t.sd_s),
+                format!(
+                    "must be within (0, {MAX_TIME_OFFSET_SD_S}] s, got {}",
+                    t.sd_s
+                ),
             );
         }
         Ok(())
@@ -829,7 +859,10 @@ mod tests {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("'imu.rate_hz' must be positive"), "{e}");
+        assert!(
+            e.contains("'imu.rate_hz' must be within [1, 100000] Hz, got -5"),
+            "{e}"
+        );
     }
 
     /// The accelerometer misalignment is optional without a preset (axes
@@ -862,8 +895,90 @@ mod tests {
             .replace("accel_misalignment_deg: 0.3", "accel_misalignment_deg: 30");
         let e = figures(&too_large).unwrap_err();
         assert!(
-            e.contains("s.yaml") && e.contains("'imu.accel_misalignment_deg' must be at most 10"),
+            e.contains("s.yaml")
+                && e.contains("'imu.accel_misalignment_deg' must be within [0, 10]"),
             "{e}"
+        );
+    }
+
+    /// An absurd figure (1e308, YAML's `.inf` and `.nan`, a negative) is an
+    /// error naming its key, never a filter whose covariance overflows.
+    #[test]
+    fn absurd_figures_are_errors_naming_the_key() {
+        let t = template("adis16465").unwrap();
+        let set = |key: &str, v: &str| -> String {
+            let mut found = false;
+            let out = t
+                .lines()
+                .map(|l| match l.split_once(':') {
+                    Some((k, _)) if k.trim() == key && !k.trim_start().starts_with('#') => {
+                        found = true;
+                        format!("{k}: {v}\n")
+                    }
+                    _ => format!("{l}\n"),
+                })
+                .collect();
+            assert!(found, "{key} not in the template");
+            out
+        };
+        let keys = IMU_KEYS[2..]
+            .iter()
+            .map(|(k, _)| (*k, format!("'imu.{k}'")));
+        for (key, named) in keys {
+            for v in ["1e308", ".inf", "-.inf", ".nan", "-1"] {
+                let e = SensorSheet::parse(&set(key, v), Path::new("s.yaml"))
+                    .unwrap_err()
+                    .to_string();
+                assert!(
+                    e.contains("s.yaml") && e.contains(&named),
+                    "{key} = {v}: {e}"
+                );
+            }
+        }
+        // Keys outside the figures, added to the template.
+        for (extra, named) in [
+            ("imu:\n  rate_hz: 1e308\n", "'imu.rate_hz'"),
+            ("imu:\n  rate_hz: .inf\n", "'imu.rate_hz'"),
+            ("imu:\n  rate_hz: 1e-300\n", "'imu.rate_hz'"),
+            (
+                "odometer:\n  file: o.txt\n  sd_mps: 1e308\n",
+                "'odometer.sd_mps'",
+            ),
+            (
+                "odometer:\n  file: o.txt\n  sd_mps: .nan\n",
+                "'odometer.sd_mps'",
+            ),
+            (
+                "time_offset:\n  estimate: true\n  sd_s: 1e308\n",
+                "'time_offset.sd_s'",
+            ),
+            ("gnss_default_sd_m: [1, 1, 1e308]\n", "'gnss_default_sd_m'"),
+            ("antenna_lever_m: [.nan, 0, 0]\n", "'antenna_lever_m'"),
+        ] {
+            let (block, _) = extra.split_once(':').unwrap();
+            let text = if block == "imu" {
+                t.replace("imu:\n", extra)
+            } else {
+                let kept: String = t
+                    .lines()
+                    .filter(|l| !l.starts_with(&format!("{block}:")))
+                    .map(|l| format!("{l}\n"))
+                    .collect();
+                kept + extra
+            };
+            let e = SensorSheet::parse(&text, Path::new("s.yaml"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("s.yaml") && e.contains(named), "{extra}: {e}");
+        }
+        // The limits leave every preset, and a plausible rate, valid.
+        let ok = t.replace("imu:\n", "imu:\n  rate_hz: 2000\n");
+        assert_eq!(
+            SensorSheet::parse(&ok, Path::new("s.yaml"))
+                .unwrap()
+                .imu
+                .rate_hz,
+            Some(2000.0)
         );
     }
 

@@ -203,33 +203,36 @@ impl KfGinsConfig {
             block: "imunoise.",
         };
 
-        let arw = nx.vec3("arw")? * (DEG / 60.0);
-        let vrw = nx.vec3("vrw")? / 60.0;
-        let gbstd = nx.vec3("gbstd")? * (DEG / 3600.0);
-        let abstd = nx.vec3("abstd")? * 1e-5;
-        let gsstd = nx.vec3("gsstd")? * 1e-6;
-        let asstd = nx.vec3("asstd")? * 1e-6;
+        // Each figure in the range a sensor sheet allows for it (the same
+        // datasheet units: deg/√h, m/s/√h, deg/h, mGal, ppm; corrtime in h).
+        let ranged = |key: &str, sheet_key: &str| -> Result<Vector3<f64>, Error> {
+            let v = nx.vec3(key)?;
+            let (lo, hi) = crate::sensor::figure_range(sheet_key);
+            match v.iter().find(|x| !(lo..=hi).contains(*x)) {
+                Some(x) => Err(Error::config(
+                    path,
+                    format!("key 'imunoise.{key}' must hold numbers within [{lo}, {hi}], got {x}"),
+                )),
+                None => Ok(v),
+            }
+        };
+        let arw = ranged("arw", "arw_deg_sqrt_h")? * (DEG / 60.0);
+        let vrw = ranged("vrw", "vrw_mps_sqrt_h")? / 60.0;
+        let gbstd = ranged("gbstd", "gyro_bias_instability_deg_h")? * (DEG / 3600.0);
+        let abstd = ranged("abstd", "accel_bias_instability_mgal")? * 1e-5;
+        let gsstd = ranged("gsstd", "gyro_scale_ppm")? * 1e-6;
+        let asstd = ranged("asstd", "accel_scale_ppm")? * 1e-6;
         let corr_h = nx.number("corrtime")?;
-        if corr_h <= 0.0 {
+        let (lo_s, hi_s) = crate::sensor::figure_range("bias_corr_time_s");
+        if !(lo_s..=hi_s).contains(&(corr_h * 3600.0)) {
             return Err(Error::config(
                 path,
-                format!("key 'imunoise.corrtime' must be positive (hours), got {corr_h}"),
+                format!(
+                    "key 'imunoise.corrtime' must be within [{}, {}] hours, got {corr_h}",
+                    lo_s / 3600.0,
+                    hi_s / 3600.0
+                ),
             ));
-        }
-        for (name, v) in [
-            ("arw", arw),
-            ("vrw", vrw),
-            ("gbstd", gbstd),
-            ("abstd", abstd),
-            ("gsstd", gsstd),
-            ("asstd", asstd),
-        ] {
-            if v.iter().any(|x| *x < 0.0) {
-                return Err(Error::config(
-                    path,
-                    format!("key 'imunoise.{name}' must not be negative"),
-                ));
-            }
         }
         let noise = ImuNoise {
             arw,
@@ -545,6 +548,27 @@ antlever: [ 0.1, 0.5, -1.2 ]
             .unwrap_err()
             .to_string();
         assert!(err.contains("missing key 'imunoise.corrtime'"), "{err}");
+
+        // An absurd noise figure names its key (1e308 passed before; YAML
+        // refuses .inf and .nan here, naming the line).
+        for (from, to, key) in [
+            ("arw: [ 0.15,", "arw: [ 1e308,", "'imunoise.arw'"),
+            ("vrw: [ 0.04,", "vrw: [ -0.04,", "'imunoise.vrw'"),
+            ("vrw: [ 0.04,", "vrw: [ 1e300,", "'imunoise.vrw'"),
+            ("gbstd: [ 2.0,", "gbstd: [ 1e300,", "'imunoise.gbstd'"),
+            ("abstd: [ 3.6,", "abstd: [ 1e300,", "'imunoise.abstd'"),
+            ("gsstd: [ 500.0,", "gsstd: [ 5e300,", "'imunoise.gsstd'"),
+            ("asstd: [ 500.0,", "asstd: [ 5e300,", "'imunoise.asstd'"),
+            ("corrtime: 1.0", "corrtime: 1e308", "'imunoise.corrtime'"),
+            ("corrtime: 1.0", "corrtime: 0", "'imunoise.corrtime'"),
+        ] {
+            let text = SAMPLE.replace(from, to);
+            assert_ne!(text, SAMPLE);
+            let err = KfGinsConfig::parse(&text, Path::new("cfg.yaml"), &mut d)
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("cfg.yaml") && err.contains(key), "{to}: {err}");
+        }
 
         let text = SAMPLE.replace("antlever: [ 0.1, 0.5, -1.2 ]", "antlever: [ 0.1, 0.5 ]");
         let err = KfGinsConfig::parse(&text, Path::new("cfg.yaml"), &mut d)

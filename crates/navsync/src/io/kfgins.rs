@@ -18,7 +18,9 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use super::plausible::{TimeGuard, Timed, increment_problem, position_problem, velocity_problem};
+use super::plausible::{
+    Preceding, TimeGuard, Timed, increment_problem, position_problem, velocity_problem,
+};
 use super::text::{
     LineReader, is_blank_or_comment, parse_f64, parse_seconds_ns, push_fixed, split_fields,
 };
@@ -80,34 +82,56 @@ impl<R: Read> ImuReader<R> {
     /// skipped. Errors at the end of an empty file.
     pub fn next_sample(&mut self, diag: &mut Diagnostics) -> Result<Option<ImuSample>, Error> {
         loop {
-            let kept = if let Some(r) = self.guard.take_ready() {
-                r
-            } else if let Some(c) = self.parse_next(diag)? {
-                match self.guard.offer(c, &self.path, diag) {
-                    Some(r) => r,
-                    None => continue,
+            let Self {
+                lines,
+                path,
+                weeks,
+                guard,
+                ..
+            } = self;
+            let path: &Path = path;
+            let kept = guard.next(path, diag, |prev, d| {
+                Self::parse_next(lines, path, weeks, prev, d)
+            })?;
+            let Some(kept) = kept else {
+                if self.count == 0 {
+                    return Err(Error::NoData {
+                        path: self.path.clone(),
+                        msg: "no IMU records (expected lines of `sow dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z`)".into(),
+                    });
                 }
-            } else if let Some(r) = self.guard.finish(&self.path, diag) {
-                r
-            } else if self.count == 0 {
-                return Err(Error::NoData {
-                    path: self.path.clone(),
-                    msg: "no IMU records (expected lines of `sow dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z`)".into(),
-                });
-            } else {
                 return Ok(None);
             };
+            // The first sample has no interval of its own: it was checked
+            // over 1 s; now the next sample is known, over the interval to it.
+            if self.count == 0
+                && let Some(next) = self.guard.following()
+                && let Some(why) = increment_problem(
+                    &kept.rec.dtheta,
+                    &kept.rec.dvel,
+                    next.seconds_since(kept.time),
+                )
+            {
+                diag.push(&self.path, kept.line, format!("{why}; line skipped"));
+                continue;
+            }
             self.weeks.resolve(kept.ns);
             self.count += 1;
             return Ok(Some(kept.rec));
         }
     }
 
-    /// The next line that parses and is plausible on its own.
-    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<ImuSample>>, Error> {
+    /// `prev`: what the sample would follow (its increments' interval).
+    fn parse_next(
+        lines: &mut LineReader<R>,
+        path: &Path,
+        weeks: &mut WeekTracker,
+        prev: Preceding,
+        diag: &mut Diagnostics,
+    ) -> Result<Option<Timed<ImuSample>>, Error> {
         loop {
             let mut f: [&[u8]; 8] = [b""; 8];
-            let Some((line, line_no)) = self.lines.next_line()? else {
+            let Some((line, line_no)) = lines.next_line()? else {
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
@@ -116,7 +140,7 @@ impl<R: Read> ImuReader<R> {
             let nf = split_fields(line, &mut f);
             if nf < 7 {
                 diag.push(
-                    &self.path,
+                    path,
                     line_no,
                     format!("expected 7 fields (sow, 3 angle and 3 velocity increments), found {nf}; line skipped"),
                 );
@@ -125,11 +149,7 @@ impl<R: Read> ImuReader<R> {
             let ns = match parse_seconds_ns(f[0]) {
                 Ok(v) => v,
                 Err(e) => {
-                    diag.push(
-                        &self.path,
-                        line_no,
-                        format!("field 1 (sow): {e}; line skipped"),
-                    );
+                    diag.push(path, line_no, format!("field 1 (sow): {e}; line skipped"));
                     continue;
                 }
             };
@@ -145,25 +165,24 @@ impl<R: Read> ImuReader<R> {
                 }
             }
             if let Some(msg) = bad {
-                diag.push(&self.path, line_no, msg);
+                diag.push(path, line_no, msg);
                 continue;
             }
-            let time = self.weeks.peek(ns);
+            let time = weeks.peek(ns);
             let dtheta = Vector3::new(vals[0], vals[1], vals[2]);
             let dvel = Vector3::new(vals[3], vals[4], vals[5]);
-            // The interval since the last kept sample; 1 s for the first
-            // (and for one out of order: the guard reports its time).
-            let dt_s = match self.guard.last() {
-                Some(l) if time > l => time.seconds_since(l),
-                _ => 1.0,
-            };
+            // The interval since the sample this one follows (the held one
+            // when this confirms it: a real gap ends there); 1 s for the
+            // first (rechecked in `next_sample`) and for one out of order
+            // (the guard reports its time).
+            let dt_s = prev.before(time).map_or(1.0, |p| time.seconds_since(p));
             let odo_speed = (nf >= 8).then_some(vals[6]);
             let why = increment_problem(&dtheta, &dvel, dt_s).or_else(|| {
                 odo_speed
                     .and_then(|v| velocity_problem(&[v, 0.0, 0.0]).map(|w| format!("odometer {w}")))
             });
             if let Some(why) = why {
-                diag.push(&self.path, line_no, format!("{why}; line skipped"));
+                diag.push(path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             return Ok(Some(Timed {
@@ -239,46 +258,55 @@ impl<R: Read> GnssReader<R> {
     /// positive, a time out of order or an unconfirmed jump) are reported
     /// into `diag` and skipped.
     pub fn next_fix(&mut self, diag: &mut Diagnostics) -> Result<Option<GnssFix>, Error> {
-        loop {
-            let kept = if let Some(r) = self.guard.take_ready() {
-                r
-            } else if let Some(c) = self.parse_next(diag)? {
-                match self.guard.offer(c, &self.path, diag) {
-                    Some(r) => r,
-                    None => continue,
-                }
-            } else if let Some(r) = self.guard.finish(&self.path, diag) {
-                r
-            } else if self.count == 0 {
+        let Self {
+            lines,
+            path,
+            layout,
+            weeks,
+            guard,
+            sd_floor,
+            ..
+        } = self;
+        let path: &Path = path;
+        let kept = guard.next(path, diag, |_, d| {
+            Self::parse_next(lines, path, weeks, *layout, *sd_floor, d)
+        })?;
+        let Some(kept) = kept else {
+            if self.count == 0 {
                 return Err(Error::NoData {
                     path: self.path.clone(),
                     msg: "no GNSS records (expected 7 or 13 columns: `sow lat_deg lon_deg h_m sd_n sd_e sd_d`)"
                         .into(),
                 });
-            } else {
-                return Ok(None);
-            };
-            self.weeks.resolve(kept.ns);
-            self.count += 1;
-            return Ok(Some(kept.rec));
-        }
+            }
+            return Ok(None);
+        };
+        self.weeks.resolve(kept.ns);
+        self.count += 1;
+        Ok(Some(kept.rec))
     }
 
     /// The next line that parses and is plausible on its own.
-    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<GnssFix>>, Error> {
+    fn parse_next(
+        lines: &mut LineReader<R>,
+        path: &Path,
+        weeks: &mut WeekTracker,
+        layout: GnssLayout,
+        sd_floor: Option<f64>,
+        diag: &mut Diagnostics,
+    ) -> Result<Option<Timed<GnssFix>>, Error> {
         loop {
             let mut f: [&[u8]; 13] = [b""; 13];
-            let Some((line, line_no)) = self.lines.next_line()? else {
+            let Some((line, line_no)) = lines.next_line()? else {
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
                 continue;
             }
-            let path = self.path.clone();
             let nf = split_fields(line, &mut f);
             if nf != 7 && nf != 13 {
                 diag.push(
-                    &path,
+                    path,
                     line_no,
                     format!("expected 7 or 13 fields, found {nf}; line skipped"),
                 );
@@ -287,7 +315,7 @@ impl<R: Read> GnssReader<R> {
             let ns = match parse_seconds_ns(f[0]) {
                 Ok(v) => v,
                 Err(e) => {
-                    diag.push(&path, line_no, format!("field 1 (sow): {e}; line skipped"));
+                    diag.push(path, line_no, format!("field 1 (sow): {e}; line skipped"));
                     continue;
                 }
             };
@@ -303,17 +331,17 @@ impl<R: Read> GnssReader<R> {
                 }
             }
             if let Some(msg) = bad {
-                diag.push(&path, line_no, msg);
+                diag.push(path, line_no, msg);
                 continue;
             }
             if let Some(why) = position_problem(v[1], v[2], v[3]) {
-                diag.push(&path, line_no, format!("{why}; line skipped"));
+                diag.push(path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             let (pos_sd, vel, vel_sd) = if nf == 7 {
                 (Vector3::new(v[4], v[5], v[6]), None, None)
             } else {
-                match self.layout {
+                match layout {
                     GnssLayout::Cpp => (
                         Vector3::new(v[7], v[8], v[9]),
                         Some(Vector3::new(v[4], v[5], v[6])),
@@ -333,11 +361,11 @@ impl<R: Read> GnssReader<R> {
                 if sd.iter().all(|&s| s > 0.0 && s.is_finite()) {
                     return Some(sd);
                 }
-                match self.sd_floor {
+                match sd_floor {
                     Some(floor) => Some(sd.map(|s| s.max(floor))),
                     None => {
                         diag.push(
-                            &path,
+                            path,
                             line_no,
                             format!("{what} standard deviation {:?} is not positive; fix skipped (see --gnss-sd-floor)", sd.as_slice()),
                         );
@@ -356,10 +384,10 @@ impl<R: Read> GnssReader<R> {
                 None => None,
             };
             if let Some(why) = vel.and_then(|v| velocity_problem(&[v.x, v.y, v.z])) {
-                diag.push(&path, line_no, format!("{why}; line skipped"));
+                diag.push(path, line_no, format!("{why}; line skipped"));
                 continue;
             }
-            let time = self.weeks.peek(ns);
+            let time = weeks.peek(ns);
             return Ok(Some(Timed {
                 rec: GnssFix {
                     time,
@@ -452,38 +480,42 @@ impl<R: Read> NavReader<R> {
     /// Records off the earth, faster than [`super::plausible::MAX_SPEED_MPS`] or with a
     /// time that jumps unconfirmed are reported and skipped too.
     pub fn next_record(&mut self, diag: &mut Diagnostics) -> Result<Option<NavRecord>, Error> {
-        loop {
-            let kept = if let Some(r) = self.guard.take_ready() {
-                r
-            } else if let Some(c) = self.parse_next(diag)? {
-                match self.guard.offer(c, &self.path, diag) {
-                    Some(r) => r,
-                    None => continue,
-                }
-            } else if let Some(r) = self.guard.finish(&self.path, diag) {
-                r
-            } else if self.count == 0 {
+        let Self {
+            lines,
+            path,
+            weeks,
+            guard,
+            ..
+        } = self;
+        let path: &Path = path;
+        let kept = guard.next(path, diag, |_, d| Self::parse_next(lines, path, weeks, d))?;
+        let Some(kept) = kept else {
+            if self.count == 0 {
                 return Err(Error::NoData {
                     path: self.path.clone(),
                     msg: "no navigation records (expected 11 columns: week sow lat lon h vn ve vd roll pitch yaw)"
                         .into(),
                 });
-            } else {
-                return Ok(None);
-            };
-            if kept.rec.week == 0 {
-                self.weeks.resolve(kept.ns);
             }
-            self.count += 1;
-            return Ok(Some(kept.rec));
+            return Ok(None);
+        };
+        if kept.rec.week == 0 {
+            self.weeks.resolve(kept.ns);
         }
+        self.count += 1;
+        Ok(Some(kept.rec))
     }
 
     /// The next line that parses and is plausible on its own.
-    fn parse_next(&mut self, diag: &mut Diagnostics) -> Result<Option<Timed<NavRecord>>, Error> {
+    fn parse_next(
+        lines: &mut LineReader<R>,
+        path: &Path,
+        weeks: &mut WeekTracker,
+        diag: &mut Diagnostics,
+    ) -> Result<Option<Timed<NavRecord>>, Error> {
         loop {
             let mut f: [&[u8]; 12] = [b""; 12];
-            let Some((line, line_no)) = self.lines.next_line()? else {
+            let Some((line, line_no)) = lines.next_line()? else {
                 return Ok(None);
             };
             if is_blank_or_comment(line) {
@@ -492,7 +524,7 @@ impl<R: Read> NavReader<R> {
             let nf = split_fields(line, &mut f);
             if nf < 11 {
                 diag.push(
-                    &self.path,
+                    path,
                     line_no,
                     format!("expected 11 fields, found {nf}; line skipped"),
                 );
@@ -502,7 +534,7 @@ impl<R: Read> NavReader<R> {
                 Ok(w) if w >= 0.0 && w.fract() == 0.0 => w as i64,
                 _ => {
                     diag.push(
-                        &self.path,
+                        path,
                         line_no,
                         "field 1 (week) is not a whole number; line skipped",
                     );
@@ -512,11 +544,7 @@ impl<R: Read> NavReader<R> {
             let ns = match parse_seconds_ns(f[1]) {
                 Ok(v) => v,
                 Err(e) => {
-                    diag.push(
-                        &self.path,
-                        line_no,
-                        format!("field 2 (sow): {e}; line skipped"),
-                    );
+                    diag.push(path, line_no, format!("field 2 (sow): {e}; line skipped"));
                     continue;
                 }
             };
@@ -532,13 +560,13 @@ impl<R: Read> NavReader<R> {
                 }
             }
             if let Some(msg) = bad {
-                diag.push(&self.path, line_no, msg);
+                diag.push(path, line_no, msg);
                 continue;
             }
             // Week 0: a time far back in mid-week is a bad line, not a new
             // week (see `WeekTracker`).
             let time = if week == 0 {
-                self.weeks.peek(ns)
+                weeks.peek(ns)
             } else {
                 GpsTime::from_week_ns(week, ns)
             };
@@ -551,7 +579,7 @@ impl<R: Read> NavReader<R> {
                         .then(|| format!("attitude {:?}° is out of range", [v[8], v[9], v[10]]))
                 })
             {
-                diag.push(&self.path, line_no, format!("{why}; line skipped"));
+                diag.push(path, line_no, format!("{why}; line skipped"));
                 continue;
             }
             return Ok(Some(Timed {
@@ -877,6 +905,60 @@ mod tests {
             msgs[2].contains(":7: time") && msgs[2].contains("does not go on from it"),
             "{}",
             msgs[2]
+        );
+    }
+
+    /// Increments are checked over the interval to the sample they follow,
+    /// also when that one was held for its jump (the file's first sample,
+    /// the end of a real gap); the first is checked over the interval to
+    /// the next. Found by the `kfgins_text` fuzz target: line 2 below, 1.08
+    /// rad in 15 ms (72 rad/s), was checked over 1 s and kept.
+    #[test]
+    fn increments_are_checked_over_the_interval_they_follow() {
+        let rates = |content: &str| {
+            let (res, d) = read_imu(content);
+            let t: Vec<f64> = res.unwrap().iter().map(|s| s.time.sow()).collect();
+            let msgs: Vec<String> = d.items.iter().map(|x| x.to_string()).collect();
+            (t, msgs)
+        };
+        // The fuzzer's case: line 2 follows the held first line.
+        let (t, msgs) = rates(
+            "100000.0050007 3.5e-06 -1.9e-07 -2.2e-06 5.8e-07 3.4e-05 -4.9e-02\n\
+             100000.020 1.0845 2.3e-07 3.6e-06 -1.9e-07 -2.2e-06 -4.9e-02\n\
+             100000.025 0 0 0 0 0 -0.049\n",
+        );
+        assert_eq!(t, [100000.0050007, 100000.025]);
+        assert_eq!(msgs.len(), 1, "{msgs:?}");
+        assert!(msgs[0].contains(":2: angular rate 7.2"), "{}", msgs[0]);
+        // After a real 0.1 s gap (line 3 held, line 4 confirms it), 0.5 rad
+        // in 5 ms (100 rad/s) is implausible; over the 105 ms since line 2
+        // it would not be.
+        let (t, msgs) = rates(
+            "200000.000 0 0 0 0 0 -0.049\n\
+             200000.005 0 0 0 0 0 -0.049\n\
+             200000.105 0 0 0 0 0 -0.049\n\
+             200000.110 0.5 0 0 0 0 -0.049\n\
+             200000.115 0 0 0 0 0 -0.049\n",
+        );
+        assert_eq!(t, [200000.0, 200000.005, 200000.105, 200000.115]);
+        assert_eq!(msgs.len(), 1, "{msgs:?}");
+        assert!(
+            msgs[0].contains(":4: angular rate 1e2 rad/s"),
+            "{}",
+            msgs[0]
+        );
+        // The first sample: 1 rad in 5 ms is checked against the next line.
+        let (t, msgs) = rates(
+            "300000.000 1.0 0 0 0 0 -0.049\n\
+             300000.005 0 0 0 0 0 -0.049\n\
+             300000.010 0 0 0 0 0 -0.049\n",
+        );
+        assert_eq!(t, [300000.005, 300000.01]);
+        assert_eq!(msgs.len(), 1, "{msgs:?}");
+        assert!(
+            msgs[0].contains(":1: angular rate 2e2 rad/s"),
+            "{}",
+            msgs[0]
         );
     }
 

@@ -16,7 +16,7 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 
-use crate::error::Diagnostics;
+use crate::error::{Diagnostics, Error};
 use crate::time::GpsTime;
 
 /// Largest plausible angular rate (rad/s), see the module docs.
@@ -126,6 +126,31 @@ pub(crate) struct Timed<T> {
     pub line: usize,
 }
 
+/// What a new record would follow, for checks that need the interval to
+/// its predecessor (IMU increments → rates): the last record kept, or the
+/// record held for its jump, which a later record confirms.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Preceding {
+    /// Time of the last record kept.
+    pub last: Option<GpsTime>,
+    /// Time of the record held for its jump, if any.
+    pub held: Option<GpsTime>,
+}
+
+impl Preceding {
+    /// The time of the record a record at `t` follows if it is kept: the
+    /// held one when `t` is after it (`t` confirms it), else the last kept
+    /// one; `None` for the file's first record (or one out of order, which
+    /// the guard reports).
+    pub fn before(&self, t: GpsTime) -> Option<GpsTime> {
+        match (self.held, self.last) {
+            (Some(h), _) if t > h => Some(h),
+            (_, Some(l)) if t > l => Some(l),
+            _ => None,
+        }
+    }
+}
+
 /// One-record lookahead against a time that jumps: a record whose time
 /// steps more than `max_step_ns` past the last kept one (or the first
 /// record of the file) is held until the next record says whether it is
@@ -153,9 +178,13 @@ impl<T> TimeGuard<T> {
         }
     }
 
-    /// Time of the last record kept.
-    pub fn last(&self) -> Option<GpsTime> {
-        self.last
+    /// Time of the record after the last one returned, when the guard
+    /// already holds it (the one that confirmed a held record).
+    pub fn following(&self) -> Option<GpsTime> {
+        self.ready
+            .as_ref()
+            .or(self.pending.as_ref())
+            .map(|r| r.time)
     }
 
     /// A record confirmed by the last offer, to be returned before reading
@@ -226,6 +255,34 @@ impl<T> TimeGuard<T> {
         }
         self.last = Some(c.time);
         Some(c)
+    }
+
+    /// The next record to keep, or `None` at the end: the one driver loop
+    /// of every reader. `parse` gives the next record that parses and is
+    /// plausible on its own (it gets what the record would follow, for
+    /// checks on the interval), `None` at the end of the file; each goes
+    /// through [`Self::offer`], the end through [`Self::finish`].
+    pub fn next(
+        &mut self,
+        path: &Path,
+        diag: &mut Diagnostics,
+        mut parse: impl FnMut(Preceding, &mut Diagnostics) -> Result<Option<Timed<T>>, Error>,
+    ) -> Result<Option<Timed<T>>, Error> {
+        loop {
+            if let Some(r) = self.take_ready() {
+                return Ok(Some(r));
+            }
+            let prev = Preceding {
+                last: self.last,
+                held: self.pending.as_ref().map(|p| p.time),
+            };
+            let Some(c) = parse(prev, diag)? else {
+                return Ok(self.finish(path, diag));
+            };
+            if let Some(r) = self.offer(c, path, diag) {
+                return Ok(Some(r));
+            }
+        }
     }
 
     /// At the end of the file: a held record is kept when it is the only
