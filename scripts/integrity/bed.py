@@ -18,7 +18,7 @@
                                over the fault seeds found in W/BED/faults-*
 
 A fix is flagged when its position line in gnss_residuals.txt (docs/FORMATS.md:
-`sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status`)
+`sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status reason hpl_m`)
 has a status other than `used`, or when it has no line at all (refused before
 weighing: a stale repeat, an invalid fix).
 """
@@ -59,7 +59,8 @@ def statuses(path):
     for k, line in records(path):
         f = line.split()
         if f[1] == "position":
-            out[k] = f[-1]
+            # The 13th field (reason and protection level follow it).
+            out[k] = f[12]
     return out
 
 

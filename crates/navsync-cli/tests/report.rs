@@ -404,7 +404,7 @@ fn a_report_without_truth_judges_the_run_from_its_own_statistics() {
         .arg("--output")
         .arg(&page));
     assert!(
-        !ok && err.contains("gnss_residuals.txt:3") && err.contains("expected 13 columns"),
+        !ok && err.contains("gnss_residuals.txt:3") && err.contains("expected 15 columns"),
         "{err}"
     );
 }

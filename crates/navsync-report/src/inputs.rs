@@ -86,11 +86,15 @@ pub(crate) struct FixWeight {
     pub weight: [f64; 3],
     /// used, down-weighted, rejected or drift-accepted.
     pub status: String,
+    /// The integrity monitor's reason (`jump`, `run`, `stale`,
+    /// `persisted`, `outlier`; `-` or absent in older files).
+    pub reason: String,
 }
 
 /// Reads the position lines of `gnss_residuals.txt`
 /// (`sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d
-/// status`); any other line is an error naming file and line.
+/// status [reason hpl_m]`: files before the integrity monitor have 13
+/// columns); any other line is an error naming file and line.
 pub(crate) fn read_fix_weights(path: &Path) -> Result<Vec<FixWeight>, Error> {
     let mut lines = LineReader::open(path)?;
     let mut out = Vec::new();
@@ -100,11 +104,13 @@ pub(crate) fn read_fix_weights(path: &Path) -> Result<Vec<FixWeight>, Error> {
         }
         let mut f: [&[u8]; 16] = [b""; 16];
         let n = split_fields(line, &mut f);
-        if n != 13 {
+        if n != 13 && n != 15 {
             return Err(Error::parse(
                 path,
                 no,
-                format!("expected 13 columns (sow kind innov×3 sd×3 nis w×3 status), found {n}"),
+                format!(
+                    "expected 15 columns (sow kind innov×3 sd×3 nis w×3 status reason hpl_m), or 13 without the last two, found {n}"
+                ),
             ));
         }
         if f[1] != b"position" {
@@ -120,6 +126,11 @@ pub(crate) fn read_fix_weights(path: &Path) -> Result<Vec<FixWeight>, Error> {
             nis: num(8)?,
             weight: [num(9)?, num(10)?, num(11)?],
             status: String::from_utf8_lossy(f[12]).into_owned(),
+            reason: if n == 15 {
+                String::from_utf8_lossy(f[13]).into_owned()
+            } else {
+                "-".into()
+            },
         });
     }
     Ok(out)

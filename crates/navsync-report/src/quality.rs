@@ -125,6 +125,19 @@ pub(crate) struct FixEvidence {
     pub nis: Vec<f64>,
     /// Median stated horizontal σ √(σ_n² + σ_e²) of the fixes (m).
     pub median_fix_h_sd_m: f64,
+    /// The integrity monitor's fault episodes (`reason` column).
+    pub faults: FaultEvidence,
+}
+
+/// What the integrity monitor found (navsync's `fusion::aid::integrity`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct FaultEvidence {
+    /// Fault episodes (jumps that opened one, runs of stale outputs).
+    pub episodes: usize,
+    /// Fixes excluded in them.
+    pub excluded: usize,
+    /// Fixes used again after an episode the INS could not resolve.
+    pub persisted: usize,
 }
 
 /// One IMU bias axis against the configured (datasheet) figures.
@@ -500,6 +513,31 @@ fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Vec<String>) {
     });
 }
 
+/// The GNSS fault episodes (docs/integrity.md). Excluded faults cost
+/// nothing when the INS bridged them; an episode that ended with the
+/// fixes followed again (the INS's drift covered the offset, or it lasted
+/// longer than the IMU can bridge) may have moved the solution.
+fn fault_check(f: &FaultEvidence, checks: &mut Vec<Check>, causes: &mut Vec<String>) {
+    let grade = if f.persisted > 0 {
+        causes.push(format!(
+            "GNSS faults: {} fix(es) used again after a fault episode the INS could not resolve; the solution around them may follow the fault (gnss_residuals.txt, reason `persisted`)",
+            f.persisted
+        ));
+        Grade::Caution
+    } else {
+        Grade::Good
+    };
+    checks.push(Check {
+        name: "GNSS fault episodes",
+        grade: Some(grade),
+        finding: format!(
+            "{} episode(s), {} fix(es) excluded, {} used again after persisting",
+            f.episodes, f.excluded, f.persisted
+        ),
+        rule: "good when every episode was bridged by the INS (the fixes came back); caution when fixes were followed again after an episode it could not resolve".into(),
+    });
+}
+
 /// A zero antenna lever arm is almost never the rig's: it is the sheet's
 /// default, left unmeasured. Every centimetre of it goes into the position
 /// and the filter cannot see it on a drive without varied turns.
@@ -636,6 +674,7 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
                 pct(DOWN_WEIGHTED_POOR)
             ),
         });
+        fault_check(&f.faults, &mut checks, &mut causes);
         nis_check(&f.nis, &mut checks, &mut causes);
         if let Some(sd) = ev.final_h_sd_m
             && f.median_fix_h_sd_m > 0.0
@@ -900,11 +939,48 @@ mod tests {
             down_weighted: down,
             nis: vec![nis; n - rejected],
             median_fix_h_sd_m: 1.0,
+            faults: FaultEvidence::default(),
         }
     }
 
     fn graded<'a>(v: &'a Verdict, name: &str) -> &'a Check {
         v.checks.iter().find(|c| c.name == name).unwrap()
+    }
+
+    /// Fault episodes the INS bridged cost nothing; fixes followed again
+    /// after one it could not resolve make the run a caution, naming why.
+    #[test]
+    fn fault_episodes_are_counted_and_unresolved_ones_graded() {
+        let mut f = fixes(600, 12, 0, 3.0);
+        f.faults = FaultEvidence {
+            episodes: 2,
+            excluded: 12,
+            persisted: 0,
+        };
+        let ev = |f: FixEvidence| Evidence {
+            fixes: Some(f),
+            ..Evidence::default()
+        };
+        let v = assess(&ev(f.clone()));
+        let c = graded(&v, "GNSS fault episodes");
+        assert_eq!(c.grade, Some(Grade::Good));
+        assert!(
+            c.finding.starts_with("2 episode(s), 12 fix(es) excluded"),
+            "{}",
+            c.finding
+        );
+        f.faults.persisted = 1;
+        let v = assess(&ev(f));
+        assert_eq!(
+            graded(&v, "GNSS fault episodes").grade,
+            Some(Grade::Caution)
+        );
+        assert!(v.grade >= Grade::Caution);
+        assert!(
+            v.causes.iter().any(|c| c.contains("persisted")),
+            "{:?}",
+            v.causes
+        );
     }
 
     #[test]

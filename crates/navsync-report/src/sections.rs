@@ -91,7 +91,35 @@ pub(crate) fn fix_evidence(fixes: &[FixWeight]) -> FixEvidence {
             .map(|f| f.nis)
             .collect(),
         median_fix_h_sd_m: h_sd.get(h_sd.len() / 2).copied().unwrap_or(0.0),
+        faults: fault_evidence(fixes),
     }
+}
+
+/// The integrity monitor's episodes, from the fixes' reasons: a `jump`
+/// opens one, a run of `stale` fixes is one.
+fn fault_evidence(fixes: &[FixWeight]) -> quality::FaultEvidence {
+    let mut e = quality::FaultEvidence::default();
+    let mut prev_stale = false;
+    for f in fixes {
+        let stale = f.reason == "stale";
+        match f.reason.as_str() {
+            "jump" => {
+                e.episodes += 1;
+                e.excluded += 1;
+            }
+            "run" | "ramp" => e.excluded += 1,
+            "stale" => {
+                e.excluded += 1;
+                if !prev_stale {
+                    e.episodes += 1;
+                }
+            }
+            "persisted" => e.persisted += 1,
+            _ => {}
+        }
+        prev_stale = stale;
+    }
+    e
 }
 
 fn triplet(v: Option<&Value>) -> Option<[f64; 3]> {

@@ -61,6 +61,9 @@ pub const FALSE_ALARM_PROB: f64 = 1e-4;
 /// Look-backs (s) of the ramp tests: a ramp too slow for the jump test
 /// between consecutive fixes shows against an anchor this far back.
 const RAMP_LAGS_S: [f64; 3] = [3.0, 6.0, 12.0];
+/// A fix more than this (s) after the last clean one is not tested for a
+/// jump.
+const JUMP_MAX_GAP_S: f64 = 2.5;
 /// Clean fixes in a row needed before the INS is a reference for faults.
 const MIN_ANCHORS: usize = 5;
 /// A jump is a ramp's end when the fix is this much closer to the level
@@ -502,6 +505,12 @@ impl FaultMonitor {
         let Some(last) = self.anchors.back().copied() else {
             return Judgement::Clean;
         };
+        // Over a gap the INS is no longer a sharp relative reference (a
+        // MEMS INS drifts past its σ through gaps): the robust weighting
+        // judges such a fix alone.
+        if time.seconds_since(last.time) > JUMP_MAX_GAP_S {
+            return Judgement::Clean;
+        }
         let (delta, d) = self.test(&last, time, z, hph, r, lambda);
         if d > threshold {
             // Back to the level of the fixes seconds before? Then those
