@@ -66,7 +66,7 @@ fn faults_are_labelled_reproducible_and_fused() {
         .arg(a.join("fused")));
     assert!(ok, "{err}");
     let res = read(&a.join("fused/gnss_residuals.txt"));
-    let status: std::collections::HashMap<String, String> = res
+    let status: std::collections::HashMap<String, (String, String)> = res
         .lines()
         .filter(|l| !l.starts_with('#'))
         .map(|l| l.split_whitespace().collect::<Vec<_>>())
@@ -74,28 +74,32 @@ fn faults_are_labelled_reproducible_and_fused() {
         .map(|f| {
             (
                 format!("{:.3}", f[0].parse::<f64>().unwrap()),
-                f[f.len() - 1].to_string(),
+                (f[12].to_string(), f[13].to_string()),
             )
         })
         .collect();
-    // A stale repeat may be refused before weighing (the filter's stale
-    // check: counted in summary.json, absent from the residuals).
+    // A stale repeat is refused before weighing (the filter's stale
+    // check: counted in summary.json, a `rejected` line with reason
+    // `stale` in the residuals).
     let refused_stale = json(&a.join("fused/summary.json"))["stats"]["gnss_fixes_stale"]
         .as_u64()
         .unwrap();
-    let mut absent = 0;
+    let mut stale_lines = 0;
     for l in &labels {
         let key = format!("{:.3}", l[0].parse::<f64>().unwrap());
-        match status.get(&key) {
-            None => {
-                assert_eq!(l[1], "stale", "label {l:?} not among the fused fixes");
-                absent += 1;
-            }
-            Some(s) if l[1] == "spike" => assert_ne!(s, "used", "{l:?}"),
-            Some(_) => {}
+        let Some((st, reason)) = status.get(&key) else {
+            panic!("label {l:?} not among the fused fixes");
+        };
+        if reason == "stale" {
+            assert_eq!(l[1], "stale", "{l:?}");
+            assert_eq!(st, "rejected", "{l:?}");
+            stale_lines += 1;
+        }
+        if l[1] == "spike" {
+            assert_ne!(st, "used", "{l:?}");
         }
     }
-    assert_eq!(absent, refused_stale);
+    assert_eq!(stale_lines, refused_stale);
 }
 
 #[test]
