@@ -442,13 +442,7 @@ impl FaultMonitor {
                     self.close(ep, EpisodeEnd::Returned);
                     return Judgement::Clean;
                 }
-                self.close(ep, EpisodeEnd::Persisted);
-                self.anchors.clear();
-                self.anchors_since_reset = 0;
-                return Judgement::Persisted {
-                    unbridged: false,
-                    offset: delta,
-                };
+                return self.end_unresolved(ep, EpisodeEnd::Persisted, delta);
             }
             // A false fix holds its level; fixes whose offset from the INS
             // wanders beyond what the INS's growth since the episode began
@@ -465,25 +459,11 @@ impl FaultMonitor {
                 })
                 .sum();
             if d_level > threshold {
-                self.episode = None;
-                self.close(ep, EpisodeEnd::Persisted);
-                self.anchors.clear();
-                self.anchors_since_reset = 0;
-                return Judgement::Persisted {
-                    unbridged: false,
-                    offset: delta,
-                };
+                return self.end_unresolved(ep, EpisodeEnd::Persisted, delta);
             }
             if time.seconds_since(ep.start) > MAX_EPISODE_S {
-                self.episode = None;
-                self.close(ep, EpisodeEnd::Unbridged);
-                self.anchors.clear();
-                self.anchors_since_reset = 0;
                 self.ledger.clear();
-                return Judgement::Persisted {
-                    unbridged: true,
-                    offset: delta,
-                };
+                return self.end_unresolved(ep, EpisodeEnd::Unbridged, delta);
             }
             ep.fixes += 1;
             ep.last = time;
@@ -577,6 +557,19 @@ impl FaultMonitor {
             .find(|a| a.seq < last.seq && time.seconds_since(a.time) >= RAMP_LAGS_S[0])?;
         let (delta, d) = self.test(a, time, z, hph, r, lambda);
         Some((a.time, d, delta))
+    }
+
+    /// Ends `ep` with the fixes followed again (`end`: persisted or
+    /// unbridged): the INS is no reference until clean fixes rebuild it.
+    fn end_unresolved(&mut self, ep: Episode, end: EpisodeEnd, delta: Vector3<f64>) -> Judgement {
+        self.episode = None;
+        self.close(ep, end);
+        self.anchors.clear();
+        self.anchors_since_reset = 0;
+        Judgement::Persisted {
+            unbridged: end == EpisodeEnd::Unbridged,
+            offset: delta,
+        }
     }
 
     fn open(
