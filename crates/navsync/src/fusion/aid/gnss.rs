@@ -388,18 +388,16 @@ impl GnssSource {
         self.monitor.note_stale(fix.time);
         core.propagate();
         let obs = Self::position_obs(core, fix);
-        core.fix_log.push(FixRecord {
-            time: fix.time,
-            sow: fix.time.sow(),
-            kind: "position",
-            innovation: [obs.z[0], obs.z[1], obs.z[2]],
-            sd: [0, 1, 2].map(|i| obs.r.get(i, i).sqrt()),
-            nis: nis_of(&core.filter.innovation_covariance(&obs), &obs.z).unwrap_or(f64::INFINITY),
-            weight: [0.0; 3],
-            status: FixStatus::Rejected,
-            reason: FaultReason::Stale,
-            hpl_m: protection_level(core, self.overconfidence_scale()),
-        });
+        let s = core.filter.innovation_covariance(&obs);
+        let record = excluded_record(
+            core,
+            &obs,
+            &s,
+            fix.time,
+            FaultReason::Stale,
+            self.overconfidence_scale(),
+        );
+        core.fix_log.push(record);
         core.notes.push(format!(
             "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.1} m: a stale receiver output; ignored",
             fix.time
@@ -761,23 +759,13 @@ impl GnssSource {
             Judgement::Exclude(reason) => {
                 self.counts.excluded += 1;
                 self.counts.fixes_rejected += 1;
-                let nis = nis_of(&s, &obs.z).unwrap_or(f64::INFINITY);
-                core.fix_log.push(FixRecord {
-                    time,
-                    sow: time.sow(),
-                    kind: "position",
-                    innovation: [z[0], z[1], z[2]],
-                    sd: [r[0].sqrt(), r[1].sqrt(), r[2].sqrt()],
-                    nis,
-                    weight: [0.0; 3],
-                    status: FixStatus::Rejected,
-                    reason,
-                    hpl_m: protection_level(core, lambda),
-                });
+                let record = excluded_record(core, obs, &s, time, reason, lambda);
+                core.fix_log.push(record);
                 core.notes.push(format!(
-                    "GNSS fix at {time} excluded by the integrity monitor ({}: innovation {:.3} m, NIS {nis:.1})",
+                    "GNSS fix at {time} excluded by the integrity monitor ({}: innovation {:.3} m, NIS {:.1})",
                     reason.word(),
-                    z.norm()
+                    z.norm(),
+                    record.nis
                 ));
                 Ok(true)
             }
@@ -994,6 +982,30 @@ fn protection_level(core: &Core, lambda: f64) -> f64 {
     );
     let mu = 0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt();
     PROTECTION_K * (lambda.max(1.0) * mu.max(0.0)).sqrt()
+}
+
+/// The record of a position fix not fused (stale, or excluded by the fault
+/// monitor): innovation covariance `s`, the INS overconfidence `lambda`.
+fn excluded_record(
+    core: &Core,
+    obs: &Observation,
+    s: &Mat,
+    time: GpsTime,
+    reason: FaultReason,
+    lambda: f64,
+) -> FixRecord {
+    FixRecord {
+        time,
+        sow: time.sow(),
+        kind: "position",
+        innovation: [obs.z[0], obs.z[1], obs.z[2]],
+        sd: [0, 1, 2].map(|i| obs.r.get(i, i).sqrt()),
+        nis: nis_of(s, &obs.z).unwrap_or(f64::INFINITY),
+        weight: [0.0; 3],
+        status: FixStatus::Rejected,
+        reason,
+        hpl_m: protection_level(core, lambda),
+    }
 }
 
 /// Grows the position variance by the square of `offset` (NED, m): the

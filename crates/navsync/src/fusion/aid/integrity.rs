@@ -33,13 +33,16 @@
 //! weighting measured on clean fixes. D = Δᵀ V⁻¹ Δ is tested against the
 //! χ²₃ quantile at [`FALSE_ALARM_PROB`]:
 //!
-//! - against the last anchor: a *jump* (spikes, the onset of a false fix);
-//! - against anchors [`RAMP_LAGS_S`] back: a *ramp*, whose steps are each
-//!   too small to see.
+//! against the last anchor: a *jump* (spikes, the onset of a false fix).
+//! A ramp's steps are each too small to see, and over the seconds a ramp
+//! takes a free MEMS INS drifts as a ramp does (a test against anchors
+//! seconds back, with a growth model from the state's σ, took the INS's
+//! own drift for ramps on clean drives); only a ramp's end is recognised,
+//! as a jump back to where the fixes were seconds before.
 //!
 //! A detection opens an episode: "the fixes moved to a new level", held as
 //! a hypothesis. Each later fix is tested against the episode's anchor:
-//! while it fails, the fix is excluded (a *run*, or a continuing *ramp*);
+//! while it fails, the fix is excluded (a *run*);
 //! when it passes, either the fixes came back (the episode ends; an
 //! episode of one fix was a *spike*) or the INS's own predicted drift has
 //! grown to cover the offset (accepted after persisting: the INS can no
@@ -58,9 +61,8 @@ use crate::time::GpsTime;
 /// False-alarm probability of one test of one clean fix (χ², 3 degrees
 /// of freedom).
 pub const FALSE_ALARM_PROB: f64 = 1e-4;
-/// Look-backs (s) of the ramp tests: a ramp too slow for the jump test
-/// between consecutive fixes shows against an anchor this far back.
-const RAMP_LAGS_S: [f64; 3] = [3.0, 6.0, 12.0];
+/// A ramp's end is judged against an anchor at least this old (s).
+const RAMP_END_MIN_LAG_S: f64 = 3.0;
 /// A fix more than this (s) after the last clean one is not tested for a
 /// jump.
 const JUMP_MAX_GAP_S: f64 = 2.5;
@@ -100,9 +102,6 @@ pub enum FaultReason {
     Jump,
     /// It continues an episode opened by a jump.
     Run,
-    /// It drifted from the fixes seconds before by more than the INS
-    /// allows (or continues such an episode).
-    Ramp,
     /// It repeats the previous fix's position while the vehicle moved.
     Stale,
     /// It continues an episode that lasted until the INS's predicted drift
@@ -119,7 +118,6 @@ impl FaultReason {
             FaultReason::None => "-",
             FaultReason::Jump => "jump",
             FaultReason::Run => "run",
-            FaultReason::Ramp => "ramp",
             FaultReason::Stale => "stale",
             FaultReason::Persisted => "persisted",
             FaultReason::Outlier => "outlier",
@@ -213,7 +211,6 @@ struct Episode {
     start: GpsTime,
     last: GpsTime,
     fixes: usize,
-    ramp: bool,
     /// Δ of its first fix: the fault's level.
     level: Vector3<f64>,
     /// Diagonal of H P Hᵀ at its first fix.
@@ -268,10 +265,6 @@ pub(in crate::fusion) struct FaultMonitor {
     /// Anchors added since the start, a reset or an episode the INS could
     /// not resolve (then the INS is not yet a reference).
     anchors_since_reset: usize,
-    /// Whether ramps are tested against anchors seconds back (off: over
-    /// seconds a free MEMS INS drifts as a ramp does, and the growth model
-    /// from the state's σ is too rough to tell them apart).
-    pub(in crate::fusion) ramp_tests: bool,
 }
 
 impl FaultMonitor {
@@ -355,15 +348,13 @@ impl FaultMonitor {
 
     /// The change GNSS updates after `a` made to the predicted position at
     /// `time` (their position corrections, and velocity corrections
-    /// carried over the time since), and whether there were any.
-    fn ledger_since(&self, a: &Anchor, time: GpsTime) -> (Vector3<f64>, bool) {
-        let mut c = Vector3::zeros();
-        let mut any = false;
-        for k in self.ledger.iter().filter(|k| k.seq > a.seq) {
-            c += k.dpos + k.dvel * time.seconds_since(k.time).max(0.0);
-            any = true;
-        }
-        (c, any)
+    /// carried over the time since).
+    fn ledger_since(&self, a: &Anchor, time: GpsTime) -> Vector3<f64> {
+        self.ledger
+            .iter()
+            .filter(|k| k.seq > a.seq)
+            .map(|k| k.dpos + k.dvel * time.seconds_since(k.time).max(0.0))
+            .sum()
     }
 
     /// The free INS's position error variance grown since `a` (diagonal,
@@ -401,9 +392,8 @@ impl FaultMonitor {
         lambda: f64,
     ) -> (Vector3<f64>, f64) {
         let dt = time.seconds_since(a.time);
-        let (c, any) = self.ledger_since(a, time);
+        let c = self.ledger_since(a, time);
         let delta = z - c - a.residual;
-        let _ = any;
         // The filter's own predicted growth is the better model when it
         // is larger (an unconverged INS; no update since A).
         let mut g = self.growth(a, dt);
@@ -469,11 +459,7 @@ impl FaultMonitor {
             ep.last = time;
             ep.max_offset_m = ep.max_offset_m.max(delta.norm());
             self.episode = Some(ep);
-            return Judgement::Exclude(if ep.ramp {
-                FaultReason::Ramp
-            } else {
-                FaultReason::Run
-            });
+            return Judgement::Exclude(FaultReason::Run);
         }
         // The INS becomes a reference again only after a few clean fixes
         // in a row (at the start, after a re-initialisation or an episode
@@ -514,33 +500,13 @@ impl FaultMonitor {
                 self.anchors.clear();
                 return Judgement::RampEnd { offset: delta };
             }
-            self.open(last, time, delta, hph, false);
+            self.open(last, time, delta, hph);
             return Judgement::Exclude(FaultReason::Jump);
-        }
-        for lag in RAMP_LAGS_S.iter().copied().filter(|_| self.ramp_tests) {
-            // The newest anchor at least `lag` old.
-            let Some(a) = self
-                .anchors
-                .iter()
-                .rev()
-                .find(|a| time.seconds_since(a.time) >= lag)
-                .copied()
-            else {
-                continue;
-            };
-            if a.seq == last.seq {
-                continue;
-            }
-            let (delta, d) = self.test(&a, time, z, hph, r, lambda);
-            if d > threshold {
-                self.open(a, time, delta, hph, true);
-                return Judgement::Exclude(FaultReason::Ramp);
-            }
         }
         Judgement::Clean
     }
 
-    /// The oldest anchor at least [`RAMP_LAGS_S`]`[0]` before `time` (and
+    /// The oldest anchor at least [`RAMP_END_MIN_LAG_S`] before `time` (and
     /// older than `last`), with D of the fix against it.
     fn back_to_older(
         &self,
@@ -554,7 +520,7 @@ impl FaultMonitor {
         let a = self
             .anchors
             .iter()
-            .find(|a| a.seq < last.seq && time.seconds_since(a.time) >= RAMP_LAGS_S[0])?;
+            .find(|a| a.seq < last.seq && time.seconds_since(a.time) >= RAMP_END_MIN_LAG_S)?;
         let (delta, d) = self.test(a, time, z, hph, r, lambda);
         Some((a.time, d, delta))
     }
@@ -572,30 +538,20 @@ impl FaultMonitor {
         }
     }
 
-    fn open(
-        &mut self,
-        anchor: Anchor,
-        time: GpsTime,
-        delta: Vector3<f64>,
-        hph: &Matrix3<f64>,
-        ramp: bool,
-    ) {
+    fn open(&mut self, anchor: Anchor, time: GpsTime, delta: Vector3<f64>, hph: &Matrix3<f64>) {
         self.episode = Some(Episode {
             hph_start: Vector3::new(hph[(0, 0)], hph[(1, 1)], hph[(2, 2)]),
             anchor,
             start: time,
             last: time,
             fixes: 1,
-            ramp,
             level: delta,
             max_offset_m: delta.norm(),
         });
     }
 
     fn close(&mut self, ep: Episode, end: EpisodeEnd) {
-        let class = if ep.ramp {
-            EpisodeClass::Ramp
-        } else if ep.fixes == 1 {
+        let class = if ep.fixes == 1 {
             EpisodeClass::Spike
         } else {
             EpisodeClass::Run
