@@ -536,6 +536,8 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         .map(read_fix_weights)
         .transpose()?
         .unwrap_or_default();
+    let fault_spans = sections::fault_spans(&fixes);
+    let [fault_shade, unresolved_shade] = sections::fault_shades(&fault_spans, t0, x1);
     let sigma_h = forward_std_full
         .as_ref()
         .or(std_full.as_ref())
@@ -751,20 +753,24 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         &svg,
     );
 
-    let shades = [outage_shade.clone()];
+    let shades = [
+        outage_shade.clone(),
+        fault_shade.clone(),
+        unresolved_shade.clone(),
+    ];
     // The errors against the truth.
     if eval.is_some() {
         let nav_note = if std.is_some() {
-            "Grey band: the filter's ±3σ (std.txt); shaded: GNSS outages."
+            "Grey band: the filter's ±3σ (std.txt); shaded: GNSS outages and GNSS fault episodes."
         } else {
-            "Shaded: GNSS outages (no std.txt given: no ±3σ bands)."
+            "Shaded: GNSS outages and GNSS fault episodes (no std.txt given: no ±3σ bands)."
         };
         let fwd_series = forward.as_ref().map(|(_, fep, fstd)| ForwardSeries {
             ep: fep,
             std: fstd.as_ref(),
         });
         let nav_note = if fwd_series.is_some() {
-            "Smoothed solution (dark) with the smoother's ±3σ (grey), the forward filter's errors (light) with its ±3σ (lilac), from forward/; shaded: GNSS outages."
+            "Smoothed solution (dark) with the smoother's ±3σ (grey), the forward filter's errors (light) with its ±3σ (lilac), from forward/; shaded: GNSS outages and GNSS fault episodes."
         } else {
             nav_note
         };
@@ -858,7 +864,8 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     }
 
     if !fixes.is_empty() {
-        gnss_weighting_section(&mut html, &fixes, t0, x1, &outage_shade)?;
+        gnss_weighting_section(&mut html, &fixes, t0, x1, &shades)?;
+        sections::fault_table(&mut html, &fault_spans, t0);
         sections::innovation_section(&mut html, &fixes, std_full.as_deref(), t0, x1, &new_shades)?;
         sections::nis_section(&mut html, &fixes, t0, x1, &new_shades)?;
     }
@@ -1053,7 +1060,7 @@ fn gnss_weighting_section(
     fixes: &[FixWeight],
     t0: f64,
     x1: f64,
-    outage_shade: &Shade,
+    shades: &[Shade],
 ) -> Result<(), Error> {
     // χ²(3) quantiles: 95 % 7.815, 99.99 % 21.108.
     let q = |p: f64| quality::chi2_quantile(p, quality::POSITION_DOF).unwrap_or(f64::NAN);
@@ -1065,7 +1072,7 @@ fn gnss_weighting_section(
     let svg = plot::time_series(&Figure {
         x_label: "time since the first epoch (s)".into(),
         x_range: (0.0, x1),
-        shades: vec![outage_shade.clone()],
+        shades: shades.to_vec(),
         panels: vec![
             Panel {
                 title: "GNSS position NIS at the stated σ (log10, 3 degrees of freedom)".into(),
@@ -1114,7 +1121,7 @@ fn gnss_weighting_section(
     let n_down = fixes.iter().filter(|x| x.status != "used").count();
     let inside = fixes.iter().filter(|x| x.nis <= q95).count();
     let note = format!(
-        "{} position fixes; {} ({:.1} %) within the 95 % NIS bound (95 % expected when the stated σ and the filter's covariance are right); {} not used at their stated σ (gnss_residuals.txt has every fix). Robust weighting (navsync fuse --gnss-weighting robust): IGG-III weights on the standardised innovation (Yang, Song & Xu, Journal of Geodesy 76, 2002), judged against the INS's measured spread.",
+        "{} position fixes; {} ({:.1} %) within the 95 % NIS bound (95 % expected when the stated σ and the filter's covariance are right); {} not used at their stated σ (gnss_residuals.txt has every fix). Robust weighting (navsync fuse --gnss-weighting robust): IGG-III weights on the standardised innovation (Yang, Song & Xu, Journal of Geodesy 76, 2002), judged against the INS's measured spread. Shaded: GNSS outages, and the fault monitor's episodes (red: fixes excluded; purple: fixes followed again without the INS resolving the episode; table below).",
         fixes.len(),
         inside,
         100.0 * inside as f64 / fixes.len().max(1) as f64,

@@ -250,6 +250,10 @@ pub(crate) struct Evidence {
 /// faults (or the INS diverged), above 5 % for long stretches.
 pub(crate) const REJECTED_CAUTION: f64 = 0.01;
 pub(crate) const REJECTED_POOR: f64 = 0.05;
+/// Fixes excluded in fault episodes the INS bridged: a good solution
+/// still, but past a quarter of the fixes it rests on the INS for long
+/// stretches and the receiver or antenna needs a look.
+pub(crate) const FAULT_EXCLUDED_CAUTION: f64 = 0.25;
 /// Down-weighted fixes: the robust weighting's k0 = 4σ is exceeded by
 /// chance on ~2e-4 of fixes; 5 % means degraded GNSS the filter had to
 /// discount, 25 % means the GNSS was degraded most of the time.
@@ -517,11 +521,18 @@ fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Vec<String>) {
 /// nothing when the INS bridged them; an episode that ended with the
 /// fixes followed again (the INS's drift covered the offset, or it lasted
 /// longer than the IMU can bridge) may have moved the solution.
-fn fault_check(f: &FaultEvidence, checks: &mut Vec<Check>, causes: &mut Vec<String>) {
+fn fault_check(f: &FaultEvidence, fixes: usize, checks: &mut Vec<Check>, causes: &mut Vec<String>) {
+    let share = f.excluded as f64 / fixes.max(1) as f64;
     let grade = if f.persisted > 0 {
         causes.push(format!(
             "GNSS faults: {} fix(es) used again after a fault episode the INS could not resolve; the solution around them may follow the fault (gnss_residuals.txt, reason `persisted`)",
             f.persisted
+        ));
+        Grade::Caution
+    } else if share > FAULT_EXCLUDED_CAUTION {
+        causes.push(format!(
+            "GNSS faults: {} of the fixes were excluded in fault episodes; the solution there rests on the INS alone: check the receiver and antenna (gnss_residuals.txt, reasons `jump`, `run`, `stale`)",
+            pct(share)
         ));
         Grade::Caution
     } else {
@@ -531,10 +542,16 @@ fn fault_check(f: &FaultEvidence, checks: &mut Vec<Check>, causes: &mut Vec<Stri
         name: "GNSS fault episodes",
         grade: Some(grade),
         finding: format!(
-            "{} episode(s), {} fix(es) excluded, {} used again after persisting",
-            f.episodes, f.excluded, f.persisted
+            "{} episode(s), {} fix(es) excluded ({}), {} used again after persisting",
+            f.episodes,
+            f.excluded,
+            pct(share),
+            f.persisted
         ),
-        rule: "good when every episode was bridged by the INS (the fixes came back); caution when fixes were followed again after an episode it could not resolve".into(),
+        rule: format!(
+            "good when every episode was bridged by the INS (the fixes came back); caution when fixes were followed again after an episode it could not resolve, or when episodes excluded more than {} of the fixes",
+            pct(FAULT_EXCLUDED_CAUTION)
+        ),
     });
 }
 
@@ -647,16 +664,23 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
         && f.fixes > 0
     {
         let n = f.fixes as f64;
-        let rej = f.rejected as f64 / n;
+        // Fixes excluded in fault episodes are graded by the episodes'
+        // check: the INS bridged them or it says it could not.
+        let rejected = f.rejected.saturating_sub(f.faults.excluded);
+        let rej = rejected as f64 / n;
         checks.push(Check {
             name: "GNSS fixes rejected",
             grade: Some(grade_of(rej, REJECTED_CAUTION, REJECTED_POOR)),
-            finding: format!(
-                "{} of {} position fixes ({})",
-                f.rejected,
-                f.fixes,
-                pct(rej)
-            ),
+            finding: if f.faults.excluded > 0 {
+                format!(
+                    "{rejected} of {} position fixes ({}) outside fault episodes; {} more excluded in them (below)",
+                    f.fixes,
+                    pct(rej),
+                    f.faults.excluded
+                )
+            } else {
+                format!("{rejected} of {} position fixes ({})", f.fixes, pct(rej))
+            },
             rule: format!(
                 "good ≤ {}, poor > {} (chance rejections ≈ 0.01 %)",
                 pct(REJECTED_CAUTION),
@@ -674,7 +698,7 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
                 pct(DOWN_WEIGHTED_POOR)
             ),
         });
-        fault_check(&f.faults, &mut checks, &mut causes);
+        fault_check(&f.faults, f.fixes, &mut checks, &mut causes);
         nis_check(&f.nis, &mut checks, &mut causes);
         if let Some(sd) = ev.final_h_sd_m
             && f.median_fix_h_sd_m > 0.0
@@ -968,6 +992,24 @@ mod tests {
             c.finding.starts_with("2 episode(s), 12 fix(es) excluded"),
             "{}",
             c.finding
+        );
+        // The 12 rejected fixes were the episodes': not graded twice.
+        let r = graded(&v, "GNSS fixes rejected");
+        assert_eq!(r.grade, Some(Grade::Good), "{}", r.finding);
+        assert!(r.finding.starts_with("0 of 600"), "{}", r.finding);
+        // Episodes excluding a third of the fixes: caution, named.
+        let mut many = f.clone();
+        many.rejected = 200;
+        many.faults.excluded = 200;
+        let v = assess(&ev(many));
+        assert_eq!(
+            graded(&v, "GNSS fault episodes").grade,
+            Some(Grade::Caution)
+        );
+        assert!(
+            v.causes.iter().any(|c| c.contains("rests on the INS")),
+            "{:?}",
+            v.causes
         );
         f.faults.persisted = 1;
         let v = assess(&ev(f));

@@ -95,31 +95,131 @@ pub(crate) fn fix_evidence(fixes: &[FixWeight]) -> FixEvidence {
     }
 }
 
+/// One fault episode of the integrity monitor, read back from the
+/// fixes' reasons in gnss_residuals.txt (the file that was written).
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct FaultSpan {
+    /// GPS seconds of week of its first and last excluded fix.
+    pub start_sow: f64,
+    pub end_sow: f64,
+    /// Fixes excluded in it.
+    pub excluded: usize,
+    /// `stale` (repeated outputs) or `jump` (the fixes moved).
+    pub kind: &'static str,
+    /// Fixes used again after it without the INS resolving it
+    /// (`persisted`): the solution there follows fixes that may be faulty.
+    pub persisted: usize,
+}
+
 /// The integrity monitor's episodes, from the fixes' reasons: a `jump`
-/// opens one, a run of `stale` fixes is one.
-fn fault_evidence(fixes: &[FixWeight]) -> quality::FaultEvidence {
-    let mut e = quality::FaultEvidence::default();
-    let mut prev_stale = false;
+/// opens one and the `run`/`ramp` fixes after it belong to it, a run of
+/// `stale` fixes is one, and `persisted` fixes are counted against the
+/// episode they follow.
+pub(crate) fn fault_spans(fixes: &[FixWeight]) -> Vec<FaultSpan> {
+    let mut out: Vec<FaultSpan> = Vec::new();
+    // Whether the last fix extended the open episode of that kind.
+    let mut open: Option<&'static str> = None;
     for f in fixes {
-        let stale = f.reason == "stale";
-        match f.reason.as_str() {
+        let kind = match f.reason.as_str() {
             "jump" => {
-                e.episodes += 1;
-                e.excluded += 1;
+                open = None;
+                Some("jump")
             }
-            "run" | "ramp" => e.excluded += 1,
-            "stale" => {
-                e.excluded += 1;
-                if !prev_stale {
-                    e.episodes += 1;
+            "run" | "ramp" => Some("jump"),
+            "stale" => Some("stale"),
+            "persisted" => {
+                if let Some(last) = out.last_mut() {
+                    last.persisted += 1;
                 }
+                open = None;
+                None
             }
-            "persisted" => e.persisted += 1,
-            _ => {}
+            _ => {
+                open = None;
+                None
+            }
+        };
+        let Some(kind) = kind else { continue };
+        match out.last_mut() {
+            Some(last) if open == Some(kind) => {
+                last.end_sow = f.sow;
+                last.excluded += 1;
+            }
+            _ => out.push(FaultSpan {
+                start_sow: f.sow,
+                end_sow: f.sow,
+                excluded: 1,
+                kind,
+                persisted: 0,
+            }),
         }
-        prev_stale = stale;
+        open = Some(kind);
     }
-    e
+    out
+}
+
+fn fault_evidence(fixes: &[FixWeight]) -> quality::FaultEvidence {
+    let spans = fault_spans(fixes);
+    quality::FaultEvidence {
+        episodes: spans.len(),
+        excluded: spans.iter().map(|s| s.excluded).sum(),
+        persisted: spans.iter().map(|s| s.persisted).sum(),
+    }
+}
+
+/// The fault episodes as shaded spans (times relative to `t0`), those
+/// the INS resolved and those followed again unresolved; a one-fix
+/// episode gets a visible width of 0.3 % of the run.
+pub(crate) fn fault_shades(spans: &[FaultSpan], t0: f64, run_s: f64) -> [Shade; 2] {
+    let min_w = 0.003 * run_s.max(1e-9);
+    let pick = |unresolved: bool| -> Vec<(f64, f64)> {
+        spans
+            .iter()
+            .filter(|s| (s.persisted > 0) == unresolved)
+            .map(|s| {
+                let a = rel_s(s.start_sow, t0);
+                (a, rel_s(s.end_sow, t0).max(a + min_w))
+            })
+            .collect()
+    };
+    [
+        Shade {
+            name: "GNSS fault episode".into(),
+            color: RED,
+            spans: pick(false),
+        },
+        Shade {
+            name: "fault, unresolved".into(),
+            color: PURPLE,
+            spans: pick(true),
+        },
+    ]
+}
+
+/// The table of fault episodes under the GNSS weighting section.
+pub(crate) fn fault_table(html: &mut String, spans: &[FaultSpan], t0: f64) {
+    if spans.is_empty() {
+        return;
+    }
+    let unresolved = spans.iter().filter(|s| s.persisted > 0).count();
+    let _ = writeln!(
+        html,
+        "<details><summary>GNSS fault episodes: {} ({} excluded fixes; {unresolved} followed again without the INS resolving them)</summary>\n<table class=\"metrics\"><tr><th>start (s)</th><th>length (s)</th><th>kind</th><th>fixes excluded</th><th>fixes then used again unresolved</th></tr>",
+        spans.len(),
+        spans.iter().map(|s| s.excluded).sum::<usize>()
+    );
+    for s in spans.iter().take(200) {
+        let _ = writeln!(
+            html,
+            "<tr><td>{:.1}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            rel_s(s.start_sow, t0),
+            s.end_sow - s.start_sow,
+            s.kind,
+            s.excluded,
+            s.persisted
+        );
+    }
+    html.push_str("</table></details>\n");
 }
 
 fn triplet(v: Option<&Value>) -> Option<[f64; 3]> {
@@ -906,5 +1006,93 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         solution_incomplete: g.incomplete,
         innovation: g.innovation,
         antenna_lever_m: g.summary.and_then(|s| triplet(s.get("antenna_lever_m"))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fix(sow: f64, reason: &str) -> FixWeight {
+        FixWeight {
+            sow,
+            innovation: [0.0; 3],
+            sd: [0.01; 3],
+            nis: 1.0,
+            weight: [1.0; 3],
+            status: if reason == "-" || reason == "persisted" {
+                "used"
+            } else {
+                "rejected"
+            }
+            .into(),
+            reason: reason.into(),
+        }
+    }
+
+    /// A false fix (jump, then run), stale repeats, and a false fix the
+    /// INS could not resolve (followed again: persisted) are three
+    /// episodes, with their excluded and persisted fixes counted.
+    #[test]
+    fn fault_episodes_are_read_back_from_the_reasons() {
+        let reasons = [
+            "-",
+            "jump",
+            "run",
+            "run",
+            "-",
+            "stale",
+            "stale",
+            "-",
+            "jump",
+            "run",
+            "persisted",
+            "persisted",
+            "-",
+            "outlier",
+        ];
+        let fixes: Vec<FixWeight> = reasons
+            .iter()
+            .enumerate()
+            .map(|(i, r)| fix(100.0 + i as f64, r))
+            .collect();
+        let spans = fault_spans(&fixes);
+        let got: Vec<(f64, f64, usize, &str, usize)> = spans
+            .iter()
+            .map(|s| (s.start_sow, s.end_sow, s.excluded, s.kind, s.persisted))
+            .collect();
+        assert_eq!(
+            got,
+            vec![
+                (101.0, 103.0, 3, "jump", 0),
+                (105.0, 106.0, 2, "stale", 0),
+                (108.0, 109.0, 2, "jump", 2),
+            ]
+        );
+        let e = fault_evidence(&fixes);
+        assert_eq!((e.episodes, e.excluded, e.persisted), (3, 7, 2));
+        // Shaded: two resolved, one unresolved; a one-fix width is visible.
+        let [ok, unresolved] = fault_shades(&spans, 100.0, 14.0);
+        assert_eq!(ok.spans, vec![(1.0, 3.0), (5.0, 6.0)]);
+        assert_eq!(unresolved.spans, vec![(8.0, 9.0)]);
+        let [one, _] = fault_shades(
+            &spans[..1]
+                .iter()
+                .map(|s| FaultSpan {
+                    end_sow: s.start_sow,
+                    ..s.clone()
+                })
+                .collect::<Vec<_>>(),
+            100.0,
+            1000.0,
+        );
+        assert!((one.spans[0].1 - one.spans[0].0 - 3.0).abs() < 1e-9);
+        let mut html = String::new();
+        fault_table(&mut html, &spans, 100.0);
+        assert!(html.contains("GNSS fault episodes: 3 (7 excluded fixes; 1 followed again"));
+        // No episodes: no table.
+        let mut empty = String::new();
+        fault_table(&mut empty, &[], 100.0);
+        assert!(empty.is_empty());
     }
 }
