@@ -273,10 +273,23 @@ impl<R: Read> GnssReader<R> {
         })?;
         let Some(kept) = kept else {
             if self.count == 0 {
+                // Every line skipped (σ all 0, all unreadable, …): say why,
+                // not only that nothing was found.
+                let file = self.path.display().to_string();
+                let mut skipped = diag.items.iter().filter(|d| d.file == file);
+                let first = skipped
+                    .next()
+                    .map(|d| format!(" The first: line {}: {}", d.line, d.message));
+                let msg = match first {
+                    Some(first) => format!(
+                        "no usable GNSS fix: {} line(s) were skipped and none kept.{first}",
+                        1 + skipped.count()
+                    ),
+                    None => "no GNSS records (expected 7 or 13 columns: `sow lat_deg lon_deg h_m sd_n sd_e sd_d`)".into(),
+                };
                 return Err(Error::NoData {
                     path: self.path.clone(),
-                    msg: "no GNSS records (expected 7 or 13 columns: `sow lat_deg lon_deg h_m sd_n sd_e sd_d`)"
-                        .into(),
+                    msg,
                 });
             }
             return Ok(None);
@@ -1033,6 +1046,22 @@ mod tests {
         let _ = r.next_fix(&mut d).unwrap().unwrap();
         let fix = r.next_fix(&mut d).unwrap().unwrap();
         assert_eq!(fix.pos_sd[1], 0.01);
+
+        // Every σ zero: the error says why nothing was kept.
+        let p = temp_file(
+            "gnss.txt",
+            "1.0 30.0 114.0 20.0 0 0 0\n2.0 30.0 114.0 20.0 0 0 0\n",
+        );
+        let mut d = Diagnostics::default();
+        let mut r = GnssReader::open(&p, 0, GnssLayout::Cpp).unwrap();
+        let e = r.next_fix(&mut d).unwrap_err().to_string();
+        assert!(
+            e.contains("2 line(s) were skipped and none kept")
+                && e.contains(
+                    "line 1: position standard deviation [0.0, 0.0, 0.0] is not positive"
+                ),
+            "{e}"
+        );
     }
 
     #[test]
