@@ -263,11 +263,28 @@ impl KfGinsConfig {
             ));
         }
         let att = opt3("initatt")?;
-        let opt_std = |key: &str, default: Vector3<f64>| -> Result<Vector3<f64>, Error> {
-            match map.get(key) {
-                Some(_) => cx.vec3(key),
-                None => Ok(default),
+        let figure_max = |key: &str| crate::sensor::figure_range(key).1;
+        // An initial σ above `max` (in the key's own unit) is a unit slip
+        // or a typo (1e308) that would overflow the covariance; the
+        // bounds match the sheet's figure ranges (`sensor::figure_range`)
+        // or are the physical limit (180°, the earth's size).
+        let opt_std = |key: &str, default: Vector3<f64>, max: f64| -> Result<Vector3<f64>, Error> {
+            let v = match map.get(key) {
+                Some(_) => cx.vec3(key)?,
+                None => return Ok(default),
+            };
+            if v.iter()
+                .any(|x| !(x.is_finite() && (0.0..=max).contains(x)))
+            {
+                return Err(Error::config(
+                    path,
+                    format!(
+                        "key '{key}' must be within 0…{max:e} per axis, got [{}, {}, {}]",
+                        v.x, v.y, v.z
+                    ),
+                ));
             }
+            Ok(v)
         };
         let imu_rate_hz = cx.number("imudatarate")?;
         if imu_rate_hz <= 0.0 {
@@ -315,13 +332,23 @@ impl KfGinsConfig {
                 ..ImuErrors::default()
             },
             init_std: InitialStd {
-                pos: opt_std("initposstd", Vector3::repeat(1.0))?,
-                vel: opt_std("initvelstd", Vector3::repeat(0.1))?,
-                att: opt_std("initattstd", Vector3::repeat(1.0))? * DEG,
-                gyro_bias: opt_std("initbgstd", gbstd / (DEG / 3600.0))? * (DEG / 3600.0),
-                accel_bias: opt_std("initbastd", abstd / 1e-5)? * 1e-5,
-                gyro_scale: opt_std("initsgstd", gsstd / 1e-6)? * 1e-6,
-                accel_scale: opt_std("initsastd", asstd / 1e-6)? * 1e-6,
+                pos: opt_std("initposstd", Vector3::repeat(1.0), 1e7)?,
+                vel: opt_std("initvelstd", Vector3::repeat(0.1), 1e3)?,
+                att: opt_std("initattstd", Vector3::repeat(1.0), 180.0)? * DEG,
+                gyro_bias: opt_std(
+                    "initbgstd",
+                    gbstd / (DEG / 3600.0),
+                    figure_max("gyro_turn_on_bias_deg_h"),
+                )? * (DEG / 3600.0),
+                accel_bias: opt_std(
+                    "initbastd",
+                    abstd / 1e-5,
+                    figure_max("accel_turn_on_bias_mgal"),
+                )? * 1e-5,
+                gyro_scale: opt_std("initsgstd", gsstd / 1e-6, figure_max("gyro_scale_ppm"))?
+                    * 1e-6,
+                accel_scale: opt_std("initsastd", asstd / 1e-6, figure_max("accel_scale_ppm"))?
+                    * 1e-6,
             },
             noise,
             antenna_lever: cx.vec3("antlever")?,
@@ -561,6 +588,28 @@ antlever: [ 0.1, 0.5, -1.2 ]
             ("asstd: [ 500.0,", "asstd: [ 5e300,", "'imunoise.asstd'"),
             ("corrtime: 1.0", "corrtime: 1e308", "'imunoise.corrtime'"),
             ("corrtime: 1.0", "corrtime: 0", "'imunoise.corrtime'"),
+            // and an initial σ (1e308 passed before).
+            (
+                "initposstd: [ 0.05,",
+                "initposstd: [ 1e308,",
+                "'initposstd'",
+            ),
+            (
+                "initvelstd: [ 0.05,",
+                "initvelstd: [ -0.05,",
+                "'initvelstd'",
+            ),
+            ("initattstd: [ 0.1,", "initattstd: [ 181,", "'initattstd'"),
+            (
+                "initaccscale: [ 0, 0, 0 ]",
+                "initaccscale: [ 0, 0, 0 ]\ninitbgstd: [ 1e308, 1, 1 ]",
+                "'initbgstd'",
+            ),
+            (
+                "initaccscale: [ 0, 0, 0 ]",
+                "initaccscale: [ 0, 0, 0 ]\ninitsastd: [ 1, 1, 1e9 ]",
+                "'initsastd'",
+            ),
         ] {
             let text = SAMPLE.replace(from, to);
             assert_ne!(text, SAMPLE);
