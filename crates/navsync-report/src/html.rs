@@ -9,8 +9,8 @@ use navsync::{Diagnostics, Error};
 
 use crate::inputs::{
     Epochs, FixWeight, IMU_ERR_LAYOUT, ReportInputs, STD_LAYOUT, TIME_OFFSET_LAYOUT,
-    incomplete_solution, read_fix_weights, read_gnss, read_solution, read_summary,
-    read_sync_report, read_table, rel_s, score,
+    incomplete_solution, read_fix_weights, read_gnss, read_json_object, read_solution,
+    read_summary, read_sync_report, read_table, rel_s, score,
 };
 use crate::plot::{
     self, AXES, BLUE, Band, Figure, GREY, Line, ORANGE, OUTAGE, PURPLE, Panel, RED, Shade,
@@ -456,6 +456,11 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     }
     let mut diag = Diagnostics::with_cap(100);
     let summary = inp.summary.as_deref().map(read_summary).transpose()?;
+    let probe = inp
+        .probe
+        .as_deref()
+        .map(|p| read_json_object(p, "navsync process's probe.json"))
+        .transpose()?;
     let outages = if inp.outages.is_empty() {
         let text = summary
             .as_ref()
@@ -594,6 +599,7 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         written,
         incomplete: incomplete_solution(&inp.nav, &ep, summary.as_ref()),
         innovation,
+        probe: probe.as_ref(),
     }));
     let gap_shade = Shade {
         name: "GNSS gap or outage".into(),

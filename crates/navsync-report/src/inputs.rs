@@ -49,6 +49,8 @@ pub struct ReportInputs {
     /// solution and `std.txt`, shown beside it.
     pub forward_nav: Option<PathBuf>,
     pub forward_std: Option<PathBuf>,
+    /// `probe.json` of `navsync process` (the consistency probe).
+    pub probe: Option<PathBuf>,
 }
 
 impl ReportInputs {
@@ -67,6 +69,7 @@ impl ReportInputs {
         fill(&mut self.time_offset, "time_offset.txt");
         fill(&mut self.summary, "summary.json");
         fill(&mut self.gnss_residuals, "gnss_residuals.txt");
+        fill(&mut self.probe, "probe.json");
         fill(&mut self.forward_nav, "forward/navresult.nav");
         if self.forward_nav.is_some() {
             fill(&mut self.forward_std, "forward/std.txt");
@@ -308,6 +311,11 @@ pub(crate) fn read_sync_report(path: &Path) -> Result<SyncReport, Error> {
 /// A `summary.json` of `navsync fuse` (read loosely: only a few fields
 /// are shown).
 pub(crate) fn read_summary(path: &Path) -> Result<serde_json::Value, Error> {
+    read_json_object(path, "navsync fuse's summary.json")
+}
+
+/// A JSON object file of navsync (`what` names it in errors).
+pub(crate) fn read_json_object(path: &Path, what: &str) -> Result<serde_json::Value, Error> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let v: serde_json::Value = serde_json::from_str(&text)
         .map_err(|e| Error::parse(path, e.line(), format!("not JSON: {e}")))?;
@@ -315,7 +323,7 @@ pub(crate) fn read_summary(path: &Path) -> Result<serde_json::Value, Error> {
         return Err(Error::parse(
             path,
             1,
-            "expected a JSON object (navsync fuse's summary.json)",
+            format!("expected a JSON object ({what})"),
         ));
     }
     Ok(v)

@@ -243,7 +243,21 @@ pub(crate) struct Evidence {
     pub innovation: Option<crate::innovation::InnovationEvidence>,
     /// The configured antenna lever arm (summary.json), FRD (m).
     pub antenna_lever_m: Option<[f64; 3]>,
+    /// The consistency probe's estimates (`probe.json` of `navsync
+    /// process`).
+    pub probe: Option<ProbeEvidence>,
 }
+
+/// What the consistency probe (a second pass with the time offset
+/// estimated as a state, `navsync::probe`) found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct ProbeEvidence {
+    /// The time offset (GNSS tag − validity, s) and its σ.
+    pub time_offset_s: Option<(f64, f64)>,
+}
+
+/// A probe estimate is significant beyond this many σ (0.27 % by chance).
+pub(crate) const PROBE_SIGMAS: f64 = 3.0;
 
 /// Rejected fixes: a consistent filter gates at 99.99 % (or IGG-III k1 =
 /// 10σ), so chance rejections are ~1e-4; above 1 % the receiver had real
@@ -648,6 +662,52 @@ fn signature_checks(
     }
 }
 
+/// The consistency probe's estimates against the sheet, graded as the
+/// signatures are: significant beyond [`PROBE_SIGMAS`], then by the
+/// accuracy the error costs against the filter's σ (the speed and σ of
+/// the innovation evidence).
+fn probe_checks(
+    p: &ProbeEvidence,
+    e: &crate::innovation::InnovationEvidence,
+    checks: &mut Vec<Check>,
+    causes: &mut Vec<String>,
+) {
+    let Some((offset_s, sd_s)) = p.time_offset_s else {
+        return;
+    };
+    let significant = offset_s.abs() > PROBE_SIGMAS * sd_s;
+    let err_m = offset_s.abs() * e.speed_rms_mps;
+    let loss = loss_factor(err_m, e.filter_h_sd_m);
+    let grade = if significant {
+        grade_of(loss, LOSS_CAUTION, LOSS_POOR)
+    } else {
+        Grade::Good
+    };
+    checks.push(Check {
+        name: "time offset (probe)",
+        grade: Some(grade),
+        finding: format!(
+            "a second pass estimating it as a state finds GNSS tags {:+.1} ms ± {:.1} ms late ({}): {:.3} m at the RMS speed {:.1} m/s against the filter's σ {:.3} m ({loss:.1}×)",
+            offset_s * 1e3,
+            sd_s * 1e3,
+            if significant { "significant" } else { "not significant" },
+            err_m,
+            e.speed_rms_mps,
+            e.filter_h_sd_m
+        ),
+        rule: format!(
+            "significant beyond {PROBE_SIGMAS:.0}σ; then caution when the error costs more than {LOSS_CAUTION}× the filter's σ (√(1 + (e/σ)²)), poor above {LOSS_POOR}×"
+        ),
+    });
+    if grade > Grade::Good {
+        causes.push(format!(
+            "GNSS time offset: with the offset estimated as a state the GNSS tags are {:+.0} ± {:.0} ms late, which the run's sheet assumes zero. Estimate it (sheet: time_offset: estimate: true; fuse --estimate-time-offset) or synchronize with 1PPS",
+            offset_s * 1e3,
+            sd_s * 1e3
+        ));
+    }
+}
+
 /// Weighs the evidence.
 pub(crate) fn assess(ev: &Evidence) -> Verdict {
     let mut checks = Vec::new();
@@ -763,6 +823,9 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
     lever_arm_checks(ev, &mut checks, &mut causes);
     if let Some(e) = &ev.innovation {
         signature_checks(e, &mut checks, &mut causes);
+        if let Some(p) = &ev.probe {
+            probe_checks(p, e, &mut checks, &mut causes);
+        }
     }
     if checks
         .iter()
@@ -1356,5 +1419,49 @@ mod tests {
             Some(Grade::Poor)
         );
         assert!(v.causes[0].starts_with("GNSS time offset"), "{v:#?}");
+    }
+
+    /// The probe's time offset: 13.7 ± 1.6 ms at 10 m/s against a 2 cm
+    /// solution (0.137 m, 6.9×) is poor; 3.7 ± 1.6 ms (2.3σ) is not
+    /// significant, good whatever it would cost; 5 ± 1 ms (0.05 m, 2.7×)
+    /// is a caution. Without the innovation evidence (speed, σ) it is not
+    /// graded.
+    #[test]
+    fn the_probes_time_offset_is_graded_by_significance_and_cost() {
+        use crate::innovation::InnovationEvidence;
+        let inn = InnovationEvidence {
+            fixes: 300,
+            effective_fixes: 150.0,
+            lever_error_fr_m: [0.0, 0.0],
+            lever_p: 0.5,
+            offset_s: 0.0,
+            offset_p: 0.5,
+            speed_rms_mps: 10.0,
+            filter_h_sd_m: 0.02,
+        };
+        let grade = |o: f64, sd: f64, with_innovation: bool| {
+            let v = assess(&Evidence {
+                innovation: with_innovation.then(|| inn.clone()),
+                probe: Some(ProbeEvidence {
+                    time_offset_s: Some((o, sd)),
+                }),
+                ..Evidence::default()
+            });
+            let g = v
+                .checks
+                .iter()
+                .find(|c| c.name == "time offset (probe)")
+                .map(|c| c.grade);
+            (g, v)
+        };
+        let (g, v) = grade(0.0137, 0.0016, true);
+        assert_eq!(g, Some(Some(Grade::Poor)));
+        assert!(
+            v.causes.iter().any(|c| c.contains("+14 ± 2 ms late")),
+            "{v:#?}"
+        );
+        assert_eq!(grade(0.0037, 0.0016, true).0, Some(Some(Grade::Good)));
+        assert_eq!(grade(-0.005, 0.001, true).0, Some(Some(Grade::Caution)));
+        assert_eq!(grade(0.0137, 0.0016, false).0, None);
     }
 }

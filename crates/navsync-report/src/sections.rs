@@ -991,6 +991,19 @@ pub(crate) struct Gathered<'a> {
     /// [`crate::inputs::incomplete_solution`]'s finding.
     pub incomplete: Option<String>,
     pub innovation: Option<crate::innovation::InnovationEvidence>,
+    /// `probe.json` of `navsync process`.
+    pub probe: Option<&'a Value>,
+}
+
+/// The consistency probe's estimates (`probe.json`).
+fn probe_evidence(probe: Option<&Value>) -> Option<quality::ProbeEvidence> {
+    let p = probe?;
+    let num = |k: &str| p.get(k).and_then(Value::as_f64);
+    let time_offset_s = match (num("time_offset_s"), num("time_offset_sd_s")) {
+        (Some(o), Some(sd)) if o.is_finite() && sd.is_finite() && sd > 0.0 => Some((o, sd)),
+        _ => None,
+    };
+    Some(quality::ProbeEvidence { time_offset_s })
 }
 
 pub(crate) fn evidence(g: Gathered) -> Evidence {
@@ -1006,6 +1019,7 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         solution_incomplete: g.incomplete,
         innovation: g.innovation,
         antenna_lever_m: g.summary.and_then(|s| triplet(s.get("antenna_lever_m"))),
+        probe: probe_evidence(g.probe),
     }
 }
 

@@ -35,6 +35,7 @@ pub mod navigator;
 mod numfmt;
 pub(crate) mod offset_search;
 pub mod pipeline;
+pub mod probe;
 pub mod reduced;
 pub mod sensor;
 pub mod smoother;

@@ -16,6 +16,7 @@ use anyhow::{Context, Result, bail};
 use navsync::Diagnostics;
 use navsync::align::{AlignMethod, AlignOptions};
 use navsync::fusion::TimeOffsetOptions;
+use navsync::io::config::KfGinsConfig;
 use navsync::io::text::{LineReader, is_blank_or_comment, parse_f64, split_fields};
 use navsync::pipeline::{FuseOptions, NhcSettings, SmoothOptions};
 use navsync::sensor::{DriveFiles, SensorSheet};
@@ -48,6 +49,11 @@ pub struct Args {
     /// Forward filter only (no forward–backward smoothing).
     #[arg(long)]
     pub no_smooth: bool,
+    /// Skip the consistency probe (a second forward pass with the
+    /// IMU–GNSS time offset estimated as a state, whose estimate the
+    /// report's verdict compares with the sheet; fuse/probe.json).
+    #[arg(long)]
+    pub no_probe: bool,
     /// A reference trajectory (11-column nav format): the report scores
     /// against it and the errors are printed at the end.
     #[arg(long)]
@@ -631,6 +637,25 @@ fn receipt_envelope(path: &Path) -> Result<f64> {
 
 /// The report stage: one HTML page of the run, scored against `truth`
 /// when given, judged from the filter's own statistics otherwise.
+/// The consistency probe (`navsync::probe`): its figures go to
+/// fuse/probe.json, where the report's verdict finds them.
+fn probe_stage(cfg: &KfGinsConfig, opts: &FuseOptions, fuse_dir: &Path) -> Result<()> {
+    let Some(p) = navsync::probe::run_probe(cfg, opts)? else {
+        return Ok(());
+    };
+    if let (Some(o), Some(sd)) = (p.time_offset_s, p.time_offset_sd_s) {
+        println!(
+            "  consistency probe ({:.1} s): with the time offset estimated as a state, GNSS tags look {:+.1} ms ± {:.1} ms late (the sheet assumes none)",
+            p.run_time_s,
+            o * 1e3,
+            sd * 1e3
+        );
+    }
+    let path = fuse_dir.join("probe.json");
+    navsync::io::output::write_file(&path, serde_json::to_string_pretty(&p)?)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
 fn write_report(
     fuse_dir: &Path,
     truth: Option<&Path>,
@@ -784,6 +809,9 @@ pub fn run(a: Args) -> Result<()> {
         fuse_dir.display()
     );
     let summary = super::fuse::execute(&cfg, &opts, &fuse_dir)?;
+    if !a.no_probe {
+        probe_stage(&cfg, &opts, &fuse_dir)?;
+    }
 
     let mut warnings: Vec<String> = lever_warning.into_iter().chain(rate_warning).collect();
     if let Some(al) = &summary.alignment
