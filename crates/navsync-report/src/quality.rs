@@ -254,6 +254,8 @@ pub(crate) struct Evidence {
 pub(crate) struct ProbeEvidence {
     /// The time offset (GNSS tag − validity, s) and its σ.
     pub time_offset_s: Option<(f64, f64)>,
+    /// Why the probe failed, when it did (its filter broke down).
+    pub failed: Option<String>,
 }
 
 /// A probe estimate is significant beyond this many σ (0.27 % by chance).
@@ -672,6 +674,18 @@ fn probe_checks(
     checks: &mut Vec<Check>,
     causes: &mut Vec<String>,
 ) {
+    if let Some(why) = &p.failed {
+        checks.push(Check {
+            name: "time offset (probe)",
+            grade: Some(Grade::Caution),
+            finding: format!("the second pass, with the time offset as a state, failed: {why}"),
+            rule: "caution when the probe's filter broke down: the data do not fit the sheet's model even with the offset free".into(),
+        });
+        causes.push(format!(
+            "consistency probe: a filter estimating the GNSS time offset broke down on these data ({why}): check the fixes' σ and the IMU figures"
+        ));
+        return;
+    }
     let Some((offset_s, sd_s)) = p.time_offset_s else {
         return;
     };
@@ -1444,6 +1458,7 @@ mod tests {
                 innovation: with_innovation.then(|| inn.clone()),
                 probe: Some(ProbeEvidence {
                     time_offset_s: Some((o, sd)),
+                    failed: None,
                 }),
                 ..Evidence::default()
             });

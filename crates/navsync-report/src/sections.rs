@@ -1003,7 +1003,11 @@ fn probe_evidence(probe: Option<&Value>) -> Option<quality::ProbeEvidence> {
         (Some(o), Some(sd)) if o.is_finite() && sd.is_finite() && sd > 0.0 => Some((o, sd)),
         _ => None,
     };
-    Some(quality::ProbeEvidence { time_offset_s })
+    let failed = p.get("failed").and_then(Value::as_str).map(str::to_string);
+    Some(quality::ProbeEvidence {
+        time_offset_s,
+        failed,
+    })
 }
 
 pub(crate) fn evidence(g: Gathered) -> Evidence {

@@ -638,21 +638,30 @@ fn receipt_envelope(path: &Path) -> Result<f64> {
 /// The report stage: one HTML page of the run, scored against `truth`
 /// when given, judged from the filter's own statistics otherwise.
 /// The consistency probe (`navsync::probe`): its figures go to
-/// fuse/probe.json, where the report's verdict finds them.
+/// fuse/probe.json, where the report's verdict finds them. A probe that
+/// fails (its filter broke down) does not fail the run: that it failed is
+/// what probe.json then says.
 fn probe_stage(cfg: &KfGinsConfig, opts: &FuseOptions, fuse_dir: &Path) -> Result<()> {
-    let Some(p) = navsync::probe::run_probe(cfg, opts)? else {
-        return Ok(());
+    let record = match navsync::probe::run_probe(cfg, opts) {
+        Ok(None) => return Ok(()),
+        Ok(Some(p)) => {
+            if let (Some(o), Some(sd)) = (p.time_offset_s, p.time_offset_sd_s) {
+                println!(
+                    "  consistency probe ({:.1} s): with the time offset estimated as a state, GNSS tags look {:+.1} ms ± {:.1} ms late (the sheet assumes none)",
+                    p.run_time_s,
+                    o * 1e3,
+                    sd * 1e3
+                );
+            }
+            serde_json::to_value(&p)?
+        }
+        Err(e) => {
+            eprintln!("navsync process: warning: the consistency probe failed: {e}");
+            json!({ "failed": e.to_string() })
+        }
     };
-    if let (Some(o), Some(sd)) = (p.time_offset_s, p.time_offset_sd_s) {
-        println!(
-            "  consistency probe ({:.1} s): with the time offset estimated as a state, GNSS tags look {:+.1} ms ± {:.1} ms late (the sheet assumes none)",
-            p.run_time_s,
-            o * 1e3,
-            sd * 1e3
-        );
-    }
     let path = fuse_dir.join("probe.json");
-    navsync::io::output::write_file(&path, serde_json::to_string_pretty(&p)?)
+    navsync::io::output::write_file(&path, serde_json::to_string_pretty(&record)?)
         .with_context(|| format!("writing {}", path.display()))
 }
 
