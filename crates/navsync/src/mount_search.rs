@@ -6,8 +6,12 @@
 //! acceleration; Groves, *Principles of GNSS, Inertial, and Multisensor
 //! Integrated Navigation Systems*, 2nd ed., §6.1.4, heading from
 //! trajectory), so its horizontal acceleration in its own axes is
-//! (along-track dv/dt, cross-track v·dχ/dt): the GNSS track's acceleration
-//! turned by the course χ. The IMU, levelled by its roll and pitch (gravity
+//! (along-track dv/dt, cross-track v·dχ/dt), and dχ/dt is its yaw rate ω,
+//! which the vertical gyro measures whatever the mounting yaw: the
+//! along-track part from the GNSS speed, the cross-track part v·ω from the
+//! GNSS speed and the gyro. (The cross-track part from the GNSS positions'
+//! second difference alone drowns at 1 m/s: on the Husky's 0.9 m fixes the
+//! fit was 135° ± 9°, where v·ω gives 90°, its mounting.) The IMU, levelled by its roll and pitch (gravity
 //! is vertical, so the levelled horizontal specific force is the
 //! acceleration), measures the same vector in its own levelled axes, turned
 //! by the mounting yaw α (`mount_deg[2]`: the IMU's yaw is the vehicle's
@@ -22,21 +26,25 @@
 //! ("automatic IMU-mount alignment", u-blox ZED-F9R Integration manual,
 //! UBX-20039643, §3.2.3), the product reference for what this does.
 //!
-//! Pairing. The GNSS acceleration is the second difference of three fixes
-//! a, b, c at least `half_span_s` apart (positions only, so any receiver
-//! will do): (v_bc − v_ab)/((t_c − t_a)/2) is exactly the acceleration
-//! averaged with the triangular kernel K(t) = (t − t_a)/(t_b − t_a) on
-//! [t_a, t_b], (t_c − t)/(t_c − t_b) on [t_b, t_c]; the IMU's specific force
-//! is averaged with the same kernel, both expressed in their axes at t_b
-//! (the IMU's samples turned by the vertical gyro's yaw since t_b, the
-//! GNSS's by the course at t_b). Windows do not overlap, so the samples'
+//! Pairing. The along-track acceleration is the speeds' difference over
+//! three fixes a, b, c at least `half_span_s` apart (positions only, so any
+//! receiver will do): (|v_bc| − |v_ab|)/((t_c − t_a)/2) is the speed's
+//! rate averaged with the triangular kernel K(t) = (t − t_a)/(t_b − t_a)
+//! on [t_a, t_b], (t_c − t)/(t_c − t_b) on [t_b, t_c] (a second
+//! difference); v·ω at each IMU sample (v interpolated between the chords'
+//! middles) and the IMU's specific force are averaged with the same
+//! kernel, all expressed in their axes at t_b (turned by the vertical
+//! gyro's yaw since t_b). Windows do not overlap, so the samples'
 //! GNSS noise is independent; the residuals' lag-one correlation (slope,
 //! bank, sideslip) reduces the count of independent samples the σ uses.
 //!
 //! The angle's σ is σ_r/√(Σ|f_l − f̄_l|²) (σ_r the residuals' per-axis σ),
 //! inflated by n/n_eff. A drive without acceleration (straight at constant
 //! speed) has Σ|f_l − f̄_l|² near zero: the σ is large and the estimate is
-//! "not observable", with the reason. The roll and pitch are the
+//! "not observable", with the reason. So is a fit whose gain
+//! Σ a·R(α)f / Σ|f|² is not near 1: an IMU whose horizontal specific force
+//! is mostly vibration or tilt changes (the Husky's: 0.13 m/s² of it against
+//! 0.06 m/s² of v·ω) gives an angle, but not the mounting's. The roll and pitch are the
 //! alignment's (levelled at the start): a road's grade or bank changing by
 //! δ leaks g·δ into the horizontal, which the residuals carry into the σ.
 
@@ -64,7 +72,7 @@ pub struct MountSearchOptions {
     pub max_half_span_s: f64,
     /// The second difference's noise aimed at (m/s², per axis).
     pub accel_noise_mps2: f64,
-    /// Least speed at the middle fix (m/s): the course must be defined.
+    /// Least speed at the middle fix (m/s): moving forwards, clearly.
     pub min_speed_mps: f64,
     /// Fixes with a horizontal σ above this (m) are not used.
     pub max_fix_sd_m: f64,
@@ -102,12 +110,18 @@ pub struct MountYawEstimate {
     /// Samples excluded as outliers (residual over 4σ: reversing, slips).
     pub outliers: usize,
     /// Independent samples (from the residuals' lag-one correlation).
+    /// The gain must be within [1/`MAX_GAIN_RATIO`, `MAX_GAIN_RATIO`] too.
     pub effective_samples: f64,
     /// RMS of the GNSS horizontal acceleration about its mean (m/s²): how
     /// much the drive excites the estimate.
     pub accel_rms_mps2: f64,
     /// RMS of the fit's residuals per axis (m/s²).
     pub residual_sd_mps2: f64,
+    /// The least-squares gain of the turned specific force onto the
+    /// acceleration, Σ a·R(α)f / Σ|f|² (centred): 1 when the IMU sees the
+    /// vehicle's acceleration; far from 1 when vibration, tilt changes or a
+    /// time offset dominate what it sees.
+    pub gain: f64,
     /// True when the σ and the sample count meet the options' bounds.
     pub observable: bool,
     /// Why it is not observable (empty when it is).
@@ -133,8 +147,10 @@ struct Window {
     t_a: GpsTime,
     t_b: GpsTime,
     t_c: GpsTime,
-    /// The acceleration in the vehicle's axes at t_b (forward, right).
-    accel_v: Vector2<f64>,
+    /// The speeds of the chords a→b and b→c (m/s), at their middles.
+    speeds_mps: [f64; 2],
+    /// The along-track acceleration (m/s²): the speeds' second difference.
+    along_mps2: f64,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -202,8 +218,8 @@ impl MountSearch {
             && w.t_c <= s.time
         {
             self.pending.pop_front();
-            if let Some(f) = self.imu_over(&w) {
-                self.pairs.push((f, w.accel_v));
+            if let Some(pair) = self.imu_over(&w) {
+                self.pairs.push(pair);
             }
         }
         // Keep the samples a window may still need.
@@ -274,31 +290,30 @@ impl MountSearch {
         h.clamp(self.opts.half_span_s, self.opts.max_half_span_s)
     }
 
-    /// The second difference of three fixes in the vehicle's axes at t_b.
+    /// The chords' speeds of three fixes and their second difference.
     fn window(&self, a: &Fix, b: &Fix, c: &Fix) -> Option<Window> {
         let h1 = b.time.seconds_since(a.time);
         let h2 = c.time.seconds_since(b.time);
-        let v1 = (b.ne_m - a.ne_m) / h1;
-        let v2 = (c.ne_m - b.ne_m) / h2;
-        let accel_n = (v2 - v1) / (0.5 * (h1 + h2));
-        // The velocity at t_b, interpolated between the chords' middles.
-        let v_b = (v1 * h2 + v2 * h1) / (h1 + h2);
-        if v_b.norm() < self.opts.min_speed_mps {
+        let s1 = (b.ne_m - a.ne_m).norm() / h1;
+        let s2 = (c.ne_m - b.ne_m).norm() / h2;
+        // The speed at t_b, interpolated between the chords' middles.
+        if (s1 * h2 + s2 * h1) / (h1 + h2) < self.opts.min_speed_mps {
             return None;
         }
-        let course = v_b.y.atan2(v_b.x);
         Some(Window {
             t_a: a.time,
             t_b: b.time,
             t_c: c.time,
-            accel_v: rotate(&accel_n, -course),
+            speeds_mps: [s1, s2],
+            along_mps2: (s2 - s1) / (0.5 * (h1 + h2)),
         })
     }
 
-    /// The IMU's specific force over a window, with the second difference's
-    /// kernel, in the levelled IMU axes at t_b; None when the IMU does not
-    /// cover the window.
-    fn imu_over(&self, w: &Window) -> Option<Vector2<f64>> {
+    /// Over a window, with the second difference's kernel, in the axes at
+    /// t_b: the IMU's levelled specific force and the vehicle's acceleration
+    /// (along-track from the speeds, cross-track v·ω); None when the IMU
+    /// does not cover the window.
+    fn imu_over(&self, w: &Window) -> Option<(Vector2<f64>, Vector2<f64>)> {
         let h1 = w.t_b.seconds_since(w.t_a);
         let h2 = w.t_c.seconds_since(w.t_b);
         // The yaw at t_b: the end of the last sample before it.
@@ -308,7 +323,8 @@ impl MountSearch {
             .take_while(|l| l.t_end <= w.t_b)
             .last()?
             .yaw_end_rad;
-        let (mut sum, mut weight_s, mut covered_s) = (Vector2::zeros(), 0.0, 0.0);
+        let (mut f_sum, mut a_sum) = (Vector2::zeros(), Vector2::zeros());
+        let (mut weight_s, mut covered_s) = (0.0, 0.0);
         for l in &self.imu {
             let t_mid = l.t_end.add_seconds(-0.5 * l.dt_s);
             let (u1, u2) = (t_mid.seconds_since(w.t_a), w.t_c.seconds_since(t_mid));
@@ -317,11 +333,18 @@ impl MountSearch {
             }
             let k = if u1 <= h1 { u1 / h1 } else { u2 / h2 };
             let yaw = l.yaw_end_rad - 0.5 * l.dyaw_rad - yaw_b;
-            sum += rotate(&l.dv_l, yaw) * k;
+            // The speed here: linear between the chords' middles.
+            let u = ((u1 - 0.5 * h1) / (0.5 * (h1 + h2))).clamp(0.0, 1.0);
+            let speed = w.speeds_mps[0] + u * (w.speeds_mps[1] - w.speeds_mps[0]);
+            // Δv of the vehicle over the sample: (a_along, v·ω)·dt.
+            let dv_v = Vector2::new(w.along_mps2 * l.dt_s, speed * l.dyaw_rad);
+            f_sum += rotate(&l.dv_l, yaw) * k;
+            a_sum += rotate(&dv_v, yaw) * k;
             weight_s += k * l.dt_s;
             covered_s += l.dt_s;
         }
-        (covered_s >= 0.9 * (h1 + h2) && weight_s > 0.0).then(|| sum / weight_s)
+        (covered_s >= 0.9 * (h1 + h2) && weight_s > 0.0)
+            .then(|| (f_sum / weight_s, a_sum / weight_s))
     }
 
     /// The estimate from the samples so far.
@@ -373,6 +396,7 @@ fn fit(pairs: &[(Vector2<f64>, Vector2<f64>)], o: &MountSearchOptions) -> MountY
             effective_samples: 0.0,
             accel_rms_mps2: 0.0,
             residual_sd_mps2: 0.0,
+            gain: 0.0,
             observable: false,
             reason: format!(
                 "{} paired samples of IMU specific force and GNSS acceleration (moving at ≥ {} m/s with fixes \
@@ -401,9 +425,16 @@ fn fit(pairs: &[(Vector2<f64>, Vector2<f64>)], o: &MountSearchOptions) -> MountY
         f64::INFINITY
     };
     let accel_rms = (e.accel_spread / n).sqrt();
-    let observable = sd_rad <= o.max_sd_rad && n_eff >= o.min_effective_samples;
+    let gain_ok = e.gain <= MAX_GAIN_RATIO && e.gain >= 1.0 / MAX_GAIN_RATIO;
+    let observable = sd_rad <= o.max_sd_rad && n_eff >= o.min_effective_samples && gain_ok;
     let reason = if observable {
         String::new()
+    } else if sd_rad <= o.max_sd_rad && n_eff >= o.min_effective_samples {
+        format!(
+            "the IMU's horizontal specific force does not follow the vehicle's acceleration (gain {:.2}, \
+             expected 1 within a factor {MAX_GAIN_RATIO}): vibration, tilt changes or a time offset dominate it",
+            e.gain
+        )
     } else {
         format!(
             "the drive has too little horizontal acceleration for it: {:.2} m/s² RMS about its mean against \
@@ -426,6 +457,7 @@ fn fit(pairs: &[(Vector2<f64>, Vector2<f64>)], o: &MountSearchOptions) -> MountY
         effective_samples: n_eff,
         accel_rms_mps2: accel_rms,
         residual_sd_mps2: sigma_r,
+        gain: e.gain,
         observable,
         reason,
     }
@@ -438,7 +470,12 @@ struct Procrustes {
     spread: f64,
     /// Σ|a − ā|².
     accel_spread: f64,
+    /// Σ a·R(α)f / Σ|f|² (centred).
+    gain: f64,
 }
+
+/// The fit's gain must be within a factor of this of 1.
+pub const MAX_GAIN_RATIO: f64 = 1.25;
 
 /// The 2-D orthogonal Procrustes fit with translation: α = atan2(Σ f×a,
 /// Σ f·a) over the centred pairs (Kabsch 1976 in two dimensions).
@@ -467,6 +504,11 @@ fn procrustes(pairs: &[(Vector2<f64>, Vector2<f64>)]) -> Option<Procrustes> {
         residuals,
         spread,
         accel_spread,
+        gain: if spread > 0.0 {
+            dot.hypot(cross) / spread
+        } else {
+            0.0
+        },
     })
 }
 
@@ -508,8 +550,8 @@ pub fn decide(estimate: MountYawEstimate, sheet_yaw_deg: f64) -> MountYawDecisio
     let e = &d.estimate;
     let (Some(yaw), Some(sd), true) = (e.yaw_deg, e.sd_deg, e.observable) else {
         d.message = format!(
-            "the IMU's mounting yaw is not observable from the motion ({}): mount_deg[2] {:.1}° from the sensor \
-             sheet is used unchecked",
+            "the IMU's mounting yaw is not observable from the motion: {}; the sensor sheet's mount_deg[2] \
+             {:.1}° is used unchecked",
             e.reason, sheet_yaw_deg
         );
         return d;
@@ -622,10 +664,10 @@ mod tests {
     #[test]
     fn recovers_the_mounting_yaw_of_a_turning_drive() {
         // Noise: fixes 0.3 m per axis → span h = √(√6·0.3/0.25) = 1.7 s
-        // (1.8 s at 5 Hz), second difference √6·0.3/1.8² = 0.23 m/s² per
-        // axis; the acceleration varies by 1.4 m/s² RMS over 66 windows,
-        // so σ ≈ 0.23/(1.4·√66) rad = 1.2° (measured 1.2–1.6°, with the
-        // residuals' correlation); the test allows 4σ and needs σ ≤ 2°.
+        // (1.8 s at 5 Hz), the speeds' second difference ≤ √6·0.3/1.8² =
+        // 0.23 m/s² along track (v·ω across is nearly noise-free); the
+        // acceleration varies by 1.4 m/s² RMS over 66 windows, so σ ≤
+        // 0.23/(1.4·√66) rad = 1.2°; the test allows 4σ and needs σ ≤ 2°.
         for (yaw, roll, seed) in [
             (37.0, 0.0, 1),
             (90.0, 90.0, 2),
@@ -635,7 +677,7 @@ mod tests {
             let e = urban(Euler::from_deg(roll, 0.0, yaw), 0.3, seed);
             let (est, sd) = (e.yaw_deg.unwrap(), e.sd_deg.unwrap());
             assert!(e.observable, "{e:?}");
-            assert!(sd < 2.0 && sd > 0.05, "{e:?}");
+            assert!(sd < 2.0 && sd > 0.05 && (e.gain - 1.0).abs() < 0.1, "{e:?}");
             let err = wrap_pi((est - yaw).to_radians()).to_degrees();
             assert!(err.abs() < 4.0 * sd, "mount {yaw}: {e:?}");
         }
@@ -643,8 +685,9 @@ mod tests {
 
     #[test]
     fn slow_robot_turning_on_the_spot_between_legs() {
-        // The Husky's regime: 1 m/s, turns of 0.5 rad/s, fixes 0.5 m: σ ≈
-        // 0.23/(0.46·√113) rad = 2.7° (measured 4.0°), within 4σ, σ < 5°.
+        // A Husky-like drive: 1 m/s, turns of 0.5 rad/s, fixes 0.5 m: σ ≤
+        // 0.23/(0.46·√113) rad = 2.7°; within 4σ, and σ < 5°. (The real
+        // Husky's IMU sees more vibration and tilt than acceleration.)
         let e = drive(
             Euler::from_deg(90.0, 0.0, 90.0),
             600.0,
@@ -682,6 +725,23 @@ mod tests {
     }
 
     #[test]
+    fn an_imu_that_does_not_see_the_acceleration_is_not_observable() {
+        // The IMU's specific force 5 times the acceleration (as if
+        // vibration or tilt changes dominated it): σ 3.2° (0.8/√200 rad),
+        // within the 5° bound, but gain 0.2.
+        let mut rng = stream(8, "gain");
+        let pairs: Vec<_> = (0..200)
+            .map(|_| {
+                let a = Vector2::new(normal(&mut rng), normal(&mut rng));
+                (rotate(&a, -0.5) * 5.0, a)
+            })
+            .collect();
+        let e = fit(&pairs, &MountSearchOptions::default());
+        assert!(!e.observable && (e.gain - 0.2).abs() < 1e-9, "{e:?}");
+        assert!(e.reason.contains("does not follow"), "{}", e.reason);
+    }
+
+    #[test]
     fn standing_still_gives_no_samples() {
         let e = drive(
             Euler::from_deg(0.0, 0.0, 0.0),
@@ -706,6 +766,7 @@ mod tests {
             effective_samples: 40.0,
             accel_rms_mps2: 1.0,
             residual_sd_mps2: 0.1,
+            gain: 1.0,
             observable: true,
             reason: String::new(),
         }
