@@ -145,8 +145,8 @@ fn heading_error_deg(truth: &Path, nav: &Path, mount_deg: f64) -> (f64, f64) {
 /// motion over its 1.3 m lever arm, grade and bank) and correlated (14
 /// independent windows), whence σ = 0.7° (measured: 36.8°, 89.8°,
 /// −120.2°). The heading: within 1° (median) and 2° (95 %) of the truth's
-/// + the mounting (measured ≤ 0.16° and ≤ 0.5°), where a 0 mounting would
-/// leave it 37°, 90° or 120° off.
+/// plus the mounting (measured ≤ 0.16° and ≤ 0.5°), where a 0 mounting
+/// would leave it 37°, 90° or 120° off.
 #[test]
 fn a_turned_imu_is_found_and_taken() {
     let d = temp_dir("mount-yaw");

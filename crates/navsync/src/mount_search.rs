@@ -201,7 +201,10 @@ impl MountSearch {
             return;
         };
         let dt_s = s.time.seconds_since(prev);
-        if !(dt_s > 0.0) || !s.dvel.iter().chain(s.dtheta.iter()).all(|x| x.is_finite()) {
+        if dt_s.is_nan()
+            || dt_s <= 0.0
+            || !s.dvel.iter().chain(s.dtheta.iter()).all(|x| x.is_finite())
+        {
             return;
         }
         let dv = self.c_bl * s.dvel;
@@ -237,7 +240,8 @@ impl MountSearch {
     /// One GNSS fix (its position and σ; velocities are not needed).
     pub fn push_fix(&mut self, f: &GnssFix) {
         let sd_h_m = f.pos_sd.x.hypot(f.pos_sd.y);
-        if !(sd_h_m <= self.opts.max_fix_sd_m)
+        if sd_h_m.is_nan()
+            || sd_h_m > self.opts.max_fix_sd_m
             || !f.pos.lat_rad.is_finite()
             || !f.pos.lon_rad.is_finite()
         {
@@ -258,7 +262,7 @@ impl MountSearch {
         let max_gap = span * self.opts.max_gap_spans;
         let last = self.middle.unwrap_or(a);
         let dt = fix.time.seconds_since(last.time);
-        if !(dt > 0.0) {
+        if dt.is_nan() || dt <= 0.0 {
             return;
         }
         if dt > max_gap {
