@@ -23,8 +23,8 @@
 //! estimate of satellite attitude", SIAM Review 7(3), 1965; Kabsch, Acta
 //! Cryst. A32, 1976), after removing each set's mean for c. u-blox's
 //! dead-reckoning receivers estimate the same angle from the motion
-//! ("automatic IMU-mount alignment", u-blox ZED-F9R Integration manual,
-//! UBX-20039643, §3.2.3), the product reference for what this does.
+//! (u-blox ZED-F9R Integration manual, "Automatic IMU-mount alignment"),
+//! the product reference for what this does.
 //!
 //! Pairing. The along-track acceleration is the speeds' difference over
 //! three fixes a, b, c at least `half_span_s` apart (positions only, so any
