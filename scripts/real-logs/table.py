@@ -2,7 +2,9 @@
 """The real-logs table of docs/real-logs.md: `navsync process` on every real
 log in ../shared/data/real-logs (and any more given as NAME=PATH), then, for
 each run, the forward and smoothed horizontal RMS against the log's own
-fixes, the heading against the GNSS course (land vehicles) and the verdict.
+fixes, the heading (the IMU's yaw less the run's mounting yaw) against the GNSS
+course (land vehicles), the mounting yaw found in the motion and the one
+used, and the verdict.
 
 Python 3 standard library only (no numpy). From the repository root:
 
@@ -77,8 +79,9 @@ def rms_vs_fixes(nav, fixes):
     return (math.sqrt(s / n) if n else float("nan")), n
 
 
-def heading_vs_course(nav, fixes):
-    """Median and spread (deg) of yaw − course over chords ≥ 3 m, ≤ 5 s."""
+def heading_vs_course(nav, fixes, mount_yaw_deg=0.0):
+    """Median and spread (deg) of heading − course over chords ≥ 3 m, ≤ 5 s;
+    the heading is the IMU's yaw less the run's mounting yaw."""
     lat0 = math.radians(fixes[0][1])
     ne = [(math.radians(f[1]) * R_EARTH, math.radians(f[2]) * R_EARTH * math.cos(lat0)) for f in fixes]
     ts = [r[1] for r in nav]
@@ -97,7 +100,7 @@ def heading_vs_course(nav, fixes):
         if c is None:
             continue
         yaw = math.atan2(c[1], c[0])
-        x = math.degrees(yaw - math.atan2(de, dn))
+        x = math.degrees(yaw - math.atan2(de, dn)) - mount_yaw_deg
         d.append((x + 180.0) % 360.0 - 180.0)
     if not d:
         return None
@@ -105,6 +108,17 @@ def heading_vs_course(nav, fixes):
     med = d[len(d) // 2]
     spread = math.sqrt(sum(((x - med + 180) % 360 - 180) ** 2 for x in d) / len(d))
     return med, spread, len(d)
+
+
+def mount_words(m):
+    """The mounting yaw found in the motion and the one the run used."""
+    if not m:
+        return "not searched"
+    e = m["estimate"]
+    found = "no samples" if e["yaw_deg"] is None else f"{e['yaw_deg']:.1f}° ± {e['sd_deg']:.1f}°"
+    if not e["observable"]:
+        found += " (not observable)"
+    return f"{found} → {m['used_yaw_deg']:.1f}°"
 
 
 def verdict(report_html):
@@ -143,8 +157,11 @@ def run(name, path, kind, out_root):
     row["week"] = int(smoothed[0][0])
     if forward:
         row["forward_rms_m"], _ = rms_vs_fixes(forward, fixes)
+    summary = json.load(open(os.path.join(out, "fuse", "summary.json")))
+    m = summary.get("mount_yaw")
+    row["mount_yaw"] = m
     if kind == "land":
-        h = heading_vs_course(smoothed, fixes)
+        h = heading_vs_course(smoothed, fixes, m["used_yaw_deg"] if m else 0.0)
         row["heading_minus_course_deg"] = None if h is None else (round(h[0], 1), round(h[1], 1), h[2])
     row["verdict"] = verdict(os.path.join(out, "report.html"))
     return row
@@ -160,12 +177,12 @@ def main(argv):
         name, _, path = a.partition("=")
         logs.append((name, path, "land"))
     os.makedirs(out_root, exist_ok=True)
-    print("| log | duration | fixes | IMU | forward RMS vs fixes | smoothed RMS vs fixes | coverage | heading − course (median, spread, chords) | week | verdict |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| log | duration | fixes | IMU | forward RMS vs fixes | smoothed RMS vs fixes | coverage | heading − course (median, spread, chords) | mount yaw: motion → used | week | verdict |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, path, kind in logs:
         r = run(name, path, kind, out_root)
         if "error" in r:
-            print(f"| {name} | – | – | – | – | – | – | – | – | exit {r['exit']}: {r['error']} |")
+            print(f"| {name} | – | – | – | – | – | – | – | – | – | exit {r['exit']}: {r['error']} |")
             continue
         h = r.get("heading_minus_course_deg")
         hs = "not a land vehicle" if kind != "land" else ("no chords" if h is None else f"{h[0]}°, {h[1]}°, {h[2]}")
@@ -173,7 +190,7 @@ def main(argv):
         print(
             f"| {name} | {r['duration_s']} s | {r['fixes']} | {r['imu_rate_hz']} Hz | "
             f"{'–' if fwd is None else f'{fwd:.2f} m'} | {r['smoothed_rms_m']:.2f} m | "
-            f"{100 * r['coverage']:.1f} % | {hs} | {r['week']} | {r['verdict']} |"
+            f"{100 * r['coverage']:.1f} % | {hs} | {mount_words(r.get('mount_yaw'))} | {r['week']} | {r['verdict']} |"
         )
 
 

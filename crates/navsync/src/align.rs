@@ -804,7 +804,9 @@ impl Aligner {
         // force in b₀ (the window's averaging tells reversing from 0.3 m/s²).
         let a_n = (v - w.v0) / span_s;
         let f = w.dv_b0 / w.dt_s.max(1e-9);
-        let (roll, pitch, reversing, checked) = level_in_motion(&f, &a_n, course0, g, 0.3);
+        // In the IMU's axes: the course turned by the mounting yaw.
+        let (roll, pitch, reversing, checked) =
+            level_in_motion(&f, &a_n, course0 + o.mount_yaw_rad, g, 0.3);
         // σ: the acceleration error from two velocities T apart, the bias,
         // and the neglected Coriolis and transport terms (2 ω_ie v ≤ 2 mm/s²
         // at 15 m/s).
@@ -897,11 +899,14 @@ impl Aligner {
                 // (1 mg per √s floor).
                 let sd = (o.accel_bias_sd_mps2 / g).hypot(levelling_noise_sd_rad(s.dt));
                 // Reversing: the along-track acceleration from GNSS against
-                // the IMU's forward specific force with gravity removed
-                // (pitch known from the standstill).
+                // the vehicle's forward specific force (the IMU's levelled
+                // by the standstill's roll and pitch, turned by the mounting
+                // yaw: f^v = R_z(α)·f^l, `filter::nhc`).
                 if let Some(a_n) = accel {
                     let a_track = (a_n.x * v.x + a_n.y * v.y) / speed;
-                    let a_x = interval.f().x - g * p.sin();
+                    let f_l = crate::attitude::euler_to_dcm(&Euler::new(r, p, 0.0)) * interval.f();
+                    let (s_m, c_m) = o.mount_yaw_rad.sin_cos();
+                    let a_x = c_m * f_l.x - s_m * f_l.y;
                     if a_track.abs() > 0.3 && a_x.abs() > 0.15 {
                         checked = true;
                         reversing = a_track * a_x < 0.0;
@@ -917,7 +922,8 @@ impl Aligner {
             }
             None => {
                 let a_n = accel.unwrap_or_else(Vector3::zeros);
-                let (r, p, rev, chk) = level_in_motion(&interval.f(), &a_n, v.y.atan2(v.x), g, 0.5);
+                let imu_course = v.y.atan2(v.x) + o.mount_yaw_rad;
+                let (r, p, rev, chk) = level_in_motion(&interval.f(), &a_n, imu_course, g, 0.5);
                 (reversing, checked) = (rev, chk);
                 let a_sd = v_sd.norm() * std::f64::consts::SQRT_2;
                 let sd = (o.accel_bias_sd_mps2.hypot(a_sd)) / g;
@@ -1300,65 +1306,69 @@ mod tests {
     /// (one sign convention for both; they disagreed before).
     #[test]
     fn the_mounting_yaw_turns_the_imu_from_the_course_as_the_nhc_has_it() {
-        let g = GAMMA_E;
-        let mount = 90f64.to_radians();
-        let mut al = Aligner::new(AlignOptions {
-            mount_yaw_rad: mount,
-            ..AlignOptions::default()
-        });
-        let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
-        let dt = 0.01;
-        let t0 = GpsTime::from_week_sow(2000, 1000.0);
-        let fix_at = |t: GpsTime, v: Vector3<f64>| GnssFix {
-            time: t,
-            pos,
-            pos_sd: Vector3::repeat(0.02),
-            vel: Some(v),
-            vel_sd: Some(Vector3::repeat(0.02)),
-        };
-        let mut t = t0;
-        for k in 1..=200 {
-            t = t0.add_seconds(k as f64 * dt);
-            al.push_imu(&sample(t, Vector3::new(0.0, 0.0, -g), dt));
-            if k % 100 == 0 {
-                assert!(al.push_gnss(&fix_at(t, Vector3::zeros())).is_none());
-            }
-        }
-        let course = 45f64.to_radians();
-        let a = 1.0;
-        // The vehicle's forward acceleration seen in the IMU's axes:
-        // C_v^b (a, 0, 0) = (a cos α, −a sin α, 0).
-        let c_bv = crate::attitude::euler_to_dcm(&Euler {
-            roll_rad: 0.0,
-            pitch_rad: 0.0,
-            yaw_rad: mount,
-        });
-        let f_drive = c_bv.transpose() * Vector3::new(a, 0.0, 0.0) + Vector3::new(0.0, 0.0, -g);
-        let mut out = None;
-        for k in 1..=2000 {
-            t = t.add_seconds(dt);
-            al.push_imu(&sample(t, f_drive, dt));
-            if k % 100 == 0 {
-                let speed = a * k as f64 * dt;
-                let v = Vector3::new(speed * course.cos(), speed * course.sin(), 0.0);
-                if let Some(x) = al.push_gnss(&fix_at(t, v)) {
-                    out = Some(x);
-                    break;
+        // Beyond ±90° the IMU's x axis points backwards: not a reversing
+        // vehicle (the reversing check once ignored the mounting).
+        for mount_deg in [90.0f64, -120.0, 37.0, 180.0] {
+            let g = GAMMA_E;
+            let mount = mount_deg.to_radians();
+            let mut al = Aligner::new(AlignOptions {
+                mount_yaw_rad: mount,
+                ..AlignOptions::default()
+            });
+            let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+            let dt = 0.01;
+            let t0 = GpsTime::from_week_sow(2000, 1000.0);
+            let fix_at = |t: GpsTime, v: Vector3<f64>| GnssFix {
+                time: t,
+                pos,
+                pos_sd: Vector3::repeat(0.02),
+                vel: Some(v),
+                vel_sd: Some(Vector3::repeat(0.02)),
+            };
+            let mut t = t0;
+            for k in 1..=200 {
+                t = t0.add_seconds(k as f64 * dt);
+                al.push_imu(&sample(t, Vector3::new(0.0, 0.0, -g), dt));
+                if k % 100 == 0 {
+                    assert!(al.push_gnss(&fix_at(t, Vector3::zeros())).is_none());
                 }
             }
+            let course = 45f64.to_radians();
+            let a = 1.0;
+            // The vehicle's forward acceleration seen in the IMU's axes:
+            // C_v^b (a, 0, 0) = (a cos α, −a sin α, 0).
+            let c_bv = crate::attitude::euler_to_dcm(&Euler {
+                roll_rad: 0.0,
+                pitch_rad: 0.0,
+                yaw_rad: mount,
+            });
+            let f_drive = c_bv.transpose() * Vector3::new(a, 0.0, 0.0) + Vector3::new(0.0, 0.0, -g);
+            let mut out = None;
+            for k in 1..=2000 {
+                t = t.add_seconds(dt);
+                al.push_imu(&sample(t, f_drive, dt));
+                if k % 100 == 0 {
+                    let speed = a * k as f64 * dt;
+                    let v = Vector3::new(speed * course.cos(), speed * course.sin(), 0.0);
+                    if let Some(x) = al.push_gnss(&fix_at(t, v)) {
+                        out = Some(x);
+                        break;
+                    }
+                }
+            }
+            let e = out.expect("aligned once moving").nav.euler();
+            assert!(
+                (wrap_pi(e.yaw_rad - (course + mount))).abs() < 1e-6,
+                "{}",
+                e.yaw_rad.to_degrees()
+            );
+            // The NHC: the IMU-frame velocity of a vehicle moving forward,
+            // carried by C_b^v, is forward only.
+            let c_nb = crate::attitude::euler_to_dcm(&e);
+            let v_n = Vector3::new(course.cos(), course.sin(), 0.0) * 5.0;
+            let v_v = c_bv * (c_nb.transpose() * v_n);
+            assert!((v_v.x - 5.0).abs() < 1e-6 && v_v.y.abs() < 1e-6, "{v_v}");
         }
-        let e = out.expect("aligned once moving").nav.euler();
-        assert!(
-            (wrap_pi(e.yaw_rad - (course + mount))).abs() < 1e-6,
-            "{}",
-            e.yaw_rad.to_degrees()
-        );
-        // The NHC: the IMU-frame velocity of a vehicle moving forward,
-        // carried by C_b^v, is forward only.
-        let c_nb = crate::attitude::euler_to_dcm(&e);
-        let v_n = Vector3::new(course.cos(), course.sin(), 0.0) * 5.0;
-        let v_v = c_bv * (c_nb.transpose() * v_n);
-        assert!((v_v.x - 5.0).abs() < 1e-6 && v_v.y.abs() < 1e-6, "{v_v}");
     }
 
     /// Reversing: the speed grows while the IMU's forward specific force is
@@ -1393,6 +1403,47 @@ mod tests {
         assert_eq!(a.method, AlignMethod::InMotion);
         assert!(a.reversing_checked && a.reversing);
         assert!((a.nav.euler().yaw_rad.abs() - std::f64::consts::PI).abs() < 1e-9);
+    }
+
+    /// Starting in motion, the IMU mounted at yaw −120° (its x axis
+    /// backwards-left) in a vehicle accelerating forwards: not reversing,
+    /// and its yaw is the course + the mounting (the check once compared
+    /// the IMU's x axis with the course).
+    #[test]
+    fn an_imu_facing_backwards_in_a_forward_vehicle_is_not_reversing() {
+        let mount = -120f64.to_radians();
+        let mut al = Aligner::new(AlignOptions {
+            mount_yaw_rad: mount,
+            ..AlignOptions::default()
+        });
+        let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
+        let dt = 0.01;
+        let mut t = GpsTime::from_week_sow(2000, 1000.0);
+        let c_bv = crate::attitude::euler_to_dcm(&Euler::new(0.0, 0.0, mount));
+        let f = c_bv.transpose() * Vector3::new(1.0, 0.0, 0.0) + Vector3::new(0.0, 0.0, -GAMMA_E);
+        let mut out = None;
+        for k in 1..=1000 {
+            t = t.add_seconds(dt);
+            al.push_imu(&sample(t, f, dt));
+            if k % 100 == 0 {
+                let v = Vector3::new(1.0 * k as f64 * dt, 0.0, 0.0);
+                let fix = GnssFix {
+                    time: t,
+                    pos,
+                    pos_sd: Vector3::repeat(0.02),
+                    vel: Some(v),
+                    vel_sd: Some(Vector3::repeat(0.02)),
+                };
+                if let Some(x) = al.push_gnss(&fix) {
+                    out = Some(x);
+                    break;
+                }
+            }
+        }
+        let a = out.expect("aligned");
+        assert_eq!(a.method, AlignMethod::InMotion);
+        assert!(a.reversing_checked && !a.reversing);
+        assert!(wrap_pi(a.nav.euler().yaw_rad - mount).abs() < 1e-6);
     }
 
     /// Starting in motion with noisy GNSS velocities: tilt and heading are

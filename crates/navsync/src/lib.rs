@@ -30,6 +30,7 @@ pub mod imu;
 pub mod ins;
 pub mod interp;
 pub mod io;
+pub mod mount_search;
 pub mod navigator;
 // Number formatting without allocation (under time and io::text).
 mod numfmt;

@@ -406,6 +406,10 @@ pub struct FuseSummary {
     /// alignment could not find it (`fusion::course_heading`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub heading_acquired: Option<crate::fusion::course_heading::HeadingAcquired>,
+    /// A land vehicle's mounting yaw found in the motion and what the run
+    /// did with it (`mount_search`), when the run aligned itself.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mount_yaw: Option<crate::mount_search::MountYawDecision>,
     /// The configuration's IMU error model (the datasheet figures a report
     /// compares the estimates with).
     pub imu_model: ImuModelSummary,
@@ -900,6 +904,7 @@ fn run_inner(
             aligned_from_baseline: false,
         });
     }
+    let mut mount_yaw = None;
     let alignment = if opts.align.is_some() || !cfg.init_state_given {
         let mut ao = opts.align.unwrap_or_default();
         ao.lever_b = cfg.antenna_lever.into();
@@ -911,7 +916,28 @@ fn run_inner(
             ao.dual_antenna_yaw_rad = h.dual_antenna_yaw_deg.to_radians();
             ao.dual_antenna_yaw_sd_rad = h.dual_antenna_yaw_sd_deg.to_radians();
         }
-        let a = align_from_files(cfg, opts, &ao, fc.init_nav.time, &headings)?;
+        let mut a = align_from_files(cfg, opts, &ao, fc.init_nav.time, &headings)?;
+        // A land vehicle's mounting yaw from the motion (`mount_search`):
+        // taken when the sheet left it at 0 and it is clearly not 0.
+        if opts.nhc.is_some() || opts.odometer.is_some() {
+            let d = mount_yaw_from_files(cfg, opts, fc.init_nav.time, &a, ao.mount_yaw_rad)?;
+            if d.adopted {
+                let turn = Euler::new(0.0, 0.0, d.used_yaw_deg.to_radians() - ao.mount_yaw_rad);
+                let c = crate::attitude::euler_to_dcm(&turn);
+                if let Some(n) = fc.nhc.as_mut() {
+                    n.vehicle.c_bv = c * n.vehicle.c_bv;
+                }
+                if let Some(o) = fc.odometer.as_mut() {
+                    o.vehicle.c_bv = c * o.vehicle.c_bv;
+                }
+                ao.mount_yaw_rad = d.used_yaw_deg.to_radians();
+                a = align_from_files(cfg, opts, &ao, fc.init_nav.time, &headings)?;
+            }
+            if !d.message.is_empty() {
+                diag.note(d.message.clone());
+            }
+            mount_yaw = Some(d);
+        }
         diag.note(a.note.clone());
         fc.init_nav = a.nav;
         fc.init_std.att = Vector3::from(a.att_sd_rad);
@@ -939,29 +965,39 @@ fn run_inner(
         // An IMU tilted far more than a road or a parked drone tilts (20°)
         // with no mounting given is mounted so: its roll and pitch in the
         // vehicle are the levelled ones (a level vehicle's attitude is
-        // the mounting's; Groves §5.6.2), for the NHC's C_b^v.
-        if let (Some(n), Some(nhc)) = (&opts.nhc, fc.nhc.as_mut())
-            && n.mount_deg[0] == 0.0
-            && n.mount_deg[1] == 0.0
-        {
+        // the mounting's; Groves §5.6.2), for the NHC's C_b^v; with a
+        // mounting yaw found in the motion, for the odometer's too (it uses
+        // the NHC's mounting, `reduced::odometer_options`).
+        let adopted = mount_yaw.as_ref().is_some_and(|d| d.adopted);
+        let sheet_mount = opts.nhc.map(|n| n.mount_deg).unwrap_or_default();
+        if (opts.nhc.is_some() || adopted) && sheet_mount[0] == 0.0 && sheet_mount[1] == 0.0 {
             let e = a.nav.euler();
             let limit = MOUNT_TILT_FROM_GRAVITY_DEG.to_radians();
             if e.roll_rad.abs() > limit || e.pitch_rad.abs() > limit {
-                let mount = Euler::from_deg(
-                    e.roll_rad.to_degrees(),
-                    e.pitch_rad.to_degrees(),
-                    n.mount_deg[2],
-                );
-                nhc.vehicle = VehicleConstraint::new(&mount, Vector3::from(n.lever_m), n.sd_mps);
+                let yaw_deg = ao.mount_yaw_rad.to_degrees();
+                let mount =
+                    Euler::from_deg(e.roll_rad.to_degrees(), e.pitch_rad.to_degrees(), yaw_deg);
+                if let (Some(n), Some(nhc)) = (&opts.nhc, fc.nhc.as_mut()) {
+                    nhc.vehicle =
+                        VehicleConstraint::new(&mount, Vector3::from(n.lever_m), n.sd_mps);
+                }
+                if adopted && let Some(o) = fc.odometer.as_mut() {
+                    o.vehicle = VehicleConstraint::new(&mount, o.vehicle.lever_b, o.vehicle.nhc_sd);
+                }
                 diag.note(format!(
                     "the IMU is tilted by roll {:.1}°, pitch {:.1}° at the start and the sheet gives no mounting: \
-                     taken as its mounting in the vehicle for the NHC, mount_deg [{:.1}, {:.1}, {:.1}] \
+                     taken as its mounting in the vehicle for the {}, mount_deg [{:.1}, {:.1}, {:.1}] \
                      (set mount_deg in the sheet to override)",
                     e.roll_rad.to_degrees(),
                     e.pitch_rad.to_degrees(),
+                    match (opts.nhc.is_some(), adopted && fc.odometer.is_some()) {
+                        (true, true) => "NHC and the odometer",
+                        (false, true) => "odometer",
+                        _ => "NHC",
+                    },
                     e.roll_rad.to_degrees(),
                     e.pitch_rad.to_degrees(),
-                    n.mount_deg[2]
+                    yaw_deg
                 ));
             }
         }
@@ -1163,7 +1199,13 @@ fn run_inner(
         time_offset_coarse_s: fusion.coarse_offset().map(|o| o.offset_s),
         output_at_written: at_written,
         output_at_skipped,
-        stats: fusion.stats(),
+        stats: {
+            let mut st = fusion.stats();
+            let e = mount_yaw.as_ref().map(|d| &d.estimate);
+            st.mount_yaw_estimate_deg = e.and_then(|e| e.yaw_deg);
+            st.mount_yaw_estimate_sd_deg = e.and_then(|e| e.sd_deg);
+            st
+        },
         final_gyro_bias_deg_h: (imu.gyro_bias * deg_h).into(),
         final_accel_bias_mgal: (imu.accel_bias * 1e5).into(),
         final_gyro_scale_ppm: (imu.gyro_scale * 1e6).into(),
@@ -1183,6 +1225,7 @@ fn run_inner(
         smoother,
         alignment,
         heading_acquired: fusion.heading_acquired(),
+        mount_yaw,
         imu_model: ImuModelSummary::of(cfg),
         antenna_lever_m: cfg.antenna_lever.into(),
         options: opts.clone(),
@@ -1288,6 +1331,40 @@ fn output_at_interpolator(opts: &FuseOptions) -> Result<Option<NavInterpolator>,
 
 /// The alignment pre-pass: reads the IMU and GNSS files from `start` until
 /// the aligner has the initial state.
+/// A land vehicle's mounting yaw from the motion over the run
+/// (`mount_search`), the IMU levelled by the alignment's roll and pitch,
+/// decided against the sheet's `sheet_yaw_rad`.
+fn mount_yaw_from_files(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    start: GpsTime,
+    a: &crate::align::Alignment,
+    sheet_yaw_rad: f64,
+) -> Result<crate::mount_search::MountYawDecision, Error> {
+    use crate::mount_search::{MountSearch, MountSearchOptions, decide};
+    let mut diag = Diagnostics::with_cap(10);
+    let e = a.nav.euler();
+    let mut search = MountSearch::new(MountSearchOptions::default(), e.roll_rad, e.pitch_rad);
+    let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
+    let mut imu = ImuReader::open(&cfg.imu_path, opts.week)?;
+    let mut next_fix = gnss.next_fix(&mut diag)?;
+    while let Some(s) = imu.next_sample(&mut diag)? {
+        if s.time < start {
+            continue;
+        }
+        while let Some(f) = next_fix
+            && f.time <= s.time
+        {
+            if f.time >= start {
+                search.push_fix(&f);
+            }
+            next_fix = gnss.next_fix(&mut diag)?;
+        }
+        search.push_imu(&s);
+    }
+    Ok(decide(search.finish(), sheet_yaw_rad.to_degrees()))
+}
+
 fn align_from_files(
     cfg: &KfGinsConfig,
     opts: &FuseOptions,

@@ -823,6 +823,19 @@ pub fn run(a: Args) -> Result<()> {
     }
 
     let mut warnings: Vec<String> = lever_warning.into_iter().chain(rate_warning).collect();
+    // The mounting yaw found in the motion (land vehicles): taken, or the
+    // sheet's contradicted.
+    if let Some(m) = &summary.mount_yaw
+        && !m.message.is_empty()
+    {
+        if m.disagrees {
+            eprintln!("navsync process: WARNING: {}", m.message);
+            warnings.push(m.message.clone());
+        } else {
+            // Printed with the run's diagnostics already.
+            notes.push(m.message.clone());
+        }
+    }
     if let Some(al) = &summary.alignment
         && al.method == AlignMethod::NoMotion
     {

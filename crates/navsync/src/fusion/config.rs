@@ -499,6 +499,13 @@ pub struct FusionStats {
     /// GNSS fault episodes (spikes, runs at a false level, ramps, stale
     /// outputs): `fusion::aid::integrity`.
     pub gnss_fault_episodes: Vec<crate::fusion::FaultEpisode>,
+    /// A land vehicle's mounting yaw found in the motion and its σ (deg;
+    /// `mount_search`), when searched.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mount_yaw_estimate_deg: Option<f64>,
+    /// σ of that estimate (deg).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mount_yaw_estimate_sd_deg: Option<f64>,
     /// Non-holonomic constraint updates applied.
     pub nhc_updates: usize,
     /// Odometer speed updates applied.
