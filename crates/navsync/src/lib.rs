@@ -36,6 +36,7 @@ mod numfmt;
 pub(crate) mod offset_search;
 pub mod pipeline;
 pub mod reduced;
+mod rejudge;
 pub mod sensor;
 pub mod smoother;
 pub mod stage;

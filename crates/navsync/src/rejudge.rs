@@ -1,0 +1,381 @@
+//! The smoother re-judges the GNSS position fixes (issue 33, item 3).
+//!
+//! The forward fault monitor (`fusion::aid::integrity`) judges each fix
+//! causally. A ramp (an offset growing over tens of seconds) passes it: over
+//! that time a free MEMS INS drifts as a ramp does. What it sees is the
+//! ramp's end, a jump back to the truth, and it then excludes the correct
+//! fixes until their episode persists. A smoothed solution anchored by
+//! clean fixes on both sides of a fault is accurate to centimetres, so
+//! after the first forward–backward pass every position fix is tested
+//! against the smoothed solution, in the manner of Baarda's data snooping
+//! (Baarda, "A testing procedure for use in geodetic networks",
+//! Netherlands Geodetic Commission, 1968) inside Teunissen's detection,
+//! identification and adaptation (Teunissen, "An integrity and quality
+//! control procedure for use in multi sensor integration", ION GPS 1990):
+//!
+//! - a fix the pass used, by its smoothed residual e = z − H x̂ˢ, whose
+//!   covariance is R − H Pˢ Hᵀ (a least-squares residual's covariance is
+//!   the observation's minus the adjusted observation's; floored at 10 %
+//!   of R, where R − H Pˢ Hᵀ is near singular);
+//! - a fix the pass excluded, by its innovation against the smoothed state,
+//!   covariance R + H Pˢ Hᵀ;
+//!
+//! each per axis plus the monitor's 5 cm floor for the multipath a stated
+//! RTK σ leaves out, the sum tested against the χ²₃ quantile at the
+//! monitor's false-alarm rate. Identification among fixes that mask each
+//! other (Teunissen's "adaptation" step) is by windows: a forward episode
+//! that ended by persisting (or by the monitor's ramp-end test) says the
+//! fixes jumped and stayed; either the jump began a fault or it ended
+//! one the monitor followed. The second pass takes the second hypothesis:
+//! the used fixes up to [`RAMP_WINDOW_S`] before the jump are excluded and
+//! the episode's fixes are used; the smoothed solution of that pass then
+//! readmits every fix of the window consistent with it. Each later pass
+//! applies the tests' verdicts (exclude the inconsistent, readmit the
+//! consistent), until no verdict changes or [`MAX_PASSES`] passes ran;
+//! decisions are forced on the forward filter (`GnssDecision`), bypassing
+//! its monitor. A run whose fixes do not settle says so.
+#![warn(missing_docs)]
+
+use std::collections::BTreeMap;
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::error::{Diagnostics, Error};
+use crate::filter::gnss::GnssFix;
+use crate::fusion::{FaultReason, FixRecord, FixStatus, Fusion, GnssDecision};
+use crate::smoother::Smoothed;
+use crate::time::GpsTime;
+
+/// How far before a persisted episode's jump the fixes are suspected of a
+/// fault the monitor followed (s): the longest ramp `navsync faults` draws
+/// by default (25 s) with margin.
+pub const RAMP_WINDOW_S: f64 = 30.0;
+/// Forward–backward passes at most (the first included).
+pub const MAX_PASSES: usize = 3;
+/// R − H Pˢ Hᵀ of a used fix is floored at this share of R.
+const USED_FLOOR: f64 = 0.1;
+/// A fix farther than this from the nearest smoothed epoch is not tested (s).
+const MAX_EPOCH_GAP_S: f64 = 0.5;
+
+/// What the re-judgement did (in `summary.json`'s stats).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RejudgeSummary {
+    /// Forward–backward passes run.
+    pub passes: usize,
+    /// Fixes the first pass used that the smoothed solution excluded.
+    pub excluded: usize,
+    /// Fixes the first pass excluded that the smoothed solution used.
+    pub readmitted: usize,
+    /// Fixes whose verdict still changed after the last pass.
+    pub unsettled: usize,
+}
+
+/// A position record's use and reason, by fix time.
+type Judged = BTreeMap<GpsTime, (bool, FaultReason)>;
+
+fn judged(records: &[FixRecord]) -> Judged {
+    records
+        .iter()
+        .filter(|r| r.kind == "position" && r.reason != FaultReason::Stale)
+        .map(|r| (r.time, (r.status != FixStatus::Rejected, r.reason)))
+        .collect()
+}
+
+/// The χ²₃ statistic of every judged fix against the smoothed solution,
+/// by fix time (see the module's header). `tau_state`: the fixes' time
+/// tags are corrected by the smoothed time offset.
+pub(crate) fn test_fixes(
+    smoothed: &mut Smoothed,
+    fixes: &[GnssFix],
+    judged: &Judged,
+    lever_b: &Vector3<f64>,
+    n: usize,
+    tau_state: bool,
+) -> Result<BTreeMap<GpsTime, f64>, Error> {
+    let mut order: Vec<&GnssFix> = fixes
+        .iter()
+        .filter(|f| judged.contains_key(&f.time))
+        .collect();
+    order.sort_by_key(|f| f.time);
+    let floor2 = crate::fusion::FIX_CHANGE_FLOOR_M.powi(2);
+    let mut out = BTreeMap::new();
+    let mut next = 0usize;
+    smoothed.for_each(|ep| {
+        while let Some(fix) = order.get(next) {
+            let valid = if tau_state {
+                fix.time.add_seconds(-ep.time_offset_s)
+            } else {
+                fix.time
+            };
+            if valid > ep.nav.time {
+                break;
+            }
+            next += 1;
+            let dt = ep.nav.time.seconds_since(valid);
+            let Some(&(used, _)) = judged.get(&fix.time) else {
+                continue;
+            };
+            if dt > MAX_EPOCH_GAP_S {
+                continue;
+            }
+            // Innovation (predicted − measured) at the epoch, carried back
+            // to the fix's time along the smoothed velocity.
+            let obs = crate::filter::gnss::position(&ep.nav, fix, lever_b, n);
+            let mut t = 0.0;
+            for i in 0..3 {
+                let z = obs.z[i] - ep.nav.vel[i] * dt;
+                let r = fix.pos_sd[i] * fix.pos_sd[i];
+                let hph = ep.p_pos[(i, i)].max(0.0);
+                let s = if used {
+                    (r - hph).max(USED_FLOOR * r)
+                } else {
+                    r + hph
+                } + floor2;
+                t += z * z / s;
+            }
+            out.insert(fix.time, t);
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+/// Whether each judged fix should be used after the tests.
+fn verdicts(
+    current: &Judged,
+    tests: &BTreeMap<GpsTime, f64>,
+    threshold: f64,
+) -> BTreeMap<GpsTime, bool> {
+    current
+        .iter()
+        .map(|(t, (used, _))| (*t, tests.get(t).map_or(*used, |s| *s <= threshold)))
+        .collect()
+}
+
+/// The second hypothesis for one forward episode: the fixes before its
+/// jump were the fault.
+struct Window {
+    /// The window's fixes (excluded) and the episode's (used).
+    suspects: Vec<GpsTime>,
+    episode: Vec<GpsTime>,
+    /// An episode that persisted: the fixes used after it within
+    /// [`RAMP_WINDOW_S`] of its jump (the third hypothesis's).
+    followers: Vec<GpsTime>,
+    /// The span whose used fixes must all be consistent for the
+    /// hypothesis to stand: the window's start to [`RAMP_WINDOW_S`] after
+    /// the episode.
+    span: (GpsTime, GpsTime),
+}
+
+/// The windows before the first pass's episodes of more than one fix
+/// (a jump, then a run of excluded fixes, ended by a persisted fix, by the
+/// monitor's ramp-end test, by the fixes coming back or by the data's end).
+fn windows(first_records: &[FixRecord]) -> Vec<Window> {
+    let pos: Vec<&FixRecord> = first_records
+        .iter()
+        .filter(|r| r.kind == "position" && r.reason != FaultReason::Stale)
+        .collect();
+    let excluded = |r: &FixRecord| {
+        r.status == FixStatus::Rejected && matches!(r.reason, FaultReason::Jump | FaultReason::Run)
+    };
+    let mut out = Vec::new();
+    let mut k = 0;
+    while k < pos.len() {
+        let persisted_alone = pos[k].reason == FaultReason::Persisted
+            && pos[k].status != FixStatus::Rejected
+            && (k == 0 || !excluded(pos[k - 1]));
+        if !(pos[k].reason == FaultReason::Jump && excluded(pos[k])) && !persisted_alone {
+            k += 1;
+            continue;
+        }
+        let j = k;
+        k += 1;
+        while k < pos.len() && pos[k].reason == FaultReason::Run && excluded(pos[k]) {
+            k += 1;
+        }
+        let persisted =
+            persisted_alone || (k < pos.len() && pos[k].reason == FaultReason::Persisted);
+        if k < pos.len() && pos[k].reason == FaultReason::Persisted {
+            k += 1;
+        }
+        if k - j < 2 && !persisted_alone {
+            continue; // a spike
+        }
+        let jump = pos[j].time;
+        let suspects: Vec<GpsTime> = pos[..j]
+            .iter()
+            .rev()
+            .take_while(|w| {
+                jump.seconds_since(w.time) <= RAMP_WINDOW_S && w.status != FixStatus::Rejected
+            })
+            .map(|w| w.time)
+            .collect();
+        let Some(&start) = suspects.last() else {
+            continue;
+        };
+        let episode: Vec<GpsTime> = pos[j..k].iter().map(|r| r.time).collect();
+        let end = pos[k - 1].time.add_seconds(RAMP_WINDOW_S);
+        let followers = if persisted {
+            pos[k..]
+                .iter()
+                .take_while(|f| {
+                    f.time.seconds_since(jump) <= RAMP_WINDOW_S && f.status != FixStatus::Rejected
+                })
+                .map(|f| f.time)
+                .collect()
+        } else {
+            Vec::new()
+        };
+        out.push(Window {
+            suspects,
+            episode,
+            followers,
+            span: (start, end),
+        });
+    }
+    out
+}
+
+/// The decisions forced on the next forward pass: every judged fix of the
+/// first pass, excluded or used, its reason kept where the first pass
+/// agreed.
+fn decisions(first: &Judged, want: &BTreeMap<GpsTime, bool>) -> BTreeMap<GpsTime, GnssDecision> {
+    first
+        .iter()
+        .map(|(t, (used, reason))| {
+            let d = match (want.get(t).copied().unwrap_or(*used), used) {
+                (false, true) => GnssDecision::Exclude(FaultReason::SmootherExcluded),
+                (false, false) => GnssDecision::Exclude(*reason),
+                (true, false) => GnssDecision::Readmit,
+                (true, true) => GnssDecision::Keep,
+            };
+            (*t, d)
+        })
+        .collect()
+}
+
+/// The smoothed solution with the fixes re-judged: smooths the first
+/// forward pass (`fusion`, its `records` and the `fixes` it was given),
+/// tests the fixes, and while a verdict changes (at most [`MAX_PASSES`]
+/// passes) runs the forward filter again through `rerun` with the
+/// decisions forced and smooths that. Returns the last smoothed solution,
+/// its fix records, what was done and the notes for the run.
+pub(crate) fn smooth_rejudged(
+    fusion: &mut Fusion,
+    records: &[FixRecord],
+    fixes: &[GnssFix],
+    lever_b: &Vector3<f64>,
+    mut rerun: impl FnMut(BTreeMap<GpsTime, GnssDecision>) -> Result<(Fusion, Vec<FixRecord>), Error>,
+) -> Result<(Smoothed, Vec<FixRecord>, RejudgeSummary, Diagnostics), Error> {
+    let n = fusion.state_layout().n();
+    let tau_state = fusion.state_layout().index_of("time_offset").is_some();
+    let threshold = crate::stats::chi2_quantile(1.0 - crate::fusion::FALSE_ALARM_PROB, 3.0);
+    let first = judged(records);
+    let mut smoothed = fusion.smooth()?;
+    let mut current_records = records.to_vec();
+    let mut summary = RejudgeSummary {
+        passes: 1,
+        ..Default::default()
+    };
+    let mut notes = Diagnostics::with_cap(100);
+    let windows = windows(records);
+    // The first smoothed solution's verdicts, restored where a window's
+    // hypothesis falls.
+    let mut first_verdicts = BTreeMap::new();
+    loop {
+        let current = judged(&current_records);
+        let tests = test_fixes(&mut smoothed, fixes, &current, lever_b, n, tau_state)?;
+        let mut want = verdicts(&current, &tests, threshold);
+        match summary.passes {
+            // The second hypothesis for every episode.
+            1 => {
+                first_verdicts = want.clone();
+                for w in &windows {
+                    for t in &w.suspects {
+                        want.insert(*t, false);
+                    }
+                    for t in &w.episode {
+                        want.insert(*t, true);
+                    }
+                }
+            }
+            // A hypothesis stands when every fix around it but its
+            // suspects (the first pass's used fixes and the episode's) is
+            // consistent with its smoothed solution; otherwise the first
+            // solution's verdicts there are restored.
+            2 => {
+                for w in &windows {
+                    let stands = current
+                        .range(w.span.0..=w.span.1)
+                        .filter(|(t, _)| {
+                            !w.suspects.contains(t)
+                                && (w.episode.contains(t) || first.get(t).is_some_and(|f| f.0))
+                        })
+                        .all(|(t, _)| tests.get(t).is_none_or(|s| *s <= threshold));
+                    if stands {
+                        continue;
+                    }
+                    for (t, _) in current.range(w.span.0..=w.span.1) {
+                        if let Some(v) = first_verdicts.get(t) {
+                            want.insert(*t, *v);
+                        }
+                    }
+                    // The third hypothesis, for an episode that persisted
+                    // and was followed until a fix the first smoothed
+                    // solution found inconsistent: the persisted level was
+                    // the fault, up to that fix.
+                    let evidence = w
+                        .followers
+                        .iter()
+                        .position(|t| first_verdicts.get(t) == Some(&false));
+                    if let Some(i) = evidence {
+                        for t in w.episode.iter().chain(&w.followers[..i]) {
+                            want.insert(*t, false);
+                        }
+                        for t in &w.followers[i..] {
+                            want.insert(*t, true);
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+        let changed = want
+            .iter()
+            .filter(|(t, w)| current.get(t).map(|c| c.0) != Some(**w))
+            .count();
+        if changed == 0 {
+            break;
+        }
+        if summary.passes == MAX_PASSES {
+            summary.unsettled = changed;
+            notes.note(format!(
+                "the smoother's re-judgement of the GNSS fixes did not settle in {MAX_PASSES} passes: \
+                 {changed} fixes are still inconsistent with the smoothed solution or were excluded \
+                 and are consistent with it; the smoothed solution near them is uncertain"
+            ));
+            break;
+        }
+        let (mut f, recs) = rerun(decisions(&first, &want))?;
+        smoothed = f.smooth()?;
+        current_records = recs;
+        summary.passes += 1;
+    }
+    for r in current_records.iter().filter(|r| r.kind == "position") {
+        match r.reason {
+            FaultReason::SmootherExcluded => summary.excluded += 1,
+            FaultReason::SmootherReadmitted => summary.readmitted += 1,
+            _ => {}
+        }
+    }
+    if summary.passes > 1 {
+        notes.note(format!(
+            "the smoother re-judged the GNSS fixes against its solution ({} passes): {} fixes the forward \
+             pass used were excluded, {} it excluded were used again (reasons smoother-excluded, \
+             smoother-readmitted in gnss_residuals.txt)",
+            summary.passes, summary.excluded, summary.readmitted
+        ));
+    }
+    Ok((smoothed, current_records, summary, notes))
+}
