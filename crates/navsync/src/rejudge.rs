@@ -23,17 +23,27 @@
 //! each per axis plus the monitor's 5 cm floor for the multipath a stated
 //! RTK σ leaves out, the sum tested against the χ²₃ quantile at the
 //! monitor's false-alarm rate. Identification among fixes that mask each
-//! other (Teunissen's "adaptation" step) is by windows: a forward episode
-//! that ended by persisting (or by the monitor's ramp-end test) says the
-//! fixes jumped and stayed; either the jump began a fault or it ended
-//! one the monitor followed. The second pass takes the second hypothesis:
-//! the used fixes up to [`RAMP_WINDOW_S`] before the jump are excluded and
-//! the episode's fixes are used; the smoothed solution of that pass then
-//! readmits every fix of the window consistent with it. Each later pass
-//! applies the tests' verdicts (exclude the inconsistent, readmit the
-//! consistent), until no verdict changes or [`MAX_PASSES`] passes ran;
-//! decisions are forced on the forward filter (`GnssDecision`), bypassing
-//! its monitor. A run whose fixes do not settle says so.
+//! other is by alternative hypotheses for each forward episode of more
+//! than one fix (a jump, then excluded fixes), tested by smoothing under
+//! them (Teunissen's identification by the hypotheses' own tests):
+//!
+//! - A, the monitor's: the fixes after the jump are the fault (pass 1);
+//! - B: the jump ended a fault the monitor followed (a ramp): pass 2
+//!   excludes the used fixes up to [`RAMP_WINDOW_S`] before the jump and
+//!   uses the episode's. B stands when every other fix from the window's
+//!   start to [`CHECK_AFTER_S`] after the jump is consistent with pass 2's
+//!   smoothed solution; then the window's fixes consistent with it are
+//!   used again;
+//! - C, when B falls for an episode that persisted (the monitor followed
+//!   the new level) and a fix after it was inconsistent with pass 1's
+//!   solution: the persisted level up to that fix was the fault.
+//!
+//! Where B falls, pass 1's verdicts are restored. The decisions are forced
+//! on the forward filter (`GnssDecision`): excluded, or used at the stated
+//! σ without the monitor or the robust weights. A pass runs only when a
+//! verdict changed, at most [`MAX_PASSES`] in all; a run whose verdicts
+//! still change after the last says so in its diagnostics. When the
+//! verdicts come back to pass 1's, pass 1's solution is kept.
 #![warn(missing_docs)]
 
 use std::collections::BTreeMap;
@@ -53,6 +63,10 @@ use crate::time::GpsTime;
 pub const RAMP_WINDOW_S: f64 = 30.0;
 /// Forward–backward passes at most (the first included).
 pub const MAX_PASSES: usize = 3;
+/// A window's hypothesis is checked on the fixes up to this long after
+/// its jump (s) or to its episode's end: long enough to see a false fix
+/// end (8–15 s by default in `navsync faults`), short of the next fault.
+const CHECK_AFTER_S: f64 = 20.0;
 /// R − H Pˢ Hᵀ of a used fix is floored at this share of R.
 const USED_FLOOR: f64 = 0.1;
 /// A fix farther than this from the nearest smoothed epoch is not tested (s).
@@ -159,12 +173,13 @@ struct Window {
     /// The window's fixes (excluded) and the episode's (used).
     suspects: Vec<GpsTime>,
     episode: Vec<GpsTime>,
-    /// An episode that persisted: the fixes used after it within
-    /// [`RAMP_WINDOW_S`] of its jump (the third hypothesis's).
+    /// An episode that persisted: the fixes after it within
+    /// [`RAMP_WINDOW_S`] of its jump, up to another episode (the third
+    /// hypothesis's).
     followers: Vec<GpsTime>,
-    /// The span whose used fixes must all be consistent for the
-    /// hypothesis to stand: the window's start to [`RAMP_WINDOW_S`] after
-    /// the episode.
+    /// The span whose fixes must all be consistent for the hypothesis to
+    /// stand: the window's start to [`CHECK_AFTER_S`] after the jump or
+    /// the episode's end.
     span: (GpsTime, GpsTime),
 }
 
@@ -185,7 +200,8 @@ fn windows(first_records: &[FixRecord]) -> Vec<Window> {
         let persisted_alone = pos[k].reason == FaultReason::Persisted
             && pos[k].status != FixStatus::Rejected
             && (k == 0 || !excluded(pos[k - 1]));
-        if !(pos[k].reason == FaultReason::Jump && excluded(pos[k])) && !persisted_alone {
+        let opens = pos[k].reason == FaultReason::Jump && excluded(pos[k]);
+        if !(opens || persisted_alone) {
             k += 1;
             continue;
         }
@@ -215,12 +231,13 @@ fn windows(first_records: &[FixRecord]) -> Vec<Window> {
             continue;
         };
         let episode: Vec<GpsTime> = pos[j..k].iter().map(|r| r.time).collect();
-        let end = pos[k - 1].time.add_seconds(RAMP_WINDOW_S);
+        let end = pos[k - 1].time.max(jump.add_seconds(CHECK_AFTER_S));
         let followers = if persisted {
             pos[k..]
                 .iter()
                 .take_while(|f| {
-                    f.time.seconds_since(jump) <= RAMP_WINDOW_S && f.status != FixStatus::Rejected
+                    f.time.seconds_since(jump) <= RAMP_WINDOW_S
+                        && !matches!(f.reason, FaultReason::Jump | FaultReason::Run)
                 })
                 .map(|f| f.time)
                 .collect()
@@ -247,7 +264,8 @@ fn decisions(first: &Judged, want: &BTreeMap<GpsTime, bool>) -> BTreeMap<GpsTime
             let d = match (want.get(t).copied().unwrap_or(*used), used) {
                 (false, true) => GnssDecision::Exclude(FaultReason::SmootherExcluded),
                 (false, false) => GnssDecision::Exclude(*reason),
-                (true, false) => GnssDecision::Readmit,
+                (true, false) => GnssDecision::Follow(FaultReason::SmootherReadmitted),
+                (true, true) if *reason == FaultReason::Persisted => GnssDecision::Follow(*reason),
                 (true, true) => GnssDecision::Keep,
             };
             (*t, d)
@@ -283,6 +301,7 @@ pub(crate) fn smooth_rejudged(
     // The first smoothed solution's verdicts, restored where a window's
     // hypothesis falls.
     let mut first_verdicts = BTreeMap::new();
+    let mut first_smoothed: Option<Smoothed> = None;
     loop {
         let current = judged(&current_records);
         let tests = test_fixes(&mut smoothed, fixes, &current, lever_b, n, tau_state)?;
@@ -301,16 +320,19 @@ pub(crate) fn smooth_rejudged(
                 }
             }
             // A hypothesis stands when every fix around it but its
-            // suspects (the first pass's used fixes and the episode's) is
-            // consistent with its smoothed solution; otherwise the first
-            // solution's verdicts there are restored.
+            // suspects and other episodes' is consistent with its smoothed
+            // solution; otherwise the first solution's verdicts there are
+            // restored.
             2 => {
                 for w in &windows {
                     let stands = current
                         .range(w.span.0..=w.span.1)
                         .filter(|(t, _)| {
                             !w.suspects.contains(t)
-                                && (w.episode.contains(t) || first.get(t).is_some_and(|f| f.0))
+                                && (w.episode.contains(t)
+                                    || first.get(t).is_some_and(|f| {
+                                        !matches!(f.1, FaultReason::Jump | FaultReason::Run)
+                                    }))
                         })
                         .all(|(t, _)| tests.get(t).is_none_or(|s| *s <= threshold));
                     if stands {
@@ -357,8 +379,23 @@ pub(crate) fn smooth_rejudged(
             ));
             break;
         }
+        if summary.passes > 1
+            && want
+                .iter()
+                .all(|(t, w)| first.get(t).map(|f| f.0) == Some(*w))
+        {
+            // Back to the first pass's judgement: its solution.
+            if let Some(f) = first_smoothed.take() {
+                smoothed = f;
+                current_records = records.to_vec();
+                break;
+            }
+        }
         let (mut f, recs) = rerun(decisions(&first, &want))?;
-        smoothed = f.smooth()?;
+        let previous = std::mem::replace(&mut smoothed, f.smooth()?);
+        if summary.passes == 1 {
+            first_smoothed = Some(previous);
+        }
         current_records = recs;
         summary.passes += 1;
     }

@@ -378,7 +378,8 @@ pub struct FusionConfig {
     /// run from the GNSS track (`course_heading`); `None`: off.
     pub course_heading: Option<super::course_heading::CourseHeadingOptions>,
     /// The smoother's re-judged position fixes (`crate::rejudge`), by time
-    /// tag: each bypasses the fault monitor and the robust weights.
+    /// tag: each bypasses the fault monitor and the robust weights (rerun
+    /// passes only; `None` in a first pass).
     pub(crate) gnss_decisions:
         Option<std::sync::Arc<std::collections::BTreeMap<GpsTime, GnssDecision>>>,
 }
@@ -391,11 +392,15 @@ pub(crate) enum GnssDecision {
     /// this reason (the monitor's, or `SmootherExcluded` for a fix the
     /// first pass used).
     Exclude(super::FaultReason),
-    /// Excluded by the first pass but consistent with the smoothed
-    /// solution: fused at its stated σ.
-    Readmit,
-    /// Consistent with the smoothed solution: weighed by the robust
-    /// weighting as usual, without the fault monitor.
+    /// Consistent with the smoothed solution: used at its stated σ
+    /// whatever the forward filter's weights, recorded with this reason
+    /// (`SmootherReadmitted` for a fix the first pass excluded,
+    /// `Persisted` for one it followed after a fault episode).
+    Follow(super::FaultReason),
+    /// Consistent with the smoothed solution and used by the first pass:
+    /// used at its stated σ, without the fault monitor or the robust
+    /// weights (they judged it before; a state the smoother moved must
+    /// not refuse it).
     Keep,
 }
 

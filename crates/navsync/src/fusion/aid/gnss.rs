@@ -681,7 +681,12 @@ impl GnssSource {
                 self.disagreeing_streak = (0, None);
             }
         }
-        if drift && record.reason == FaultReason::SmootherReadmitted {
+        if drift
+            && matches!(
+                self.forced,
+                Some(FaultReason::SmootherReadmitted | FaultReason::None)
+            )
+        {
             // The smoother's verdict, not a drift: used at its stated σ.
             w = [1.0; 3];
         } else if drift {
@@ -810,8 +815,10 @@ impl GnssSource {
 
     /// Applies the smoother's verdict on a position fix in place of the
     /// monitor's (`crate::rejudge`). Returns true when the fix is excluded
-    /// (recorded and counted here); a readmitted fix is marked to be used
-    /// at its stated σ whatever its weights.
+    /// (recorded and counted here); any other is marked to be used at its
+    /// stated σ whatever its weights, the covariance untouched (inflating
+    /// it, as after a persisted episode, would cut the smoother's bridge
+    /// over the fixes excluded before it: measured worse on the bed).
     fn apply_decision(
         &mut self,
         core: &mut Core,
@@ -820,9 +827,12 @@ impl GnssSource {
         decision: GnssDecision,
     ) -> bool {
         match decision {
-            GnssDecision::Keep => false,
-            GnssDecision::Readmit => {
-                self.forced = Some(FaultReason::SmootherReadmitted);
+            GnssDecision::Keep => {
+                self.forced = Some(FaultReason::None);
+                false
+            }
+            GnssDecision::Follow(reason) => {
+                self.forced = Some(reason);
                 false
             }
             GnssDecision::Exclude(reason) => {
