@@ -21,8 +21,10 @@
 //!   covariance R + H Pˢ Hᵀ;
 //!
 //! each per axis plus the monitor's 5 cm floor for the multipath a stated
-//! RTK σ leaves out, the sum tested against the χ²₃ quantile at the
-//! monitor's false-alarm rate. Identification among fixes that mask each
+//! RTK σ leaves out, the sum divided by the fixes' a-posteriori variance
+//! factor (the used fixes' median statistic over χ²₃'s median, at least
+//! 1: a receiver whose σ are optimistic) and tested against the χ²₃
+//! quantile at the monitor's false-alarm rate. Identification among fixes that mask each
 //! other is by alternative hypotheses for each forward episode of more
 //! than one fix (a jump, then excluded fixes), tested by smoothing under
 //! them (Teunissen's identification by the hypotheses' own tests):
@@ -148,12 +150,27 @@ pub(crate) fn test_fixes(
                 } + floor2;
                 t += z * z / s;
             }
-            out.insert(fix.time, t);
+            out.insert(fix.time, (t, used));
         }
         Ok(())
     })?;
-    Ok(out)
+    // The fixes' a-posteriori variance factor, robustly: the median of the
+    // used fixes' statistics over χ²₃'s median (2.366), at least 1. Fixes
+    // noisier than stated (a receiver's optimistic σ) would otherwise be
+    // taken for faults; a fault is a minority of the fixes.
+    let mut used_t: Vec<f64> = out.values().filter(|v| v.1).map(|v| v.0).collect();
+    let factor = if used_t.is_empty() {
+        1.0
+    } else {
+        let mid = used_t.len() / 2;
+        let (_, m, _) = used_t.select_nth_unstable_by(mid, f64::total_cmp);
+        (*m / CHI2_3_MEDIAN).max(1.0)
+    };
+    Ok(out.into_iter().map(|(k, v)| (k, v.0 / factor)).collect())
 }
+
+/// The median of χ² with 3 degrees of freedom.
+const CHI2_3_MEDIAN: f64 = 2.366;
 
 /// Whether each judged fix should be used after the tests.
 fn verdicts(
