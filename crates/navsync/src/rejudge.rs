@@ -433,3 +433,81 @@ pub(crate) fn smooth_rejudged(
     }
     Ok((smoothed, current_records, summary, notes))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(t_s: i64, status: FixStatus, reason: FaultReason) -> FixRecord {
+        let time = GpsTime::from_week_ns(2000, t_s * 1_000_000_000);
+        FixRecord {
+            time,
+            sow: time.sow(),
+            kind: "position",
+            innovation: [0.0; 3],
+            sd: [0.02; 3],
+            nis: 0.0,
+            weight: [1.0; 3],
+            status,
+            reason,
+            hpl_m: 0.0,
+        }
+    }
+
+    /// 1 Hz fixes 0–99 s: used, except an episode at 60 s (a jump, two run
+    /// fixes, then persisted) and a spike at 80 s.
+    fn run_records() -> Vec<FixRecord> {
+        (0..100)
+            .map(|t| match t {
+                60 => record(t, FixStatus::Rejected, FaultReason::Jump),
+                61 | 62 => record(t, FixStatus::Rejected, FaultReason::Run),
+                63 => record(t, FixStatus::DriftAccepted, FaultReason::Persisted),
+                80 => record(t, FixStatus::Rejected, FaultReason::Jump),
+                _ => record(t, FixStatus::Used, FaultReason::None),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_window_before_an_episode_and_its_followers() {
+        let recs = run_records();
+        let w = windows(&recs);
+        // The spike (one fix) has no window.
+        assert_eq!(w.len(), 1);
+        let w = &w[0];
+        let at = |t: i64| GpsTime::from_week_ns(2000, t * 1_000_000_000);
+        // The used fixes less than 30 s before the jump: 31..=59 (30 s in
+        // ns times 1e-9 is a hair above 30).
+        assert_eq!(w.suspects.len(), 29);
+        assert_eq!(*w.suspects.last().unwrap(), at(31));
+        assert_eq!(w.suspects[0], at(59));
+        assert_eq!(w.episode, (60..=63).map(at).collect::<Vec<_>>());
+        // Followers up to 30 s after the jump, stopping at the spike (80).
+        assert_eq!(w.followers, (64..80).map(at).collect::<Vec<_>>());
+        // Checked up to 20 s after the jump.
+        assert_eq!(w.span, (at(31), at(80)));
+    }
+
+    #[test]
+    fn decisions_keep_the_first_reasons_and_mark_the_changes() {
+        let recs = run_records();
+        let first = judged(&recs);
+        let mut want: BTreeMap<GpsTime, bool> = first.iter().map(|(t, j)| (*t, j.0)).collect();
+        let at = |t: i64| GpsTime::from_week_ns(2000, t * 1_000_000_000);
+        want.insert(at(50), false);
+        want.insert(at(61), true);
+        let d = decisions(&first, &want);
+        assert_eq!(
+            d[&at(50)],
+            GnssDecision::Exclude(FaultReason::SmootherExcluded)
+        );
+        assert_eq!(
+            d[&at(61)],
+            GnssDecision::Follow(FaultReason::SmootherReadmitted)
+        );
+        assert_eq!(d[&at(62)], GnssDecision::Exclude(FaultReason::Run));
+        assert_eq!(d[&at(63)], GnssDecision::Follow(FaultReason::Persisted));
+        assert_eq!(d[&at(10)], GnssDecision::Keep);
+        assert_eq!(d.len(), 100);
+    }
+}
