@@ -104,7 +104,8 @@ pub(crate) struct FaultSpan {
     pub end_sow: f64,
     /// Fixes excluded in it.
     pub excluded: usize,
-    /// `stale` (repeated outputs) or `jump` (the fixes moved).
+    /// `stale` (repeated outputs), `jump` (the fixes moved) or `smoother`
+    /// (excluded by the smoother's re-judgement).
     pub kind: &'static str,
     /// Fixes used again after it without the INS resolving it
     /// (`persisted`): the solution there follows fixes that may be faulty.
@@ -113,8 +114,8 @@ pub(crate) struct FaultSpan {
 
 /// The integrity monitor's episodes, from the fixes' reasons: a `jump`
 /// opens one and the `run`/`ramp` fixes after it belong to it, a run of
-/// `stale` fixes is one, and `persisted` fixes are counted against the
-/// episode they follow.
+/// `stale` or of `smoother-excluded` fixes is one, and `persisted` fixes
+/// are counted against the episode they follow.
 pub(crate) fn fault_spans(fixes: &[FixWeight]) -> Vec<FaultSpan> {
     let mut out: Vec<FaultSpan> = Vec::new();
     // Whether the last fix extended the open episode of that kind.
@@ -127,6 +128,10 @@ pub(crate) fn fault_spans(fixes: &[FixWeight]) -> Vec<FaultSpan> {
             }
             "run" | "ramp" => Some("jump"),
             "stale" => Some("stale"),
+            // Fixes the smoother's re-judgement excluded (a ramp the
+            // forward pass followed, a level it accepted): one episode
+            // per run of them.
+            "smoother-excluded" => Some("smoother"),
             "persisted" => {
                 if let Some(last) = out.last_mut() {
                     last.persisted += 1;

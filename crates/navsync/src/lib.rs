@@ -38,6 +38,7 @@ pub(crate) mod offset_search;
 pub mod pipeline;
 pub mod probe;
 pub mod reduced;
+mod rejudge;
 pub mod sensor;
 pub mod smoother;
 pub mod stage;

@@ -27,6 +27,7 @@ use crate::io::kfgins::{
     format_std_line,
 };
 use crate::navigator::{Navigator, SolutionOutput, Step, StreamCounts};
+use crate::smoother::Smoothed;
 use crate::stage::{Consumer, Drain, Producer, Source, fill_batch};
 use crate::time::GpsTime;
 
@@ -683,7 +684,7 @@ impl NavSink for KfGinsSink {
     fn fix_records(&mut self, records: &[FixRecord]) -> Result<(), Error> {
         let mut w = TextWriter::create(&self.dir.join("gnss_residuals.txt"))?;
         let mut text = String::from(
-            "# navsync GNSS residuals: sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status reason hpl_m\n# innovation = predicted - measured (m or m/s, NED); w = weight (R divided by it); reason: jump, run, ramp, stale, persisted, outlier or -; hpl_m: horizontal protection level K*sigma after the fix, K = 6\n",
+            "# navsync GNSS residuals: sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status reason hpl_m\n# innovation = predicted - measured (m or m/s, NED); w = weight (R divided by it); reason: jump, run, ramp, stale, persisted, outlier, smoother-excluded, smoother-readmitted or -; hpl_m: horizontal protection level K*sigma after the fix, K = 6\n",
         );
         for r in records {
             use std::fmt::Write as _;
@@ -1016,115 +1017,30 @@ fn run_inner(
     let end = cfg
         .end_sow
         .map(|e| GpsTime::from_week_ns(opts.week, crate::time::seconds_to_ns(e)));
-    let mut navigator = batch_navigator(fc, opts)?.with_end(end);
     let smoothing = match (opts.smooth, smoothed_sink) {
-        (Some(sm), Some(s)) => {
-            let dir = opts
-                .output_dir
-                .clone()
-                .unwrap_or_else(|| cfg.output_path.clone());
-            navigator
-                .fusion_mut()
-                .enable_smoother(&dir, sm.node_interval_s)?;
-            Some(s)
-        }
+        (Some(sm), Some(s)) => Some((s, sm.node_interval_s)),
         _ => None,
     };
-    // Fixes are read from the file as far ahead of the IMU as the
-    // navigator delivers them (it holds them until then).
-    let lead_ns = crate::time::seconds_to_ns(fix_lead_s(opts));
-
-    let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
-    let mut next_fix: Option<GnssFix> = gnss.next_fix(&mut diag)?;
-    let mut speeds = match &opts.odometer {
-        Some(o) => Some(crate::reduced::SpeedStream::open(
-            &o.path,
-            opts.week,
-            o.max_gap_s,
-        )?),
-        None => None,
+    let smooth_dir = opts
+        .output_dir
+        .clone()
+        .unwrap_or_else(|| cfg.output_path.clone());
+    let pass_input = PassInput {
+        cfg,
+        opts,
+        end,
+        baselines: &baselines,
+        smoother: smoothing.as_ref().map(|s| (smooth_dir.as_path(), s.1)),
     };
-
-    // IMU reader stage: batches of parsed samples.
-    let mut imu_batches = Source::start(
-        ImuBatches {
-            reader: ImuReader::open(&cfg.imu_path, opts.week)?,
-            diag: Diagnostics::with_cap(1000),
-        },
-        "imu-reader",
-    )?;
-
-    let mut next_heading = baselines.partition_point(|h| h.time < start);
-    let mut fixes_read = usize::from(next_fix.is_some());
-    let span = end.map(|e| e.seconds_since(start)).unwrap_or(f64::NAN);
-    let mut last_progress = Instant::now();
-    let mut result: Result<(), Error> = Ok(());
-    'outer: loop {
-        let batch = match imu_batches.next_batch() {
-            Ok(Some(b)) => b,
-            Ok(None) => break,
-            Err(e) => {
-                result = Err(e);
-                break;
-            }
-        };
-        for s in &batch {
-            while let Some(fix) = next_fix
-                && fix.time <= s.time + lead_ns
-            {
-                navigator.push_gnss(fix);
-                next_fix = gnss.next_fix(&mut diag)?;
-                fixes_read += usize::from(next_fix.is_some());
-            }
-            if let Some(sp) = speeds.as_mut()
-                && let Some(v) = sp.at(s.time, &mut diag)?
-            {
-                navigator.push_speed(v);
-            }
-            while let Some(h) = baselines.get(next_heading)
-                && h.time <= s.time
-            {
-                navigator.push_heading(*h);
-                next_heading += 1;
-            }
-            match navigator.push_imu(s, sink) {
-                Ok(Step::Ended) => break 'outer,
-                Ok(_) => {}
-                Err(e) => {
-                    result = Err(e);
-                    break 'outer;
-                }
-            }
-        }
-        if last_progress.elapsed().as_millis() > 100 {
-            last_progress = Instant::now();
-            let last = navigator.counts().last_epoch.unwrap_or(start);
-            let frac = if span.is_finite() && span > 0.0 {
-                last.seconds_since(start) / span
-            } else {
-                f64::NAN
-            };
-            progress(frac);
-        }
-    }
-    let read = imu_batches.finish();
-    result?;
-    let (imu_count, imu_diag) = read?;
-    // Count the remaining fixes (and their bad lines) for the summary.
-    while next_fix.is_some() {
-        next_fix = gnss.next_fix(&mut diag)?;
-        fixes_read += usize::from(next_fix.is_some());
-    }
-    if let GnssInput::Rtklib(r) = &gnss
-        && let Some(note) = r.q_summary()
-    {
-        diag.note(note);
-    }
-    let stream = if opts.dry_run {
-        navigator.finish(&mut NullSink)?
-    } else {
-        navigator.finish(sink)?
-    };
+    let pass = forward_pass(&pass_input, fc.clone(), sink, &mut diag, progress)?;
+    let ForwardPass {
+        mut fusion,
+        stream,
+        imu_count,
+        imu_diag,
+        fixes_read,
+        fixes,
+    } = pass;
     let StreamCounts {
         first_epoch,
         last_epoch,
@@ -1149,14 +1065,54 @@ fn run_inner(
     all.extend(diag);
     all.extend(heading_diag);
     all.extend(stream.diagnostics);
-    let mut fusion = navigator.into_fusion();
     let records = stream.fix_records;
+    let mut stats = fusion.stats();
     let smoother = match smoothing {
-        Some(out) => {
-            if !opts.dry_run {
-                out.fix_records(&records)?;
+        Some((out, _)) => {
+            let forward_s = started.elapsed().as_secs_f64();
+            let temp_bytes = fusion.smoother_record().map(|r| r.1).unwrap_or(0);
+            let tau_index = fusion.state_layout().index_of("time_offset");
+            // The smoother re-judges the fixes where the fault monitor
+            // judged them (robust weighting): `crate::rejudge`.
+            let judged = matches!(fc.gnss_weighting, GnssWeighting::Robust(_));
+            let (mut smoothed, smoothed_records, rejudge) = if judged {
+                let lever = fc.antenna_lever_b;
+                let rerun = |decisions| {
+                    let mut fc2 = fc.clone();
+                    fc2.gnss_decisions = Some(std::sync::Arc::new(decisions));
+                    let mut scratch = Diagnostics::with_cap(10);
+                    let p =
+                        forward_pass(&pass_input, fc2, &mut NullSink, &mut scratch, &mut |_| {})?;
+                    Ok((p.fusion, p.stream.fix_records))
+                };
+                let r =
+                    crate::rejudge::smooth_rejudged(&mut fusion, &records, &fixes, &lever, rerun)?;
+                all.extend(r.3);
+                (r.0, r.1, Some(r.2))
+            } else {
+                (fusion.smooth()?, records.clone(), None)
+            };
+            if let Some(r) = &rejudge {
+                stats.gnss_smoother_excluded = r.excluded;
+                stats.gnss_smoother_readmitted = r.readmitted;
+                stats.gnss_smoother_passes = r.passes;
             }
-            Some(write_smoothed(&mut fusion, opts, out, Some(t0), started)?)
+            if !opts.dry_run {
+                out.fix_records(&smoothed_records)?;
+            }
+            let times = SmoothTimes {
+                started,
+                forward_s,
+                temp_bytes,
+            };
+            Some(write_smoothed(
+                &mut smoothed,
+                tau_index,
+                opts,
+                out,
+                Some(t0),
+                times,
+            )?)
         }
         None => None,
     };
@@ -1200,11 +1156,10 @@ fn run_inner(
         output_at_written: at_written,
         output_at_skipped,
         stats: {
-            let mut st = fusion.stats();
             let e = mount_yaw.as_ref().map(|d| &d.estimate);
-            st.mount_yaw_estimate_deg = e.and_then(|e| e.yaw_deg);
-            st.mount_yaw_estimate_sd_deg = e.and_then(|e| e.sd_deg);
-            st
+            stats.mount_yaw_estimate_deg = e.and_then(|e| e.yaw_deg);
+            stats.mount_yaw_estimate_sd_deg = e.and_then(|e| e.sd_deg);
+            stats
         },
         final_gyro_bias_deg_h: (imu.gyro_bias * deg_h).into(),
         final_accel_bias_mgal: (imu.accel_bias * 1e5).into(),
@@ -1231,6 +1186,166 @@ fn run_inner(
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,
+    })
+}
+
+/// What a forward pass needs besides its filter configuration.
+struct PassInput<'a> {
+    cfg: &'a KfGinsConfig,
+    opts: &'a FuseOptions,
+    end: Option<GpsTime>,
+    baselines: &'a [crate::io::heading::HeadingObs],
+    /// The smoother's temporary folder and node interval, when smoothing.
+    smoother: Option<(&'a Path, f64)>,
+}
+
+/// One forward pass's result.
+struct ForwardPass {
+    fusion: Fusion,
+    stream: crate::navigator::StreamEnd,
+    imu_count: usize,
+    imu_diag: Diagnostics,
+    fixes_read: usize,
+    /// The fixes handed to the filter, for the smoother's re-judgement
+    /// (kept only when smoothing).
+    fixes: Vec<GnssFix>,
+}
+
+/// Times and sizes of the smoothing, for its summary.
+struct SmoothTimes {
+    started: Instant,
+    forward_s: f64,
+    temp_bytes: u64,
+}
+
+/// One forward pass over the run's files: the IMU, the GNSS fixes, the
+/// odometer speeds and dual-antenna headings through the navigator into
+/// `sink`, recorded for the smoother when it is on.
+fn forward_pass(
+    input: &PassInput,
+    fc: FusionConfig,
+    sink: &mut dyn NavSink,
+    diag: &mut Diagnostics,
+    progress: &mut dyn FnMut(f64),
+) -> Result<ForwardPass, Error> {
+    let PassInput {
+        cfg,
+        opts,
+        end,
+        baselines,
+        smoother,
+    } = *input;
+    let start = fc.init_nav.time;
+    let mut navigator = batch_navigator(fc, opts)?.with_end(end);
+    if let Some((dir, interval_s)) = smoother {
+        navigator.fusion_mut().enable_smoother(dir, interval_s)?;
+    }
+    let mut fixes = Vec::new();
+    // Fixes are read from the file as far ahead of the IMU as the
+    // navigator delivers them (it holds them until then).
+    let lead_ns = crate::time::seconds_to_ns(fix_lead_s(opts));
+
+    let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
+    let mut next_fix: Option<GnssFix> = gnss.next_fix(diag)?;
+    let mut speeds = match &opts.odometer {
+        Some(o) => Some(crate::reduced::SpeedStream::open(
+            &o.path,
+            opts.week,
+            o.max_gap_s,
+        )?),
+        None => None,
+    };
+
+    // IMU reader stage: batches of parsed samples.
+    let mut imu_batches = Source::start(
+        ImuBatches {
+            reader: ImuReader::open(&cfg.imu_path, opts.week)?,
+            diag: Diagnostics::with_cap(1000),
+        },
+        "imu-reader",
+    )?;
+
+    let mut next_heading = baselines.partition_point(|h| h.time < start);
+    let mut fixes_read = usize::from(next_fix.is_some());
+    let span = end.map(|e| e.seconds_since(start)).unwrap_or(f64::NAN);
+    let mut last_progress = Instant::now();
+    let mut result: Result<(), Error> = Ok(());
+    'outer: loop {
+        let batch = match imu_batches.next_batch() {
+            Ok(Some(b)) => b,
+            Ok(None) => break,
+            Err(e) => {
+                result = Err(e);
+                break;
+            }
+        };
+        for s in &batch {
+            while let Some(fix) = next_fix
+                && fix.time <= s.time + lead_ns
+            {
+                if smoother.is_some() {
+                    fixes.push(fix);
+                }
+                navigator.push_gnss(fix);
+                next_fix = gnss.next_fix(diag)?;
+                fixes_read += usize::from(next_fix.is_some());
+            }
+            if let Some(sp) = speeds.as_mut()
+                && let Some(v) = sp.at(s.time, diag)?
+            {
+                navigator.push_speed(v);
+            }
+            while let Some(h) = baselines.get(next_heading)
+                && h.time <= s.time
+            {
+                navigator.push_heading(*h);
+                next_heading += 1;
+            }
+            match navigator.push_imu(s, sink) {
+                Ok(Step::Ended) => break 'outer,
+                Ok(_) => {}
+                Err(e) => {
+                    result = Err(e);
+                    break 'outer;
+                }
+            }
+        }
+        if last_progress.elapsed().as_millis() > 100 {
+            last_progress = Instant::now();
+            let last = navigator.counts().last_epoch.unwrap_or(start);
+            let frac = if span.is_finite() && span > 0.0 {
+                last.seconds_since(start) / span
+            } else {
+                f64::NAN
+            };
+            progress(frac);
+        }
+    }
+    let read = imu_batches.finish();
+    result?;
+    let (imu_count, imu_diag) = read?;
+    // Count the remaining fixes (and their bad lines) for the summary.
+    while next_fix.is_some() {
+        next_fix = gnss.next_fix(diag)?;
+        fixes_read += usize::from(next_fix.is_some());
+    }
+    if let GnssInput::Rtklib(r) = &gnss
+        && let Some(note) = r.q_summary()
+    {
+        diag.note(note);
+    }
+    let stream = if opts.dry_run {
+        navigator.finish(&mut NullSink)?
+    } else {
+        navigator.finish(sink)?
+    };
+    Ok(ForwardPass {
+        fusion: navigator.into_fusion(),
+        stream,
+        imu_count,
+        imu_diag,
+        fixes_read,
+        fixes,
     })
 }
 
@@ -1267,16 +1382,18 @@ pub(crate) fn fix_lead_s(opts: &FuseOptions) -> f64 {
 /// at every forward epoch (the same epochs, `--output-at` and auxiliary
 /// lines as the forward run).
 fn write_smoothed(
-    fusion: &mut Fusion,
+    smoothed: &mut Smoothed,
+    tau_index: Option<usize>,
     opts: &FuseOptions,
     sink: &mut dyn NavSink,
     t0: Option<GpsTime>,
-    started: Instant,
+    times: SmoothTimes,
 ) -> Result<SmootherSummary, Error> {
-    let forward_s = started.elapsed().as_secs_f64();
-    let temp_bytes = fusion.smoother_record().map(|r| r.1).unwrap_or(0);
-    let tau_index = fusion.state_layout().index_of("time_offset");
-    let mut smoothed = fusion.smooth()?;
+    let SmoothTimes {
+        started,
+        forward_s,
+        temp_bytes,
+    } = times;
     let backward_s = started.elapsed().as_secs_f64() - forward_s;
     // The forward run's output rules (GNSS time, output-at epochs, the
     // auxiliary interval from the start sample on).

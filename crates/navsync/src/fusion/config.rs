@@ -377,6 +377,31 @@ pub struct FusionConfig {
     /// A land vehicle whose heading is unknown at the start: find it in the
     /// run from the GNSS track (`course_heading`); `None`: off.
     pub course_heading: Option<super::course_heading::CourseHeadingOptions>,
+    /// The smoother's re-judged position fixes (`crate::rejudge`), by time
+    /// tag: each bypasses the fault monitor and the robust weights (rerun
+    /// passes only; `None` in a first pass).
+    pub(crate) gnss_decisions:
+        Option<std::sync::Arc<std::collections::BTreeMap<GpsTime, GnssDecision>>>,
+}
+
+/// The smoother's verdict on one position fix, forced on the forward
+/// filter's next pass (`crate::rejudge`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(crate) enum GnssDecision {
+    /// Inconsistent with the smoothed solution: not fused, recorded with
+    /// this reason (the monitor's, or `SmootherExcluded` for a fix the
+    /// first pass used).
+    Exclude(super::FaultReason),
+    /// Consistent with the smoothed solution: used at its stated σ
+    /// whatever the forward filter's weights, recorded with this reason
+    /// (`SmootherReadmitted` for a fix the first pass excluded,
+    /// `Persisted` for one it followed after a fault episode).
+    Follow(super::FaultReason),
+    /// Consistent with the smoothed solution and used by the first pass:
+    /// used at its stated σ, without the fault monitor or the robust
+    /// weights (they judged it before; a state the smoother moved must
+    /// not refuse it).
+    Keep,
 }
 
 impl FusionConfig {
@@ -411,6 +436,7 @@ impl FusionConfig {
             levelling_accel_misalignment_sd_rad: 0.0,
             standstill: None,
             course_heading: None,
+            gnss_decisions: None,
         }
     }
 }
@@ -496,6 +522,15 @@ pub struct FusionStats {
     pub gnss_fixes_stale: usize,
     /// Fixes the integrity monitor excluded (jumps, runs, ramps).
     pub gnss_fixes_excluded: usize,
+    /// Fixes the forward pass used and the smoother's re-judgement
+    /// excluded (`crate::rejudge`; the smoothed solution only).
+    pub gnss_smoother_excluded: usize,
+    /// Fixes the forward pass excluded and the smoother's re-judgement
+    /// used again.
+    pub gnss_smoother_readmitted: usize,
+    /// Forward–backward passes the smoothed solution took (1: the fixes
+    /// were consistent with the first; 0: not smoothed or not judged).
+    pub gnss_smoother_passes: usize,
     /// GNSS fault episodes (spikes, runs at a false level, ramps, stale
     /// outputs): `fusion::aid::integrity`.
     pub gnss_fault_episodes: Vec<crate::fusion::FaultEpisode>,

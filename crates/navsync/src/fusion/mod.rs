@@ -66,6 +66,7 @@ use aid::gnss::invalid_fix;
 pub use aid::integrity::{
     EpisodeClass, EpisodeEnd, FaultEpisode, FaultReason, MAX_EPISODE_S, PROTECTION_K,
 };
+pub(crate) use aid::integrity::{FALSE_ALARM_PROB, FIX_CHANGE_FLOOR_M};
 use aid::time_offset::Kinematics;
 use aid::{AidSources, DelayBuffer, Timed};
 pub use config::*;

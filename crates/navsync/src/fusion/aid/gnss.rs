@@ -512,7 +512,16 @@ impl GnssSource {
     ) -> Result<(), Error> {
         let frozen = core.frozen_states();
         let obs = Self::position_obs(core, fix);
-        if self.judge_integrity(core, &obs, fix.time)? {
+        let decision = core
+            .cfg
+            .gnss_decisions
+            .as_ref()
+            .and_then(|d| d.get(&fix.time).copied());
+        let excluded = match decision {
+            Some(d) => self.apply_decision(core, &obs, fix.time, d),
+            None => self.judge_integrity(core, &obs, fix.time)?,
+        };
+        if excluded {
             self.last_received = Some(fix.time);
             return Ok(());
         }
@@ -672,7 +681,15 @@ impl GnssSource {
                 self.disagreeing_streak = (0, None);
             }
         }
-        if drift {
+        if drift
+            && matches!(
+                self.forced,
+                Some(FaultReason::SmootherReadmitted | FaultReason::None)
+            )
+        {
+            // The smoother's verdict, not a drift: used at its stated σ.
+            w = [1.0; 3];
+        } else if drift {
             record.status = FixStatus::DriftAccepted;
             w = [1.0; 3];
             let s = core.filter.innovation_covariance(&obs);
@@ -792,6 +809,41 @@ impl GnssSource {
                 });
                 self.forced = Some(FaultReason::Persisted);
                 Ok(false)
+            }
+        }
+    }
+
+    /// Applies the smoother's verdict on a position fix in place of the
+    /// monitor's (`crate::rejudge`). Returns true when the fix is excluded
+    /// (recorded and counted here); any other is marked to be used at its
+    /// stated σ whatever its weights, the covariance untouched (inflating
+    /// it, as after a persisted episode, would cut the smoother's bridge
+    /// over the fixes excluded before it: measured worse on the bed).
+    fn apply_decision(
+        &mut self,
+        core: &mut Core,
+        obs: &Observation,
+        time: GpsTime,
+        decision: GnssDecision,
+    ) -> bool {
+        match decision {
+            GnssDecision::Keep => {
+                self.forced = Some(FaultReason::None);
+                false
+            }
+            GnssDecision::Follow(reason) => {
+                self.forced = Some(reason);
+                false
+            }
+            GnssDecision::Exclude(reason) => {
+                core.propagate();
+                let s = core.filter.innovation_covariance(obs);
+                let lambda = self.overconfidence_scale();
+                self.counts.excluded += 1;
+                self.counts.fixes_rejected += 1;
+                let record = excluded_record(core, obs, &s, time, reason, lambda);
+                core.fix_log.push(record);
+                true
             }
         }
     }

@@ -86,7 +86,7 @@ pub const PROTECTION_K: f64 = 6.0;
 /// 5–10 cm lasting ~10 s at a stated 1 cm). With it the tests see offsets
 /// from about 0.3 m (4.6 σ of the difference of two fixes), the size the
 /// issue calls visible.
-const FIX_CHANGE_FLOOR_M: f64 = 0.05;
+pub(crate) const FIX_CHANGE_FLOOR_M: f64 = 0.05;
 /// Standard gravity (m/s²) for the tilt term of the growth.
 const G_MPS2: f64 = 9.8;
 
@@ -109,6 +109,12 @@ pub enum FaultReason {
     Persisted,
     /// Beyond the robust weighting's outlier bound (a single wild value).
     Outlier,
+    /// Used forward, excluded by the smoother's re-judgement: inconsistent
+    /// with the smoothed solution of the other fixes (`crate::rejudge`).
+    SmootherExcluded,
+    /// Excluded forward, used again after the smoother's re-judgement:
+    /// consistent with the smoothed solution (`crate::rejudge`).
+    SmootherReadmitted,
 }
 
 impl FaultReason {
@@ -121,6 +127,8 @@ impl FaultReason {
             FaultReason::Stale => "stale",
             FaultReason::Persisted => "persisted",
             FaultReason::Outlier => "outlier",
+            FaultReason::SmootherExcluded => "smoother-excluded",
+            FaultReason::SmootherReadmitted => "smoother-readmitted",
         }
     }
 }
