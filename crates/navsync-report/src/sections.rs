@@ -906,5 +906,9 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         solution_incomplete: g.incomplete,
         innovation: g.innovation,
         antenna_lever_m: g.summary.and_then(|s| triplet(s.get("antenna_lever_m"))),
+        lever_estimate: g
+            .summary
+            .and_then(|s| s.get("lever_arm"))
+            .and_then(|v| serde_json::from_value(v.clone()).ok()),
     }
 }
