@@ -982,6 +982,8 @@ mod tests {
             ),
             ("gnss_default_sd_m: [1, 1, 1e308]\n", "'gnss_default_sd_m'"),
             ("antenna_lever_m: [.nan, 0, 0]\n", "'antenna_lever_m'"),
+            ("antenna_lever_sd_m: 0\n", "'antenna_lever_sd_m'"),
+            ("antenna_lever_sd_m: 50\n", "'antenna_lever_sd_m'"),
         ] {
             let (block, _) = extra.split_once(':').unwrap();
             let text = if block == "imu" {

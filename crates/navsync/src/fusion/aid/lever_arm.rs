@@ -191,3 +191,45 @@ pub(in crate::fusion) fn correlate_initial_position(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn state(sd_m: [f64; 3]) -> LeverArmState {
+        LeverArmState {
+            lever_m: [0.39, -0.31, 0.0],
+            sd_m,
+            initial_sd_m: 0.5,
+        }
+    }
+
+    /// Observed components are weighed against the sheet in σ; the rest
+    /// are named as not observed and left out of the difference.
+    #[test]
+    fn the_estimate_is_weighed_against_the_sheet_over_what_was_observed() {
+        let s = state([0.02, 0.02, 0.49]).against_sheet([0.0; 3]);
+        assert_eq!(s.observed, [true, true, false]);
+        assert!(
+            (s.difference_m - 0.39f64.hypot(0.31)).abs() < 1e-12,
+            "{s:?}"
+        );
+        assert!((s.difference_sigmas - 19.5).abs() < 1e-9, "{s:?}");
+        assert!(s.significant, "{s:?}");
+        assert!(s.note.contains("differs from the sheet's"), "{}", s.note);
+        assert!(
+            s.note.contains("the down component is not observed"),
+            "{}",
+            s.note
+        );
+        // The right sheet, within 1σ: agrees.
+        let s = state([0.02, 0.02, 0.49]).against_sheet([0.4, -0.3, 0.0]);
+        assert!(!s.significant && s.note.contains("agrees"), "{}", s.note);
+        // Nothing observed (a straight road): no difference is claimed.
+        let s = state([0.45, 0.3, 0.49]).against_sheet([0.0; 3]);
+        assert_eq!(s.observed, [false; 3]);
+        assert!(!s.significant && s.difference_m == 0.0, "{s:?}");
+        assert!(s.note.contains("not observed on this drive"), "{}", s.note);
+        assert!(!s.note.contains("differs"), "{}", s.note);
+    }
+}
