@@ -794,6 +794,9 @@ pub fn run(a: Args) -> Result<()> {
         fuse_dir.display()
     );
     let summary = super::fuse::execute(&cfg, &opts, &fuse_dir)?;
+    if let Some(l) = &summary.lever_arm {
+        notes.push(l.note.clone());
+    }
 
     let mut warnings: Vec<String> = lever_warning.into_iter().chain(rate_warning).collect();
     if let Some(al) = &summary.alignment

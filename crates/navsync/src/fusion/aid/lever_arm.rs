@@ -147,8 +147,9 @@ impl LeverArmState {
         if (1..3).contains(&unobserved.len()) {
             note.push_str(&format!(
                 "; the {} component{} not observed on this drive (σ near its initial value: the \
-                 heading must change for the horizontal ones, the vehicle roll or pitch for the \
-                 vertical one): the sheet's value stands there",
+                 horizontal ones need the heading to change; the down one is held, a consider \
+                 state, as a road's roll and pitch hardly observe it): the sheet's value stands \
+                 there",
                 unobserved.join(" and "),
                 if unobserved.len() > 1 { "s are" } else { " is" }
             ));
