@@ -246,6 +246,8 @@ pub(crate) struct Evidence {
     /// The consistency probe's estimates (`probe.json` of `navsync
     /// process`).
     pub probe: Option<ProbeEvidence>,
+    /// The lever-arm states' estimate (summary.json), when they ran.
+    pub lever_estimate: Option<navsync::fusion::LeverArmSummary>,
 }
 
 /// What the consistency probe (a second pass with the time offset
@@ -254,6 +256,8 @@ pub(crate) struct Evidence {
 pub(crate) struct ProbeEvidence {
     /// The time offset (GNSS tag − validity, s) and its σ.
     pub time_offset_s: Option<(f64, f64)>,
+    /// The lever-arm states' estimate against the sheet.
+    pub lever_arm: Option<navsync::fusion::LeverArmSummary>,
     /// Why the probe failed, when it did (its filter broke down).
     pub failed: Option<String>,
 }
@@ -577,6 +581,10 @@ fn fault_check(f: &FaultEvidence, fixes: usize, checks: &mut Vec<Check>, causes:
 fn lever_arm_checks(ev: &Evidence, checks: &mut Vec<Check>, causes: &mut Vec<String>) {
     let Some(l) = ev.antenna_lever_m else { return };
     let zero = l.iter().all(|x| *x == 0.0);
+    if let Some(est) = &ev.lever_estimate {
+        estimated_lever_check(est, zero, checks, causes);
+        return;
+    }
     checks.push(Check {
         name: "antenna lever arm",
         grade: Some(if zero { Grade::Caution } else { Grade::Good }),
@@ -588,7 +596,50 @@ fn lever_arm_checks(ev: &Evidence, checks: &mut Vec<Check>, causes: &mut Vec<Str
         rule: "caution when zero (the sheet's default, not a measurement)".into(),
     });
     if zero {
-        causes.push("antenna lever arm: zero in the sheet (antenna_lever_m), measure it".into());
+        causes.push(
+            "antenna lever arm: zero in the sheet (antenna_lever_m), measure it (or estimate it on a drive with turns: estimate_lever_arm: true)"
+                .into(),
+        );
+    }
+}
+
+/// The lever-arm states ran: the sheet's value was a prior, and what
+/// counts is whether the drive observed the horizontal components (their
+/// σ fell below half the initial one). An estimate the drive did not
+/// observe is not praised: with a zero sheet it stays a caution, else it
+/// is shown ungraded.
+fn estimated_lever_check(
+    est: &navsync::fusion::LeverArmSummary,
+    zero_sheet: bool,
+    checks: &mut Vec<Check>,
+    causes: &mut Vec<String>,
+) {
+    let horizontal = est.observed[0] && est.observed[1];
+    let grade = match (horizontal, zero_sheet) {
+        (true, _) => Some(Grade::Good),
+        (false, true) => Some(Grade::Caution),
+        (false, false) => None,
+    };
+    checks.push(Check {
+        name: "antenna lever arm",
+        grade,
+        finding: format!(
+            "estimated as filter states{}: {}",
+            if zero_sheet { " from a zero sheet value" } else { "" },
+            est.note
+        ),
+        rule: format!(
+            "good when the drive observed the horizontal components (σ below {:.0} % of the initial σ); \
+             a zero sheet value the drive did not observe stays a caution",
+            navsync::fusion::LEVER_OBSERVED_FRACTION * 100.0
+        ),
+    });
+    if grade == Some(Grade::Caution) {
+        causes.push(
+            "antenna lever arm: zero in the sheet (antenna_lever_m) and the drive did not observe it \
+             (too few turns for the lever-arm states): measure it"
+                .into(),
+        );
     }
 }
 
@@ -603,6 +654,7 @@ pub(crate) fn loss_factor(e_m: f64, sd_m: f64) -> f64 {
 /// the accuracy they cost against what the filter claims.
 fn signature_checks(
     e: &crate::innovation::InnovationEvidence,
+    lever_estimated: bool,
     checks: &mut Vec<Check>,
     causes: &mut Vec<String>,
 ) {
@@ -637,8 +689,13 @@ fn signature_checks(
         rule: rule.clone(),
     });
     if g > Grade::Good {
+        let remedy = if lever_estimated {
+            "The lever-arm states ran and did not absorb it: a lever arm that changes (a moving antenna) or another error that turns with the heading (IMU mounting yaw)"
+        } else {
+            "Measure it, or let the filter estimate it: lever-arm states (`estimate_lever_arm: true` in the sheet, `--estimate-lever-arm`) would help on a drive with turns like this one"
+        };
         causes.push(format!(
-            "antenna lever arm: the innovations turn with the heading; the antenna looks about {df:+.2} m forward, {dr:+.2} m right of the sheet's antenna_lever_m (an underestimate: the filter absorbs part of it). Measure it; lever-arm states in the filter would estimate it (navsync has none yet). At a steady speed a GNSS time offset looks the same along the track (v·δt): if the lever arm is right, estimate the offset (time_offset: estimate: true)"
+            "antenna lever arm: the innovations turn with the heading; the antenna looks about {df:+.2} m forward, {dr:+.2} m right of the sheet's antenna_lever_m (an underestimate: the filter absorbs part of it). {remedy}. At a steady speed a GNSS time offset looks the same along the track (v·δt): if the lever arm is right, estimate the offset (time_offset: estimate: true)"
         ));
     }
     let g = grade(e.offset_p, e.offset_error_m());
@@ -686,6 +743,9 @@ fn probe_checks(
         ));
         return;
     }
+    if let Some(l) = &p.lever_arm {
+        probe_lever_check(l, e, checks, causes);
+    }
     let Some((offset_s, sd_s)) = p.time_offset_s else {
         return;
     };
@@ -718,6 +778,51 @@ fn probe_checks(
             "GNSS time offset: with the offset estimated as a state the GNSS tags are {:+.0} ± {:.0} ms late, which the run's sheet assumes zero. Estimate it (sheet: time_offset: estimate: true; fuse --estimate-time-offset) or synchronize with 1PPS",
             offset_s * 1e3,
             sd_s * 1e3
+        ));
+    }
+}
+
+/// The probe's lever-arm estimate against the sheet: significant beyond
+/// [`navsync::fusion::LEVER_SIGNIFICANT_SIGMAS`] on a component the drive
+/// observed, then graded by the cost of the difference against the
+/// filter's σ, as the time offset.
+fn probe_lever_check(
+    l: &navsync::fusion::LeverArmSummary,
+    e: &crate::innovation::InnovationEvidence,
+    checks: &mut Vec<Check>,
+    causes: &mut Vec<String>,
+) {
+    let loss = loss_factor(l.difference_m, e.filter_h_sd_m);
+    let grade = if l.significant {
+        grade_of(loss, LOSS_CAUTION, LOSS_POOR)
+    } else {
+        Grade::Good
+    };
+    let d = [0, 1, 2].map(|k| l.estimate_m[k] - l.sheet_m[k]);
+    checks.push(Check {
+        name: "antenna lever arm (probe)",
+        grade: Some(grade),
+        finding: format!(
+            "a second pass estimating it as states finds the antenna {:+.3} m forward, {:+.3} m right of the sheet's (σ {:.3}, {:.3} m; {}observed: {:.1}σ, {}): {:.3} m against the filter's σ {:.3} m ({loss:.1}×)",
+            d[0],
+            d[1],
+            l.sd_m[0],
+            l.sd_m[1],
+            if l.observed[0] || l.observed[1] { "" } else { "not " },
+            l.difference_sigmas,
+            if l.significant { "significant" } else { "not significant" },
+            l.difference_m,
+            e.filter_h_sd_m
+        ),
+        rule: format!(
+            "significant beyond {:.0}σ on a component the drive observed; then caution when the difference costs more than {LOSS_CAUTION}× the filter's σ, poor above {LOSS_POOR}×",
+            navsync::fusion::LEVER_SIGNIFICANT_SIGMAS
+        ),
+    });
+    if grade > Grade::Good {
+        causes.push(format!(
+            "antenna lever arm: with it estimated as states the antenna is {:+.2} m forward, {:+.2} m right of the sheet's antenna_lever_m ({:.1}σ). Measure it, or estimate it in the run (estimate_lever_arm: true). At a steady speed a forward error and a late GNSS tag look alike: the time-offset row says which the probe preferred",
+            d[0], d[1], l.difference_sigmas
         ));
     }
 }
@@ -836,7 +941,7 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
     }
     lever_arm_checks(ev, &mut checks, &mut causes);
     if let Some(e) = &ev.innovation {
-        signature_checks(e, &mut checks, &mut causes);
+        signature_checks(e, ev.lever_estimate.is_some(), &mut checks, &mut causes);
         if let Some(p) = &ev.probe {
             probe_checks(p, e, &mut checks, &mut causes);
         }
@@ -1369,6 +1474,68 @@ mod tests {
         assert!(v.causes.is_empty());
     }
 
+    /// With the lever-arm states on, the check grades what the drive
+    /// observed: a zero sheet whose horizontal components were observed is
+    /// good; not observed, a zero sheet stays a caution and a measured one
+    /// is shown ungraded (an unobserved estimate is not praised).
+    #[test]
+    fn an_estimated_lever_arm_is_graded_by_what_the_drive_observed() {
+        let est = |observed: bool| navsync::fusion::LeverArmSummary {
+            estimate_m: [0.39, -0.29, -0.1],
+            sd_m: if observed {
+                [0.02, 0.02, 0.45]
+            } else {
+                [0.45, 0.4, 0.48]
+            },
+            initial_sd_m: 0.5,
+            sheet_m: [0.0; 3],
+            observed: [observed, observed, false],
+            difference_m: 0.49,
+            difference_sigmas: 19.5,
+            significant: observed,
+            note: "n".into(),
+        };
+        let run = |sheet: [f64; 3], observed: bool| {
+            let v = assess(&Evidence {
+                fixes: Some(fixes(600, 0, 3, 3.0)),
+                final_h_sd_m: Some(0.02),
+                antenna_lever_m: Some(sheet),
+                lever_estimate: Some(est(observed)),
+                ..Evidence::default()
+            });
+            (graded(&v, "antenna lever arm").grade, v)
+        };
+        let (g, v) = run([0.0; 3], true);
+        assert_eq!(g, Some(Grade::Good), "{v:#?}");
+        assert!(v.causes.is_empty(), "{v:#?}");
+        let (g, v) = run([0.0; 3], false);
+        assert_eq!(g, Some(Grade::Caution), "{v:#?}");
+        assert!(v.causes[0].contains("did not observe"), "{v:#?}");
+        assert_eq!(run([0.4, -0.3, -0.8], false).0, None);
+        // A signature left with the states on does not recommend them.
+        let v = assess(&Evidence {
+            innovation: Some(crate::innovation::InnovationEvidence {
+                fixes: 300,
+                effective_fixes: 150.0,
+                lever_error_fr_m: [0.4, -0.3],
+                lever_p: 1e-9,
+                offset_s: 0.0,
+                offset_p: 0.5,
+                speed_rms_mps: 10.0,
+                filter_h_sd_m: 0.02,
+            }),
+            antenna_lever_m: Some([0.0; 3]),
+            lever_estimate: Some(est(true)),
+            ..Evidence::default()
+        });
+        let c = v
+            .causes
+            .iter()
+            .find(|c| c.contains("turn with the heading"))
+            .unwrap();
+        assert!(c.contains("states ran") && !c.contains("would help"), "{c}");
+    }
+
     /// The signatures grade by the accuracy they cost: a lever-arm error
     /// of 0.5 m against a 2 cm solution is poor, 3 cm is a caution, 1 cm
     /// harmless; an insignificant one is good whatever its size.
@@ -1396,6 +1563,11 @@ mod tests {
         let (g, v) = grade_of_lever(base.clone());
         assert_eq!(g, Some(Grade::Poor));
         assert!(v.causes[0].starts_with("antenna lever arm"), "{v:#?}");
+        assert!(
+            v.causes[0].contains("`estimate_lever_arm: true`")
+                && v.causes[0].contains("would help"),
+            "{v:#?}"
+        );
         assert!(
             graded(&v, "innovations vs heading (lever arm)")
                 .finding
@@ -1458,6 +1630,7 @@ mod tests {
                 innovation: with_innovation.then(|| inn.clone()),
                 probe: Some(ProbeEvidence {
                     time_offset_s: Some((o, sd)),
+                    lever_arm: None,
                     failed: None,
                 }),
                 ..Evidence::default()

@@ -1009,8 +1009,12 @@ fn probe_evidence(probe: Option<&Value>) -> Option<quality::ProbeEvidence> {
         _ => None,
     };
     let failed = p.get("failed").and_then(Value::as_str).map(str::to_string);
+    let lever_arm = p
+        .get("lever_arm")
+        .and_then(|v| serde_json::from_value(v.clone()).ok());
     Some(quality::ProbeEvidence {
         time_offset_s,
+        lever_arm,
         failed,
     })
 }
@@ -1029,6 +1033,10 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         innovation: g.innovation,
         antenna_lever_m: g.summary.and_then(|s| triplet(s.get("antenna_lever_m"))),
         probe: probe_evidence(g.probe),
+        lever_estimate: g
+            .summary
+            .and_then(|s| s.get("lever_arm"))
+            .and_then(|v| serde_json::from_value(v.clone()).ok()),
     }
 }
 

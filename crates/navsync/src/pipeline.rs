@@ -37,6 +37,10 @@ use crate::time::GpsTime;
 /// misaligned.
 pub(crate) const MAX_ACCEL_MISALIGNMENT_DEG: f64 = 10.0;
 
+/// Largest initial σ of the lever-arm states (m): an antenna is metres
+/// from the IMU at most, and the states are linearised (small errors).
+pub const MAX_LEVER_ARM_SD_M: f64 = 10.0;
+
 pub use crate::reduced::NhcSettings;
 pub use crate::time::OutageSchedule;
 
@@ -98,6 +102,10 @@ pub struct FuseOptions {
     /// Estimate the gyro and accelerometer axis misalignments with these
     /// initial σ (deg): 12 more states (see `FusionConfig`).
     pub misalignment_sd_deg: Option<[f64; 2]>,
+    /// Estimate the antenna lever arm as three states with this initial σ
+    /// (m; `--estimate-lever-arm`, the sheet's `estimate_lever_arm`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lever_arm_sd_m: Option<f64>,
     /// The accelerometer axis misalignment from the datasheet (σ, deg;
     /// cross-axis sensitivity in % × 0.573). When the run levels itself,
     /// the levelled tilt carries it (`FusionConfig::
@@ -198,6 +206,7 @@ impl Default for FuseOptions {
             reduced_imu: None,
             odometer: None,
             misalignment_sd_deg: None,
+            lever_arm_sd_m: None,
             accel_misalignment_sd_deg: None,
             gnss_error: None,
             smooth: None,
@@ -305,6 +314,13 @@ impl FuseOptions {
         }
         if let Some(m) = &self.gnss_error {
             m.validate().map_err(Error::Invalid)?;
+        }
+        if let Some(sd) = self.lever_arm_sd_m
+            && !(sd.is_finite() && sd > 0.0 && sd <= MAX_LEVER_ARM_SD_M)
+        {
+            return bad(format!(
+                "lever-arm σ {sd} m must be within (0, {MAX_LEVER_ARM_SD_M}] m"
+            ));
         }
         if let Some(d) = self.accel_misalignment_sd_deg
             && !(d.is_finite() && (0.0..=MAX_ACCEL_MISALIGNMENT_DEG).contains(&d))
@@ -417,6 +433,9 @@ pub struct FuseSummary {
     /// The configuration's antenna lever arm, IMU to antenna, FRD (m;
     /// KF-GINS `antlever`): the report's verdict warns of a zero one.
     pub antenna_lever_m: [f64; 3],
+    /// The lever-arm states' estimate against it, when they ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lever_arm: Option<crate::fusion::LeverArmSummary>,
     /// The options of the run.
     pub options: FuseOptions,
     /// Wall time of the run (s).
@@ -556,6 +575,7 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
         .as_ref()
         .map(|o| crate::reduced::odometer_options(o, opts.nhc.as_ref()));
     fc.misalignment_sd_rad = opts.misalignment_sd_deg.map(|d| d.map(f64::to_radians));
+    fc.lever_arm_sd_m = opts.lever_arm_sd_m;
     fc.gnss_error = opts.gnss_error;
     fc.standstill = opts.standstill;
     fc
@@ -962,6 +982,7 @@ fn run_inner(
             );
         }
         fc.init_std.pos = Vector3::from(a.pos_sd_m);
+        fc.init_pos_from_antenna = true;
         fc.init_std.vel = Vector3::from(a.vel_sd_mps);
         // An IMU tilted far more than a road or a parked drone tilts (20°)
         // with no mounting given is mounted so: its roll and pitch in the
@@ -1183,6 +1204,9 @@ fn run_inner(
         mount_yaw,
         imu_model: ImuModelSummary::of(cfg),
         antenna_lever_m: cfg.antenna_lever.into(),
+        lever_arm: fusion
+            .lever_arm()
+            .map(|l| l.against_sheet(cfg.antenna_lever.into())),
         options: opts.clone(),
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,

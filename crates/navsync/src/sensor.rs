@@ -295,6 +295,14 @@ pub struct SensorSheet {
     /// Lever arm from the IMU to the GNSS antenna phase centre, IMU axes
     /// [forward, right, down] (m).
     pub antenna_lever_m: [f64; 3],
+    /// Estimate the antenna lever arm as filter states (from
+    /// `antenna_lever_m`, with σ `antenna_lever_sd_m`): worth it when the
+    /// lever arm is unmeasured and the drive turns.
+    #[serde(default)]
+    pub estimate_lever_arm: bool,
+    /// Initial σ of the lever-arm states (m).
+    #[serde(default = "default_lever_sd")]
+    pub antenna_lever_sd_m: f64,
     /// IMU-to-vehicle mounting [roll, pitch, yaw] (deg): the IMU's attitude
     /// in the vehicle's axes (forward, right, down), ZYX Euler angles like a
     /// solution's roll, pitch, yaw, so the IMU's yaw is the vehicle's
@@ -328,6 +336,10 @@ pub struct SensorSheet {
     /// receiver's datasheet heading accuracy for the baseline's length.
     #[serde(default = "default_hdt_sd")]
     pub hdt_sd_deg: f64,
+}
+
+fn default_lever_sd() -> f64 {
+    0.5
 }
 
 fn default_gnss_sd() -> [f64; 3] {
@@ -474,6 +486,16 @@ impl SensorSheet {
                 return bad(k, format!("must hold 3 numbers within ±{lim}, got {v:?}"));
             }
         }
+        let max_sd = crate::pipeline::MAX_LEVER_ARM_SD_M;
+        if !(self.antenna_lever_sd_m > 0.0 && self.antenna_lever_sd_m <= max_sd) {
+            return bad(
+                "antenna_lever_sd_m",
+                format!(
+                    "must be within (0, {max_sd}] m, got {}",
+                    self.antenna_lever_sd_m
+                ),
+            );
+        }
         if !(self.dual_antenna_yaw_deg.is_finite() && self.dual_antenna_yaw_deg.abs() <= 360.0) {
             return bad(
                 "dual_antenna_yaw_deg",
@@ -595,8 +617,9 @@ pub fn zero_lever_warning(lever_m: [f64; 3], source: &Path) -> Option<String> {
     lever_m.iter().all(|x| *x == 0.0).then(|| {
         format!(
             "{}: the antenna lever arm is [0, 0, 0]: unmeasured? Its error goes straight into the \
-             position (a 0.5 m offset is a 0.5 m error) and the filter cannot estimate it; measure \
-             the IMU-to-antenna offset (forward, right, down) and enter it",
+             position (a 0.5 m offset is a 0.5 m error); measure the IMU-to-antenna offset \
+             (forward, right, down) and enter it, or let the filter estimate it on a drive with \
+             turns (sheet: estimate_lever_arm: true; process/fuse --estimate-lever-arm)",
             source.display()
         )
     })
@@ -701,6 +724,11 @@ pub fn template(preset: &str) -> Result<String, Error> {
          # axes [forward, right, down] (m). An antenna above the IMU has a negative\n\
          # down component. Measure it to a few cm: errors go straight into position.\n\
          antenna_lever_m: [0.0, 0.0, 0.0]\n\
+         # Unmeasured? Estimate it as filter states from the value above with this\n\
+         # σ (m): the horizontal components need turns, the vertical one is hardly\n\
+         # observable on a road (process says how well each was found).\n\
+         # estimate_lever_arm: true\n\
+         # antenna_lever_sd_m: 0.5\n\
          \n\
          # Land vehicle: apply the non-holonomic constraint (no sideways or vertical\n\
          # velocity of the vehicle). Needs the IMU's mounting angles below.\n\
@@ -954,6 +982,8 @@ mod tests {
             ),
             ("gnss_default_sd_m: [1, 1, 1e308]\n", "'gnss_default_sd_m'"),
             ("antenna_lever_m: [.nan, 0, 0]\n", "'antenna_lever_m'"),
+            ("antenna_lever_sd_m: 0\n", "'antenna_lever_sd_m'"),
+            ("antenna_lever_sd_m: 50\n", "'antenna_lever_sd_m'"),
         ] {
             let (block, _) = extra.split_once(':').unwrap();
             let text = if block == "imu" {

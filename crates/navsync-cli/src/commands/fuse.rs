@@ -270,6 +270,14 @@ pub struct Args {
     /// --misalignment). E.g. 0.3 for an ICM-20602, 0.05 for an ADIS16465.
     #[arg(value_parser = args::non_negative(10.0, "deg"), long, value_name = "SD_DEG")]
     pub accel_misalignment: Option<f64>,
+    /// Estimate the GNSS antenna lever arm (3 more states, random
+    /// constants in the body frame, from `antlever` with σ --lever-arm-sd):
+    /// observable through heading changes; summary.json says how well.
+    #[arg(long)]
+    pub estimate_lever_arm: bool,
+    /// Initial σ of the lever-arm states (m).
+    #[arg(value_parser = args::positive(navsync::pipeline::MAX_LEVER_ARM_SD_M, "m"), long, default_value_t = 0.5, requires = "estimate_lever_arm", value_name = "SD_M")]
+    pub lever_arm_sd: f64,
 }
 
 /// "a" or "a,b" (degrees, in [1e-9, 10]: an axis misalignment of a MEMS
@@ -464,6 +472,7 @@ impl Args {
                     ..navsync::reduced::OdometerSettings::new(path)
                 }),
             misalignment_sd_deg: self.misalignment,
+            lever_arm_sd_m: self.estimate_lever_arm.then_some(self.lever_arm_sd),
             accel_misalignment_sd_deg: self.accel_misalignment,
             gnss_error,
             align: self.align.then_some(navsync::align::AlignOptions {
@@ -634,6 +643,9 @@ pub fn execute(
                 .map(|c| format!("{:.1} ms", c * 1e3))
                 .unwrap_or_else(|| "not converged".into())
         );
+    }
+    if let Some(l) = &summary.lever_arm {
+        println!("  {}", l.note);
     }
     if opts.output_at.is_some() {
         println!(

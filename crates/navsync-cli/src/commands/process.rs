@@ -67,6 +67,10 @@ pub struct Args {
     /// ROS bag: the datum of NavSatFix altitudes (`msl`: EGM96 geoid added).
     #[arg(long, value_enum, default_value = "ellipsoid")]
     pub ros_altitude: super::convert::RosAltitude,
+    /// Estimate the GNSS antenna lever arm as filter states (as the sheet's
+    /// `estimate_lever_arm: true`; σ from `antenna_lever_sd_m`).
+    #[arg(long)]
+    pub estimate_lever_arm: bool,
 }
 
 /// The inputs, by kind.
@@ -653,6 +657,9 @@ fn probe_stage(cfg: &KfGinsConfig, opts: &FuseOptions, fuse_dir: &Path) -> Resul
                     sd * 1e3
                 );
             }
+            if let Some(l) = &p.lever_arm {
+                println!("  consistency probe: {}", l.note);
+            }
             serde_json::to_value(&p)?
         }
         Err(e) => {
@@ -750,6 +757,7 @@ pub fn run(a: Args) -> Result<()> {
         .as_ref()
         .map(|t| t.estimate)
         .unwrap_or(data.software_timed);
+    let estimate_lever = sheet.estimate_lever_arm || a.estimate_lever_arm;
     let odometer = odometer_settings(&sheet, &data);
     if odometer.is_some() && sheet.odometer.is_none() {
         let n = format!(
@@ -806,6 +814,11 @@ pub fn run(a: Args) -> Result<()> {
         // Zero-velocity and zero-angular-rate updates at stops.
         standstill: Some(navsync::filter::standstill::StandstillOptions::default()),
         accel_misalignment_sd_deg: Some(fig.accel_misalignment_deg),
+        lever_arm_sd_m: estimate_lever.then_some(sheet.antenna_lever_sd_m),
+        // The lever-arm states absorb what else turns with the heading: the
+        // axis misalignment (docs/lever-arm.md) is estimated with them.
+        misalignment_sd_deg: (estimate_lever && fig.accel_misalignment_deg > 0.0)
+            .then_some([fig.accel_misalignment_deg; 2]),
         ..FuseOptions::default()
     };
     opts.validate()?;
@@ -818,6 +831,9 @@ pub fn run(a: Args) -> Result<()> {
         fuse_dir.display()
     );
     let summary = super::fuse::execute(&cfg, &opts, &fuse_dir)?;
+    if let Some(l) = &summary.lever_arm {
+        notes.push(l.note.clone());
+    }
     if !a.no_probe {
         probe_stage(&cfg, &opts, &fuse_dir)?;
     }

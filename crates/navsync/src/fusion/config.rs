@@ -326,6 +326,14 @@ pub struct FusionConfig {
     pub noise: ImuNoise,
     /// GNSS antenna position in the body frame (m, FRD).
     pub(crate) antenna_lever_b: Vector3<f64>,
+    /// Estimate the antenna lever arm as three error states (random
+    /// constants in the body frame) with this initial σ (m); `None`: the
+    /// lever arm is the fixed `antenna_lever_b` (`fusion/aid/lever_arm.rs`).
+    pub lever_arm_sd_m: Option<f64>,
+    /// The initial position was placed from a GNSS fix less the lever arm
+    /// (an alignment): with the lever-arm states on, its error is
+    /// correlated with theirs (`fusion/aid/lever_arm.rs`).
+    pub(crate) init_pos_from_antenna: bool,
     /// Nominal IMU rate (Hz), for gap detection.
     pub imu_rate_hz: f64,
     /// A step longer than this many nominal periods is a gap.
@@ -418,6 +426,8 @@ impl FusionConfig {
             init_std,
             noise,
             antenna_lever_b: Vector3::zeros(),
+            lever_arm_sd_m: None,
+            init_pos_from_antenna: false,
             imu_rate_hz,
             gap_factor: 2.5,
             gap_policy: GapPolicy::Auto,

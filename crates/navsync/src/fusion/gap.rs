@@ -90,7 +90,7 @@ impl Core {
         // Position of the IMU centre at `end`: the antenna's carried on by
         // the velocity, less the lever arm.
         let le = LocalEarth::new(&f2.pos, &vel);
-        let d = vel * lead_s - q_nb * self.cfg.antenna_lever_b;
+        let d = vel * lead_s - q_nb * self.lever_b;
         let g = le.ned_to_geodetic_delta(&d);
         let mut pos = f2.pos;
         pos.lat_rad += g.x;

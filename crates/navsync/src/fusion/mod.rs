@@ -67,6 +67,9 @@ pub use aid::integrity::{
     EpisodeClass, EpisodeEnd, FaultEpisode, FaultReason, MAX_EPISODE_S, PROTECTION_K,
 };
 pub(crate) use aid::integrity::{FALSE_ALARM_PROB, FIX_CHANGE_FLOOR_M};
+pub use aid::lever_arm::{
+    LEVER_OBSERVED_FRACTION, LEVER_SIGNIFICANT_SIGMAS, LeverArmState, LeverArmSummary,
+};
 use aid::time_offset::Kinematics;
 use aid::{AidSources, DelayBuffer, Timed};
 pub use config::*;
@@ -105,6 +108,10 @@ struct Core {
     heading_mount_index: Option<usize>,
     tau: f64,
     tau_index: Option<usize>,
+    /// The antenna lever arm in use (body, m): the configuration's, or
+    /// its estimate when the lever-arm states (first index) are on.
+    lever_b: Vector3<f64>,
+    lever_index: Option<usize>,
     /// Estimated correlated GNSS position error (NED, m) and its first
     /// state index.
     gnss_bias: Vector3<f64>,
@@ -163,6 +170,15 @@ impl Core {
             heading_mount_index = Some(layout.add("dual_antenna_yaw", 0.0));
             extra_var.push(h.dual_antenna_yaw_sd_rad * h.dual_antenna_yaw_sd_rad);
         }
+        let mut lever_index = None;
+        if let Some(sd) = cfg.lever_arm_sd_m {
+            const NAMES: [&str; 3] = ["lever_arm_x", "lever_arm_y", "lever_arm_z"];
+            for name in NAMES {
+                let k = layout.add(name, aid::lever_arm::LEVER_ARM_PSD);
+                lever_index.get_or_insert(k);
+                extra_var.push(sd * sd);
+            }
+        }
         let mut filter = ErrorStateFilter::new(layout, cfg.noise, &cfg.init_std, &extra_var);
         // Aligned from the baseline, ψ̂ = az − α̂ with α = α̂ + ε: the yaw
         // error δψ = ψ̂ − ψ = noise + ε, i.e. φ_D = −δψ = −noise + δx_ε
@@ -219,6 +235,11 @@ impl Core {
                 }
             }
         }
+        if let (Some(i), Some(sd), true) =
+            (lever_index, cfg.lever_arm_sd_m, cfg.init_pos_from_antenna)
+        {
+            aid::lever_arm::correlate_initial_position(&mut filter, &cfg.init_nav, i, sd);
+        }
         let record_steps = cfg.time_offset.is_some_and(|t| t.search_range_s > 0.0);
         Core {
             nav: cfg.init_nav,
@@ -241,6 +262,8 @@ impl Core {
             heading_mount_index,
             tau,
             tau_index,
+            lever_b: cfg.antenna_lever_b,
+            lever_index,
             gnss_bias: Vector3::zeros(),
             gnss_bias_index,
             tau_observable: false,
@@ -493,7 +516,7 @@ impl Core {
         self.filter.accumulate(&step);
         self.kin.push(&step);
         if self.record_steps {
-            let lever_n = self.nav.q_nb * self.cfg.antenna_lever_b;
+            let lever_n = self.nav.q_nb * self.lever_b;
             self.steps.push((t, step.dv_n, dt, lever_n));
         }
     }
@@ -691,6 +714,11 @@ impl Fusion {
             sd_s: self.core.filter.sd(i),
             observable: self.core.tau_observable,
         })
+    }
+
+    /// The antenna lever-arm estimate, when its states are on.
+    pub fn lever_arm(&self) -> Option<LeverArmState> {
+        self.core.lever_arm_state()
     }
 
     /// The coarse time-offset search result, once it converged.

@@ -313,7 +313,7 @@ impl AidSource for GnssSource {
 impl GnssSource {
     /// The position observation of a fix, with the time-offset column.
     fn position_obs(core: &Core, fix: &GnssFix) -> Observation {
-        let lever = core.cfg.antenna_lever_b;
+        let lever = core.lever_b;
         let mut obs = crate::filter::gnss::position(&core.nav, fix, &lever, core.filter.n());
         if let (Some(i), Some(m)) = (core.gnss_bias_index, &core.cfg.gnss_error) {
             // Predicted fix r̂_ant + b̂: z gains +b̂, ∂z/∂δb = I; R keeps the
@@ -327,13 +327,14 @@ impl GnssSource {
             }
         }
         core.offset_column_position(&mut obs);
+        core.lever_column_position(&mut obs);
         obs
     }
 
     /// The velocity observation of a fix (when it has one), with the
     /// time-offset column.
     fn velocity_obs(core: &Core, fix: &GnssFix) -> Option<Observation> {
-        let lever = core.cfg.antenna_lever_b;
+        let lever = core.lever_b;
         let mut obs = crate::filter::gnss::velocity(
             &core.nav,
             fix,
@@ -342,6 +343,7 @@ impl GnssSource {
             core.filter.n(),
         )?;
         core.offset_column_velocity(&mut obs);
+        core.lever_column_velocity(&mut obs);
         Some(obs)
     }
 

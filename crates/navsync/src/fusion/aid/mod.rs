@@ -22,6 +22,7 @@
 //! | `integrity.rs` | GNSS fault episodes (jumps, runs, ramps) against the INS's displacement | time-differenced tests (Joerger & Pervan 2013); INS error growth (Titterton & Weston §12.3) |
 //! | `heading.rs` | dual-antenna heading | Groves §10.2.5, §16.3.2 (`filter/heading.rs`) |
 //! | `time_offset.rs` | the IMU–GNSS time offset τ | seed 004 eqs 11–16 (Wang, Guan & Ding 2019) |
+//! | `lever_arm.rs` | the antenna lever arm as states | KF-GINS §3.5–3.6; Groves §14.2.7 |
 //!
 //! GNSS position and velocity are one source: the velocity row of a fix
 //! is fused only after its position was used, with the same held states,
@@ -40,6 +41,7 @@ mod buffer;
 pub(super) mod gnss;
 mod heading;
 pub(super) mod integrity;
+pub(super) mod lever_arm;
 mod nhc;
 mod odometer;
 pub(super) mod time_offset;
@@ -269,6 +271,16 @@ impl Core {
             }
             None => frozen,
         };
+        // The lever arm's down component is a consider state (carried,
+        // never updated): `lever_arm.rs`.
+        let held_lever;
+        let frozen = match self.lever_index {
+            Some(i) => {
+                held_lever = [frozen, &[i + 2]].concat();
+                &held_lever[..]
+            }
+            None => frozen,
+        };
         let outcome = self
             .filter
             .update_with_frozen(obs, gate, frozen, self.nav.time)?;
@@ -291,6 +303,7 @@ impl Core {
                     self.gnss_bias[k] -= outcome.dx[i + k];
                 }
             }
+            self.lever_feedback(&outcome.dx);
         }
         Ok(outcome)
     }

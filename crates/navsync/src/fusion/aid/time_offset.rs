@@ -36,7 +36,7 @@ impl Core {
     /// eq 15).
     pub(in crate::fusion) fn offset_column_position(&self, obs: &mut Observation) {
         if let Some(i) = self.tau_index {
-            let lever = self.cfg.antenna_lever_b;
+            let lever = self.lever_b;
             let c = self.nav.c_nb();
             let w_nb = crate::ins::omega_nb_b(&self.nav, &self.last_w_ib);
             let v_ant = self.nav.vel + c * w_nb.cross(&lever);
