@@ -749,7 +749,8 @@ fn probe_checks(
     let Some((offset_s, sd_s)) = p.time_offset_s else {
         return;
     };
-    let significant = offset_s.abs() > PROBE_SIGMAS * sd_s;
+    let inflate = correlation_inflation(e);
+    let significant = offset_s.abs() > PROBE_SIGMAS * sd_s * inflate;
     let err_m = offset_s.abs() * e.speed_rms_mps;
     let loss = loss_factor(err_m, e.filter_h_sd_m);
     let grade = if significant {
@@ -761,7 +762,7 @@ fn probe_checks(
         name: "time offset (probe)",
         grade: Some(grade),
         finding: format!(
-            "a second pass estimating it as a state finds GNSS tags {:+.1} ms ± {:.1} ms late ({}): {:.3} m at the RMS speed {:.1} m/s against the filter's σ {:.3} m ({loss:.1}×)",
+            "a second pass estimating it as a state finds GNSS tags {:+.1} ms ± {:.1} ms (×{inflate:.2} for correlated fixes) late ({}): {:.3} m at the RMS speed {:.1} m/s against the filter's σ {:.3} m ({loss:.1}×)",
             offset_s * 1e3,
             sd_s * 1e3,
             if significant { "significant" } else { "not significant" },
@@ -770,7 +771,7 @@ fn probe_checks(
             e.filter_h_sd_m
         ),
         rule: format!(
-            "significant beyond {PROBE_SIGMAS:.0}σ; then caution when the error costs more than {LOSS_CAUTION}× the filter's σ (√(1 + (e/σ)²)), poor above {LOSS_POOR}×"
+            "significant beyond {PROBE_SIGMAS:.0}σ (σ × √(fixes / independent fixes)); then caution when the error costs more than {LOSS_CAUTION}× the filter's σ (√(1 + (e/σ)²)), poor above {LOSS_POOR}×"
         ),
     });
     if grade > Grade::Good {
@@ -780,6 +781,17 @@ fn probe_checks(
             sd_s * 1e3
         ));
     }
+}
+
+/// The probe's σ assume white fix errors; errors correlated from fix to
+/// fix carry the information of fewer fixes, n′ of n (the NIS's
+/// integrated autocorrelation, [`crate::innovation`]), and a parameter
+/// estimated from them is √(n/n′) less certain (Bartlett 1946; the same
+/// count the NIS check uses).
+fn correlation_inflation(e: &crate::innovation::InnovationEvidence) -> f64 {
+    (e.fixes as f64 / e.effective_fixes.max(1.0))
+        .sqrt()
+        .max(1.0)
 }
 
 /// The probe's lever-arm estimate against the sheet: significant beyond
@@ -793,36 +805,41 @@ fn probe_lever_check(
     causes: &mut Vec<String>,
 ) {
     let loss = loss_factor(l.difference_m, e.filter_h_sd_m);
-    let grade = if l.significant {
+    let d = [0, 1, 2].map(|k| l.estimate_m[k] - l.sheet_m[k]);
+    let inflate = correlation_inflation(e);
+    let sigmas = (0..3)
+        .filter(|&k| l.observed[k])
+        .map(|k| d[k].abs() / (l.sd_m[k] * inflate).max(1e-9))
+        .fold(0.0, f64::max);
+    let significant = sigmas > navsync::fusion::LEVER_SIGNIFICANT_SIGMAS;
+    let grade = if significant {
         grade_of(loss, LOSS_CAUTION, LOSS_POOR)
     } else {
         Grade::Good
     };
-    let d = [0, 1, 2].map(|k| l.estimate_m[k] - l.sheet_m[k]);
     checks.push(Check {
         name: "antenna lever arm (probe)",
         grade: Some(grade),
         finding: format!(
-            "a second pass estimating it as states finds the antenna {:+.3} m forward, {:+.3} m right of the sheet's (σ {:.3}, {:.3} m; {}observed: {:.1}σ, {}): {:.3} m against the filter's σ {:.3} m ({loss:.1}×)",
+            "a second pass estimating it as states finds the antenna {:+.3} m forward, {:+.3} m right of the sheet's (σ {:.3}, {:.3} m ×{inflate:.2} for correlated fixes; {}observed: {sigmas:.1}σ, {}): {:.3} m against the filter's σ {:.3} m ({loss:.1}×)",
             d[0],
             d[1],
             l.sd_m[0],
             l.sd_m[1],
             if l.observed[0] || l.observed[1] { "" } else { "not " },
-            l.difference_sigmas,
-            if l.significant { "significant" } else { "not significant" },
+            if significant { "significant" } else { "not significant" },
             l.difference_m,
             e.filter_h_sd_m
         ),
         rule: format!(
-            "significant beyond {:.0}σ on a component the drive observed; then caution when the difference costs more than {LOSS_CAUTION}× the filter's σ, poor above {LOSS_POOR}×",
+            "significant beyond {:.0}σ (σ × √(fixes / independent fixes)) on a component the drive observed; then caution when the difference costs more than {LOSS_CAUTION}× the filter's σ, poor above {LOSS_POOR}×",
             navsync::fusion::LEVER_SIGNIFICANT_SIGMAS
         ),
     });
     if grade > Grade::Good {
         causes.push(format!(
-            "antenna lever arm: with it estimated as states the antenna is {:+.2} m forward, {:+.2} m right of the sheet's antenna_lever_m ({:.1}σ). Measure it, or estimate it in the run (estimate_lever_arm: true). At a steady speed a forward error and a late GNSS tag look alike: the time-offset row says which the probe preferred",
-            d[0], d[1], l.difference_sigmas
+            "antenna lever arm: with it estimated as states the antenna is {:+.2} m forward, {:+.2} m right of the sheet's antenna_lever_m ({sigmas:.1}σ). Measure it, or estimate it in the run (estimate_lever_arm: true). At a steady speed a forward error and a late GNSS tag look alike: the time-offset row says which the probe preferred",
+            d[0], d[1]
         ));
     }
 }

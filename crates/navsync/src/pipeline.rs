@@ -925,113 +925,11 @@ fn run_inner(
             aligned_from_baseline: false,
         });
     }
-    let mut mount_yaw = None;
-    let alignment = if opts.align.is_some() || !cfg.init_state_given {
-        let mut ao = opts.align.unwrap_or_default();
-        ao.lever_b = cfg.antenna_lever.into();
-        ao.accel_bias_sd_mps2 = cfg.init_std.accel_bias.max();
-        if let Some(n) = &opts.nhc {
-            ao.mount_yaw_rad = n.mount_deg[2].to_radians();
-        }
-        if let Some(h) = &opts.heading {
-            ao.dual_antenna_yaw_rad = h.dual_antenna_yaw_deg.to_radians();
-            ao.dual_antenna_yaw_sd_rad = h.dual_antenna_yaw_sd_deg.to_radians();
-        }
-        let mut a = align_from_files(cfg, opts, &ao, fc.init_nav.time, &headings)?;
-        // A land vehicle's mounting yaw from the motion (`mount_search`):
-        // taken when the sheet left it at 0 and it is clearly not 0.
-        if opts.nhc.is_some() || opts.odometer.is_some() {
-            let d = mount_yaw_from_files(cfg, opts, fc.init_nav.time, &a, ao.mount_yaw_rad)?;
-            if d.adopted {
-                let turn = Euler::new(0.0, 0.0, d.used_yaw_deg.to_radians() - ao.mount_yaw_rad);
-                let c = crate::attitude::euler_to_dcm(&turn);
-                if let Some(n) = fc.nhc.as_mut() {
-                    n.vehicle.c_bv = c * n.vehicle.c_bv;
-                }
-                if let Some(o) = fc.odometer.as_mut() {
-                    o.vehicle.c_bv = c * o.vehicle.c_bv;
-                }
-                ao.mount_yaw_rad = d.used_yaw_deg.to_radians();
-                a = align_from_files(cfg, opts, &ao, fc.init_nav.time, &headings)?;
-            }
-            if !d.message.is_empty() {
-                diag.note(d.message.clone());
-            }
-            mount_yaw = Some(d);
-        }
-        diag.note(a.note.clone());
-        fc.init_nav = a.nav;
-        fc.init_std.att = Vector3::from(a.att_sd_rad);
-        let misalign_sd_rad = opts.accel_misalignment_sd_deg.unwrap_or(0.0).to_radians();
-        if let Some(m) = a.levelling_coupling {
-            fc.init_std.att.x = a.tilt_noise_sd_rad;
-            fc.init_std.att.y = a.tilt_noise_sd_rad;
-            fc.levelling_coupling = Some(m);
-            fc.levelling_accel_misalignment_sd_rad = misalign_sd_rad;
-        } else {
-            // Levelled before the start (tilt carried by the gyros): the
-            // misaligned axes' tilt error, uncorrelated with the states.
-            fc.init_std.att.x = fc.init_std.att.x.hypot(misalign_sd_rad);
-            fc.init_std.att.y = fc.init_std.att.y.hypot(misalign_sd_rad);
-        }
-        if let Some(h) = fc.heading.as_mut() {
-            h.aligned_from_baseline = matches!(
-                a.method,
-                crate::align::AlignMethod::StaticLevellingAndDualAntenna
-                    | crate::align::AlignMethod::InMotionDualAntenna
-            );
-        }
-        fc.init_std.pos = Vector3::from(a.pos_sd_m);
-        fc.init_pos_from_antenna = true;
-        fc.init_std.vel = Vector3::from(a.vel_sd_mps);
-        // An IMU tilted far more than a road or a parked drone tilts (20°)
-        // with no mounting given is mounted so: its roll and pitch in the
-        // vehicle are the levelled ones (a level vehicle's attitude is
-        // the mounting's; Groves §5.6.2), for the NHC's C_b^v; with a
-        // mounting yaw found in the motion, for the odometer's too (it uses
-        // the NHC's mounting, `reduced::odometer_options`).
-        let adopted = mount_yaw.as_ref().is_some_and(|d| d.adopted);
-        let sheet_mount = opts.nhc.map(|n| n.mount_deg).unwrap_or_default();
-        if (opts.nhc.is_some() || adopted) && sheet_mount[0] == 0.0 && sheet_mount[1] == 0.0 {
-            let e = a.nav.euler();
-            let limit = MOUNT_TILT_FROM_GRAVITY_DEG.to_radians();
-            if e.roll_rad.abs() > limit || e.pitch_rad.abs() > limit {
-                let yaw_deg = ao.mount_yaw_rad.to_degrees();
-                let mount =
-                    Euler::from_deg(e.roll_rad.to_degrees(), e.pitch_rad.to_degrees(), yaw_deg);
-                if let (Some(n), Some(nhc)) = (&opts.nhc, fc.nhc.as_mut()) {
-                    nhc.vehicle =
-                        VehicleConstraint::new(&mount, Vector3::from(n.lever_m), n.sd_mps);
-                }
-                if adopted && let Some(o) = fc.odometer.as_mut() {
-                    o.vehicle = VehicleConstraint::new(&mount, o.vehicle.lever_b, o.vehicle.nhc_sd);
-                }
-                diag.note(format!(
-                    "the IMU is tilted by roll {:.1}°, pitch {:.1}° at the start and the sheet gives no mounting: \
-                     taken as its mounting in the vehicle for the {}, mount_deg [{:.1}, {:.1}, {:.1}] \
-                     (set mount_deg in the sheet to override)",
-                    e.roll_rad.to_degrees(),
-                    e.pitch_rad.to_degrees(),
-                    match (opts.nhc.is_some(), adopted && fc.odometer.is_some()) {
-                        (true, true) => "NHC and the odometer",
-                        (false, true) => "odometer",
-                        _ => "NHC",
-                    },
-                    e.roll_rad.to_degrees(),
-                    e.pitch_rad.to_degrees(),
-                    yaw_deg
-                ));
-            }
-        }
-        if a.method == crate::align::AlignMethod::NoMotion {
-            // Too slow for the course: look for the heading in the track.
-            fc.course_heading = Some(crate::fusion::course_heading::CourseHeadingOptions::new(
-                ao.mount_yaw_rad,
-            ));
-        }
-        Some(a)
+    let (alignment, mount_yaw) = if opts.align.is_some() || !cfg.init_state_given {
+        let (a, m) = align_stage(cfg, opts, &mut fc, &headings, &mut diag)?;
+        (Some(a), m)
     } else {
-        None
+        (None, None)
     };
     let fc = fc;
     let start = fc.init_nav.time;
@@ -1468,6 +1366,136 @@ fn output_at_interpolator(opts: &FuseOptions) -> Result<Option<NavInterpolator>,
         ip.request(t);
     }
     Ok(Some(ip))
+}
+/// The initial state from the data (`align`), the land vehicle's mounting
+/// yaw from the motion (`mount_search`) and the mounting a tilted IMU
+/// implies, written into `fc`.
+fn align_stage(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    fc: &mut FusionConfig,
+    headings: &[crate::io::heading::HeadingObs],
+    diag: &mut Diagnostics,
+) -> Result<
+    (
+        crate::align::Alignment,
+        Option<crate::mount_search::MountYawDecision>,
+    ),
+    Error,
+> {
+    let mut mount_yaw = None;
+    let mut ao = opts.align.unwrap_or_default();
+    ao.lever_b = cfg.antenna_lever.into();
+    ao.accel_bias_sd_mps2 = cfg.init_std.accel_bias.max();
+    if let Some(n) = &opts.nhc {
+        ao.mount_yaw_rad = n.mount_deg[2].to_radians();
+    }
+    if let Some(h) = &opts.heading {
+        ao.dual_antenna_yaw_rad = h.dual_antenna_yaw_deg.to_radians();
+        ao.dual_antenna_yaw_sd_rad = h.dual_antenna_yaw_sd_deg.to_radians();
+    }
+    let mut a = align_from_files(cfg, opts, &ao, fc.init_nav.time, headings)?;
+    // A land vehicle's mounting yaw from the motion (`mount_search`):
+    // taken when the sheet left it at 0 and it is clearly not 0.
+    if opts.nhc.is_some() || opts.odometer.is_some() {
+        let d = mount_yaw_from_files(cfg, opts, fc.init_nav.time, &a, ao.mount_yaw_rad)?;
+        if d.adopted {
+            let turn = Euler::new(0.0, 0.0, d.used_yaw_deg.to_radians() - ao.mount_yaw_rad);
+            let c = crate::attitude::euler_to_dcm(&turn);
+            if let Some(n) = fc.nhc.as_mut() {
+                n.vehicle.c_bv = c * n.vehicle.c_bv;
+            }
+            if let Some(o) = fc.odometer.as_mut() {
+                o.vehicle.c_bv = c * o.vehicle.c_bv;
+            }
+            ao.mount_yaw_rad = d.used_yaw_deg.to_radians();
+            a = align_from_files(cfg, opts, &ao, fc.init_nav.time, headings)?;
+        }
+        if !d.message.is_empty() {
+            diag.note(d.message.clone());
+        }
+        mount_yaw = Some(d);
+    }
+    diag.note(a.note.clone());
+    fc.init_nav = a.nav;
+    fc.init_std.att = Vector3::from(a.att_sd_rad);
+    let misalign_sd_rad = opts.accel_misalignment_sd_deg.unwrap_or(0.0).to_radians();
+    if let Some(m) = a.levelling_coupling {
+        fc.init_std.att.x = a.tilt_noise_sd_rad;
+        fc.init_std.att.y = a.tilt_noise_sd_rad;
+        fc.levelling_coupling = Some(m);
+        fc.levelling_accel_misalignment_sd_rad = misalign_sd_rad;
+    } else {
+        // Levelled before the start (tilt carried by the gyros): the
+        // misaligned axes' tilt error, uncorrelated with the states.
+        fc.init_std.att.x = fc.init_std.att.x.hypot(misalign_sd_rad);
+        fc.init_std.att.y = fc.init_std.att.y.hypot(misalign_sd_rad);
+    }
+    if let Some(h) = fc.heading.as_mut() {
+        h.aligned_from_baseline = matches!(
+            a.method,
+            crate::align::AlignMethod::StaticLevellingAndDualAntenna
+                | crate::align::AlignMethod::InMotionDualAntenna
+        );
+    }
+    fc.init_std.pos = Vector3::from(a.pos_sd_m);
+    fc.init_pos_from_antenna = true;
+    fc.init_std.vel = Vector3::from(a.vel_sd_mps);
+    let adopted = mount_yaw.as_ref().is_some_and(|d| d.adopted);
+    mounting_from_tilt(opts, fc, &a, ao.mount_yaw_rad, adopted, diag);
+    if a.method == crate::align::AlignMethod::NoMotion {
+        // Too slow for the course: look for the heading in the track.
+        fc.course_heading = Some(crate::fusion::course_heading::CourseHeadingOptions::new(
+            ao.mount_yaw_rad,
+        ));
+    }
+    Ok((a, mount_yaw))
+}
+
+/// An IMU tilted far more than a road or a parked drone tilts (20°) with
+/// no mounting given is mounted so: its roll and pitch in the vehicle are
+/// the levelled ones (a level vehicle's attitude is the mounting's; Groves
+/// §5.6.2), for the NHC's C_b^v; with a mounting yaw found in the motion
+/// (`adopted`), for the odometer's too (it uses the NHC's mounting,
+/// `reduced::odometer_options`).
+fn mounting_from_tilt(
+    opts: &FuseOptions,
+    fc: &mut FusionConfig,
+    a: &crate::align::Alignment,
+    mount_yaw_rad: f64,
+    adopted: bool,
+    diag: &mut Diagnostics,
+) {
+    let sheet_mount = opts.nhc.map(|n| n.mount_deg).unwrap_or_default();
+    if (opts.nhc.is_some() || adopted) && sheet_mount[0] == 0.0 && sheet_mount[1] == 0.0 {
+        let e = a.nav.euler();
+        let limit = MOUNT_TILT_FROM_GRAVITY_DEG.to_radians();
+        if e.roll_rad.abs() > limit || e.pitch_rad.abs() > limit {
+            let yaw_deg = mount_yaw_rad.to_degrees();
+            let mount = Euler::from_deg(e.roll_rad.to_degrees(), e.pitch_rad.to_degrees(), yaw_deg);
+            if let (Some(n), Some(nhc)) = (&opts.nhc, fc.nhc.as_mut()) {
+                nhc.vehicle = VehicleConstraint::new(&mount, Vector3::from(n.lever_m), n.sd_mps);
+            }
+            if adopted && let Some(o) = fc.odometer.as_mut() {
+                o.vehicle = VehicleConstraint::new(&mount, o.vehicle.lever_b, o.vehicle.nhc_sd);
+            }
+            diag.note(format!(
+                "the IMU is tilted by roll {:.1}°, pitch {:.1}° at the start and the sheet gives no mounting: \
+                 taken as its mounting in the vehicle for the {}, mount_deg [{:.1}, {:.1}, {:.1}] \
+                 (set mount_deg in the sheet to override)",
+                e.roll_rad.to_degrees(),
+                e.pitch_rad.to_degrees(),
+                match (opts.nhc.is_some(), adopted && fc.odometer.is_some()) {
+                    (true, true) => "NHC and the odometer",
+                    (false, true) => "odometer",
+                    _ => "NHC",
+                },
+                e.roll_rad.to_degrees(),
+                e.pitch_rad.to_degrees(),
+                yaw_deg
+            ));
+        }
+    }
 }
 
 /// The alignment pre-pass: reads the IMU and GNSS files from `start` until
