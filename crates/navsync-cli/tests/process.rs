@@ -242,6 +242,15 @@ fn drive_that_never_moves_says_heading_is_unobservable() {
     let last = std.lines().last().unwrap();
     let yaw_sd: f64 = last.split_whitespace().nth(9).unwrap().parse().unwrap();
     assert!(yaw_sd >= 179.0, "yaw σ {yaw_sd}° at the end: {last}");
+    // The probe's lever-arm states are held with the heading (C_bⁿ l turns
+    // with a heading the filter does not have): the sheet's value is kept,
+    // observed on no axis.
+    let probe = json(&out.join("fuse/probe.json"));
+    let l = &probe["lever_arm"];
+    for k in 0..3 {
+        assert_eq!(l["estimate_m"][k], l["sheet_m"][k], "{probe}");
+        assert_eq!(l["observed"][k], false, "{probe}");
+    }
     let p = json(&out.join("process.json"));
     assert_eq!(p["alignment"]["method"], "no-motion", "{p}");
 }

@@ -272,9 +272,16 @@ impl Core {
             None => frozen,
         };
         // The lever arm's down component is a consider state (carried,
-        // never updated): `lever_arm.rs`.
+        // never updated): `lever_arm.rs`. While the heading is unknown its
+        // horizontal components are too: C_bⁿ l turns with a heading the
+        // filter does not have (held, the Husky bag's probe ran to
+        // −510 m without this).
         let held_lever;
         let frozen = match self.lever_index {
+            Some(i) if self.heading_unknown => {
+                held_lever = [frozen, &[i, i + 1, i + 2]].concat();
+                &held_lever[..]
+            }
             Some(i) => {
                 held_lever = [frozen, &[i + 2]].concat();
                 &held_lever[..]
