@@ -38,6 +38,16 @@ fn simulate_with(dir: &Path, scenario: &str, duration_s: &str, extra: &[&str]) -
     sim
 }
 
+/// `navsync process RAW --sensor SENSOR --output OUT EXTRA…`.
+fn process(raw: &Path, sensor: &Path, out: &Path, extra: &[&str]) -> (bool, String, String) {
+    run(bin()
+        .args(["process", raw.to_str().unwrap(), "--sensor"])
+        .arg(sensor)
+        .arg("--output")
+        .arg(out)
+        .args(extra))
+}
+
 /// `navsync init --preset adis16465`, with the simulator's lever arm.
 fn sheet(dir: &Path) -> PathBuf {
     let p = dir.join("sensor.yaml");
@@ -64,16 +74,12 @@ fn init_then_process_a_simulated_rig_log() {
     let sim = simulate(&d, "test-track", "400");
     let sensor = sheet(&d);
     let out = d.join("out");
-    let (ok, stdout, err) = run(bin().args([
-        "process",
-        sim.join("rig.csv").to_str().unwrap(),
-        "--sensor",
-        sensor.to_str().unwrap(),
-        "--output",
-        out.to_str().unwrap(),
-        "--truth",
-        sim.join("truth.nav").to_str().unwrap(),
-    ]));
+    let (ok, stdout, err) = process(
+        &sim.join("rig.csv"),
+        &sensor,
+        &out,
+        &["--truth", sim.join("truth.nav").to_str().unwrap()],
+    );
     assert!(ok, "{stdout}{err}");
     assert!(stdout.contains("rig log (rig-log v1)"), "{stdout}");
     for f in [
@@ -219,15 +225,7 @@ fn drive_that_never_moves_says_heading_is_unobservable() {
     let sim = simulate(&d, "static", "60");
     let sensor = sheet(&d);
     let out = d.join("out");
-    let (ok, stdout, err) = run(bin().args([
-        "process",
-        sim.join("rig.csv").to_str().unwrap(),
-        "--sensor",
-        sensor.to_str().unwrap(),
-        "--output",
-        out.to_str().unwrap(),
-        "--no-smooth",
-    ]));
+    let (ok, stdout, err) = process(&sim.join("rig.csv"), &sensor, &out, &["--no-smooth"]);
     assert!(ok, "{stdout}{err}");
     assert!(err.contains("heading is unobservable"), "{err}");
     // No reference: the report judges the run from its own statistics.
@@ -452,14 +450,7 @@ fn a_zero_lever_arm_is_warned_and_not_good() {
     ]));
     assert!(ok, "{err}");
     let out = d.join("out");
-    let (ok, stdout, err) = run(bin().args([
-        "process",
-        sim.join("rig.csv").to_str().unwrap(),
-        "--sensor",
-        p.to_str().unwrap(),
-        "--output",
-        out.to_str().unwrap(),
-    ]));
+    let (ok, stdout, err) = process(&sim.join("rig.csv"), &p, &out, &[]);
     assert!(ok, "{stdout}{err}");
     assert!(
         err.contains("WARNING") && err.contains("antenna lever arm is [0, 0, 0]"),
@@ -501,14 +492,7 @@ fn late_gnss_tags_are_found_by_the_consistency_probe() {
     );
     let sensor = sheet(&d);
     let out = d.join("out");
-    let (ok, stdout, err) = run(bin().args([
-        "process",
-        late.join("rig.csv").to_str().unwrap(),
-        "--sensor",
-        sensor.to_str().unwrap(),
-        "--output",
-        out.to_str().unwrap(),
-    ]));
+    let (ok, stdout, err) = process(&late.join("rig.csv"), &sensor, &out, &[]);
     assert!(ok, "{stdout}{err}");
     let probe = json(&out.join("fuse/probe.json"));
     let (o, sd) = (
@@ -530,15 +514,7 @@ fn late_gnss_tags_are_found_by_the_consistency_probe() {
     );
     // --no-probe: no probe.json, the run otherwise the same.
     let out2 = d.join("out2");
-    let (ok, stdout, err) = run(bin().args([
-        "process",
-        late.join("rig.csv").to_str().unwrap(),
-        "--sensor",
-        sensor.to_str().unwrap(),
-        "--output",
-        out2.to_str().unwrap(),
-        "--no-probe",
-    ]));
+    let (ok, stdout, err) = process(&late.join("rig.csv"), &sensor, &out2, &["--no-probe"]);
     assert!(ok, "{stdout}{err}");
     assert!(!out2.join("fuse/probe.json").exists());
 }

@@ -663,13 +663,7 @@ fn signature_checks(
         "present when its F test passes at a {:.0} % false-alarm rate; then caution when the error it implies costs more than {LOSS_CAUTION}× the filter's σ (√(1 + (e/σ)²)), poor above {LOSS_POOR}×",
         FALSE_ALARM * 100.0
     );
-    let grade = |p: f64, err: f64| {
-        if p >= FALSE_ALARM {
-            Grade::Good
-        } else {
-            grade_of(loss_factor(err, e.filter_h_sd_m), LOSS_CAUTION, LOSS_POOR)
-        }
-    };
+    let grade = |p: f64, err: f64| cost_grade(p < FALSE_ALARM, loss_factor(err, e.filter_h_sd_m));
     let [df, dr] = e.lever_error_fr_m;
     let g = grade(e.lever_p, e.lever_error_m());
     checks.push(Check {
@@ -753,11 +747,7 @@ fn probe_checks(
     let significant = offset_s.abs() > PROBE_SIGMAS * sd_s * inflate;
     let err_m = offset_s.abs() * e.speed_rms_mps;
     let loss = loss_factor(err_m, e.filter_h_sd_m);
-    let grade = if significant {
-        grade_of(loss, LOSS_CAUTION, LOSS_POOR)
-    } else {
-        Grade::Good
-    };
+    let grade = cost_grade(significant, loss);
     checks.push(Check {
         name: "time offset (probe)",
         grade: Some(grade),
@@ -780,6 +770,17 @@ fn probe_checks(
             offset_s * 1e3,
             sd_s * 1e3
         ));
+    }
+}
+
+/// An error found (`significant`) is graded by its accuracy loss
+/// √(1 + (e/σ)²): caution above [`LOSS_CAUTION`], poor above
+/// [`LOSS_POOR`]; one not found is good whatever its size.
+fn cost_grade(significant: bool, loss: f64) -> Grade {
+    if significant {
+        grade_of(loss, LOSS_CAUTION, LOSS_POOR)
+    } else {
+        Grade::Good
     }
 }
 
@@ -812,11 +813,7 @@ fn probe_lever_check(
         .map(|k| d[k].abs() / (l.sd_m[k] * inflate).max(1e-9))
         .fold(0.0, f64::max);
     let significant = sigmas > navsync::fusion::LEVER_SIGNIFICANT_SIGMAS;
-    let grade = if significant {
-        grade_of(loss, LOSS_CAUTION, LOSS_POOR)
-    } else {
-        Grade::Good
-    };
+    let grade = cost_grade(significant, loss);
     checks.push(Check {
         name: "antenna lever arm (probe)",
         grade: Some(grade),
