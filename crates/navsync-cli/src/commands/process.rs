@@ -50,8 +50,9 @@ pub struct Args {
     #[arg(long)]
     pub no_smooth: bool,
     /// Skip the consistency probe (a second forward pass with the
-    /// IMU–GNSS time offset estimated as a state, whose estimate the
-    /// report's verdict compares with the sheet; fuse/probe.json).
+    /// IMU–GNSS time offset and the antenna lever arm estimated as states,
+    /// whose estimates the report's verdict compares with the sheet;
+    /// fuse/probe.json).
     #[arg(long)]
     pub no_probe: bool,
     /// A reference trajectory (11-column nav format): the report scores
