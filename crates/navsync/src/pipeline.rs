@@ -1511,9 +1511,35 @@ fn mount_yaw_from_files(
     sheet_yaw_rad: f64,
 ) -> Result<crate::mount_search::MountYawDecision, Error> {
     use crate::mount_search::{MountSearch, MountSearchOptions, decide};
-    let mut diag = Diagnostics::with_cap(10);
     let e = a.nav.euler();
-    let mut search = MountSearch::new(MountSearchOptions::default(), e.roll_rad, e.pitch_rad);
+    let search = MountSearch::new(MountSearchOptions::default(), e.roll_rad, e.pitch_rad);
+    let search = std::cell::RefCell::new(search);
+    stream_files(
+        cfg,
+        opts,
+        start,
+        |f| {
+            search.borrow_mut().push_fix(f);
+            None::<()>
+        },
+        |s| search.borrow_mut().push_imu(s),
+    )?;
+    let search = search.into_inner();
+    Ok(decide(search.finish(), sheet_yaw_rad.to_degrees()))
+}
+
+/// Streams the IMU and GNSS files from `start` in time order, each fix
+/// before the IMU sample at or after it, to `on_fix` and `on_imu` (the
+/// alignment's and the mounting search's pre-passes); `on_fix` returning
+/// `Some` stops there with it.
+fn stream_files<T>(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    start: GpsTime,
+    mut on_fix: impl FnMut(&GnssFix) -> Option<T>,
+    mut on_imu: impl FnMut(&ImuSample),
+) -> Result<Option<T>, Error> {
+    let mut diag = Diagnostics::with_cap(10);
     let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
     let mut imu = ImuReader::open(&cfg.imu_path, opts.week)?;
     let mut next_fix = gnss.next_fix(&mut diag)?;
@@ -1524,14 +1550,16 @@ fn mount_yaw_from_files(
         while let Some(f) = next_fix
             && f.time <= s.time
         {
-            if f.time >= start {
-                search.push_fix(&f);
+            if f.time >= start
+                && let Some(done) = on_fix(&f)
+            {
+                return Ok(Some(done));
             }
             next_fix = gnss.next_fix(&mut diag)?;
         }
-        search.push_imu(&s);
+        on_imu(&s);
     }
-    Ok(decide(search.finish(), sheet_yaw_rad.to_degrees()))
+    Ok(None)
 }
 
 fn align_from_files(
@@ -1541,35 +1569,29 @@ fn align_from_files(
     start: GpsTime,
     headings: &[crate::io::heading::HeadingObs],
 ) -> Result<crate::align::Alignment, Error> {
-    let mut diag = Diagnostics::with_cap(10);
-    let mut aligner = crate::align::Aligner::new(*ao);
+    let aligner = std::cell::RefCell::new(crate::align::Aligner::new(*ao));
     // Headings go in before the fix at or after their time.
     let mut hi = headings.partition_point(|h| h.time < start);
-    let mut gnss = GnssInput::open(&cfg.gnss_path, opts)?;
-    let mut imu = ImuReader::open(&cfg.imu_path, opts.week)?;
-    let mut next_fix = gnss.next_fix(&mut diag)?;
-    while let Some(s) = imu.next_sample(&mut diag)? {
-        if s.time < start {
-            continue;
-        }
-        while let Some(f) = next_fix
-            && f.time <= s.time
-        {
+    let done = stream_files(
+        cfg,
+        opts,
+        start,
+        |f| {
+            let mut aligner = aligner.borrow_mut();
             while let Some(h) = headings.get(hi)
                 && h.time <= f.time
             {
                 aligner.push_heading(h);
                 hi += 1;
             }
-            if f.time >= start
-                && let Some(a) = aligner.push_gnss(&f)
-            {
-                return Ok(a);
-            }
-            next_fix = gnss.next_fix(&mut diag)?;
-        }
-        aligner.push_imu(&s);
+            aligner.push_gnss(f)
+        },
+        |s| aligner.borrow_mut().push_imu(s),
+    )?;
+    if let Some(a) = done {
+        return Ok(a);
     }
+    let mut aligner = aligner.into_inner();
     for h in headings.get(hi..).unwrap_or_default() {
         aligner.push_heading(h);
     }
