@@ -53,6 +53,11 @@ pub struct FuseOptions {
     pub outages: Option<OutageSchedule>,
     /// Non-holonomic constraint (`--nhc`); `None`: not applied.
     pub nhc: Option<NhcSettings>,
+    /// The IMU's mounting in the vehicle (roll, pitch, yaw; deg;
+    /// docs/real-logs.md, Mounting): the vehicle frame of the NHC and the
+    /// odometer (C_b^v) and the yaw between the IMU's heading and the
+    /// course in the alignment (`--mount`, the sheet's `mount_deg`).
+    pub mount_deg: [f64; 3],
     /// 13-column GNSS files in the KF-GINS-Matlab column order (σ before
     /// velocity) instead of the C++ one (`--gnss-layout matlab`).
     pub gnss_layout_matlab: bool,
@@ -185,6 +190,7 @@ impl Default for FuseOptions {
             output_dir: None,
             outages: None,
             nhc: None,
+            mount_deg: [0.0; 3],
             gnss_layout_matlab: false,
             gnss_format: crate::io::rtklib::GnssFormat::Kfgins,
             rtklib_max_q: crate::io::rtklib::RTKLIB_MAX_Q,
@@ -561,7 +567,7 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
     fc.latency = opts.latency;
     fc.nhc = opts.nhc.map(|s| NhcOptions {
         vehicle: VehicleConstraint::new(
-            &Euler::from_deg(s.mount_deg[0], s.mount_deg[1], s.mount_deg[2]),
+            &Euler::from_deg(opts.mount_deg[0], opts.mount_deg[1], opts.mount_deg[2]),
             Vector3::from(s.lever_m),
             s.sd_mps,
         ),
@@ -573,7 +579,7 @@ pub fn fusion_config(cfg: &KfGinsConfig, opts: &FuseOptions) -> FusionConfig {
     fc.odometer = opts
         .odometer
         .as_ref()
-        .map(|o| crate::reduced::odometer_options(o, opts.nhc.as_ref()));
+        .map(|o| crate::reduced::odometer_options(o, opts.nhc.as_ref(), opts.mount_deg));
     fc.misalignment_sd_rad = opts.misalignment_sd_deg.map(|d| d.map(f64::to_radians));
     fc.lever_arm_sd_m = opts.lever_arm_sd_m;
     fc.gnss_error = opts.gnss_error;
@@ -1387,9 +1393,7 @@ fn align_stage(
     let mut ao = opts.align.unwrap_or_default();
     ao.lever_b = cfg.antenna_lever.into();
     ao.accel_bias_sd_mps2 = cfg.init_std.accel_bias.max();
-    if let Some(n) = &opts.nhc {
-        ao.mount_yaw_rad = n.mount_deg[2].to_radians();
-    }
+    ao.mount_yaw_rad = opts.mount_deg[2].to_radians();
     if let Some(h) = &opts.heading {
         ao.dual_antenna_yaw_rad = h.dual_antenna_yaw_deg.to_radians();
         ao.dual_antenna_yaw_sd_rad = h.dual_antenna_yaw_sd_deg.to_radians();
@@ -1441,8 +1445,7 @@ fn align_stage(
     fc.init_std.pos = Vector3::from(a.pos_sd_m);
     fc.init_pos_from_antenna = true;
     fc.init_std.vel = Vector3::from(a.vel_sd_mps);
-    let adopted = mount_yaw.as_ref().is_some_and(|d| d.adopted);
-    mounting_from_tilt(opts, fc, &a, ao.mount_yaw_rad, adopted, diag);
+    mounting_from_tilt(opts, fc, &a, ao.mount_yaw_rad, diag);
     if a.method == crate::align::AlignMethod::NoMotion {
         // Too slow for the course: look for the heading in the track.
         fc.course_heading = Some(crate::fusion::course_heading::CourseHeadingOptions::new(
@@ -1455,19 +1458,19 @@ fn align_stage(
 /// An IMU tilted far more than a road or a parked drone tilts (20°) with
 /// no mounting given is mounted so: its roll and pitch in the vehicle are
 /// the levelled ones (a level vehicle's attitude is the mounting's; Groves
-/// §5.6.2), for the NHC's C_b^v; with a mounting yaw found in the motion
-/// (`adopted`), for the odometer's too (it uses the NHC's mounting,
-/// `reduced::odometer_options`).
+/// §5.6.2), for the NHC's and the odometer's C_b^v (an odometer along a
+/// tilted IMU's x axis would measure a vertical speed), with the mounting
+/// yaw given or found in the motion.
 fn mounting_from_tilt(
     opts: &FuseOptions,
     fc: &mut FusionConfig,
     a: &crate::align::Alignment,
     mount_yaw_rad: f64,
-    adopted: bool,
     diag: &mut Diagnostics,
 ) {
-    let sheet_mount = opts.nhc.map(|n| n.mount_deg).unwrap_or_default();
-    if (opts.nhc.is_some() || adopted) && sheet_mount[0] == 0.0 && sheet_mount[1] == 0.0 {
+    let sheet_mount = opts.mount_deg;
+    let odometer = fc.odometer.is_some();
+    if (opts.nhc.is_some() || odometer) && sheet_mount[0] == 0.0 && sheet_mount[1] == 0.0 {
         let e = a.nav.euler();
         let limit = MOUNT_TILT_FROM_GRAVITY_DEG.to_radians();
         if e.roll_rad.abs() > limit || e.pitch_rad.abs() > limit {
@@ -1476,7 +1479,7 @@ fn mounting_from_tilt(
             if let (Some(n), Some(nhc)) = (&opts.nhc, fc.nhc.as_mut()) {
                 nhc.vehicle = VehicleConstraint::new(&mount, Vector3::from(n.lever_m), n.sd_mps);
             }
-            if adopted && let Some(o) = fc.odometer.as_mut() {
+            if let Some(o) = fc.odometer.as_mut() {
                 o.vehicle = VehicleConstraint::new(&mount, o.vehicle.lever_b, o.vehicle.nhc_sd);
             }
             diag.note(format!(
@@ -1485,7 +1488,7 @@ fn mounting_from_tilt(
                  (set mount_deg in the sheet to override)",
                 e.roll_rad.to_degrees(),
                 e.pitch_rad.to_degrees(),
-                match (opts.nhc.is_some(), adopted && fc.odometer.is_some()) {
+                match (opts.nhc.is_some(), odometer) {
                     (true, true) => "NHC and the odometer",
                     (false, true) => "odometer",
                     _ => "NHC",

@@ -242,8 +242,6 @@ impl ReducedImu {
 /// Non-holonomic constraint options as the CLI exposes them.
 #[derive(Copy, Clone, Debug, PartialEq, Serialize)]
 pub struct NhcSettings {
-    /// IMU mounting angles in the vehicle (roll, pitch, yaw; deg).
-    pub mount_deg: [f64; 3],
     /// Lever arm from the IMU to the constraint point (m, body FRD).
     pub lever_m: [f64; 3],
     /// σ of the constraint point's lateral and vertical velocity, both
@@ -256,7 +254,6 @@ pub struct NhcSettings {
 impl Default for NhcSettings {
     fn default() -> Self {
         NhcSettings {
-            mount_deg: [0.0; 3],
             lever_m: [0.0; 3],
             sd_mps: 0.1,
             interval_s: 0.2,
@@ -297,18 +294,20 @@ impl OdometerSettings {
 }
 
 /// The engine's odometer options from the batch settings: the vehicle
-/// frame (mounting angles) and NHC standard deviation from the NHC
-/// settings when given (zero mounting angles otherwise), the lever arm of
-/// the odometer or else of the NHC point.
+/// frame from the IMU's mounting (with or without the NHC: the odometer
+/// measures along the vehicle's forward axis, not the IMU's x axis), the
+/// NHC standard deviation from the NHC settings when given, the lever arm
+/// of the odometer or else of the NHC point.
 pub(crate) fn odometer_options(
     o: &OdometerSettings,
     nhc: Option<&NhcSettings>,
+    mount_deg: [f64; 3],
 ) -> crate::fusion::OdometerOptions {
     let n = nhc.copied().unwrap_or_default();
     let lever = o.lever_m.unwrap_or(n.lever_m);
     crate::fusion::OdometerOptions {
         vehicle: crate::filter::nhc::VehicleConstraint::new(
-            &crate::attitude::Euler::from_deg(n.mount_deg[0], n.mount_deg[1], n.mount_deg[2]),
+            &crate::attitude::Euler::from_deg(mount_deg[0], mount_deg[1], mount_deg[2]),
             Vector3::from(lever),
             n.sd_mps,
         ),
@@ -472,6 +471,28 @@ mod tests {
         );
         assert_eq!(ImuConfig::OneGyroTwoAccels.to_string(), "1g2a");
         assert!("2g2a".parse::<ImuConfig>().is_err());
+    }
+
+    /// The odometer measures along the vehicle's forward axis from the
+    /// IMU's mounting with or without the NHC (before, without it, along
+    /// the IMU's x axis: a y-up IMU with `mount_deg [90, 0, 90]`, the
+    /// Husky bag's, had its wheel speed put along its right-hand axis).
+    #[test]
+    fn the_odometer_takes_the_mounting_without_the_nhc() {
+        let o = OdometerSettings::new("speed.txt".into());
+        let mount = [90.0, 0.0, 90.0];
+        let expected = crate::attitude::euler_to_dcm(&Euler::from_deg(90.0, 0.0, 90.0));
+        for nhc in [None, Some(NhcSettings::default())] {
+            let e = odometer_options(&o, nhc.as_ref(), mount);
+            assert!((e.vehicle.c_bv - expected).abs().max() < 1e-12);
+            // The vehicle's forward axis is the IMU's z (FRD): x points
+            // to the right, y down.
+            let forward_in_body = e.vehicle.c_bv.transpose() * Vector3::x();
+            assert!(
+                (forward_in_body - Vector3::z()).norm() < 1e-12,
+                "{forward_in_body}"
+            );
+        }
     }
 
     #[test]

@@ -309,7 +309,8 @@ pub struct SensorSheet {
     /// heading + yaw. Positive yaw turns the IMU's x axis from forward to
     /// the right (clockwise from above), positive roll its y axis down,
     /// positive pitch its x axis up; 0 when x forward, y right, z down.
-    /// Used by the NHC (C_b^v, `filter::nhc`) and the alignment's course.
+    /// Used by the NHC and the odometer (C_b^v, `filter::nhc`) and the
+    /// alignment's course.
     #[serde(default)]
     pub mount_deg: [f64; 3],
     /// Apply the non-holonomic constraint (land vehicle; needs `mount_deg`).
@@ -740,9 +741,10 @@ pub fn template(preset: &str) -> Result<String, Error> {
          # turns its y axis down, positive pitch its x axis up. Examples: x forward,\n\
          # z down: [0, 0, 0]; x to the right: [0, 0, 90]; x backward: [0, 0, 180];\n\
          # on its side, x forward and y down (a ROS/FLU IMU with its y axis up):\n\
-         # [90, 0, 0]; upside down, x forward: [180, 0, 0]. With nhc and mount_deg\n\
-         # [0, 0, 0], an IMU found tilted by more than 20° at rest is taken as mounted\n\
-         # so (roll and pitch from gravity; process says so).\n\
+         # [90, 0, 0]; upside down, x forward: [180, 0, 0]. Used by the NHC, the\n\
+         # odometer and the alignment's course. With nhc or an odometer and roll and\n\
+         # pitch 0 here, an IMU found tilted by more than 20° at rest is taken as\n\
+         # mounted so (roll and pitch from gravity; process says so).\n\
          mount_deg: [0.0, 0.0, 0.0]\n\
          \n\
          # Optional wheel or CAN speed: a file of `sow speed_mps` lines (GPS seconds\n\

@@ -68,8 +68,10 @@ pub struct Args {
     /// Seconds between NHC updates.
     #[arg(value_parser = args::positive(3600.0, "s"), long, default_value_t = 0.2, requires = "nhc")]
     pub nhc_interval: f64,
-    /// IMU mounting angles in the vehicle: roll,pitch,yaw (deg).
-    #[arg(long, value_parser = args::Triplet(args::symmetric(360.0, "deg")), default_value = "0,0,0", requires = "nhc")]
+    /// IMU mounting angles in the vehicle: roll,pitch,yaw (deg; positive yaw turns the IMU's x axis
+    /// to the vehicle's right, docs/real-logs.md). The vehicle frame of the NHC and the odometer, and
+    /// the yaw between the IMU's heading and the course in the alignment.
+    #[arg(long, value_parser = args::Triplet(args::symmetric(360.0, "deg")), default_value = "0,0,0")]
     pub mount: [f64; 3],
     /// Lever arm from the IMU to the NHC point (rear-axle centre), body FRD (m).
     #[arg(long, value_parser = args::Triplet(args::symmetric(1000.0, "m")), default_value = "0,0,0", requires = "nhc")]
@@ -403,11 +405,11 @@ impl Args {
             output_dir: self.output.clone(),
             outages,
             nhc: self.nhc.then_some(NhcSettings {
-                mount_deg: self.mount,
                 lever_m: self.nhc_lever,
                 sd_mps: self.nhc_sd,
                 interval_s: self.nhc_interval,
             }),
+            mount_deg: self.mount,
             gnss_layout_matlab: matches!(self.gnss_layout, Layout::Matlab),
             gnss_format: match self.gnss_format {
                 GnssFileFormat::Rtklib => GnssFormat::Rtklib,

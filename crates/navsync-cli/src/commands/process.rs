@@ -781,10 +781,8 @@ pub fn run(a: Args) -> Result<()> {
     let opts = FuseOptions {
         output_dir: Some(fuse_dir.clone()),
         week: data.week,
-        nhc: sheet.nhc.then_some(NhcSettings {
-            mount_deg: sheet.mount_deg,
-            ..NhcSettings::default()
-        }),
+        nhc: sheet.nhc.then_some(NhcSettings::default()),
+        mount_deg: sheet.mount_deg,
         odometer: odometer.clone(),
         time_offset: estimate_offset.then(|| TimeOffsetOptions {
             init_s: 0.0,
@@ -796,11 +794,10 @@ pub fn run(a: Args) -> Result<()> {
         // The solution on GPS time (IMU stamps + the estimated offset):
         // the GNSS receiver's clock is the trusted one.
         output_gnss_time: estimate_offset,
+        // Heading from the course is the vehicle's: the alignment turns it
+        // by `mount_deg`'s yaw.
         align: Some(AlignOptions {
             min_speed_mps: a.align_min_speed,
-            // Heading from the course is the vehicle's: turned by the
-            // IMU's mounting yaw.
-            mount_yaw_rad: sheet.mount_deg[2].to_radians(),
             ..AlignOptions::default()
         }),
         heading: data
