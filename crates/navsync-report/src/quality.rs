@@ -160,10 +160,14 @@ pub(crate) struct BiasCheck {
     /// Gravity's share of the envelope ([`gravity_coupling_sd`]), in
     /// `unit`; σ(t) is √(bias_prior_sd² + cross_sd²).
     pub cross_sd: f64,
+    /// The specific force (mGal) the axis's estimated scale factor
+    /// multiplies in the judged estimate b̂ + ŝ·f: gravity's on an
+    /// accelerometer axis, 0 for a gyro (`sections::bias_checks`).
+    pub scale_force_mgal: f64,
 }
 
 /// Standard gravity in mGal (1 mGal = 1e-5 m/s²).
-const G_MGAL: f64 = 9.806_65e5;
+pub(crate) const G_MGAL: f64 = 9.806_65e5;
 
 /// The σ (mGal) of what gravity puts on accelerometer `axis` through the
 /// triad's axis misalignment (σ `misalign_sd_rad` per off-diagonal term)
@@ -1287,6 +1291,7 @@ mod tests {
                 final_sd: 10.0,
                 max_sigmas: 3.5,
                 cross_sd: 0.0,
+                scale_force_mgal: 0.0,
             },
             BiasCheck {
                 axis: "accel x".into(),
@@ -1299,6 +1304,7 @@ mod tests {
                 final_sd: 100.0,
                 max_sigmas: 0.9,
                 cross_sd: 0.0,
+                scale_force_mgal: -G_MGAL,
             },
         ];
         let v = assess(&e);

@@ -245,7 +245,14 @@ fn triplet(v: Option<&Value>) -> Option<[f64; 3]> {
 /// state and cannot tell a scale factor from a bias along a steady gravity,
 /// so both widen that axis's envelope ([`quality::gravity_coupling_sd`]),
 /// from gravity's direction in the IMU's axes at the run's median
-/// `roll_pitch_rad` (level when unknown).
+/// `roll_pitch_rad` (level when unknown). For the same reason an
+/// accelerometer axis is judged by what the data observe, its bias plus
+/// its estimated scale factor times gravity's specific force on it
+/// (b̂ + ŝ·f, f = −g·u: the sensor model m = (1 + s)·f + b, Groves 2013
+/// §4.4.5): where the filter estimates both, their split along that ridge
+/// is arbitrary (a clean simulated ICM-20602 drive put its z bias at
+/// +38 080 mGal and its scale at +39 618 ppm, the sum −772 mGal; the bias
+/// alone read 6.9σ outside the envelope).
 pub(crate) fn bias_checks(
     summary: Option<&Value>,
     imu_err: Option<&[Vec<f64>]>,
@@ -282,7 +289,7 @@ pub(crate) fn bias_checks(
             .and_then(Value::as_f64)
             .unwrap_or(0.0)
             .to_radians();
-        let scale_sd_ppm = triplet(model.get("accel_scale_sd_ppm")).unwrap_or([0.0; 3]);
+        let scale_sd_ppm = triplet(model.get("accel_scale_sd_ppm")).unwrap_or([0.0, 0.0, 0.0]);
         let [roll, pitch] = roll_pitch_rad.unwrap_or([0.0, 0.0]);
         // Gravity's direction in the IMU's axes (Groves 2013, eq. 5.56 at rest).
         let down_b = [
@@ -301,9 +308,17 @@ pub(crate) fn bias_checks(
                     .hypot(cross_sd)
             };
             let col = 1 + 3 * g + a;
+            // b̂ + ŝ·f on an accelerometer axis (its scale column, ppm,
+            // when imu_err.txt has one).
+            let scale_force_mgal = if what == "accel" {
+                -quality::G_MGAL * down_b[a]
+            } else {
+                0.0
+            };
+            let estimate = |r: &[f64]| judged_bias(r, col, 10 + a, scale_force_mgal);
             let max_sigmas = rows
                 .iter()
-                .map(|r| (r[col] - center[a]).abs() / sd_at(r[0]))
+                .map(|r| (estimate(r) - center[a]).abs() / sd_at(r[0]))
                 .fold(0.0, f64::max);
             let Some(last) = rows.last() else { continue };
             let final_sd = sd_at(last[0]);
@@ -317,14 +332,23 @@ pub(crate) fn bias_checks(
                 init_sd: init_sd[a],
                 instability_sd: instab[a],
                 corr_time_s: tau,
-                final_estimate: last[col],
+                final_estimate: estimate(last),
                 final_sd,
                 max_sigmas,
                 cross_sd,
+                scale_force_mgal,
             });
         }
     }
     out
+}
+
+/// The bias estimate judged against the envelope, from an imu_err.txt
+/// row: the bias column plus the scale column (ppm) times the specific
+/// force `scale_force_mgal` (0 for a gyro; [`bias_checks`]).
+fn judged_bias(row: &[f64], bias_col: usize, scale_col: usize, scale_force_mgal: f64) -> f64 {
+    let scale_ppm = row.get(scale_col).copied().unwrap_or(0.0);
+    row[bias_col] + scale_ppm * 1e-6 * scale_force_mgal
 }
 
 /// The suffix of summary.json's `imu_model` keys for a unit.
@@ -812,10 +836,24 @@ pub(crate) fn imu_envelope_section(
                 title: format!("{} bias", b.axis),
                 y_label: format!("({})", b.unit),
                 lines: vec![Line {
-                    name: "estimate".into(),
+                    name: if b.scale_force_mgal != 0.0 {
+                        "estimate (bias + scale × gravity)".into()
+                    } else {
+                        "estimate".into()
+                    },
                     color: AXES[axis],
                     width: 2,
-                    pts: imu_err.col(1 + 3 * g + axis, 1.0),
+                    pts: imu_err
+                        .t
+                        .iter()
+                        .zip(&imu_err.rows)
+                        .map(|(&t, r)| {
+                            (
+                                t,
+                                judged_bias(r, 1 + 3 * g + axis, 10 + axis, b.scale_force_mgal),
+                            )
+                        })
+                        .collect(),
                 }],
                 bands: vec![
                     Band {
@@ -846,7 +884,7 @@ pub(crate) fn imu_envelope_section(
         html,
         "imu-envelope",
         "IMU biases against the datasheet",
-        "Estimates (imu_err.txt) against the configured spread of each bias about the configured initial bias (initgyrbias, initaccbias): σ(t)² = σ₀² e^(−2t/τ) + σ_GM² (1 − e^(−2t/τ)), from the initial σ (initbgstd, initbastd) toward the bias instability (imunoise gbstd, abstd) with the correlation time τ (corrtime), the first-order Gauss–Markov model the filter uses, as summary.json's imu_model records them; an accelerometer's envelope adds gravity through the axes' misalignment and its scale factor, g √(σ_m² (1 − u_i²) + σ_s² u_i²) with u gravity's direction in the IMU's axes (the filter estimates neither a misalignment nor a scale factor apart from a bias along a steady gravity).",
+        "Estimates (imu_err.txt) against the configured spread of each bias about the configured initial bias (initgyrbias, initaccbias): σ(t)² = σ₀² e^(−2t/τ) + σ_GM² (1 − e^(−2t/τ)), from the initial σ (initbgstd, initbastd) toward the bias instability (imunoise gbstd, abstd) with the correlation time τ (corrtime), the first-order Gauss–Markov model the filter uses, as summary.json's imu_model records them; an accelerometer's envelope adds gravity through the axes' misalignment and its scale factor, g √(σ_m² (1 − u_i²) + σ_s² u_i²) with u gravity's direction in the IMU's axes (the filter estimates neither a misalignment nor a scale factor apart from a bias along a steady gravity); so an accelerometer's estimate is its bias plus its estimated scale factor times gravity's specific force on the axis, b̂ + ŝ·f, the sum the data observe.",
         &svg,
     );
     html.push_str("<table class=\"metrics\"><tr><th>bias</th><th>unit</th><th>configured</th><th>σ at start</th><th>instability σ</th><th>σ at end</th><th>final estimate</th><th>final (σ)</th><th>largest (σ)</th><th>inside ±3σ throughout</th></tr>\n");
@@ -1044,10 +1082,49 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
 mod tests {
     use super::*;
 
+    /// An accelerometer is judged by b̂ + ŝ·f: a clean simulated ICM-20602
+    /// drive's z bias (+38 080 mGal) and scale (+39 618 ppm) cancel along
+    /// gravity (sum −772 mGal, inside its 5 750 mGal envelope), where the
+    /// bias alone is 6.6σ out; a bias nothing cancels is still out.
+    #[test]
+    fn an_accelerometer_is_judged_by_bias_plus_scale_times_gravity() {
+        let summary = serde_json::json!({"imu_model": {
+            "accel_bias_sd_mgal": [100.0, 100.0, 100.0], "accel_scale_sd_ppm": [5000.0, 5000.0, 5000.0],
+            "gyro_bias_sd_deg_h": [10.0, 10.0, 10.0], "corr_time_s": 3600.0,
+            "init_accel_bias_mgal": [0.0, 0.0, 0.0], "init_accel_bias_sd_mgal": [3000.0, 3000.0, 3000.0],
+            "init_gyro_bias_deg_h": [0.0, 0.0, 0.0], "init_gyro_bias_sd_deg_h": [360.0, 360.0, 360.0]}});
+        let row = |bias_z: f64, scale_z: f64| {
+            let mut r = vec![0.0; 13];
+            r[6] = bias_z;
+            r[12] = scale_z;
+            r
+        };
+        let z = |rows: &[Vec<f64>]| {
+            bias_checks(Some(&summary), Some(rows), Some([0.0, 0.0]))
+                .into_iter()
+                .find(|b| b.axis == "accel z")
+                .expect("accel z")
+        };
+        let ridge = z(&[row(0.0, 0.0), row(38_080.0, 39_618.0)]);
+        assert!(ridge.max_sigmas < 0.2, "{ridge:?}");
+        assert!((ridge.final_estimate - (38_080.0 - 39_618e-6 * 9.806_65e5)).abs() < 1e-6);
+        let bias_only = z(&[row(0.0, 0.0), row(38_080.0, 0.0)]);
+        assert!(bias_only.max_sigmas > 6.0, "{bias_only:?}");
+        // A gyro is judged by its bias alone.
+        let mut r = row(0.0, 0.0);
+        r[3] = 2000.0;
+        r[9] = 1e6;
+        let gz = bias_checks(Some(&summary), Some(&[r]), Some([0.0, 0.0]))
+            .into_iter()
+            .find(|b| b.axis == "gyro z")
+            .expect("gyro z");
+        assert!(gz.max_sigmas > 5.0, "{gz:?}");
+    }
+
     fn fix(sow: f64, reason: &str) -> FixWeight {
         FixWeight {
             sow,
-            innovation: [0.0; 3],
+            innovation: [0.0, 0.0, 0.0],
             sd: [0.01; 3],
             nis: 1.0,
             weight: [1.0; 3],
