@@ -837,13 +837,23 @@ fn probe_lever_check(
             navsync::fusion::LEVER_SIGNIFICANT_SIGMAS
         ),
     });
-    if grade > Grade::Good {
+    let horizontal_m = d[0].hypot(d[1]);
+    if grade > Grade::Good && horizontal_m > PLAUSIBLE_LEVER_M {
+        causes.push(format!(
+            "not the antenna: the probe's lever-arm states ran to {horizontal_m:.0} m from the sheet's, which no antenna is; they absorbed an error the filter does not model. Most often the IMU's mounting (mount_deg: the vehicle's forward axis in the IMU's) or a heading the drive could not observe; then the IMU figures"
+        ));
+    } else if grade > Grade::Good {
         causes.push(format!(
             "antenna lever arm: with it estimated as states the antenna is {:+.2} m forward, {:+.2} m right of the sheet's antenna_lever_m ({sigmas:.1}σ). Measure it, or estimate it in the run (estimate_lever_arm: true). At a steady speed a forward error and a late GNSS tag look alike: the time-offset row says which the probe preferred",
             d[0], d[1]
         ));
     }
 }
+
+/// A probe's lever-arm difference beyond this (m) is no antenna offset:
+/// the largest lever-arm σ a sheet may give (an antenna is metres from
+/// the IMU at most).
+const PLAUSIBLE_LEVER_M: f64 = navsync::pipeline::MAX_LEVER_ARM_SD_M;
 
 /// Weighs the evidence.
 pub(crate) fn assess(ev: &Evidence) -> Verdict {

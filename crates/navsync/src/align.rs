@@ -114,6 +114,10 @@ pub enum AlignMethod {
     InMotion,
     /// The vehicle never moved: levelled, heading unknown.
     NoMotion,
+    /// The vehicle never moved fast enough for the course: levelled, the
+    /// heading found in the GNSS track before the run
+    /// (`pipeline`'s alignment stage, `fusion::course_heading`'s chords).
+    NoMotionTrackHeading,
     /// Roll/pitch from a standstill, heading from a dual-antenna baseline.
     StaticLevellingAndDualAntenna,
     /// Roll/pitch in motion, heading from a dual-antenna baseline.

@@ -612,3 +612,52 @@ fn the_probes_time_offset_is_graded_by_significance_and_cost() {
     assert_eq!(grade(-0.005, 0.001, true).0, Some(Some(Grade::Caution)));
     assert_eq!(grade(0.0137, 0.0016, false).0, None);
 }
+
+/// A probe whose lever-arm states ran to 132 m (the Husky bag with the
+/// default sheet's mounting, 90° off) is poor, but its cause names the
+/// mounting, not the antenna; a 0.4 m difference names the lever arm.
+#[test]
+fn an_implausible_probe_lever_arm_names_another_error() {
+    use crate::innovation::InnovationEvidence;
+    let inn = InnovationEvidence {
+        fixes: 900,
+        effective_fixes: 300.0,
+        lever_error_fr_m: [0.0, 0.0],
+        lever_p: 0.5,
+        offset_s: 0.0,
+        offset_p: 0.5,
+        speed_rms_mps: 1.0,
+        filter_h_sd_m: 0.5,
+    };
+    let causes = |forward_m: f64, right_m: f64| {
+        let l = navsync::fusion::LeverArmSummary {
+            estimate_m: [forward_m, right_m, 0.0],
+            sd_m: [0.1, 0.15, 1.0],
+            initial_sd_m: 1.0,
+            sheet_m: [0.0; 3],
+            observed: [true, true, false],
+            difference_m: forward_m.hypot(right_m),
+            difference_sigmas: 100.0,
+            significant: true,
+            note: String::new(),
+        };
+        let v = assess(&Evidence {
+            innovation: Some(inn.clone()),
+            probe: Some(ProbeEvidence {
+                time_offset_s: None,
+                lever_arm: Some(l),
+                failed: None,
+            }),
+            ..Evidence::default()
+        });
+        assert_eq!(
+            graded(&v, "antenna lever arm (probe)").grade,
+            Some(Grade::Poor)
+        );
+        v.causes.join(" | ")
+    };
+    let far = causes(89.6, -97.1);
+    assert!(far.contains("not the antenna") && far.contains("mount_deg"), "{far}");
+    let near = causes(3.0, 0.0);
+    assert!(near.starts_with("antenna lever arm"), "{near}");
+}

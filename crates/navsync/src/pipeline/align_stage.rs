@@ -53,6 +53,11 @@ pub(super) fn align_stage(
         }
         mount_yaw = Some(d);
     }
+    if a.method == crate::align::AlignMethod::NoMotion {
+        let gyro_bias_sd_rad_s = cfg.init_std.gyro_bias.max();
+        let (yaw, rate) = (ao.mount_yaw_rad, ao.still_rate_rad_s);
+        track_heading_before_start(cfg, opts, &mut a, yaw, gyro_bias_sd_rad_s, rate)?;
+    }
     diag.note(a.note.clone());
     fc.init_nav = a.nav;
     fc.init_std.att = Vector3::from(a.att_sd_rad);
@@ -79,14 +84,128 @@ pub(super) fn align_stage(
     fc.init_pos_from_antenna = true;
     fc.init_std.vel = Vector3::from(a.vel_sd_mps);
     mounting_from_tilt(opts, fc, &a, ao.mount_yaw_rad, diag);
-    if a.method == crate::align::AlignMethod::NoMotion {
-        // Too slow for the course: look for the heading in the track.
+    if matches!(
+        a.method,
+        crate::align::AlignMethod::NoMotion | crate::align::AlignMethod::NoMotionTrackHeading
+    ) {
+        // Too slow for the course: look for the heading in the track (when
+        // the pre-pass found it, every chord is a heading measurement from
+        // the start).
         fc.course_heading = Some(crate::fusion::course_heading::CourseHeadingOptions::new(
             ao.mount_yaw_rad,
         ));
     }
     Ok((a, mount_yaw))
 }
+
+/// The heading of a vehicle too slow for the alignment's course, found in
+/// the GNSS track before the filter starts (`fusion::course_heading`'s
+/// chords against the vertical gyro's integrated yaw), so that the filter
+/// never runs with its heading held. While it is held, every aid whose
+/// model needs the heading (the NHC's lateral row, the odometer along the
+/// vehicle's axis, the biases the fixes reach through the yaw–velocity
+/// correlation) is linearised at a heading that may be 180° off: on the
+/// Husky bag with its true mounting the forward heading then wandered by
+/// 50–100° after the in-run acquisition, and with the heading known from
+/// the start it held within 17° of the course.
+///
+/// The nominal yaw ψ̂(t) is the alignment's plus the integral of the rate
+/// about the vertical (the gyro along the levelled down axis), less the
+/// mean of that rate over the standstill at the start when there is one
+/// (the vertical gyro bias and the earth rate's vertical component; only
+/// samples turning slower than `still_rate_rad_s`, the alignment's
+/// standstill rate). The
+/// chords measure δ = c + α − ψ̂; once they agree (the in-run test), the
+/// alignment's attitude is turned by δ̄ about the vertical, with σ the
+/// chords' plus what an unknown vertical bias (`gyro_bias_sd_rad_s`, the
+/// sheet's turn-on σ, or the standstill mean's own σ) turns the yaw
+/// between the start and the chords' mean time. Nothing changes when the
+/// chords never agree (a drone flying sideways, a straight road).
+fn track_heading_before_start(
+    cfg: &KfGinsConfig,
+    opts: &FuseOptions,
+    a: &mut crate::align::Alignment,
+    mount_yaw_rad: f64,
+    gyro_bias_sd_rad_s: f64,
+    still_rate_rad_s: f64,
+) -> Result<(), Error> {
+    use crate::fusion::course_heading::{CourseHeading, CourseHeadingOptions, yaw_of};
+    let c_nb = a.nav.c_nb();
+    let down_b = Vector3::new(c_nb[(2, 0)], c_nb[(2, 1)], c_nb[(2, 2)]);
+    let start = a.nav.time;
+    let still_s = if a.standstill_s >= MIN_STANDSTILL_FOR_BIAS_S {
+        a.standstill_s
+    } else {
+        0.0
+    };
+    let track = std::cell::RefCell::new((
+        CourseHeading::new(CourseHeadingOptions::new(mount_yaw_rad)),
+        yaw_of(&a.nav.q_nb),
+        // The standstill's vertical rate: angle (rad) and time (s).
+        (0.0f64, 0.0f64),
+        start,
+    ));
+    let rate_bias = |st: &(f64, f64)| if st.1 > 0.0 { st.0 / st.1 } else { 0.0 };
+    let found = stream_files(
+        cfg,
+        opts,
+        start,
+        |f| {
+            let (ch, yaw, _, _) = &mut *track.borrow_mut();
+            let sd_h = f.pos_sd.x.max(f.pos_sd.y);
+            ch.push(f.time, f.pos.lat_rad, f.pos.lon_rad, sd_h, *yaw)
+        },
+        |s| {
+            let (_, yaw, still, last) = &mut *track.borrow_mut();
+            let dt = s.time.seconds_since(*last).max(0.0);
+            *last = s.time;
+            let turn = down_b.dot(&s.dtheta);
+            // At rest by the fixes and by the gyros too (a skid-steer
+            // robot turns on the spot with the fixes still).
+            let at_rest = s.dtheta.norm() <= still_rate_rad_s * dt;
+            if s.time.seconds_since(start) <= still_s && at_rest && dt > 0.0 {
+                still.0 += turn;
+                still.1 += dt;
+            }
+            *yaw += turn - rate_bias(still) * dt;
+        },
+    )?;
+    let Some(h) = found else {
+        return Ok(());
+    };
+    let (_, _, still, _) = track.into_inner();
+    // The vertical bias left: the standstill mean's σ (angle random walk
+    // over its length) or, without one, the sheet's turn-on σ.
+    let bias_sd = if still.1 > 0.0 {
+        cfg.noise.arw.max() / still.1.sqrt()
+    } else {
+        gyro_bias_sd_rad_s
+    };
+    let drift_rad = bias_sd * h.time.seconds_since(start) / 2.0;
+    let turn = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), h.offset_rad);
+    a.nav.q_nb = turn * a.nav.q_nb;
+    a.att_sd_rad[2] = h.sd_rad.hypot(drift_rad);
+    a.method = crate::align::AlignMethod::NoMotionTrackHeading;
+    a.note = format!(
+        "{}; heading found in the GNSS track before the run ({} chords of the track agreeing within {:.1}° over courses \
+         spanning {:.0}°, by {:.1} s of week): the levelled yaw turned by {:.1}°, σ {:.1}° (the chords' {:.1}° and \
+         {:.1}° of vertical gyro drift to them)",
+        a.note,
+        h.chords,
+        h.spread_rad.to_degrees(),
+        h.course_span_rad.to_degrees(),
+        h.time_sow,
+        h.offset_rad.to_degrees(),
+        a.att_sd_rad[2].to_degrees(),
+        h.sd_rad.to_degrees(),
+        drift_rad.to_degrees()
+    );
+    Ok(())
+}
+
+/// A standstill at the start at least this long (s) gives the vertical
+/// gyro's bias for the track's heading (`track_heading_before_start`).
+const MIN_STANDSTILL_FOR_BIAS_S: f64 = 2.0;
 
 /// An IMU tilted far more than a road or a parked drone tilts (20°) with
 /// no mounting given is mounted so: its roll and pitch in the vehicle are
