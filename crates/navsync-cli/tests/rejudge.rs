@@ -275,3 +275,56 @@ fn a_ramp_ending_in_a_gap_is_found_from_the_smoothed_residual_step() {
         "smoothed {smoothed:.3} m, oracle {smoothed_oracle:.3} m, bound {bound:.3} m"
     );
 }
+
+#[test]
+fn a_step_at_the_last_fix_is_reported_not_guessed() {
+    let dir = temp_dir("last");
+    let sim = simulate(&dir);
+    // A 15 m spike on the drive's last fix: with no fix after it, a spike
+    // and the end of a ramp the fixes before it followed look alike.
+    let gnss = sim.join("gnss.txt");
+    let last: f64 = std::fs::read_to_string(&gnss)
+        .unwrap()
+        .lines()
+        .rev()
+        .filter(|l| !l.starts_with('#'))
+        .find_map(|l| l.split_whitespace().next()?.parse().ok())
+        .unwrap();
+    let plan = dir.join("plan.txt");
+    std::fs::write(&plan, format!("spike {last:.3} 0 12 -9 0\n")).unwrap();
+    let faulty = dir.join("faulty");
+    let (ok, _, err) = run(bin()
+        .arg("faults")
+        .arg("--gnss")
+        .arg(&gnss)
+        .arg("--plan")
+        .arg(&plan)
+        .arg("--output")
+        .arg(&faulty));
+    assert!(ok, "{err}");
+    let oracle_gnss = dir.join("gnss-oracle.txt");
+    let last_ms = (last * 1e3).round() as i64;
+    without(&faulty.join("gnss.txt"), &oracle_gnss, |ms| ms == last_ms);
+    let (run_dir, oracle) = (dir.join("run"), dir.join("oracle"));
+    fuse(&sim, &faulty.join("gnss.txt"), &run_dir);
+    fuse(&sim, &oracle_gnss, &oracle);
+    let truth = sim.join("truth.nav");
+    let smoothed = horizontal_rms(&truth, &run_dir.join("navresult.nav"), &run_dir);
+    let smoothed_oracle = horizontal_rms(&truth, &oracle.join("navresult.nav"), &oracle);
+    // The fixes before it are not thrown out for it (that once cost
+    // 3.1 m), the spike is, and the run says the data cannot tell.
+    let sm = decisions(&run_dir.join("gnss_residuals.txt"));
+    assert_eq!(sm[&last_ms].0, "rejected", "{:?}", sm[&last_ms]);
+    assert!(
+        sm.iter()
+            .filter(|(t, _)| **t != last_ms)
+            .all(|(_, (_, reason))| reason != "smoother-excluded"),
+        "fixes before the last were excluded"
+    );
+    assert!(
+        smoothed <= smoothed_oracle + 0.005,
+        "smoothed {smoothed:.3} m, oracle {smoothed_oracle:.3} m"
+    );
+    let summary = std::fs::read_to_string(run_dir.join("summary.json")).unwrap();
+    assert!(summary.contains("with no fix after it"), "{summary}");
+}

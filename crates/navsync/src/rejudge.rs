@@ -353,13 +353,15 @@ fn step_stat(a: &Tested, b: &Tested) -> f64 {
 /// longest the IMU bridges) are the suspects, the fix after the step the
 /// episode (Willsky & Jones, "A generalized likelihood ratio approach to
 /// the detection and estimation of jumps in linear systems", IEEE TAC
-/// 1976: a jump tested at each candidate time).
+/// 1976: a jump tested at each candidate time). The new level must hold
+/// for two fixes; a step at the last fix sets `unresolved` to its time.
 fn step_windows(
     first: &Judged,
     first_verdicts: &BTreeMap<GpsTime, bool>,
     tests: &BTreeMap<GpsTime, Tested>,
     others: &[Window],
     threshold: f64,
+    unresolved: &mut Option<GpsTime>,
 ) -> Vec<Window> {
     let max_s = crate::fusion::MAX_EPISODE_S;
     let seq: Vec<(GpsTime, &Tested)> = tests.iter().map(|(t, x)| (*t, x)).collect();
@@ -370,16 +372,19 @@ fn step_windows(
         if step_stat(a, b) <= threshold {
             continue;
         }
-        // The new level holds: the next fix does not step back.
-        if seq
-            .get(k + 1)
-            .is_some_and(|(_, c)| step_stat(a, c) <= threshold)
-        {
-            continue;
-        }
         let used = |t: &GpsTime| first_verdicts.get(t) == Some(&true);
         let was_used = |t: &GpsTime| first.get(t).is_some_and(|f| f.0);
         if !(used(&ta) && was_used(&ta)) {
+            continue;
+        }
+        // The new level holds: the next fix agrees with it and not with
+        // the old one. A single fix after the step cannot tell a spike
+        // from a fault's end: at the data's end that is said, not guessed.
+        let Some((_, c)) = seq.get(k + 1) else {
+            *unresolved = Some(tb);
+            continue;
+        };
+        if step_stat(b, c) > threshold || step_stat(a, c) <= threshold {
             continue;
         }
         // A jump that opened an episode of more than one fix is the
@@ -625,8 +630,24 @@ pub(crate) fn smooth_rejudged(
             // The second hypothesis for every episode.
             1 => {
                 first_verdicts = want.clone();
-                let steps = step_windows(&first, &first_verdicts, &tests, &windows, threshold);
+                let mut last = None;
+                let steps = step_windows(
+                    &first,
+                    &first_verdicts,
+                    &tests,
+                    &windows,
+                    threshold,
+                    &mut last,
+                );
                 windows.extend(steps);
+                if let Some(t) = last {
+                    notes.note(format!(
+                        "the last GNSS fix ({t}) stepped away from the fixes before it by more than \
+                         their noise: either it is a spike (excluded) or the fixes before it had \
+                         drifted (a ramp) and it is the good one; with no fix after it the data \
+                         cannot tell, so the smoothed solution's last seconds may carry that offset"
+                    ));
+                }
                 for w in &windows {
                     for t in &w.suspects {
                         want.insert(*t, false);
