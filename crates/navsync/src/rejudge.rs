@@ -424,13 +424,19 @@ fn step_windows(
 }
 
 /// Where the fault began among a standing window's suspects, by the
-/// generalized likelihood ratio over the onset (Willsky & Jones 1976): for each candidate first
-/// faulty fix c, the residuals of the fixes from c on are fitted per axis
-/// by a ramp from zero (slowly building multipath) and by a constant (a
-/// false fix), each the GLR Σᵢ (Σⱼ zⱼᵢ τⱼ / vⱼᵢ)² / Σⱼ τⱼ² / vⱼᵢ; the onset
-/// is the candidate with the largest. Returns the onset's time; `None`
-/// where no candidate's ratio passes the χ²₃ threshold: no fault found
-/// among the suspects.
+/// generalized likelihood ratio over the onset (Willsky & Jones 1976). The
+/// suspects' residuals are against a solution that bridged them from the
+/// fixes before to the episode after, whose error is a nuisance shaped
+/// like a bend anchored at both ends, β = (t − t_A)(t_B − t) (a constant
+/// error in velocity or acceleration over the bridge, pinned at its
+/// ends). For each candidate first faulty fix c, the fault is modelled
+/// per axis by a ramp from zero (slowly building multipath) or a constant
+/// (a false fix) from c on; its ratio is the weighted least-squares
+/// energy of the fault and the bend together less the bend's alone
+/// (the fault's share, with the bend projected out), summed over the
+/// axes. The onset is the candidate with the largest. Returns the onset's
+/// time; `None` where no candidate's ratio passes the χ²₃ threshold: no
+/// fault found among the suspects.
 fn fault_onset(
     suspects: &[GpsTime],
     tests: &BTreeMap<GpsTime, Tested>,
@@ -441,6 +447,13 @@ fn fault_onset(
         .filter_map(|t| Some((*t, tests.get(t)?)))
         .collect();
     pts.sort_by_key(|p| p.0);
+    let (first, last) = (pts.first()?.0, pts.last()?.0);
+    // The bridge's anchors: a fix interval (1 s) outside the suspects.
+    let span_s = last.seconds_since(first) + 2.0;
+    let bend = |t: &GpsTime| {
+        let u = (t.seconds_since(first) + 1.0) / span_s;
+        u * (1.0 - u)
+    };
     let glr = |c: usize, ramp: bool| -> f64 {
         let t0 = if c > 0 {
             pts[c - 1].0
@@ -449,13 +462,30 @@ fn fault_onset(
         };
         (0..3)
             .map(|i| {
-                let (mut num, mut den) = (0.0, 0.0);
-                for (t, x) in &pts[c..] {
-                    let tau = if ramp { t.seconds_since(t0) } else { 1.0 };
-                    num += x.z[i] * tau / x.var_bound[i];
-                    den += tau * tau / x.var_bound[i];
+                // Normal equations of z = a·τ + b·β, weights 1/v.
+                let (mut stt, mut stb, mut sbb, mut szt, mut szb) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                for (k, (t, x)) in pts.iter().enumerate() {
+                    let w = 1.0 / x.var_bound[i];
+                    let tau = match (k >= c, ramp) {
+                        (false, _) => 0.0,
+                        (true, true) => t.seconds_since(t0),
+                        (true, false) => 1.0,
+                    };
+                    let beta = bend(t);
+                    stt += w * tau * tau;
+                    stb += w * tau * beta;
+                    sbb += w * beta * beta;
+                    szt += w * x.z[i] * tau;
+                    szb += w * x.z[i] * beta;
                 }
-                if den > 0.0 { num * num / den } else { 0.0 }
+                let bend_only = if sbb > 0.0 { szb * szb / sbb } else { 0.0 };
+                let det = stt * sbb - stb * stb;
+                if det <= 1e-12 * (stt * sbb).max(f64::MIN_POSITIVE) {
+                    return 0.0;
+                }
+                let a = (szt * sbb - szb * stb) / det;
+                let b = (szb * stt - szt * stb) / det;
+                (a * szt + b * szb - bend_only).max(0.0)
             })
             .sum()
     };
@@ -830,6 +860,19 @@ mod tests {
             .map(|t| (at(t), tested(if t >= 50 { 0.3 } else { 0.0 })))
             .collect();
         assert_eq!(fault_onset(&suspects, &level, 21.1), Some(at(50)));
+        // The same ramp under a bridge that bent 0.3 m at its middle (the
+        // solution's own error over the excluded suspects): the bend is
+        // projected out, the onset stays.
+        let bent: BTreeMap<GpsTime, Tested> = (31..60)
+            .map(|t| {
+                let u = (t - 30) as f64 / 30.0;
+                (
+                    at(t),
+                    tested(0.05 * (t - 44).max(0) as f64 + 1.2 * u * (1.0 - u)),
+                )
+            })
+            .collect();
+        assert_eq!(fault_onset(&suspects, &bent, 21.1), Some(at(45)));
         // Residuals of 5 cm alternating in sign: no fault.
         let noise: BTreeMap<GpsTime, Tested> = (31..60)
             .map(|t| (at(t), tested(if t % 2 == 0 { 0.05 } else { -0.05 })))
