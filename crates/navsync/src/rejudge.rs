@@ -46,10 +46,12 @@
 //! come from the smoothed solution itself ([`step_windows`]): a step
 //! between consecutive fixes' smoothed residuals that holds is a candidate
 //! end of a fault the monitor saw no episode for (a ramp ending in a gap,
-//! at the data's end, or followed back at once). Where B stands, the
-//! fault's onset among the suspects comes from the data, by a generalized
-//! likelihood ratio over the onset time ([`fault_onset`]; Willsky & Jones
-//! 1976); the fixes from it to the jump stay excluded in later passes, and
+//! or followed back at once; a step at the last fix, which no fix after it
+//! can resolve into a spike or a ramp's end, is said in the diagnostics).
+//! Where B stands, the fault's onset among the suspects comes from the
+//! data, by a generalized likelihood ratio over the onset time with the
+//! bridge's bend projected out ([`fault_onset`]; Willsky & Jones 1976);
+//! the fixes from it to the jump stay excluded in later passes, and
 //! the suspects before it come back where consistent. Each window is
 //! judged on the fixes no other window holds, so that two faults close
 //! together do not sink each other.
@@ -346,12 +348,10 @@ fn step_stat(a: &Tested, b: &Tested) -> f64 {
 /// H Pˢ Hᵀ, see [`Tested`]) that the fixes do not step back from (a
 /// spike's two steps cancel). Each such step after a fix the first pass
 /// used, not opening an episode and outside the episodes' windows, is a
-/// candidate end of
-/// a fault (a ramp that ended in a gap, at the data's end, or that the
+/// candidate end of a fault (a ramp that ended in a gap, or that the
 /// monitor followed back at once): the fixes before it up to
-/// [`MAX_EPISODE_S`](crate::fusion::MAX_EPISODE_S) (the
-/// longest the IMU bridges) are the suspects, the fix after the step the
-/// episode (Willsky & Jones, "A generalized likelihood ratio approach to
+/// [`MAX_EPISODE_S`](crate::fusion::MAX_EPISODE_S) (the longest the IMU
+/// bridges) are the suspects, the fix after the step the episode (Willsky & Jones, "A generalized likelihood ratio approach to
 /// the detection and estimation of jumps in linear systems", IEEE TAC
 /// 1976: a jump tested at each candidate time). The new level must hold
 /// for two fixes; a step at the last fix sets `unresolved` to its time.
