@@ -2,7 +2,9 @@
 //! `navsync::rejudge`): a ramp the forward fault monitor follows is
 //! excluded from the smoothed solution, which comes within the test's
 //! detection limit of the oracle (the same run without the ramp's
-//! fixes); a clean run takes one pass and loses no fix.
+//! fixes); so is a ramp that ends in a gap, for which the monitor opens
+//! no episode (found from the step in the smoothed residuals); a clean run
+//! takes one pass and loses no fix.
 
 mod common;
 
@@ -66,20 +68,39 @@ fn simulate(dir: &Path) -> std::path::PathBuf {
     sim
 }
 
-#[test]
-fn a_ramp_the_forward_pass_followed_is_excluded_when_smoothed() {
-    let dir = temp_dir("ramp");
-    let sim = simulate(&dir);
-    // A ramp to 1.5 m horizontal over 20 s (slowly building multipath:
-    // `navsync faults`), 100 s into the drive.
-    let first: f64 = std::fs::read_to_string(sim.join("gnss.txt"))
+/// The first fix's time (s of week) in a gnss.txt.
+fn first_fix_sow(gnss: &Path) -> f64 {
+    std::fs::read_to_string(gnss)
         .unwrap()
         .lines()
         .find(|l| !l.starts_with('#'))
         .and_then(|l| l.split_whitespace().next()?.parse().ok())
-        .unwrap();
+        .unwrap()
+}
+
+/// A copy of `gnss` without the fixes whose time (ms) `drop` holds.
+fn without(gnss: &Path, out: &Path, drop: impl Fn(i64) -> bool) {
+    let kept: String = std::fs::read_to_string(gnss)
+        .unwrap()
+        .lines()
+        .filter(|l| {
+            l.split_whitespace()
+                .next()
+                .and_then(|w| w.parse::<f64>().ok())
+                .is_none_or(|t| !drop((t * 1e3).round() as i64))
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(out, kept).unwrap();
+}
+
+/// `navsync faults --plan` with one ramp to (1.2, 0.9, 0) m NED over 20 s
+/// (slowly building multipath), `at_s` into the simulated drive: the
+/// faulty folder and the labels, time (ms) → offset (m).
+fn inject_ramp(dir: &Path, sim: &Path, at_s: f64) -> (std::path::PathBuf, HashMap<i64, f64>) {
+    let first = first_fix_sow(&sim.join("gnss.txt"));
     let plan = dir.join("plan.txt");
-    std::fs::write(&plan, format!("ramp {:.3} 20 1.2 0.9 0\n", first + 100.0)).unwrap();
+    std::fs::write(&plan, format!("ramp {:.3} 20 1.2 0.9 0\n", first + at_s)).unwrap();
     let faulty = dir.join("faulty");
     let (ok, _, err) = run(bin()
         .arg("faults")
@@ -90,7 +111,6 @@ fn a_ramp_the_forward_pass_followed_is_excluded_when_smoothed() {
         .arg("--output")
         .arg(&faulty));
     assert!(ok, "{err}");
-    // The labels: time (ms) → offset (m); the oracle leaves them out.
     let labels: HashMap<i64, f64> = std::fs::read_to_string(faulty.join("faults.txt"))
         .unwrap()
         .lines()
@@ -104,19 +124,37 @@ fn a_ramp_the_forward_pass_followed_is_excluded_when_smoothed() {
         })
         .collect();
     assert!(labels.len() >= 20, "{labels:?}");
+    (faulty, labels)
+}
+
+/// The test's detection limit for one fix: χ²₃ at 1e-4 (21.1) on a fix of
+/// σ 1.8 cm plus the 5 cm multipath floor, √(21.1 · (0.018² + 0.05²)) =
+/// 0.24 m.
+fn detection_limit_m() -> f64 {
+    (21.1f64 * (0.018f64.powi(2) + 0.05f64.powi(2))).sqrt()
+}
+
+/// The bound on the smoothed RMS over the oracle's: the ramp fixes left
+/// in are those under the detection limit d (at most d/1.5 m of the 20
+/// fixes), each pulling the solution by at most d for about a second of
+/// the 240 s run: an RMS of at most d·√(n/240) more.
+fn ramp_bound_m(smoothed_oracle: f64) -> f64 {
+    let d = detection_limit_m();
+    let n = (d / 1.5 * 20.0).ceil() + 1.0;
+    smoothed_oracle + d * (n / 240.0).sqrt()
+}
+
+#[test]
+fn a_ramp_the_forward_pass_followed_is_excluded_when_smoothed() {
+    let dir = temp_dir("ramp");
+    let sim = simulate(&dir);
+    // A ramp to 1.5 m horizontal over 20 s, 100 s into the drive; the
+    // oracle leaves its fixes out.
+    let (faulty, labels) = inject_ramp(&dir, &sim, 100.0);
     let oracle_gnss = dir.join("gnss-oracle.txt");
-    let kept: String = std::fs::read_to_string(faulty.join("gnss.txt"))
-        .unwrap()
-        .lines()
-        .filter(|l| {
-            l.split_whitespace()
-                .next()
-                .and_then(|w| w.parse::<f64>().ok())
-                .is_none_or(|t| !labels.contains_key(&((t * 1e3).round() as i64)))
-        })
-        .map(|l| format!("{l}\n"))
-        .collect();
-    std::fs::write(&oracle_gnss, kept).unwrap();
+    without(&faulty.join("gnss.txt"), &oracle_gnss, |ms| {
+        labels.contains_key(&ms)
+    });
 
     let (run_dir, oracle) = (dir.join("run"), dir.join("oracle"));
     fuse(&sim, &faulty.join("gnss.txt"), &run_dir);
@@ -127,10 +165,9 @@ fn a_ramp_the_forward_pass_followed_is_excluded_when_smoothed() {
     let smoothed_oracle = horizontal_rms(&truth, &oracle.join("navresult.nav"), &oracle);
 
     // The smoothed decisions: every ramp fix above the test's detection
-    // limit is excluded by the smoother (the forward pass used them).
-    // The limit: χ²₃ at 1e-4 (21.1) on a fix of σ 1.8 cm plus the 5 cm
-    // multipath floor, d = √(21.1 · (0.018² + 0.05²)) = 0.24 m; with the
-    // smoothed σ and the horizontal share of the offset, 0.4 m is beyond it.
+    // limit (0.24 m; with the smoothed σ and the horizontal share of the
+    // offset, 0.4 m is beyond it) is excluded by the smoother (the forward
+    // pass used them).
     let fwd = decisions(&run_dir.join("forward/gnss_residuals.txt"));
     let sm = decisions(&run_dir.join("gnss_residuals.txt"));
     let mut excluded = 0;
@@ -162,13 +199,7 @@ fn a_ramp_the_forward_pass_followed_is_excluded_when_smoothed() {
         "{s}"
     );
 
-    // The bound: the ramp fixes left in are those under the detection
-    // limit d (at most d/1.5 m of the 20 fixes), each pulling the
-    // solution by at most d for about a second of the 240 s run: an RMS
-    // of at most d·√(n/240) over the oracle's.
-    let d = (21.1f64 * (0.018f64.powi(2) + 0.05f64.powi(2))).sqrt();
-    let n = (d / 1.5 * 20.0).ceil() + 1.0;
-    let bound = smoothed_oracle + d * (n / 240.0).sqrt();
+    let bound = ramp_bound_m(smoothed_oracle);
     assert!(
         smoothed <= bound,
         "smoothed {smoothed:.3} m, oracle {smoothed_oracle:.3} m, bound {bound:.3} m (forward {forward:.3} m)"
@@ -189,4 +220,111 @@ fn a_clean_run_is_smoothed_once_and_loses_no_fix() {
     let fwd = decisions(&out.join("forward/gnss_residuals.txt"));
     let sm = decisions(&out.join("gnss_residuals.txt"));
     assert_eq!(fwd, sm);
+}
+
+#[test]
+fn a_ramp_ending_in_a_gap_is_found_from_the_smoothed_residual_step() {
+    let dir = temp_dir("gap");
+    let sim = simulate(&dir);
+    // The ramp of the test above, then no fix for 10 s: the first fixes
+    // after the gap are judged alone (no jump test over a gap), so the
+    // forward monitor opens no episode of more than one fix at the ramp's
+    // end; only the smoothed residuals' step shows it.
+    let (faulty, labels) = inject_ramp(&dir, &sim, 100.0);
+    let last_ms = *labels.keys().max().unwrap();
+    let in_gap = |ms: i64| ms > last_ms && ms <= last_ms + 10_000;
+    let gnss = dir.join("gnss-gap.txt");
+    without(&faulty.join("gnss.txt"), &gnss, in_gap);
+    let oracle_gnss = dir.join("gnss-oracle.txt");
+    without(&faulty.join("gnss.txt"), &oracle_gnss, |ms| {
+        in_gap(ms) || labels.contains_key(&ms)
+    });
+    let (run_dir, oracle) = (dir.join("run"), dir.join("oracle"));
+    fuse(&sim, &gnss, &run_dir);
+    fuse(&sim, &oracle_gnss, &oracle);
+    let truth = sim.join("truth.nav");
+    let smoothed = horizontal_rms(&truth, &run_dir.join("navresult.nav"), &run_dir);
+    let smoothed_oracle = horizontal_rms(&truth, &oracle.join("navresult.nav"), &oracle);
+
+    let fwd = decisions(&run_dir.join("forward/gnss_residuals.txt"));
+    let sm = decisions(&run_dir.join("gnss_residuals.txt"));
+    // The premise: no episode (a jump, then a run) forward.
+    assert!(
+        fwd.values().all(|(_, reason)| reason != "run"),
+        "the forward monitor opened an episode"
+    );
+    let mut excluded = 0;
+    for (t, offset) in &labels {
+        assert_eq!(
+            fwd[t].0, "used",
+            "ramp fix at {t} ms: the forward pass used it"
+        );
+        if *offset >= 0.4 {
+            assert_eq!(
+                (sm[t].0.as_str(), sm[t].1.as_str()),
+                ("rejected", "smoother-excluded"),
+                "ramp fix at {t} ms, {offset:.2} m"
+            );
+            excluded += 1;
+        }
+    }
+    assert!(excluded >= 10, "{excluded}");
+    let bound = ramp_bound_m(smoothed_oracle);
+    assert!(
+        smoothed <= bound,
+        "smoothed {smoothed:.3} m, oracle {smoothed_oracle:.3} m, bound {bound:.3} m"
+    );
+}
+
+#[test]
+fn a_step_at_the_last_fix_is_reported_not_guessed() {
+    let dir = temp_dir("last");
+    let sim = simulate(&dir);
+    // A 15 m spike on the drive's last fix: with no fix after it, a spike
+    // and the end of a ramp the fixes before it followed look alike.
+    let gnss = sim.join("gnss.txt");
+    let last: f64 = std::fs::read_to_string(&gnss)
+        .unwrap()
+        .lines()
+        .rev()
+        .filter(|l| !l.starts_with('#'))
+        .find_map(|l| l.split_whitespace().next()?.parse().ok())
+        .unwrap();
+    let plan = dir.join("plan.txt");
+    std::fs::write(&plan, format!("spike {last:.3} 0 12 -9 0\n")).unwrap();
+    let faulty = dir.join("faulty");
+    let (ok, _, err) = run(bin()
+        .arg("faults")
+        .arg("--gnss")
+        .arg(&gnss)
+        .arg("--plan")
+        .arg(&plan)
+        .arg("--output")
+        .arg(&faulty));
+    assert!(ok, "{err}");
+    let oracle_gnss = dir.join("gnss-oracle.txt");
+    let last_ms = (last * 1e3).round() as i64;
+    without(&faulty.join("gnss.txt"), &oracle_gnss, |ms| ms == last_ms);
+    let (run_dir, oracle) = (dir.join("run"), dir.join("oracle"));
+    fuse(&sim, &faulty.join("gnss.txt"), &run_dir);
+    fuse(&sim, &oracle_gnss, &oracle);
+    let truth = sim.join("truth.nav");
+    let smoothed = horizontal_rms(&truth, &run_dir.join("navresult.nav"), &run_dir);
+    let smoothed_oracle = horizontal_rms(&truth, &oracle.join("navresult.nav"), &oracle);
+    // The fixes before it are not thrown out for it (that once cost
+    // 3.1 m), the spike is, and the run says the data cannot tell.
+    let sm = decisions(&run_dir.join("gnss_residuals.txt"));
+    assert_eq!(sm[&last_ms].0, "rejected", "{:?}", sm[&last_ms]);
+    assert!(
+        sm.iter()
+            .filter(|(t, _)| **t != last_ms)
+            .all(|(_, (_, reason))| reason != "smoother-excluded"),
+        "fixes before the last were excluded"
+    );
+    assert!(
+        smoothed <= smoothed_oracle + 0.005,
+        "smoothed {smoothed:.3} m, oracle {smoothed_oracle:.3} m"
+    );
+    let summary = std::fs::read_to_string(run_dir.join("summary.json")).unwrap();
+    assert!(summary.contains("with no fix after it"), "{summary}");
 }

@@ -40,6 +40,22 @@
 //!   the new level) and a fix after it was inconsistent with pass 1's
 //!   solution: the persisted level up to that fix was the fault.
 //!
+//! An episode the fixes came back from (the next fix used, or a persisted
+//! level whose next jump cancels its own: a false fix the filter followed)
+//! has no B: the fixes on both sides agree through the INS. Windows also
+//! come from the smoothed solution itself ([`step_windows`]): a step
+//! between consecutive fixes' smoothed residuals that holds is a candidate
+//! end of a fault the monitor saw no episode for (a ramp ending in a gap,
+//! or followed back at once; a step at the last fix, which no fix after it
+//! can resolve into a spike or a ramp's end, is said in the diagnostics).
+//! Where B stands, the fault's onset among the suspects comes from the
+//! data, by a generalized likelihood ratio over the onset time with the
+//! bridge's bend projected out ([`fault_onset`]; Willsky & Jones 1976);
+//! the fixes from it to the jump stay excluded in later passes, and
+//! the suspects before it come back where consistent. Each window is
+//! judged on the fixes no other window holds, so that two faults close
+//! together do not sink each other.
+//!
 //! Where B falls, pass 1's verdicts are restored. The decisions are forced
 //! on the forward filter (`GnssDecision`): excluded, or used at the stated
 //! σ without the monitor or the robust weights. A pass runs only when a
@@ -61,7 +77,9 @@ use crate::time::GpsTime;
 
 /// How far before a persisted episode's jump the fixes are suspected of a
 /// fault the monitor followed (s): the longest ramp `navsync faults` draws
-/// by default (25 s) with margin.
+/// by default (25 s) with margin; a window opened by a smoothed residual
+/// step reaches back to the longest the IMU bridges
+/// ([`MAX_EPISODE_S`](crate::fusion::MAX_EPISODE_S)).
 pub const RAMP_WINDOW_S: f64 = 30.0;
 /// Forward–backward passes at most (the first included).
 pub const MAX_PASSES: usize = 3;
@@ -98,9 +116,23 @@ fn judged(records: &[FixRecord]) -> Judged {
         .collect()
 }
 
-/// The χ²₃ statistic of every judged fix against the smoothed solution,
-/// by fix time (see the module's header). `tau_state`: the fixes' time
-/// tags are corrected by the smoothed time offset.
+/// One fix tested against a smoothed solution.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Tested {
+    /// χ²₃ statistic, divided by the variance factor.
+    pub stat: f64,
+    /// Residual: predicted − measured (m, NED).
+    pub z: Vector3<f64>,
+    /// R + H Pˢ Hᵀ + the floor, per axis (m²), times the variance factor:
+    /// the bound on the variance of a difference of two fixes' residuals
+    /// is the sum of theirs (no credit for the smoothed errors'
+    /// correlation).
+    pub var_bound: Vector3<f64>,
+}
+
+/// Every judged fix tested against the smoothed solution, by fix time
+/// (see the module's header). `tau_state`: the fixes' time tags are
+/// corrected by the smoothed time offset.
 pub(crate) fn test_fixes(
     smoothed: &mut Smoothed,
     fixes: &[GnssFix],
@@ -108,7 +140,7 @@ pub(crate) fn test_fixes(
     lever_b: &Vector3<f64>,
     n: usize,
     tau_state: bool,
-) -> Result<BTreeMap<GpsTime, f64>, Error> {
+) -> Result<BTreeMap<GpsTime, Tested>, Error> {
     let mut order: Vec<&GnssFix> = fixes
         .iter()
         .filter(|f| judged.contains_key(&f.time))
@@ -139,6 +171,8 @@ pub(crate) fn test_fixes(
             // to the fix's time along the smoothed velocity.
             let obs = crate::filter::gnss::position(&ep.nav, fix, lever_b, n);
             let mut t = 0.0;
+            let mut zv = Vector3::zeros();
+            let mut bound = Vector3::zeros();
             for i in 0..3 {
                 let z = obs.z[i] - ep.nav.vel[i] * dt;
                 let r = fix.pos_sd[i] * fix.pos_sd[i];
@@ -149,8 +183,20 @@ pub(crate) fn test_fixes(
                     r + hph
                 } + floor2;
                 t += z * z / s;
+                zv[i] = z;
+                bound[i] = r + hph + floor2;
             }
-            out.insert(fix.time, (t, used));
+            out.insert(
+                fix.time,
+                (
+                    Tested {
+                        stat: t,
+                        z: zv,
+                        var_bound: bound,
+                    },
+                    used,
+                ),
+            );
         }
         Ok(())
     })?;
@@ -158,7 +204,7 @@ pub(crate) fn test_fixes(
     // used fixes' statistics over χ²₃'s median (2.366), at least 1. Fixes
     // noisier than stated (a receiver's optimistic σ) would otherwise be
     // taken for faults; a fault is a minority of the fixes.
-    let mut used_t: Vec<f64> = out.values().filter(|v| v.1).map(|v| v.0).collect();
+    let mut used_t: Vec<f64> = out.values().filter(|v| v.1).map(|v| v.0.stat).collect();
     let factor = if used_t.is_empty() {
         1.0
     } else {
@@ -166,7 +212,17 @@ pub(crate) fn test_fixes(
         let (_, m, _) = used_t.select_nth_unstable_by(mid, f64::total_cmp);
         (*m / CHI2_3_MEDIAN).max(1.0)
     };
-    Ok(out.into_iter().map(|(k, v)| (k, v.0 / factor)).collect())
+    Ok(out
+        .into_iter()
+        .map(|(k, (t, _))| {
+            let t = Tested {
+                stat: t.stat / factor,
+                z: t.z,
+                var_bound: t.var_bound * factor,
+            };
+            (k, t)
+        })
+        .collect())
 }
 
 /// The median of χ² with 3 degrees of freedom.
@@ -175,12 +231,12 @@ const CHI2_3_MEDIAN: f64 = 2.366;
 /// Whether each judged fix should be used after the tests.
 fn verdicts(
     current: &Judged,
-    tests: &BTreeMap<GpsTime, f64>,
+    tests: &BTreeMap<GpsTime, Tested>,
     threshold: f64,
 ) -> BTreeMap<GpsTime, bool> {
     current
         .iter()
-        .map(|(t, (used, _))| (*t, tests.get(t).map_or(*used, |s| *s <= threshold)))
+        .map(|(t, (used, _))| (*t, tests.get(t).map_or(*used, |s| s.stat <= threshold)))
         .collect()
 }
 
@@ -229,11 +285,16 @@ fn windows(first_records: &[FixRecord]) -> Vec<Window> {
         }
         let persisted =
             persisted_alone || (k < pos.len() && pos[k].reason == FaultReason::Persisted);
+        // The fixes came back to the level before the jump: the fixes on
+        // both sides of the episode agree through the INS, so the episode
+        // was the fault (the monitor's reading); no other hypothesis.
+        let returned = (!persisted && k < pos.len() && pos[k].status != FixStatus::Rejected)
+            || (persisted && jumps_back(&pos[j..]));
         if k < pos.len() && pos[k].reason == FaultReason::Persisted {
             k += 1;
         }
-        if k - j < 2 && !persisted_alone {
-            continue; // a spike
+        if (k - j < 2 && !persisted_alone) || returned {
+            continue; // a spike, or a fault the fixes came back from
         }
         let jump = pos[j].time;
         let suspects: Vec<GpsTime> = pos[..j]
@@ -269,6 +330,274 @@ fn windows(first_records: &[FixRecord]) -> Vec<Window> {
         });
     }
     out
+}
+
+/// The χ²₃ statistic of the difference of two fixes' residuals against
+/// the smoothed solution: a step between them.
+fn step_stat(a: &Tested, b: &Tested) -> f64 {
+    let d = b.z - a.z;
+    (0..3)
+        .map(|i| d[i] * d[i] / (a.var_bound[i] + b.var_bound[i]))
+        .sum()
+}
+
+/// Windows opened by the smoothed solution itself: a smoothed solution is
+/// continuous (INS-constrained), so the end of a fault it followed shows
+/// as a step between consecutive fixes' residuals (time-differenced
+/// residuals; each difference's variance bounded by the two fixes' R +
+/// H Pˢ Hᵀ, see [`Tested`]) that the fixes do not step back from (a
+/// spike's two steps cancel). Each such step after a fix the first pass
+/// used, not opening an episode and outside the episodes' windows, is a
+/// candidate end of a fault (a ramp that ended in a gap, or that the
+/// monitor followed back at once): the fixes before it up to
+/// [`MAX_EPISODE_S`](crate::fusion::MAX_EPISODE_S) (the longest the IMU
+/// bridges) are the suspects, the fix after the step the episode (Willsky & Jones, "A generalized likelihood ratio approach to
+/// the detection and estimation of jumps in linear systems", IEEE TAC
+/// 1976: a jump tested at each candidate time). The new level must hold
+/// for two fixes; a step at the last fix sets `unresolved` to its time.
+fn step_windows(
+    first: &Judged,
+    first_verdicts: &BTreeMap<GpsTime, bool>,
+    tests: &BTreeMap<GpsTime, Tested>,
+    others: &[Window],
+    threshold: f64,
+    unresolved: &mut Option<GpsTime>,
+) -> Vec<Window> {
+    let max_s = crate::fusion::MAX_EPISODE_S;
+    let seq: Vec<(GpsTime, &Tested)> = tests.iter().map(|(t, x)| (*t, x)).collect();
+    let mut out: Vec<Window> = Vec::new();
+    for k in 1..seq.len() {
+        let (ta, a) = seq[k - 1];
+        let (tb, b) = seq[k];
+        if step_stat(a, b) <= threshold {
+            continue;
+        }
+        let used = |t: &GpsTime| first_verdicts.get(t) == Some(&true);
+        let was_used = |t: &GpsTime| first.get(t).is_some_and(|f| f.0);
+        if !(used(&ta) && was_used(&ta)) {
+            continue;
+        }
+        // The new level holds: the next fix agrees with it and not with
+        // the old one. A single fix after the step cannot tell a spike
+        // from a fault's end: at the data's end that is said, not guessed.
+        let Some((_, c)) = seq.get(k + 1) else {
+            *unresolved = Some(tb);
+            continue;
+        };
+        if step_stat(b, c) > threshold || step_stat(a, c) <= threshold {
+            continue;
+        }
+        // A jump that opened an episode of more than one fix is the
+        // episodes' business ([`windows`]).
+        let opens_episode = first.get(&tb).is_some_and(|f| f.1 == FaultReason::Jump)
+            && seq
+                .get(k + 1)
+                .and_then(|(t, _)| first.get(t))
+                .is_some_and(|f| f.1 == FaultReason::Run);
+        if opens_episode {
+            continue;
+        }
+        let covered = others
+            .iter()
+            .chain(out.iter())
+            .any(|w| (w.span.0..=w.span.1).contains(&tb) || (w.span.0..=w.span.1).contains(&ta));
+        if covered {
+            continue;
+        }
+        let suspects: Vec<GpsTime> = seq[..k]
+            .iter()
+            .rev()
+            .take_while(|(t, _)| tb.seconds_since(*t) <= max_s && used(t))
+            .map(|(t, _)| *t)
+            .collect();
+        let Some(&start) = suspects.last() else {
+            continue;
+        };
+        out.push(Window {
+            suspects,
+            episode: vec![tb],
+            followers: Vec::new(),
+            span: (start, tb.add_seconds(CHECK_AFTER_S)),
+        });
+    }
+    out
+}
+
+/// Where the fault began among a standing window's suspects, by the
+/// generalized likelihood ratio over the onset (Willsky & Jones 1976). The
+/// suspects' residuals are against a solution that bridged them from the
+/// fixes before to the episode after, whose error is a nuisance shaped
+/// like a bend anchored at both ends, β = (t − t_A)(t_B − t) (a constant
+/// error in velocity or acceleration over the bridge, pinned at its
+/// ends). For each candidate first faulty fix c, the fault is modelled
+/// per axis by a ramp from zero (slowly building multipath) or a constant
+/// (a false fix) from c on; its ratio is the weighted least-squares
+/// energy of the fault and the bend together less the bend's alone
+/// (the fault's share, with the bend projected out), summed over the
+/// axes. The onset is the candidate with the largest. Returns the onset's
+/// time; `None` where no candidate's ratio passes the χ²₃ threshold: no
+/// fault found among the suspects.
+fn fault_onset(
+    suspects: &[GpsTime],
+    tests: &BTreeMap<GpsTime, Tested>,
+    threshold: f64,
+) -> Option<GpsTime> {
+    let mut pts: Vec<(GpsTime, &Tested)> = suspects
+        .iter()
+        .filter_map(|t| Some((*t, tests.get(t)?)))
+        .collect();
+    pts.sort_by_key(|p| p.0);
+    let (first, last) = (pts.first()?.0, pts.last()?.0);
+    // The bridge's anchors: a fix interval (1 s) outside the suspects.
+    let span_s = last.seconds_since(first) + 2.0;
+    let bend = |t: &GpsTime| {
+        let u = (t.seconds_since(first) + 1.0) / span_s;
+        u * (1.0 - u)
+    };
+    let glr = |c: usize, ramp: bool| -> f64 {
+        let t0 = if c > 0 {
+            pts[c - 1].0
+        } else {
+            pts[c].0.add_seconds(-1.0)
+        };
+        (0..3)
+            .map(|i| {
+                // Normal equations of z = a·τ + b·β, weights 1/v.
+                let (mut stt, mut stb, mut sbb, mut szt, mut szb) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                for (k, (t, x)) in pts.iter().enumerate() {
+                    let w = 1.0 / x.var_bound[i];
+                    let tau = match (k >= c, ramp) {
+                        (false, _) => 0.0,
+                        (true, true) => t.seconds_since(t0),
+                        (true, false) => 1.0,
+                    };
+                    let beta = bend(t);
+                    stt += w * tau * tau;
+                    stb += w * tau * beta;
+                    sbb += w * beta * beta;
+                    szt += w * x.z[i] * tau;
+                    szb += w * x.z[i] * beta;
+                }
+                let bend_only = if sbb > 0.0 { szb * szb / sbb } else { 0.0 };
+                let det = stt * sbb - stb * stb;
+                if det <= 1e-12 * (stt * sbb).max(f64::MIN_POSITIVE) {
+                    return 0.0;
+                }
+                let a = (szt * sbb - szb * stb) / det;
+                let b = (szb * stt - szt * stb) / det;
+                (a * szt + b * szb - bend_only).max(0.0)
+            })
+            .sum()
+    };
+    let (best, g) = (0..pts.len())
+        .map(|c| (c, glr(c, true).max(glr(c, false))))
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    (g > threshold).then_some(pts[best].0)
+}
+
+/// Whether the fixes of a persisted episode (`from`, opening with its
+/// jump) jump back to the level before it at the next jump within
+/// [`MAX_EPISODE_S`](crate::fusion::MAX_EPISODE_S): the two jumps'
+/// innovations cancel to within half the smaller (the monitor's own
+/// ramp-end criterion, "much closer to the old level than to the last").
+/// The level between was then the fault (a false fix the filter
+/// followed): the next jump's window holds the hypothesis.
+fn jumps_back(from: &[&FixRecord]) -> bool {
+    let Some(first) = from.first() else {
+        return false;
+    };
+    let norm = |v: &[f64; 3]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let back = from[1..]
+        .iter()
+        .take_while(|r| r.time.seconds_since(first.time) <= crate::fusion::MAX_EPISODE_S)
+        .find(|r| r.reason == FaultReason::Jump);
+    back.is_some_and(|r| {
+        let sum: [f64; 3] = std::array::from_fn(|i| first.innovation[i] + r.innovation[i]);
+        norm(&sum) < RAMP_END_CLOSER * norm(&first.innovation).min(norm(&r.innovation))
+    })
+}
+
+/// A jump back is "much closer to the old level than to the last" below
+/// this share (`fusion::aid::integrity`'s ramp-end criterion).
+const RAMP_END_CLOSER: f64 = 0.5;
+
+/// The first pass's judgement and verdicts against its smoothed solution.
+struct Pass1<'a> {
+    first: &'a Judged,
+    verdicts: &'a BTreeMap<GpsTime, bool>,
+}
+
+/// The second pass's verdicts on the windows' hypotheses (`want` holds the
+/// second solution's tests' verdicts). A hypothesis stands when every fix
+/// around it but its suspects and other windows' is consistent with its
+/// smoothed solution: its fault (from the onset [`fault_onset`] finds) is
+/// added to `fault_fixes`. Otherwise the first solution's verdicts there
+/// are restored, or, for an episode that persisted and was followed until
+/// a fix the first solution found inconsistent, the third hypothesis is
+/// taken: the persisted level was the fault, up to that fix.
+fn judge_windows(
+    windows: &[Window],
+    pass1: &Pass1,
+    current: &Judged,
+    tests: &BTreeMap<GpsTime, Tested>,
+    threshold: f64,
+    want: &mut BTreeMap<GpsTime, bool>,
+    fault_fixes: &mut Vec<GpsTime>,
+) {
+    for (n, w) in windows.iter().enumerate() {
+        // Other windows' fixes are their hypotheses' business:
+        // two faults close together must not sink each other.
+        let theirs = |t: &GpsTime| {
+            windows
+                .iter()
+                .enumerate()
+                .any(|(m, o)| m != n && (o.suspects.contains(t) || o.episode.contains(t)))
+        };
+        let stands = current
+            .range(w.span.0..=w.span.1)
+            .filter(|(t, _)| {
+                !w.suspects.contains(t)
+                    && (w.episode.contains(t)
+                        || (!theirs(t)
+                            && pass1.first.get(t).is_some_and(|f| {
+                                !matches!(f.1, FaultReason::Jump | FaultReason::Run)
+                            })))
+            })
+            .all(|(t, _)| tests.get(t).is_none_or(|s| s.stat <= threshold));
+        if stands {
+            // The fault's extent from the data: the suspects
+            // from the onset on; those before it come back
+            // where consistent.
+            if let Some(onset) = fault_onset(&w.suspects, tests, threshold) {
+                fault_fixes.extend(w.suspects.iter().filter(|t| **t >= onset));
+            }
+            continue;
+        }
+        for (t, _) in current.range(w.span.0..=w.span.1) {
+            if theirs(t) && !w.suspects.contains(t) && !w.episode.contains(t) {
+                continue;
+            }
+            if let Some(v) = pass1.verdicts.get(t) {
+                want.insert(*t, *v);
+            }
+        }
+        // The third hypothesis, for an episode that persisted
+        // and was followed until a fix the first smoothed
+        // solution found inconsistent: the persisted level was
+        // the fault, up to that fix.
+        let evidence = w
+            .followers
+            .iter()
+            .position(|t| pass1.verdicts.get(t) == Some(&false));
+        if let Some(i) = evidence {
+            for t in w.episode.iter().chain(&w.followers[..i]) {
+                want.insert(*t, false);
+            }
+            for t in &w.followers[i..] {
+                want.insert(*t, true);
+            }
+        }
+    }
 }
 
 /// The decisions forced on the next forward pass: every judged fix of the
@@ -314,7 +643,11 @@ pub(crate) fn smooth_rejudged(
         ..Default::default()
     };
     let mut notes = Diagnostics::with_cap(100);
-    let windows = windows(records);
+    let mut windows = windows(records);
+    // A standing hypothesis's fault, excluded in every later pass (its
+    // fixes are not re-tested one by one: a fault's small onset is
+    // consistent alone and would creep back in, pulling the solution).
+    let mut fault_fixes: Vec<GpsTime> = Vec::new();
     // The first smoothed solution's verdicts, restored where a window's
     // hypothesis falls.
     let mut first_verdicts = BTreeMap::new();
@@ -327,6 +660,24 @@ pub(crate) fn smooth_rejudged(
             // The second hypothesis for every episode.
             1 => {
                 first_verdicts = want.clone();
+                let mut last = None;
+                let steps = step_windows(
+                    &first,
+                    &first_verdicts,
+                    &tests,
+                    &windows,
+                    threshold,
+                    &mut last,
+                );
+                windows.extend(steps);
+                if let Some(t) = last {
+                    notes.note(format!(
+                        "the last GNSS fix ({t}) stepped away from the fixes before it by more than \
+                         their noise: either it is a spike (excluded) or the fixes before it had \
+                         drifted (a ramp) and it is the good one; with no fix after it the data \
+                         cannot tell, so the smoothed solution's last seconds may carry that offset"
+                    ));
+                }
                 for w in &windows {
                     for t in &w.suspects {
                         want.insert(*t, false);
@@ -336,49 +687,23 @@ pub(crate) fn smooth_rejudged(
                     }
                 }
             }
-            // A hypothesis stands when every fix around it but its
-            // suspects and other episodes' is consistent with its smoothed
-            // solution; otherwise the first solution's verdicts there are
-            // restored.
-            2 => {
-                for w in &windows {
-                    let stands = current
-                        .range(w.span.0..=w.span.1)
-                        .filter(|(t, _)| {
-                            !w.suspects.contains(t)
-                                && (w.episode.contains(t)
-                                    || first.get(t).is_some_and(|f| {
-                                        !matches!(f.1, FaultReason::Jump | FaultReason::Run)
-                                    }))
-                        })
-                        .all(|(t, _)| tests.get(t).is_none_or(|s| *s <= threshold));
-                    if stands {
-                        continue;
-                    }
-                    for (t, _) in current.range(w.span.0..=w.span.1) {
-                        if let Some(v) = first_verdicts.get(t) {
-                            want.insert(*t, *v);
-                        }
-                    }
-                    // The third hypothesis, for an episode that persisted
-                    // and was followed until a fix the first smoothed
-                    // solution found inconsistent: the persisted level was
-                    // the fault, up to that fix.
-                    let evidence = w
-                        .followers
-                        .iter()
-                        .position(|t| first_verdicts.get(t) == Some(&false));
-                    if let Some(i) = evidence {
-                        for t in w.episode.iter().chain(&w.followers[..i]) {
-                            want.insert(*t, false);
-                        }
-                        for t in &w.followers[i..] {
-                            want.insert(*t, true);
-                        }
-                    }
-                }
-            }
+            // Each hypothesis stands or falls on its own solution.
+            2 => judge_windows(
+                &windows,
+                &Pass1 {
+                    first: &first,
+                    verdicts: &first_verdicts,
+                },
+                &current,
+                &tests,
+                threshold,
+                &mut want,
+                &mut fault_fixes,
+            ),
             _ => {}
+        }
+        for t in &fault_fixes {
+            want.insert(*t, false);
         }
         let changed = want
             .iter()
@@ -509,5 +834,68 @@ mod tests {
         assert_eq!(d[&at(63)], GnssDecision::Follow(FaultReason::Persisted));
         assert_eq!(d[&at(10)], GnssDecision::Keep);
         assert_eq!(d.len(), 100);
+    }
+
+    fn tested(z_n_m: f64) -> Tested {
+        Tested {
+            stat: 0.0,
+            z: Vector3::new(z_n_m, 0.0, 0.0),
+            var_bound: Vector3::repeat(0.05f64.powi(2)),
+        }
+    }
+
+    #[test]
+    fn the_fault_onset_is_where_the_ramp_begins() {
+        let at = |t: i64| GpsTime::from_week_ns(2000, t * 1_000_000_000);
+        // Suspects 31..=59 (newest first, as `windows` gives them): clean
+        // to 44, then a ramp of 5 cm/s from 45 (σ 5 cm each: a GLR of
+        // Σ(0.05·k)²/0.05² = Σk² ≈ 1240 over the 15 fixes).
+        let suspects: Vec<GpsTime> = (31..60).rev().map(at).collect();
+        let ramp: BTreeMap<GpsTime, Tested> = (31..60)
+            .map(|t| (at(t), tested(0.05 * (t - 44).max(0) as f64)))
+            .collect();
+        assert_eq!(fault_onset(&suspects, &ramp, 21.1), Some(at(45)));
+        // A constant 0.3 m from 50 (a false fix).
+        let level: BTreeMap<GpsTime, Tested> = (31..60)
+            .map(|t| (at(t), tested(if t >= 50 { 0.3 } else { 0.0 })))
+            .collect();
+        assert_eq!(fault_onset(&suspects, &level, 21.1), Some(at(50)));
+        // The same ramp under a bridge that bent 0.3 m at its middle (the
+        // solution's own error over the excluded suspects): the bend is
+        // projected out, the onset stays.
+        let bent: BTreeMap<GpsTime, Tested> = (31..60)
+            .map(|t| {
+                let u = (t - 30) as f64 / 30.0;
+                (
+                    at(t),
+                    tested(0.05 * (t - 44).max(0) as f64 + 1.2 * u * (1.0 - u)),
+                )
+            })
+            .collect();
+        assert_eq!(fault_onset(&suspects, &bent, 21.1), Some(at(45)));
+        // Residuals of 5 cm alternating in sign: no fault.
+        let noise: BTreeMap<GpsTime, Tested> = (31..60)
+            .map(|t| (at(t), tested(if t % 2 == 0 { 0.05 } else { -0.05 })))
+            .collect();
+        assert_eq!(fault_onset(&suspects, &noise, 21.1), None);
+    }
+
+    #[test]
+    fn a_persisted_level_the_fixes_jump_back_from_was_the_fault() {
+        let mut recs = run_records();
+        let jump = |r: &mut FixRecord, i: [f64; 3]| {
+            r.innovation = i;
+        };
+        jump(&mut recs[60], [3.0, -2.0, 0.5]);
+        // The next jump (80, within 60 s) cancels the first: back.
+        jump(&mut recs[80], [-2.9, 2.1, -0.4]);
+        let pos: Vec<&FixRecord> = recs.iter().collect();
+        assert!(jumps_back(&pos[60..]));
+        // A jump onwards (a second fault on top) is not back.
+        jump(&mut recs[80], [3.0, -2.0, 0.5]);
+        let pos: Vec<&FixRecord> = recs.iter().collect();
+        assert!(!jumps_back(&pos[60..]));
+        // Nor a level with no jump after it.
+        assert!(!jumps_back(&pos[..1]));
     }
 }
