@@ -271,19 +271,20 @@ fn a_slow_vehicle_gets_its_heading_from_the_track_before_the_run() {
     let sim = simulate(&d, "test-track", "300");
     let rig = turned_rig(&sim, 90.0, &d);
     let out = d.join("o");
-    let (_, p) = process_with(
-        &rig,
-        &sheet(&d, 90.0),
-        &out,
-        &["--align-min-speed", "100"],
-    );
+    let (_, p) = process_with(&rig, &sheet(&d, 90.0), &out, &["--align-min-speed", "100"]);
     let a = &p["alignment"];
     assert_eq!(a["method"], "no-motion-track-heading", "{a}");
     let sd_deg = a["att_sd_rad"][2].as_f64().unwrap().to_degrees();
     assert!(sd_deg < 10.0, "{a}");
     let truth = sim.join("truth.nav");
     let (median, p95) = heading_error_deg(&truth, &out.join("fuse/navresult.nav"), 90.0);
-    assert!(median < 1.0 && p95 < 3.0, "smoothed: {median}° (median), {p95}° (95 %)");
+    assert!(
+        median < 1.0 && p95 < 3.0,
+        "smoothed: {median}° (median), {p95}° (95 %)"
+    );
     let (median, p95) = heading_error_deg(&truth, &out.join("fuse/forward/navresult.nav"), 90.0);
-    assert!(median < 2.0 && p95 < 10.0, "forward: {median}° (median), {p95}° (95 %)");
+    assert!(
+        median < 2.0 && p95 < 10.0,
+        "forward: {median}° (median), {p95}° (95 %)"
+    );
 }

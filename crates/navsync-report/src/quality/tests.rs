@@ -657,7 +657,10 @@ fn an_implausible_probe_lever_arm_names_another_error() {
         v.causes.join(" | ")
     };
     let far = causes(89.6, -97.1);
-    assert!(far.contains("not the antenna") && far.contains("mount_deg"), "{far}");
+    assert!(
+        far.contains("not the antenna") && far.contains("mount_deg"),
+        "{far}"
+    );
     let near = causes(3.0, 0.0);
     assert!(near.starts_with("antenna lever arm"), "{near}");
 }
