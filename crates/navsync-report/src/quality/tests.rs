@@ -574,17 +574,7 @@ fn innovation_signatures_are_graded_by_their_cost() {
 /// graded.
 #[test]
 fn the_probes_time_offset_is_graded_by_significance_and_cost() {
-    use crate::innovation::InnovationEvidence;
-    let inn = InnovationEvidence {
-        fixes: 300,
-        effective_fixes: 150.0,
-        lever_error_fr_m: [0.0, 0.0],
-        lever_p: 0.5,
-        offset_s: 0.0,
-        offset_p: 0.5,
-        speed_rms_mps: 10.0,
-        filter_h_sd_m: 0.02,
-    };
+    let inn = quiet_innovations(300, 150.0, 10.0, 0.02);
     let grade = |o: f64, sd: f64, with_innovation: bool| {
         let v = assess(&Evidence {
             innovation: with_innovation.then(|| inn.clone()),
@@ -618,17 +608,7 @@ fn the_probes_time_offset_is_graded_by_significance_and_cost() {
 /// mounting, not the antenna; a 0.4 m difference names the lever arm.
 #[test]
 fn an_implausible_probe_lever_arm_names_another_error() {
-    use crate::innovation::InnovationEvidence;
-    let inn = InnovationEvidence {
-        fixes: 900,
-        effective_fixes: 300.0,
-        lever_error_fr_m: [0.0, 0.0],
-        lever_p: 0.5,
-        offset_s: 0.0,
-        offset_p: 0.5,
-        speed_rms_mps: 1.0,
-        filter_h_sd_m: 0.5,
-    };
+    let inn = quiet_innovations(900, 300.0, 1.0, 0.5);
     let causes = |forward_m: f64, right_m: f64| {
         let l = navsync::fusion::LeverArmSummary {
             estimate_m: [forward_m, right_m, 0.0],
@@ -663,4 +643,25 @@ fn an_implausible_probe_lever_arm_names_another_error() {
     );
     let near = causes(3.0, 0.0);
     assert!(near.starts_with("antenna lever arm"), "{near}");
+}
+
+/// Innovation evidence with no lever-arm or time-offset signature: `fixes`
+/// (`effective` independent) at `speed_rms_mps` against a filter σ of
+/// `filter_h_sd_m`.
+fn quiet_innovations(
+    fixes: usize,
+    effective: f64,
+    speed_rms_mps: f64,
+    filter_h_sd_m: f64,
+) -> crate::innovation::InnovationEvidence {
+    crate::innovation::InnovationEvidence {
+        fixes,
+        effective_fixes: effective,
+        lever_error_fr_m: [0.0, 0.0],
+        lever_p: 0.5,
+        offset_s: 0.0,
+        offset_p: 0.5,
+        speed_rms_mps,
+        filter_h_sd_m,
+    }
 }
