@@ -187,10 +187,9 @@ fn track_heading_before_start(
     a.att_sd_rad[2] = h.sd_rad.hypot(drift_rad);
     a.method = crate::align::AlignMethod::NoMotionTrackHeading;
     a.note = format!(
-        "{}; heading found in the GNSS track before the run ({} chords of the track agreeing within {:.1}° over courses \
-         spanning {:.0}°, by {:.1} s of week): the levelled yaw turned by {:.1}°, σ {:.1}° (the chords' {:.1}° and \
-         {:.1}° of vertical gyro drift to them)",
-        a.note,
+        "levelled, the vehicle too slow for the heading from its velocity; heading found in the GNSS track before the \
+         run ({} chords of the track agreeing within {:.1}° over courses spanning {:.0}°, by {:.1} s of week): the \
+         levelled yaw turned by {:.1}°, σ {:.1}° (the chords' {:.1}° and {:.1}° of vertical gyro drift to them)",
         h.chords,
         h.spread_rad.to_degrees(),
         h.course_span_rad.to_degrees(),
