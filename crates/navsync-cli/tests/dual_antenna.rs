@@ -6,7 +6,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{bin, json, run, temp_dir};
+use common::{bin, json, run, simulate_adis16465, temp_dir};
 
 const NOISE_SD_DEG: f64 = 0.2;
 const MOUNT_YAW_DEG: f64 = 30.0;
@@ -17,15 +17,7 @@ fn simulate(dir: &Path, scenario: &str, duration_s: &str) -> PathBuf {
 
 /// [`simulate`] with more `simulate` options.
 fn simulate_with(dir: &Path, scenario: &str, duration_s: &str, extra: &[&str]) -> PathBuf {
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin()
-        .args(["simulate", "--quiet", "--internal-rate", "0", "--scenario"])
-        .arg(scenario)
-        .args(["--duration", duration_s, "--imu-grade", "adis16465"])
-        .args(extra)
-        .args(["--seed", "3", "--output"])
-        .arg(&sim));
-    assert!(ok, "{err}");
+    let sim = simulate_adis16465(dir, scenario, duration_s, extra);
     // The configuration without an initial state: the run aligns itself.
     let cfg = std::fs::read_to_string(sim.join("kf-gins.yaml")).unwrap();
     let kept: String = cfg

@@ -7,58 +7,26 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{bin, json, run, temp_dir};
+use common::{adis16465_sheet, bin, json, run, simulate_adis16465, temp_dir};
 
 /// Simulates a drive (ADIS16465, RTK-like fixes of 1.8 cm per axis at
 /// 1 Hz) and returns its folder.
 fn simulate(dir: &Path, scenario: &str, duration_s: &str) -> PathBuf {
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin().args([
-        "simulate",
-        "--quiet",
-        "--internal-rate",
-        "0",
-        "--scenario",
-        scenario,
-        "--duration",
-        duration_s,
-        "--imu-grade",
-        "adis16465",
-        "--seed",
-        "3",
-        "--output",
-        sim.to_str().unwrap(),
-    ]));
-    assert!(ok, "{err}");
-    sim
+    simulate_adis16465(dir, scenario, duration_s, &[])
 }
 
 /// `navsync init --preset adis16465` with the simulator's lever arm, the
 /// NHC on (a land vehicle) and the mounting yaw `yaw_deg`.
 fn sheet(dir: &Path, yaw_deg: f64) -> PathBuf {
-    let p = dir.join(format!("sensor{yaw_deg}.yaml"));
-    let (ok, out, err) = run(bin().args([
-        "init",
-        "--preset",
-        "adis16465",
-        "--output",
-        p.to_str().unwrap(),
-    ]));
-    assert!(ok, "{out}{err}");
-    let text = std::fs::read_to_string(&p)
-        .unwrap()
-        .replace(
-            "antenna_lever_m: [0.0, 0.0, 0.0]",
-            "antenna_lever_m: [0.1, 0.5, -1.2]",
-        )
-        .replace("nhc: false", "nhc: true")
-        .replace(
-            "mount_deg: [0.0, 0.0, 0.0]",
-            &format!("mount_deg: [0.0, 0.0, {yaw_deg:.1}]"),
-        );
-    assert!(text.contains("nhc: true") && text.contains("mount_deg: [0.0, 0.0,"));
-    std::fs::write(&p, text).unwrap();
-    p
+    let mount = format!("mount_deg: [0.0, 0.0, {yaw_deg:.1}]");
+    adis16465_sheet(
+        dir,
+        &format!("sensor{yaw_deg}.yaml"),
+        &[
+            ("nhc: false", "nhc: true"),
+            ("mount_deg: [0.0, 0.0, 0.0]", &mount),
+        ],
+    )
 }
 
 /// The rig log with the IMU turned by `yaw_deg` about the vertical in the

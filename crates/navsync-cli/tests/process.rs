@@ -5,37 +5,11 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{bin, horizontal_rms, json, run, temp_dir};
+use common::{adis16465_sheet, bin, horizontal_rms, json, run, simulate_adis16465, temp_dir};
 
-/// Simulates a short drive (ADIS16465, test track: a standstill, then
-/// driving) and returns its folder.
+/// Simulates a short drive (ADIS16465, seed 3) and returns its folder.
 fn simulate(dir: &Path, scenario: &str, duration_s: &str) -> PathBuf {
-    simulate_with(dir, scenario, duration_s, &[])
-}
-
-/// [`simulate`] with more `navsync simulate` arguments.
-fn simulate_with(dir: &Path, scenario: &str, duration_s: &str, extra: &[&str]) -> PathBuf {
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin()
-        .args([
-            "simulate",
-            "--quiet",
-            "--internal-rate",
-            "0",
-            "--scenario",
-            scenario,
-            "--duration",
-            duration_s,
-            "--imu-grade",
-            "adis16465",
-            "--seed",
-            "3",
-            "--output",
-            sim.to_str().unwrap(),
-        ])
-        .args(extra));
-    assert!(ok, "{err}");
-    sim
+    simulate_adis16465(dir, scenario, duration_s, &[])
 }
 
 /// `navsync process RAW --sensor SENSOR --output OUT EXTRA…`.
@@ -50,22 +24,7 @@ fn process(raw: &Path, sensor: &Path, out: &Path, extra: &[&str]) -> (bool, Stri
 
 /// `navsync init --preset adis16465`, with the simulator's lever arm.
 fn sheet(dir: &Path) -> PathBuf {
-    let p = dir.join("sensor.yaml");
-    let (ok, out, err) = run(bin().args([
-        "init",
-        "--preset",
-        "adis16465",
-        "--output",
-        p.to_str().unwrap(),
-    ]));
-    assert!(ok && out.contains("wrote"), "{out}{err}");
-    // The simulator's antenna: 0.1 m forward, 0.5 m right, 1.2 m up.
-    let text = std::fs::read_to_string(&p).unwrap().replace(
-        "antenna_lever_m: [0.0, 0.0, 0.0]",
-        "antenna_lever_m: [0.1, 0.5, -1.2]",
-    );
-    std::fs::write(&p, text).unwrap();
-    p
+    adis16465_sheet(dir, "sensor.yaml", &[])
 }
 
 #[test]
@@ -484,7 +443,7 @@ fn a_zero_lever_arm_is_warned_and_not_good() {
 #[test]
 fn late_gnss_tags_are_found_by_the_consistency_probe() {
     let d = temp_dir("late-tags");
-    let late = simulate_with(
+    let late = simulate_adis16465(
         &d,
         "test-track",
         "300",

@@ -48,3 +48,47 @@ pub fn horizontal_rms(truth: &Path, nav: &Path, dir: &Path) -> f64 {
     assert!(ok, "{err}");
     json(&j)["pos_horizontal_m"]["rms"].as_f64().unwrap()
 }
+
+/// `navsync simulate` of `scenario` for `duration_s` with an ADIS16465
+/// and seed 3 (the exact model: `--internal-rate 0`), plus `extra`
+/// arguments, into `dir/sim`; returns that folder.
+pub fn simulate_adis16465(
+    dir: &Path,
+    scenario: &str,
+    duration_s: &str,
+    extra: &[&str],
+) -> std::path::PathBuf {
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args(["simulate", "--quiet", "--internal-rate", "0", "--scenario"])
+        .arg(scenario)
+        .args(["--duration", duration_s, "--imu-grade", "adis16465"])
+        .args(["--seed", "3", "--output"])
+        .arg(&sim)
+        .args(extra));
+    assert!(ok, "{err}");
+    sim
+}
+
+/// `navsync init --preset adis16465` written to `dir/name` with the
+/// simulator's antenna lever arm (0.1 m forward, 0.5 m right, 1.2 m up)
+/// and each `(from, to)` replacement of the template's text, every one of
+/// which must apply; returns the sheet's path.
+pub fn adis16465_sheet(dir: &Path, name: &str, edits: &[(&str, &str)]) -> std::path::PathBuf {
+    let p = dir.join(name);
+    let (ok, out, err) = run(bin()
+        .args(["init", "--preset", "adis16465", "--output"])
+        .arg(&p));
+    assert!(ok && out.contains("wrote"), "{out}{err}");
+    let mut text = std::fs::read_to_string(&p).unwrap();
+    let lever = [(
+        "antenna_lever_m: [0.0, 0.0, 0.0]",
+        "antenna_lever_m: [0.1, 0.5, -1.2]",
+    )];
+    for (from, to) in lever.iter().chain(edits) {
+        assert!(text.contains(from), "the sheet template has no '{from}'");
+        text = text.replace(from, to);
+    }
+    std::fs::write(&p, text).unwrap();
+    p
+}
