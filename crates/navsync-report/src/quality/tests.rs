@@ -475,16 +475,7 @@ fn an_estimated_lever_arm_is_graded_by_what_the_drive_observed() {
     assert_eq!(run([0.4, -0.3, -0.8], false).0, None);
     // A signature left with the states on does not recommend them.
     let v = assess(&Evidence {
-        innovation: Some(crate::innovation::InnovationEvidence {
-            fixes: 300,
-            effective_fixes: 150.0,
-            lever_error_fr_m: [0.4, -0.3],
-            lever_p: 1e-9,
-            offset_s: 0.0,
-            offset_p: 0.5,
-            speed_rms_mps: 10.0,
-            filter_h_sd_m: 0.02,
-        }),
+        innovation: Some(lever_signature()),
         antenna_lever_m: Some([0.0; 3]),
         lever_estimate: Some(est(true)),
         ..Evidence::default()
@@ -503,16 +494,7 @@ fn an_estimated_lever_arm_is_graded_by_what_the_drive_observed() {
 #[test]
 fn innovation_signatures_are_graded_by_their_cost() {
     use crate::innovation::InnovationEvidence;
-    let base = InnovationEvidence {
-        fixes: 300,
-        effective_fixes: 150.0,
-        lever_error_fr_m: [0.4, -0.3],
-        lever_p: 1e-9,
-        offset_s: 0.0,
-        offset_p: 0.5,
-        speed_rms_mps: 10.0,
-        filter_h_sd_m: 0.02,
-    };
+    let base = lever_signature();
     let grade_of_lever = |e: InnovationEvidence| {
         let ev = Evidence {
             innovation: Some(e),
@@ -663,5 +645,15 @@ fn quiet_innovations(
         offset_p: 0.5,
         speed_rms_mps,
         filter_h_sd_m,
+    }
+}
+
+/// A significant lever-arm signature (0.4 m forward, 0.3 m left, p 1e-9)
+/// over 300 fixes at 10 m/s against a 2 cm solution.
+fn lever_signature() -> crate::innovation::InnovationEvidence {
+    crate::innovation::InnovationEvidence {
+        lever_error_fr_m: [0.4, -0.3],
+        lever_p: 1e-9,
+        ..quiet_innovations(300, 150.0, 10.0, 0.02)
     }
 }
