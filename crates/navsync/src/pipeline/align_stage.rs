@@ -119,7 +119,8 @@ pub(super) fn align_stage(
 /// alignment's attitude is turned by δ̄ about the vertical, with σ the
 /// chords' plus what an unknown vertical bias (`gyro_bias_sd_rad_s`, the
 /// sheet's turn-on σ, or the standstill mean's own σ) turns the yaw
-/// between the start and the chords' mean time. Nothing changes when the
+/// between the start and the last chord (a bound on the drift to the
+/// chords' mean time). Nothing changes when the
 /// chords never agree (a drone flying sideways, a straight road).
 fn track_heading_before_start(
     cfg: &KfGinsConfig,
@@ -181,7 +182,9 @@ fn track_heading_before_start(
     } else {
         gyro_bias_sd_rad_s
     };
-    let drift_rad = bias_sd * h.time.seconds_since(start) / 2.0;
+    // Drift to the acquisition, the last chord's end: a bound on the drift
+    // to the chords' mean time.
+    let drift_rad = bias_sd * h.time.seconds_since(start);
     let turn = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), h.offset_rad);
     a.nav.q_nb = turn * a.nav.q_nb;
     a.att_sd_rad[2] = h.sd_rad.hypot(drift_rad);
