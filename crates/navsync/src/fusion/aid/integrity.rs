@@ -29,7 +29,9 @@
 //! Inertial Navigation Technology", 2nd ed., §12.3: δr ≈ δv·t +
 //! ½(g·δθ + δf)·t² + VRW·t^{3/2}/√3, plus the heading error times the
 //! distance travelled, a gyro bias's tilt and heading drift) or the
-//! filter's own predicted growth H P Hᵀ − (H P⁺ Hᵀ)_A if larger; λ ≥ 1 the INS overconfidence the robust
+//! filter's own predicted growth H P Hᵀ − (H P⁺ Hᵀ)_A if larger; with no
+//! GNSS update since A, that growth alone (it holds the correlation of
+//! tilt and bias that the σ-model leaves out); λ ≥ 1 the INS overconfidence the robust
 //! weighting measured on clean fixes. D = Δᵀ V⁻¹ Δ is tested against the
 //! χ²₃ quantile at [`FALSE_ALARM_PROB`]:
 //!
@@ -402,9 +404,20 @@ impl FaultMonitor {
         let dt = time.seconds_since(a.time);
         let c = self.ledger_since(a, time);
         let delta = z - c - a.residual;
-        // The filter's own predicted growth is the better model when it
-        // is larger (an unconverged INS; no update since A).
-        let mut g = self.growth(a, dt);
+        // With no GNSS update since A, the filter's H P Hᵀ grew from A's
+        // alone: that is the free INS's growth under its own model, the
+        // tilt and the accelerometer bias with their correlation (which
+        // `growth`, from σ alone, leaves out: for a MEMS IMU whose bias
+        // the fixes have not separated from the tilt it overstates the
+        // drift several times, and let a 9 m false fix pass as drift after
+        // 7 s). After updates, H P Hᵀ no longer holds it: the model's
+        // growth from A's σ, or the filter's if larger.
+        let free = !self.ledger.iter().any(|k| k.seq > a.seq);
+        let mut g = if free {
+            Vector3::zeros()
+        } else {
+            self.growth(a, dt)
+        };
         for i in 0..3 {
             g[i] = g[i].max(hph[(i, i)] - a.hph_post[i]);
         }
@@ -619,16 +632,21 @@ mod tests {
     /// A monitor with clean 1 Hz fixes up to `t0 + n − 1` s: an INS with
     /// 5 mm/s velocity σ, 0.01° tilt, 0.1° yaw at 10 m/s.
     fn primed(n: usize) -> (FaultMonitor, GpsTime) {
+        primed_with(
+            n,
+            StateSpread {
+                vel_sd: Vector3::repeat(0.005),
+                tilt_sd: 0.01f64.to_radians(),
+                yaw_sd: 0.1f64.to_radians(),
+                accel_bias_sd: 1e-3,
+                gyro_bias_sd: 1e-6,
+                speed_mps: 10.0,
+            },
+        )
+    }
+    fn primed_with(n: usize, spread: StateSpread) -> (FaultMonitor, GpsTime) {
         let mut m = FaultMonitor::new(0.04 / 60.0);
         let t0 = GpsTime::from_week_sow(2300, 1000.0);
-        let spread = StateSpread {
-            vel_sd: Vector3::repeat(0.005),
-            tilt_sd: 0.01f64.to_radians(),
-            yaw_sd: 0.1f64.to_radians(),
-            accel_bias_sd: 1e-3,
-            gyro_bias_sd: 1e-6,
-            speed_mps: 10.0,
-        };
         for k in 0..n {
             let t = t0.add_seconds(k as f64);
             assert_eq!(
@@ -735,6 +753,53 @@ mod tests {
         ));
         assert!(k >= MAX_EPISODE_S, "ended after {k} s");
         assert_eq!(m.all_episodes()[0].end, EpisodeEnd::Unbridged);
+    }
+
+    /// A MEMS INS whose accelerometer bias (0.1 m/s²) and tilt (0.5°) the
+    /// fixes have not told apart: from their σ alone its drift would reach
+    /// 5 m in 6 s, but the filter's own H P Hᵀ, which holds their
+    /// correlation, grows to 0.5 m σ in 10 s. Judged by the latter, a 5 m
+    /// false fix for 10 s stays excluded whole and the fixes that come
+    /// back are clean (judged by the former it was taken for drift and
+    /// followed).
+    #[test]
+    fn a_false_fix_is_judged_by_the_filters_own_growth_without_updates() {
+        let (mut m, t) = primed_with(
+            10,
+            StateSpread {
+                vel_sd: Vector3::repeat(0.01),
+                tilt_sd: 0.5f64.to_radians(),
+                yaw_sd: 1f64.to_radians(),
+                accel_bias_sd: 0.1,
+                gyro_bias_sd: 1e-5,
+                speed_mps: 10.0,
+            },
+        );
+        let grown = |k: f64| Matrix3::from_diagonal(&Vector3::repeat(1.2e-4 + (0.05 * k).powi(2)));
+        let fault = Vector3::new(3.0, -4.0, 0.0);
+        for k in 0..10 {
+            let j = m.judge(
+                t.add_seconds(k as f64),
+                &fault,
+                &grown(k as f64 + 1.0),
+                &r(),
+                1.0,
+            );
+            assert!(
+                matches!(j, Judgement::Exclude(_)),
+                "fix {k} of the fault: {j:?}"
+            );
+        }
+        let back = m.judge(
+            t.add_seconds(10.0),
+            &Vector3::zeros(),
+            &grown(11.0),
+            &r(),
+            1.0,
+        );
+        assert_eq!(back, Judgement::Clean);
+        assert_eq!(m.all_episodes()[0].end, EpisodeEnd::Returned);
+        assert_eq!(m.all_episodes()[0].fixes, 10);
     }
 
     /// The ledger: a GNSS correction the filter applied after the anchor
