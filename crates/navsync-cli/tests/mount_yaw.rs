@@ -239,11 +239,17 @@ fn a_slow_vehicle_gets_its_heading_from_the_track_before_the_run() {
     let sim = simulate(&d, "test-track", "300");
     let rig = turned_rig(&sim, 90.0, &d);
     let out = d.join("o");
-    let (_, p) = process_with(&rig, &sheet(&d, 90.0), &out, &["--align-min-speed", "100"]);
+    let (s, p) = process_with(&rig, &sheet(&d, 90.0), &out, &["--align-min-speed", "100"]);
     let a = &p["alignment"];
     assert_eq!(a["method"], "no-motion-track-heading", "{a}");
     let sd_deg = a["att_sd_rad"][2].as_f64().unwrap().to_degrees();
     assert!(sd_deg < 10.0, "{a}");
+    // summary.json's options say what the alignment used: the sheet's
+    // mounting yaw (not the 0 it replaced) and the user's minimum speed.
+    let o = &s["options"]["align"];
+    let used_deg = o["mount_yaw_rad"].as_f64().unwrap().to_degrees();
+    assert!((used_deg - 90.0).abs() < 1e-9, "{o}");
+    assert_eq!(o["min_speed_mps"].as_f64(), Some(100.0), "{o}");
     let truth = sim.join("truth.nav");
     let (median, p95) = heading_error_deg(&truth, &out.join("fuse/navresult.nav"), 90.0);
     assert!(

@@ -934,11 +934,11 @@ fn run_inner(
             aligned_from_baseline: false,
         });
     }
-    let (alignment, mount_yaw) = if opts.align.is_some() || !cfg.init_state_given {
-        let (a, m) = align_stage(cfg, opts, &mut fc, &headings, &mut diag)?;
-        (Some(a), m)
+    let (alignment, mount_yaw, align_used) = if opts.align.is_some() || !cfg.init_state_given {
+        let (a, m, ao) = align_stage(cfg, opts, &mut fc, &headings, &mut diag)?;
+        (Some(a), m, Some(ao))
     } else {
-        (None, None)
+        (None, None, opts.align)
     };
     let fc = fc;
     let start = fc.init_nav.time;
@@ -1114,7 +1114,12 @@ fn run_inner(
         lever_arm: fusion
             .lever_arm()
             .map(|l| l.against_sheet(cfg.antenna_lever.into())),
-        options: opts.clone(),
+        // The alignment's options as used: the sheet's lever arm and
+        // mounting yaw, not the defaults they replaced.
+        options: FuseOptions {
+            align: align_used,
+            ..opts.clone()
+        },
         run_time_s: started.elapsed().as_secs_f64(),
         diagnostics: all,
     })

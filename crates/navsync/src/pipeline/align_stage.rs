@@ -8,7 +8,9 @@ use super::*;
 
 /// The initial state from the data (`align`), the land vehicle's mounting
 /// yaw from the motion (`mount_search`) and the mounting a tilted IMU
-/// implies, written into `fc`.
+/// implies, written into `fc`; with the alignment options as used (the
+/// user's, with the sheet's lever arm, bias σ and mounting yaw filled in:
+/// what summary.json reports).
 pub(super) fn align_stage(
     cfg: &KfGinsConfig,
     opts: &FuseOptions,
@@ -19,6 +21,7 @@ pub(super) fn align_stage(
     (
         crate::align::Alignment,
         Option<crate::mount_search::MountYawDecision>,
+        crate::align::AlignOptions,
     ),
     Error,
 > {
@@ -95,7 +98,7 @@ pub(super) fn align_stage(
             ao.mount_yaw_rad,
         ));
     }
-    Ok((a, mount_yaw))
+    Ok((a, mount_yaw, ao))
 }
 
 /// The heading of a vehicle too slow for the alignment's course, found in
