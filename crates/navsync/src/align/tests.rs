@@ -233,35 +233,41 @@ fn the_mounting_yaw_turns_the_imu_from_the_course_as_the_nhc_has_it() {
     }
 }
 
-/// Reversing: the speed grows while the IMU's forward specific force is
-/// negative: the heading is the course turned by 180°.
-#[test]
-fn a_reversing_vehicle_faces_away_from_its_course() {
-    let mut al = Aligner::new(AlignOptions::default());
+/// The alignment of a vehicle starting in motion: the IMU (mounted at
+/// `mount_yaw_rad`) measures `f_b` throughout while the GNSS speed grows
+/// at 1 m/s² northwards, a fix every second.
+fn align_speeding_up_north(mount_yaw_rad: f64, f_b: Vector3<f64>) -> Alignment {
+    let mut al = Aligner::new(AlignOptions {
+        mount_yaw_rad,
+        ..AlignOptions::default()
+    });
     let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
     let dt = 0.01;
     let mut t = GpsTime::from_week_sow(2000, 1000.0);
-    let f_back = Vector3::new(-1.0, 0.0, -GAMMA_E);
-    let mut out = None;
     for k in 1..=1000 {
         t = t.add_seconds(dt);
-        al.push_imu(&sample(t, f_back, dt));
+        al.push_imu(&sample(t, f_b, dt));
         if k % 100 == 0 {
-            let v = Vector3::new(1.0 * k as f64 * dt, 0.0, 0.0);
             let fix = GnssFix {
                 time: t,
                 pos,
                 pos_sd: Vector3::repeat(0.02),
-                vel: Some(v),
+                vel: Some(Vector3::new(1.0 * k as f64 * dt, 0.0, 0.0)),
                 vel_sd: Some(Vector3::repeat(0.02)),
             };
             if let Some(x) = al.push_gnss(&fix) {
-                out = Some(x);
-                break;
+                return x;
             }
         }
     }
-    let a = out.expect("aligned");
+    panic!("not aligned in 10 s of motion");
+}
+
+/// Reversing: the speed grows while the IMU's forward specific force is
+/// negative: the heading is the course turned by 180°.
+#[test]
+fn a_reversing_vehicle_faces_away_from_its_course() {
+    let a = align_speeding_up_north(0.0, Vector3::new(-1.0, 0.0, -GAMMA_E));
     assert_eq!(a.method, AlignMethod::InMotion);
     assert!(a.reversing_checked && a.reversing);
     assert!((a.nav.euler().yaw_rad.abs() - std::f64::consts::PI).abs() < 1e-9);
@@ -274,35 +280,9 @@ fn a_reversing_vehicle_faces_away_from_its_course() {
 #[test]
 fn an_imu_facing_backwards_in_a_forward_vehicle_is_not_reversing() {
     let mount = -120f64.to_radians();
-    let mut al = Aligner::new(AlignOptions {
-        mount_yaw_rad: mount,
-        ..AlignOptions::default()
-    });
-    let pos = Geodetic::from_deg(30.0, 114.0, 20.0);
-    let dt = 0.01;
-    let mut t = GpsTime::from_week_sow(2000, 1000.0);
     let c_bv = crate::attitude::euler_to_dcm(&Euler::new(0.0, 0.0, mount));
     let f = c_bv.transpose() * Vector3::new(1.0, 0.0, 0.0) + Vector3::new(0.0, 0.0, -GAMMA_E);
-    let mut out = None;
-    for k in 1..=1000 {
-        t = t.add_seconds(dt);
-        al.push_imu(&sample(t, f, dt));
-        if k % 100 == 0 {
-            let v = Vector3::new(1.0 * k as f64 * dt, 0.0, 0.0);
-            let fix = GnssFix {
-                time: t,
-                pos,
-                pos_sd: Vector3::repeat(0.02),
-                vel: Some(v),
-                vel_sd: Some(Vector3::repeat(0.02)),
-            };
-            if let Some(x) = al.push_gnss(&fix) {
-                out = Some(x);
-                break;
-            }
-        }
-    }
-    let a = out.expect("aligned");
+    let a = align_speeding_up_north(mount, f);
     assert_eq!(a.method, AlignMethod::InMotion);
     assert!(a.reversing_checked && !a.reversing);
     assert!(wrap_pi(a.nav.euler().yaw_rad - mount).abs() < 1e-6);
