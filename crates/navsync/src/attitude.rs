@@ -171,6 +171,13 @@ pub(crate) fn quat_to_rotvec(q: &UnitQuaternion<f64>) -> Vector3<f64> {
     v * (angle / s)
 }
 
+/// The attitude `q_nb` turned about the navigation frame's vertical by
+/// `yaw_rad` (a heading change; roll and pitch relative to the level are
+/// kept): q ← R_z(ψ) q.
+pub(crate) fn turned_in_yaw(q_nb: &UnitQuaternion<f64>, yaw_rad: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw_rad) * q_nb
+}
+
 /// Wraps an angle to (−π, π].
 #[inline]
 pub fn wrap_pi(a: f64) -> f64 {
@@ -191,6 +198,18 @@ pub(crate) fn wrap_180(deg: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Turning in yaw changes the heading by the angle and keeps roll and
+    /// pitch: (5°, 10°, 30°) turned by 20° is (5°, 10°, 50°).
+    #[test]
+    fn turning_in_yaw_keeps_roll_and_pitch() {
+        let d = |x: f64| x.to_radians();
+        let q = euler_to_quat(&Euler::new(d(5.0), d(10.0), d(30.0)));
+        let e = quat_to_euler(&turned_in_yaw(&q, d(20.0)));
+        assert!((e.roll_rad - d(5.0)).abs() < 1e-12, "{e:?}");
+        assert!((e.pitch_rad - d(10.0)).abs() < 1e-12, "{e:?}");
+        assert!((e.yaw_rad - d(50.0)).abs() < 1e-12, "{e:?}");
+    }
     use std::f64::consts::FRAC_PI_2;
 
     #[test]

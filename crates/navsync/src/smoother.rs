@@ -678,11 +678,7 @@ impl Smoothed {
             if let Some(h) = self.yaw_turn
                 && a.nominal.yaw_held
             {
-                let turn = nalgebra::UnitQuaternion::from_axis_angle(
-                    &nalgebra::Vector3::z_axis(),
-                    h.offset_rad,
-                );
-                nav.q_nb = turn * nav.q_nb;
+                nav.q_nb = crate::attitude::turned_in_yaw(&nav.q_nb, h.offset_rad);
                 // The gyros' drift between this epoch and the acquisition
                 // is left out of the σ (minutes of a MEMS gyro: a degree).
                 sd[crate::filter::idx::ATT + 2] = h.sd_rad;

@@ -188,8 +188,7 @@ fn track_heading_before_start(
     // Drift to the acquisition, the last chord's end: a bound on the drift
     // to the chords' mean time.
     let drift_rad = bias_sd * h.time.seconds_since(start);
-    let turn = nalgebra::UnitQuaternion::from_axis_angle(&Vector3::z_axis(), h.offset_rad);
-    a.nav.q_nb = turn * a.nav.q_nb;
+    a.nav.q_nb = crate::attitude::turned_in_yaw(&a.nav.q_nb, h.offset_rad);
     a.att_sd_rad[2] = h.sd_rad.hypot(drift_rad);
     a.method = crate::align::AlignMethod::NoMotionTrackHeading;
     a.note = format!(

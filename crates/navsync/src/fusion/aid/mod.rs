@@ -218,9 +218,7 @@ impl Core {
     /// turned by the offset about the vertical, the yaw's covariance reset
     /// to its σ (uncorrelated: it was held), and the yaw a state again.
     fn acquire_heading(&mut self, h: super::course_heading::HeadingAcquired) {
-        let turn =
-            nalgebra::UnitQuaternion::from_axis_angle(&nalgebra::Vector3::z_axis(), h.offset_rad);
-        self.nav.q_nb = turn * self.nav.q_nb;
+        self.nav.q_nb = crate::attitude::turned_in_yaw(&self.nav.q_nb, h.offset_rad);
         let yaw = crate::filter::idx::ATT + 2;
         let p = self.filter.covariance_mut();
         for i in 0..p.rows {
