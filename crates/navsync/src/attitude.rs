@@ -198,6 +198,7 @@ pub(crate) fn wrap_180(deg: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::f64::consts::FRAC_PI_2;
 
     /// Turning in yaw changes the heading by the angle and keeps roll and
     /// pitch: (5°, 10°, 30°) turned by 20° is (5°, 10°, 50°).
@@ -210,8 +211,6 @@ mod tests {
         assert!((e.pitch_rad - d(10.0)).abs() < 1e-12, "{e:?}");
         assert!((e.yaw_rad - d(50.0)).abs() < 1e-12, "{e:?}");
     }
-    use std::f64::consts::FRAC_PI_2;
-
     #[test]
     fn euler_dcm_quat_agree() {
         for &(r, p, y) in &[
