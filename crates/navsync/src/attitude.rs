@@ -211,6 +211,7 @@ mod tests {
         assert!((e.pitch_rad - d(10.0)).abs() < 1e-12, "{e:?}");
         assert!((e.yaw_rad - d(50.0)).abs() < 1e-12, "{e:?}");
     }
+
     #[test]
     fn euler_dcm_quat_agree() {
         for &(r, p, y) in &[
