@@ -13,6 +13,27 @@ fn sample(t: GpsTime, f_b: Vector3<f64>, dt: f64) -> ImuSample {
     }
 }
 
+/// C_bⁿ of a state at rest with attitude `att`.
+fn c_nb_at(att: &Euler) -> Matrix3<f64> {
+    NavState::new(
+        GpsTime::from_week_ns(2300, 0),
+        Geodetic::default(),
+        Vector3::zeros(),
+        att,
+    )
+    .c_nb()
+}
+
+/// The tilt error φ of levelling the specific force `f_meas` of an IMU at
+/// C_bⁿ `c` (yaw `yaw_rad` kept), in the filter's convention:
+/// (I − φ×) = Ĉ Cᵀ.
+fn levelling_tilt_error(c: &Matrix3<f64>, yaw_rad: f64, f_meas: &Vector3<f64>) -> Vector3<f64> {
+    let (r, p) = level(f_meas);
+    let c_hat = c_nb_at(&Euler::new(r, p, yaw_rad));
+    let x = Matrix3::identity() - c_hat * c.transpose();
+    Vector3::new(x[(2, 1)], x[(0, 2)], x[(1, 0)])
+}
+
 /// The coupling predicts the tilt error that levelling makes from an
 /// accelerometer bias, in the filter's convention (Ĉ = (I − φ×)C,
 /// δb = b̂ − b with b̂ = 0 here).
@@ -25,26 +46,10 @@ fn levelling_tilt_error_is_the_coupled_bias() {
             f64::to_radians(pitch),
             f64::to_radians(yaw),
         );
-        let c = NavState::new(
-            GpsTime::from_week_ns(2300, 0),
-            Geodetic::default(),
-            Vector3::zeros(),
-            &att,
-        )
-        .c_nb();
+        let c = c_nb_at(&att);
         let bias = Vector3::new(0.02, -0.015, 0.01);
         let f_meas = c.transpose() * Vector3::new(0.0, 0.0, -g) + bias;
-        let (r, p) = level(&f_meas);
-        let c_hat = NavState::new(
-            GpsTime::from_week_ns(2300, 0),
-            Geodetic::default(),
-            Vector3::zeros(),
-            &Euler::new(r, p, att.yaw_rad),
-        )
-        .c_nb();
-        // (I − φ×) = Ĉ Cᵀ
-        let x = Matrix3::identity() - c_hat * c.transpose();
-        let phi = Vector3::new(x[(2, 1)], x[(0, 2)], x[(1, 0)]);
+        let phi = levelling_tilt_error(&c, att.yaw_rad, &f_meas);
         let predicted = levelling_tilt_coupling(&c, g) * (-bias);
         for i in 0..2 {
             assert!(
@@ -71,22 +76,10 @@ fn levelling_tilt_error_includes_the_accelerometer_misalignment() {
             f64::to_radians(pitch),
             f64::to_radians(yaw),
         );
-        let at = |a: &Euler| {
-            NavState::new(
-                GpsTime::from_week_ns(2300, 0),
-                Geodetic::default(),
-                Vector3::zeros(),
-                a,
-            )
-            .c_nb()
-        };
-        let c = at(&att);
+        let c = c_nb_at(&att);
         let f = c.transpose() * Vector3::new(0.0, 0.0, -g);
         let j = crate::filter::misalign_jacobian(&f);
-        let (r, p) = level(&(f + j * m));
-        let c_hat = at(&Euler::new(r, p, att.yaw_rad));
-        let x = Matrix3::identity() - c_hat * c.transpose();
-        let phi = Vector3::new(x[(2, 1)], x[(0, 2)], x[(1, 0)]);
+        let phi = levelling_tilt_error(&c, att.yaw_rad, &(f + j * m));
         let predicted = levelling_tilt_coupling(&c, g) * j * (-m);
         for i in 0..2 {
             assert!(
