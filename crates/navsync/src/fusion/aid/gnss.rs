@@ -527,6 +527,7 @@ impl GnssSource {
             self.last_received = Some(fix.time);
             return Ok(());
         }
+        let monitor_vouched = self.forced.is_some();
         let status = self.robust_apply(core, obs, 0, fix.time, rw, &frozen)?;
         self.forced = None;
         self.last_received = Some(fix.time);
@@ -540,6 +541,9 @@ impl GnssSource {
                 memo.hph_post,
                 memo.r_stated,
                 spread,
+                // The robust weighting's own "the INS drifted": the fixes
+                // had been pulling the state away.
+                status == FixStatus::DriftAccepted && !monitor_vouched,
             );
         }
         match status {

@@ -40,7 +40,11 @@
 //! takes a free MEMS INS drifts as a ramp does (a test against anchors
 //! seconds back, with a growth model from the state's σ, took the INS's
 //! own drift for ramps on clean drives); only a ramp's end is recognised,
-//! as a jump back to where the fixes were seconds before.
+//! as a jump back to where the fixes were seconds before: a jump within
+//! the INS's drift since an anchor seconds back and much closer to it
+//! than to the last, or any jump within that drift once the fixes since
+//! had dragged the INS (a fix the robust weighting used because it judged
+//! the INS drifted: the fixes before the jump are then the suspects).
 //!
 //! A detection opens an episode: "the fixes moved to a new level", held as
 //! a hypothesis. Each later fix is tested against the episode's anchor:
@@ -186,6 +190,11 @@ pub struct FaultEpisode {
 #[derive(Copy, Clone, Debug)]
 struct Anchor {
     time: GpsTime,
+    /// Used only because the robust weighting judged that the INS had
+    /// drifted (disagreeing fixes that agreed with each other), while the
+    /// INS was a reference: the fixes were pulling the state away, most
+    /// often along a ramp.
+    dragged: bool,
     /// Ledger sequence number after its own position update.
     seq: u64,
     /// Posterior residual r⁺ (predicted after the update − measured, NED).
@@ -318,7 +327,10 @@ impl FaultMonitor {
     }
 
     /// Remembers a clean, used fix as an anchor (after its position
-    /// update, before its velocity update).
+    /// update, before its velocity update); `drift_accepted`: used only
+    /// because the robust weighting judged the INS drifted. (While the INS
+    /// is not yet a reference, after a start or an unresolved episode,
+    /// that is the INS catching up, not being dragged.)
     pub(in crate::fusion) fn add_anchor(
         &mut self,
         time: GpsTime,
@@ -326,10 +338,13 @@ impl FaultMonitor {
         hph_post: Vector3<f64>,
         r: Vector3<f64>,
         spread: StateSpread,
+        drift_accepted: bool,
     ) {
+        let dragged = drift_accepted && self.anchors_since_reset >= MIN_ANCHORS;
         self.anchors_since_reset += 1;
         self.anchors.push_back(Anchor {
             time,
+            dragged,
             seq: self.seq,
             residual,
             hph_post,
@@ -502,13 +517,19 @@ impl FaultMonitor {
         if d > threshold {
             // Back to the level of the fixes seconds before? Then those
             // since drifted away (a ramp the filter followed) and this one
-            // is the good one.
-            // (Much closer to the old level than to the last: a false fix's
-            // onset is as far from both.)
+            // is the good one. It must be much closer to the old level than
+            // to the last (a false fix's onset is as far from both)...
+            // unless the fixes since had dragged the INS (the robust
+            // weighting took their pull for INS drift): then the last
+            // level is the suspect one, and the INS's own distance from
+            // the old level is no longer a measure of it (a MEMS INS
+            // dragged along a ramp drifts metres from an anchor 20 s back;
+            // measured on the bed, such jumps were all ramp ends).
+            let dragged = self.anchors.iter().any(|a| a.dragged);
             if let Some((old, d_old, delta_old)) =
                 self.back_to_older(time, z, hph, r, lambda, &last)
                 && d_old <= threshold
-                && delta_old.norm() < RAMP_END_CLOSER * delta.norm()
+                && (dragged || delta_old.norm() < RAMP_END_CLOSER * delta.norm())
             {
                 self.episodes.push(FaultEpisode {
                     start_sow: old.sow(),
@@ -653,7 +674,14 @@ mod tests {
                 m.judge(t, &Vector3::zeros(), &hph(), &r(), 1.0),
                 Judgement::Clean
             );
-            m.add_anchor(t, Vector3::zeros(), Vector3::repeat(1e-4), r(), spread);
+            m.add_anchor(
+                t,
+                Vector3::zeros(),
+                Vector3::repeat(1e-4),
+                r(),
+                spread,
+                false,
+            );
         }
         (m, t0.add_seconds(n as f64))
     }
@@ -800,6 +828,60 @@ mod tests {
         assert_eq!(back, Judgement::Clean);
         assert_eq!(m.all_episodes()[0].end, EpisodeEnd::Returned);
         assert_eq!(m.all_episodes()[0].fixes, 10);
+    }
+
+    /// A MEMS INS (0.1° tilt, 0.2° heading σ at 10 m/s) follows fixes for
+    /// 18 s, corrected by 1 cm a fix from the 6th on, then the fixes jump
+    /// 1.44 m: sharp against the last fix (a jump), within the INS's drift
+    /// since the first (18 s back) but no closer to it. That is a ramp's
+    /// end only if the fixes had dragged the INS meanwhile (a fix used
+    /// because the robust weighting judged the INS drifted), and only once
+    /// the INS was a reference (not a drift acceptance among the first
+    /// fixes after a start, which is the INS catching up).
+    #[test]
+    fn a_jump_after_the_fixes_dragged_the_ins_is_a_ramp_end() {
+        let spread = StateSpread {
+            vel_sd: Vector3::repeat(0.01),
+            tilt_sd: 0.1f64.to_radians(),
+            yaw_sd: 0.2f64.to_radians(),
+            accel_bias_sd: 0.02,
+            gyro_bias_sd: 1e-5,
+            speed_mps: 10.0,
+        };
+        let jump_after = |dragged_at: Option<usize>| {
+            let mut m = FaultMonitor::new(0.04 / 60.0);
+            let t0 = GpsTime::from_week_sow(2300, 1000.0);
+            for k in 0..18 {
+                let t = t0.add_seconds(k as f64);
+                assert_eq!(
+                    m.judge(t, &Vector3::zeros(), &hph(), &r(), 1.0),
+                    Judgement::Clean
+                );
+                if k >= 6 {
+                    let mut dx = vec![0.0; 21];
+                    dx[0] = -0.01;
+                    m.record_correction(t, &dx, 0, 3);
+                }
+                let dragged = dragged_at == Some(k);
+                m.add_anchor(
+                    t,
+                    Vector3::zeros(),
+                    Vector3::repeat(1e-4),
+                    r(),
+                    spread,
+                    dragged,
+                );
+            }
+            let z = Vector3::new(1.2, -0.8, 0.0);
+            m.judge(t0.add_seconds(18.0), &z, &hph(), &r(), 1.0)
+        };
+        assert!(
+            matches!(jump_after(Some(10)), Judgement::RampEnd { .. }),
+            "{:?}",
+            jump_after(Some(10))
+        );
+        assert_eq!(jump_after(None), Judgement::Exclude(FaultReason::Jump));
+        assert_eq!(jump_after(Some(2)), Judgement::Exclude(FaultReason::Jump));
     }
 
     /// The ledger: a GNSS correction the filter applied after the anchor
