@@ -14,8 +14,10 @@
   seeds ROWS                   per bed and fault seed: forward clean, faults
                                default, oracle, KF-GINS rule
   classes W BED...             per bed and class: faulty fixes (≥ 0.3 m)
-                               flagged by the default forward run, pooled
-                               over the fault seeds found in W/BED/faults-*
+                               flagged by the default run, forward / smoothed
+                               (its last pass, after the smoother's
+                               re-judgement), pooled over the fault seeds
+                               found in W/BED/faults-*
 
 A fix is flagged when its position line in gnss_residuals.txt (docs/FORMATS.md:
 `sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status reason hpl_m`)
@@ -103,20 +105,24 @@ def table(rows_path):
         f = line.split()
         beds.setdefault(f[0], []).append([float(x) for x in f[2:]])
     head = ("bed", "clean", "faults default", "oracle", "def/oracle", "KF-GINS rule + faults",
-            "faulty flagged", "clean extra flagged", "smoothed faults", "smoothed oracle", "sm/(sm oracle+3cm)")
+            "faulty flagged", "clean extra flagged", "smoothed faults", "smoothed oracle", "sm/(sm oracle+3cm)",
+            "flagged, smoothed run", "clean extra, smoothed run")
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for bed, rows in beds.items():
         mean = lambda i: sum(r[i] for r in rows) / len(rows)
         worst = lambda f: max(f(r) for r in rows)
         # row: clean_f clean_s faulty_f faulty_s oracle_f oracle_s off_f big big_flagged
-        #      clean_flagged_faulty clean_flagged_clean fixes
+        #      clean_flagged_faulty clean_flagged_clean fixes, then the smoothed run's
+        #      big_flagged clean_flagged_faulty clean_flagged_clean
         big = sum(r[7] for r in rows)
-        pct = 100.0 * sum(r[8] for r in rows) / big if big else float("nan")
-        extra = 100.0 * sum(r[9] - r[10] for r in rows) / sum(r[11] for r in rows)
+        fixes = sum(r[11] for r in rows)
+        pct = lambda i: 100.0 * sum(r[i] for r in rows) / big if big else float("nan")
+        extra = lambda i: 100.0 * sum(r[i] - r[i + 1] for r in rows) / fixes
         print(f"| {bed} ({len(rows)} seed{'s' if len(rows) > 1 else ''}) | {mean(0):.3f} m | **{mean(2):.3f} m** | {mean(4):.3f} m "
-              f"| {worst(lambda r: r[2] / r[4]):.2f} | {mean(6):.3f} m | {pct:.0f} % of {big:.0f} | {extra:+.1f} % "
-              f"| {mean(3):.3f} m | {mean(5):.3f} m | {worst(lambda r: r[3] / (r[5] + 0.03)):.2f} |")
+              f"| {worst(lambda r: r[2] / r[4]):.2f} | {mean(6):.3f} m | {pct(8):.0f} % of {big:.0f} | {extra(9):+.1f} % "
+              f"| {mean(3):.3f} m | {mean(5):.3f} m | {worst(lambda r: r[3] / (r[5] + 0.03)):.2f} "
+              f"| {pct(12):.0f} % | {extra(13):+.1f} % |")
 
 
 def seeds(rows_path):
@@ -137,14 +143,16 @@ def classes(work, *beds):
     print("| bed | " + " | ".join(names) + " |")
     print("|" + "---|" * (len(names) + 1))
     for bed in beds:
-        got = {c: [0, 0] for c in names}
+        got = {c: [0, 0, 0] for c in names}
         for run in sorted(glob.glob(os.path.join(work, bed, "faults-*"))):
             st = statuses(os.path.join(run, "default", "forward", "gnss_residuals.txt"))
+            st_sm = statuses(os.path.join(run, "default", "gnss_residuals.txt"))
             for k, (c, size) in labels(os.path.join(run, "faults.txt")).items():
                 if size >= BIG_M:
                     got[c][0] += st.get(k, "refused") != "used"
-                    got[c][1] += 1
-        cell = lambda f, n: f"{100.0 * f / n:.0f} % of {n}" if n else "–"
+                    got[c][1] += st_sm.get(k, "refused") != "used"
+                    got[c][2] += 1
+        cell = lambda f, f_sm, n: f"{100.0 * f / n:.0f} / {100.0 * f_sm / n:.0f} % of {n}" if n else "–"
         print(f"| {bed} | " + " | ".join(cell(*got[c]) for c in names) + " |")
 
 

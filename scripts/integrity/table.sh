@@ -13,7 +13,8 @@
 # (`--gnss-weighting off`) with the faults. Prints one table (horizontal
 # RMS by `navsync eval` against the truth; the ratios are the worst seed's;
 # flagged = status other than `used` in the forward gnss_residuals.txt, or
-# refused before weighing; see bed.py) and keeps the per-seed rows in
+# refused before weighing, and the same in the smoothed run's file, after
+# the smoother's re-judgement; see bed.py) and keeps the per-seed rows in
 # $W/rows.txt; then the faulty fixes flagged by class, and each seed's
 # forward figures.
 #
@@ -38,7 +39,7 @@ BEDS=${BEDS:-d2-adis16465 d2-icm20602 d2-nav drive-adis16465 drive-icm20602}
 mkdir -p "$W"
 W=$(cd "$W" && pwd)
 rows="$W/rows.txt"
-echo "# bed seed clean_f clean_s faulty_f faulty_s oracle_f oracle_s off_f big big_flagged clean_flagged_faulty clean_flagged_clean fixes" > "$rows"
+echo "# bed seed clean_f clean_s faulty_f faulty_s oracle_f oracle_s off_f big big_flagged clean_flagged_faulty clean_flagged_clean fixes big_flagged_sm clean_flagged_faulty_sm clean_flagged_clean_sm" > "$rows"
 field() { python3 -c "import json,sys; print(json.load(open(sys.argv[1]))$2)" "$1"; }
 hrms() { "$B" eval --truth "$1" --nav "$2" --json "$2.eval.json" >/dev/null; field "$2.eval.json" "['pos_horizontal_m']['rms']"; }
 # fuse CFG OUT WEIGHTING → "forward_rms smoothed_rms"
@@ -79,13 +80,17 @@ for bed in $BEDS; do
     read -r off_f _ < <(fuse "$run/kf-gins.yaml" "$run/off" off)
     fl=$(python3 $HERE/bed.py flags "$sim/gnss.txt" "$run/faults.txt" \
       "$sim/clean/forward/gnss_residuals.txt" "$run/default/forward/gnss_residuals.txt")
-    echo "$bed $seed $clean_f $clean_s $faulty_f $faulty_s $oracle_f $oracle_s $off_f $fl" >> "$rows"
+    # The same from the smoothed runs' files (their last pass, after the
+    # smoother's re-judgement): flagged, clean flagged, clean flagged clean.
+    fl_sm=$(python3 $HERE/bed.py flags "$sim/gnss.txt" "$run/faults.txt" \
+      "$sim/clean/gnss_residuals.txt" "$run/default/gnss_residuals.txt" | cut -d' ' -f2-4)
+    echo "$bed $seed $clean_f $clean_s $faulty_f $faulty_s $oracle_f $oracle_s $off_f $fl $fl_sm" >> "$rows"
     if [ "${VERBOSE:-0}" = 1 ]; then tail -1 "$rows" >&2; fi
   done
 done
 python3 $HERE/bed.py table "$rows"
 echo
-echo "faulty fixes (≥ 0.3 m) flagged, by class:"
+echo "faulty fixes (≥ 0.3 m) flagged, by class (forward / smoothed run):"
 python3 $HERE/bed.py classes "$W" $BEDS
 echo
 echo "per fault seed (forward horizontal RMS, m):"
