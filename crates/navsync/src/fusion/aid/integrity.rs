@@ -52,8 +52,14 @@
 //! when it passes, either the fixes came back (the episode ends; an
 //! episode of one fix was a *spike*) or the INS's own predicted drift has
 //! grown to cover the offset (accepted after persisting: the INS can no
-//! longer tell). An episode longer than [`MAX_EPISODE_S`] is one the IMU
-//! cannot bridge: the fixes are followed again and the run says so.
+//! longer tell). Fixes whose offset wanders beyond the INS's growth show
+//! an INS that drifts: the fixes are followed again, if the INS, at the
+//! rate it drifts from them, could have built the offset (a ramp's size,
+//! not a false fix of metres). A fix that jumps from the episode's last
+//! one, away from the INS, is a new fault inside it (a *jump*: a spike
+//! during a false fix), no evidence of drift. An episode longer than
+//! [`MAX_EPISODE_S`] is one the IMU cannot bridge: the fixes are followed
+//! again and the run says so.
 //! Nothing under suspicion feeds the robust weighting's scales.
 
 use std::collections::VecDeque;
@@ -79,6 +85,12 @@ const MIN_ANCHORS: usize = 5;
 const RAMP_END_CLOSER: f64 = 0.5;
 /// Anchors and ledger entries older than this (s) are dropped.
 const MEMORY_S: f64 = 20.0;
+/// An INS found drifting in an episode could have built an offset of its
+/// drift rate there times the episode and the memory before it, times
+/// this: the rate is measured over a few seconds of fixes, and a ramp may
+/// have led the INS off for longer than the memory (on the bed, 1 cost
+/// correct ramp ends and 2 did not).
+const DRIFT_BUILD_MARGIN: f64 = 2.0;
 /// An episode longer than this (s) is more than the IMU is trusted to
 /// bridge: the fixes are followed again, and the run says so.
 pub const MAX_EPISODE_S: f64 = 60.0;
@@ -234,6 +246,10 @@ struct Episode {
     level: Vector3<f64>,
     /// Diagonal of H P Hᵀ at its first fix.
     hph_start: Vector3<f64>,
+    /// Δ and the diagonal of H P Hᵀ at its last fix that continued it (a
+    /// fix that jumped from it is a new fault inside the episode).
+    last_delta: Vector3<f64>,
+    hph_last: Vector3<f64>,
     max_offset_m: f64,
 }
 
@@ -470,10 +486,45 @@ impl FaultMonitor {
                 }
                 return self.end_unresolved(ep, EpisodeEnd::Persisted, delta);
             }
+            // A fix that jumped from the episode's last one, and not back
+            // toward the INS (the fault ending while the INS drifted), is a
+            // new fault inside the episode (a spike during a false fix):
+            // excluded, and no evidence on the INS's drift (taken for
+            // drift, a 45 m spike 29 s into an episode was followed). The
+            // next fix is compared with it: one that holds the new level
+            // is judged as the episode's fixes are.
+            let hph_diag = Vector3::new(hph[(0, 0)], hph[(1, 1)], hph[(2, 2)]);
+            let step = delta - ep.last_delta;
+            let d_step: f64 = (0..3)
+                .map(|i| {
+                    let g = (hph_diag[i] - ep.hph_last[i]).max(0.0);
+                    let v = lambda * g
+                        + (r[i] + ep.anchor.r[i])
+                            .max(2.0 * FIX_CHANGE_FLOOR_M * FIX_CHANGE_FLOOR_M);
+                    step[i] * step[i] / v
+                })
+                .sum();
+            let horizontal = |v: &Vector3<f64>| v[0].hypot(v[1]);
+            let new_fault = d_step > threshold
+                && horizontal(&delta) >= RAMP_END_CLOSER * horizontal(&ep.last_delta);
+            ep.last_delta = delta;
+            ep.hph_last = hph_diag;
+            if new_fault {
+                ep.fixes += 1;
+                ep.last = time;
+                ep.max_offset_m = ep.max_offset_m.max(delta.norm());
+                self.episode = Some(ep);
+                return Judgement::Exclude(FaultReason::Jump);
+            }
             // A false fix holds its level; fixes whose offset from the INS
             // wanders beyond what the INS's growth since the episode began
             // allows show an INS that drifts (one the fixes before had led
-            // off, e.g. along a ramp): it is no reference, follow the fixes.
+            // off, e.g. along a ramp): it is no reference, follow the
+            // fixes... if it could have drifted that far. At the rate it
+            // drifts from the fixes in the episode, over the episode and
+            // the memory before it, the INS builds an offset of a ramp's
+            // size; not one of metres more (a false fix early in a drive,
+            // whose INS drifts faster than its model but by decimetres).
             let moved = delta - ep.level;
             let d_level: f64 = (0..3)
                 .map(|i| {
@@ -484,7 +535,10 @@ impl FaultMonitor {
                     moved[i] * moved[i] / v
                 })
                 .sum();
-            if d_level > threshold {
+            let episode_s = time.seconds_since(ep.start).max(1.0);
+            let could_build_m =
+                DRIFT_BUILD_MARGIN * horizontal(&moved) / episode_s * (episode_s + MEMORY_S);
+            if d_level > threshold && horizontal(&delta) <= could_build_m {
                 return self.end_unresolved(ep, EpisodeEnd::Persisted, delta);
             }
             if time.seconds_since(ep.start) > MAX_EPISODE_S {
@@ -581,13 +635,16 @@ impl FaultMonitor {
     }
 
     fn open(&mut self, anchor: Anchor, time: GpsTime, delta: Vector3<f64>, hph: &Matrix3<f64>) {
+        let hph_diag = Vector3::new(hph[(0, 0)], hph[(1, 1)], hph[(2, 2)]);
         self.episode = Some(Episode {
-            hph_start: Vector3::new(hph[(0, 0)], hph[(1, 1)], hph[(2, 2)]),
+            hph_start: hph_diag,
             anchor,
             start: time,
             last: time,
             fixes: 1,
             level: delta,
+            last_delta: delta,
+            hph_last: hph_diag,
             max_offset_m: delta.norm(),
         });
     }
@@ -781,6 +838,86 @@ mod tests {
         ));
         assert!(k >= MAX_EPISODE_S, "ended after {k} s");
         assert_eq!(m.all_episodes()[0].end, EpisodeEnd::Unbridged);
+    }
+
+    /// An INS drifting 8 cm/s from the fixes while its model says 1 cm: in
+    /// an 8 m false fix the drift shows within 5 s, but at that rate, over
+    /// the episode and the memory before it, it builds 4 m, not 8. The
+    /// fault stays excluded; the first fix back (0.64 m from the INS) is
+    /// followed, as the INS drifted. A 1.5 m level (a ramp the INS had been
+    /// led along) is within what it builds: followed at 5 s, as before.
+    #[test]
+    fn an_ins_that_drifts_follows_offsets_it_could_build_not_a_false_fix() {
+        let drift = |k: f64| Vector3::new(0.0, 0.08 * k, 0.0);
+        let (mut m, t) = primed(10);
+        let fault = Vector3::new(-8.0, 1.0, 0.0);
+        for k in 0..8 {
+            let j = m.judge(
+                t.add_seconds(k as f64),
+                &(fault + drift(k as f64)),
+                &hph(),
+                &r(),
+                1.0,
+            );
+            assert!(
+                matches!(j, Judgement::Exclude(_)),
+                "fix {k} of the fault: {j:?}"
+            );
+        }
+        match m.judge(t.add_seconds(8.0), &drift(8.0), &hph(), &r(), 1.0) {
+            Judgement::Persisted { unbridged, offset } => {
+                assert!(!unbridged);
+                assert!((offset - drift(8.0)).norm() < 1e-9, "{offset:?}");
+            }
+            other => panic!("the fix back: {other:?}"),
+        }
+
+        let (mut m, t) = primed(10);
+        let level = Vector3::new(1.2, -0.9, 0.0);
+        let mut k = 0.0;
+        let end = loop {
+            match m.judge(t.add_seconds(k), &(level + drift(k)), &hph(), &r(), 1.0) {
+                Judgement::Exclude(_) => k += 1.0,
+                other => break other,
+            }
+            assert!(k < 10.0, "never followed");
+        };
+        assert!(
+            matches!(
+                end,
+                Judgement::Persisted {
+                    unbridged: false,
+                    ..
+                }
+            ),
+            "{end:?}"
+        );
+        assert_eq!(k, 5.0);
+    }
+
+    /// A 46 m spike 10 s into a 1.5 m false fix: a new fault inside the
+    /// episode, excluded; it is no evidence that the INS drifted (taken for
+    /// it, the episode ended and the filter was moved 46 m). The false
+    /// fix's next fixes stay excluded, and the fixes that come back end the
+    /// episode.
+    #[test]
+    fn a_spike_inside_an_episode_is_excluded_not_taken_for_drift() {
+        let (mut m, t) = primed(10);
+        let fault = Vector3::new(1.2, -0.9, 0.0);
+        let spike = Vector3::new(-29.0, -34.5, 9.4);
+        let mut reasons = Vec::new();
+        for k in 0..13 {
+            let z = if k == 10 { spike } else { fault };
+            match m.judge(t.add_seconds(k as f64), &z, &hph(), &r(), 1.0) {
+                Judgement::Exclude(why) => reasons.push(why),
+                other => panic!("fix {k}: {other:?}"),
+            }
+        }
+        assert_eq!(reasons[10], FaultReason::Jump);
+        assert!(reasons[11..].iter().all(|w| *w == FaultReason::Run));
+        let back = m.judge(t.add_seconds(13.0), &Vector3::zeros(), &hph(), &r(), 1.0);
+        assert_eq!(back, Judgement::Clean);
+        assert_eq!(m.all_episodes()[0].end, EpisodeEnd::Returned);
     }
 
     /// A MEMS INS whose accelerometer bias (0.1 m/s²) and tilt (0.5°) the
