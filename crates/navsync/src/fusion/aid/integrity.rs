@@ -56,8 +56,8 @@
 //! an INS that drifts: the fixes are followed again, if the INS, at the
 //! rate it drifts from them, could have built the offset (a ramp's size,
 //! not a false fix of metres). A fix that jumps from the episode's last
-//! one, away from the INS, is a new fault inside it (a *jump*: a spike
-//! during a false fix), no evidence of drift. An episode longer than
+//! one by more than the offset so far, away from the INS, is a new fault
+//! inside it (a *jump*: a spike during a false fix), no evidence of drift. An episode longer than
 //! [`MAX_EPISODE_S`] is one the IMU cannot bridge: the fixes are followed
 //! again and the run says so.
 //! Nothing under suspicion feeds the robust weighting's scales.
@@ -474,82 +474,8 @@ impl FaultMonitor {
     ) -> Judgement {
         let threshold = chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0);
         let lambda = lambda.max(1.0);
-        if let Some(mut ep) = self.episode {
-            let (delta, d) = self.test(&ep.anchor, time, z, hph, r, lambda);
-            if d <= threshold {
-                // Back at the clean level, or the INS can no longer tell.
-                let returned = delta.norm() <= (delta - ep.level).norm();
-                self.episode = None;
-                if returned {
-                    self.close(ep, EpisodeEnd::Returned);
-                    return Judgement::Clean;
-                }
-                return self.end_unresolved(ep, EpisodeEnd::Persisted, delta);
-            }
-            // A fix that jumped from the episode's last one, and not back
-            // toward the INS (the fault ending while the INS drifted), is a
-            // new fault inside the episode (a spike during a false fix):
-            // excluded, and no evidence on the INS's drift (taken for
-            // drift, a 45 m spike 29 s into an episode was followed). The
-            // next fix is compared with it: one that holds the new level
-            // is judged as the episode's fixes are.
-            let hph_diag = Vector3::new(hph[(0, 0)], hph[(1, 1)], hph[(2, 2)]);
-            let step = delta - ep.last_delta;
-            let d_step: f64 = (0..3)
-                .map(|i| {
-                    let g = (hph_diag[i] - ep.hph_last[i]).max(0.0);
-                    let v = lambda * g
-                        + (r[i] + ep.anchor.r[i])
-                            .max(2.0 * FIX_CHANGE_FLOOR_M * FIX_CHANGE_FLOOR_M);
-                    step[i] * step[i] / v
-                })
-                .sum();
-            let horizontal = |v: &Vector3<f64>| v[0].hypot(v[1]);
-            let new_fault = d_step > threshold
-                && horizontal(&delta) >= RAMP_END_CLOSER * horizontal(&ep.last_delta);
-            ep.last_delta = delta;
-            ep.hph_last = hph_diag;
-            if new_fault {
-                ep.fixes += 1;
-                ep.last = time;
-                ep.max_offset_m = ep.max_offset_m.max(delta.norm());
-                self.episode = Some(ep);
-                return Judgement::Exclude(FaultReason::Jump);
-            }
-            // A false fix holds its level; fixes whose offset from the INS
-            // wanders beyond what the INS's growth since the episode began
-            // allows show an INS that drifts (one the fixes before had led
-            // off, e.g. along a ramp): it is no reference, follow the
-            // fixes... if it could have drifted that far. At the rate it
-            // drifts from the fixes in the episode, over the episode and
-            // the memory before it, the INS builds an offset of a ramp's
-            // size; not one of metres more (a false fix early in a drive,
-            // whose INS drifts faster than its model but by decimetres).
-            let moved = delta - ep.level;
-            let d_level: f64 = (0..3)
-                .map(|i| {
-                    let g = (hph[(i, i)] - ep.hph_start[i]).max(0.0);
-                    let v = lambda * g
-                        + (r[i] + ep.anchor.r[i])
-                            .max(2.0 * FIX_CHANGE_FLOOR_M * FIX_CHANGE_FLOOR_M);
-                    moved[i] * moved[i] / v
-                })
-                .sum();
-            let episode_s = time.seconds_since(ep.start).max(1.0);
-            let could_build_m =
-                DRIFT_BUILD_MARGIN * horizontal(&moved) / episode_s * (episode_s + MEMORY_S);
-            if d_level > threshold && horizontal(&delta) <= could_build_m {
-                return self.end_unresolved(ep, EpisodeEnd::Persisted, delta);
-            }
-            if time.seconds_since(ep.start) > MAX_EPISODE_S {
-                self.ledger.clear();
-                return self.end_unresolved(ep, EpisodeEnd::Unbridged, delta);
-            }
-            ep.fixes += 1;
-            ep.last = time;
-            ep.max_offset_m = ep.max_offset_m.max(delta.norm());
-            self.episode = Some(ep);
-            return Judgement::Exclude(FaultReason::Run);
+        if let Some(ep) = self.episode {
+            return self.judge_in_episode(ep, time, z, hph, r, lambda);
         }
         // The INS becomes a reference again only after a few clean fixes
         // in a row (at the start, after a re-initialisation or an episode
@@ -600,6 +526,97 @@ impl FaultMonitor {
             return Judgement::Exclude(FaultReason::Jump);
         }
         Judgement::Clean
+    }
+
+    /// Judges a fix inside the open episode `ep` (see the module's notes):
+    /// back at the clean level, the INS no longer able to tell, the fixes
+    /// followed again, a new fault inside it, or the episode continued.
+    fn judge_in_episode(
+        &mut self,
+        mut ep: Episode,
+        time: GpsTime,
+        z: &Vector3<f64>,
+        hph: &Matrix3<f64>,
+        r: &Vector3<f64>,
+        lambda: f64,
+    ) -> Judgement {
+        let threshold = chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0);
+        let (delta, d) = self.test(&ep.anchor, time, z, hph, r, lambda);
+        if d <= threshold {
+            // Back at the clean level, or the INS can no longer tell.
+            let returned = delta.norm() <= (delta - ep.level).norm();
+            self.episode = None;
+            if returned {
+                self.close(ep, EpisodeEnd::Returned);
+                return Judgement::Clean;
+            }
+            return self.end_unresolved(ep, EpisodeEnd::Persisted, delta);
+        }
+        // A fix that jumped from the episode's last one by more than the
+        // whole offset so far, and not back toward the INS (the fault
+        // ending while the INS drifted), is a new fault inside the episode
+        // (a spike during a false fix; an INS that drifts fast, even
+        // quadratically, moves the offset by less than it already is):
+        // excluded, and no evidence on the INS's drift (taken for
+        // drift, a 45 m spike 29 s into an episode was followed). The
+        // next fix is compared with it: one that holds the new level
+        // is judged as the episode's fixes are.
+        let hph_diag = Vector3::new(hph[(0, 0)], hph[(1, 1)], hph[(2, 2)]);
+        let step = delta - ep.last_delta;
+        let d_step: f64 = (0..3)
+            .map(|i| {
+                let g = (hph_diag[i] - ep.hph_last[i]).max(0.0);
+                let v = lambda * g
+                    + (r[i] + ep.anchor.r[i]).max(2.0 * FIX_CHANGE_FLOOR_M * FIX_CHANGE_FLOOR_M);
+                step[i] * step[i] / v
+            })
+            .sum();
+        let horizontal = |v: &Vector3<f64>| v[0].hypot(v[1]);
+        let new_fault = d_step > threshold
+            && horizontal(&step) > horizontal(&ep.last_delta)
+            && horizontal(&delta) >= RAMP_END_CLOSER * horizontal(&ep.last_delta);
+        ep.last_delta = delta;
+        ep.hph_last = hph_diag;
+        if new_fault {
+            ep.fixes += 1;
+            ep.last = time;
+            ep.max_offset_m = ep.max_offset_m.max(delta.norm());
+            self.episode = Some(ep);
+            return Judgement::Exclude(FaultReason::Jump);
+        }
+        // A false fix holds its level; fixes whose offset from the INS
+        // wanders beyond what the INS's growth since the episode began
+        // allows show an INS that drifts (one the fixes before had led
+        // off, e.g. along a ramp): it is no reference, follow the
+        // fixes... if it could have drifted that far. At the rate it
+        // drifts from the fixes in the episode, over the episode and
+        // the memory before it, the INS builds an offset of a ramp's
+        // size; not one of metres more (a false fix early in a drive,
+        // whose INS drifts faster than its model but by decimetres).
+        let moved = delta - ep.level;
+        let d_level: f64 = (0..3)
+            .map(|i| {
+                let g = (hph[(i, i)] - ep.hph_start[i]).max(0.0);
+                let v = lambda * g
+                    + (r[i] + ep.anchor.r[i]).max(2.0 * FIX_CHANGE_FLOOR_M * FIX_CHANGE_FLOOR_M);
+                moved[i] * moved[i] / v
+            })
+            .sum();
+        let episode_s = time.seconds_since(ep.start).max(1.0);
+        let could_build_m =
+            DRIFT_BUILD_MARGIN * horizontal(&moved) / episode_s * (episode_s + MEMORY_S);
+        if d_level > threshold && horizontal(&delta) <= could_build_m {
+            return self.end_unresolved(ep, EpisodeEnd::Persisted, delta);
+        }
+        if time.seconds_since(ep.start) > MAX_EPISODE_S {
+            self.ledger.clear();
+            return self.end_unresolved(ep, EpisodeEnd::Unbridged, delta);
+        }
+        ep.fixes += 1;
+        ep.last = time;
+        ep.max_offset_m = ep.max_offset_m.max(delta.norm());
+        self.episode = Some(ep);
+        Judgement::Exclude(FaultReason::Run)
     }
 
     /// The oldest anchor at least [`RAMP_END_MIN_LAG_S`] before `time` (and
