@@ -57,9 +57,9 @@
 //! rate it drifts from them, could have built the offset (a ramp's size,
 //! not a false fix of metres). A fix that jumps from the episode's last
 //! one by more than the offset so far, away from the INS, is a new fault
-//! inside it (a *jump*: a spike during a false fix), no evidence of drift. An episode longer than
-//! [`MAX_EPISODE_S`] is one the IMU cannot bridge: the fixes are followed
-//! again and the run says so.
+//! inside it (a *jump*: a spike during a false fix), no evidence of
+//! drift. An episode longer than [`MAX_EPISODE_S`] is one the IMU cannot
+//! bridge: the fixes are followed again and the run says so.
 //! Nothing under suspicion feeds the robust weighting's scales.
 
 use std::collections::VecDeque;
@@ -472,11 +472,11 @@ impl FaultMonitor {
         r: &Vector3<f64>,
         lambda: f64,
     ) -> Judgement {
-        let threshold = chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0);
         let lambda = lambda.max(1.0);
         if let Some(ep) = self.episode {
             return self.judge_in_episode(ep, time, z, hph, r, lambda);
         }
+        let threshold = chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0);
         // The INS becomes a reference again only after a few clean fixes
         // in a row (at the start, after a re-initialisation or an episode
         // it could not resolve): an INS that just left its model would
@@ -561,16 +561,10 @@ impl FaultMonitor {
         // drift, a 45 m spike 29 s into an episode was followed). The
         // next fix is compared with it: one that holds the new level
         // is judged as the episode's fixes are.
-        let hph_diag = Vector3::new(hph[(0, 0)], hph[(1, 1)], hph[(2, 2)]);
+        let hph_diag = hph.diagonal();
         let step = delta - ep.last_delta;
-        let d_step: f64 = (0..3)
-            .map(|i| {
-                let g = (hph_diag[i] - ep.hph_last[i]).max(0.0);
-                let v = lambda * g
-                    + (r[i] + ep.anchor.r[i]).max(2.0 * FIX_CHANGE_FLOOR_M * FIX_CHANGE_FLOOR_M);
-                step[i] * step[i] / v
-            })
-            .sum();
+        let d_step =
+            offset_change_statistic(&step, &hph_diag, &ep.hph_last, r, &ep.anchor.r, lambda);
         let horizontal = |v: &Vector3<f64>| v[0].hypot(v[1]);
         let new_fault = d_step > threshold
             && horizontal(&step) > horizontal(&ep.last_delta)
@@ -594,14 +588,8 @@ impl FaultMonitor {
         // size; not one of metres more (a false fix early in a drive,
         // whose INS drifts faster than its model but by decimetres).
         let moved = delta - ep.level;
-        let d_level: f64 = (0..3)
-            .map(|i| {
-                let g = (hph[(i, i)] - ep.hph_start[i]).max(0.0);
-                let v = lambda * g
-                    + (r[i] + ep.anchor.r[i]).max(2.0 * FIX_CHANGE_FLOOR_M * FIX_CHANGE_FLOOR_M);
-                moved[i] * moved[i] / v
-            })
-            .sum();
+        let d_level =
+            offset_change_statistic(&moved, &hph_diag, &ep.hph_start, r, &ep.anchor.r, lambda);
         let episode_s = time.seconds_since(ep.start).max(1.0);
         let could_build_m =
             DRIFT_BUILD_MARGIN * horizontal(&moved) / episode_s * (episode_s + MEMORY_S);
@@ -652,7 +640,7 @@ impl FaultMonitor {
     }
 
     fn open(&mut self, anchor: Anchor, time: GpsTime, delta: Vector3<f64>, hph: &Matrix3<f64>) {
-        let hph_diag = Vector3::new(hph[(0, 0)], hph[(1, 1)], hph[(2, 2)]);
+        let hph_diag = hph.diagonal();
         self.episode = Some(Episode {
             hph_start: hph_diag,
             anchor,
@@ -718,6 +706,27 @@ impl FaultMonitor {
     }
 }
 
+/// D of a change of a fix's offset from the INS (`change`, NED) against
+/// the INS's growth since (H P Hᵀ's diagonal now and then, times the
+/// overconfidence `lambda`) and the two fixes' noise (their stated R, at
+/// least the monitor's floor): Σ change_i² / (λ·g_i + r_i + r'_i).
+fn offset_change_statistic(
+    change: &Vector3<f64>,
+    hph_now: &Vector3<f64>,
+    hph_then: &Vector3<f64>,
+    r: &Vector3<f64>,
+    r_then: &Vector3<f64>,
+    lambda: f64,
+) -> f64 {
+    (0..3)
+        .map(|i| {
+            let growth = (hph_now[i] - hph_then[i]).max(0.0);
+            let fixes = (r[i] + r_then[i]).max(2.0 * FIX_CHANGE_FLOOR_M * FIX_CHANGE_FLOOR_M);
+            change[i] * change[i] / (lambda * growth + fixes)
+        })
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -762,6 +771,23 @@ mod tests {
     fn hph() -> Matrix3<f64> {
         Matrix3::from_diagonal(&Vector3::repeat(1.2e-4))
     }
+    /// Judges fixes `z(k)` at `t + k` s for k < n, each of which must be
+    /// excluded; their reasons.
+    fn exclusions(
+        m: &mut FaultMonitor,
+        t: GpsTime,
+        n: usize,
+        z: impl Fn(usize) -> Vector3<f64>,
+    ) -> Vec<FaultReason> {
+        (0..n)
+            .map(
+                |k| match m.judge(t.add_seconds(k as f64), &z(k), &hph(), &r(), 1.0) {
+                    Judgement::Exclude(why) => why,
+                    other => panic!("fix {k}: {other:?}"),
+                },
+            )
+            .collect()
+    }
     fn r() -> Vector3<f64> {
         Vector3::repeat(RTK_VAR_M2)
     }
@@ -773,13 +799,7 @@ mod tests {
     fn a_false_fix_is_excluded_until_the_fixes_come_back() {
         let (mut m, t) = primed(10);
         let fault = Vector3::new(-2.0, 2.2, 0.0); // z = predicted − measured
-        let mut reasons = Vec::new();
-        for k in 0..8 {
-            match m.judge(t.add_seconds(k as f64), &fault, &hph(), &r(), 1.0) {
-                Judgement::Exclude(why) => reasons.push(why),
-                other => panic!("fix {k} of the fault: {other:?}"),
-            }
-        }
+        let reasons = exclusions(&mut m, t, 8, |_| fault);
         assert_eq!(reasons[0], FaultReason::Jump);
         assert!(reasons[1..].iter().all(|w| *w == FaultReason::Run));
         let back = m.judge(t.add_seconds(8.0), &Vector3::zeros(), &hph(), &r(), 1.0);
@@ -868,19 +888,7 @@ mod tests {
         let drift = |k: f64| Vector3::new(0.0, 0.08 * k, 0.0);
         let (mut m, t) = primed(10);
         let fault = Vector3::new(-8.0, 1.0, 0.0);
-        for k in 0..8 {
-            let j = m.judge(
-                t.add_seconds(k as f64),
-                &(fault + drift(k as f64)),
-                &hph(),
-                &r(),
-                1.0,
-            );
-            assert!(
-                matches!(j, Judgement::Exclude(_)),
-                "fix {k} of the fault: {j:?}"
-            );
-        }
+        exclusions(&mut m, t, 8, |k| fault + drift(k as f64));
         match m.judge(t.add_seconds(8.0), &drift(8.0), &hph(), &r(), 1.0) {
             Judgement::Persisted { unbridged, offset } => {
                 assert!(!unbridged);
@@ -922,14 +930,7 @@ mod tests {
         let (mut m, t) = primed(10);
         let fault = Vector3::new(1.2, -0.9, 0.0);
         let spike = Vector3::new(-29.0, -34.5, 9.4);
-        let mut reasons = Vec::new();
-        for k in 0..13 {
-            let z = if k == 10 { spike } else { fault };
-            match m.judge(t.add_seconds(k as f64), &z, &hph(), &r(), 1.0) {
-                Judgement::Exclude(why) => reasons.push(why),
-                other => panic!("fix {k}: {other:?}"),
-            }
-        }
+        let reasons = exclusions(&mut m, t, 13, |k| if k == 10 { spike } else { fault });
         assert_eq!(reasons[10], FaultReason::Jump);
         assert!(reasons[11..].iter().all(|w| *w == FaultReason::Run));
         let back = m.judge(t.add_seconds(13.0), &Vector3::zeros(), &hph(), &r(), 1.0);
