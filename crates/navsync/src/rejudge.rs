@@ -54,7 +54,9 @@
 //! the fixes from it to the jump stay excluded in later passes, and
 //! the suspects before it come back where consistent. Each window is
 //! judged on the fixes no other window holds, so that two faults close
-//! together do not sink each other.
+//! together do not sink each other; a step window's suspects reach back
+//! into an earlier episode to its jump (a second fault that began inside
+//! it), and those are then that window's, not the episode's, to judge.
 //!
 //! Where B falls, pass 1's verdicts are restored. The decisions are forced
 //! on the forward filter (`GnssDecision`): excluded, or used at the stated
@@ -404,12 +406,24 @@ fn step_windows(
         if covered {
             continue;
         }
-        let suspects: Vec<GpsTime> = seq[..k]
-            .iter()
-            .rev()
-            .take_while(|(t, _)| tb.seconds_since(*t) <= max_s && used(t))
-            .map(|(t, _)| *t)
-            .collect();
+        // The suspects: the fixes used before the step, reaching into an
+        // earlier episode's fixes (used under its hypothesis) back to its
+        // jump: a fault that began inside that episode (a second ramp
+        // after a ramp's end) is this window's, not that one's.
+        let mut suspects: Vec<GpsTime> = Vec::new();
+        for (t, _) in seq[..k].iter().rev() {
+            if tb.seconds_since(*t) > max_s {
+                break;
+            }
+            let episode = others.iter().find(|w| w.episode.contains(t));
+            if !(used(t) || episode.is_some()) {
+                break;
+            }
+            suspects.push(*t);
+            if episode.is_some_and(|w| w.episode.first() == Some(t)) {
+                break;
+            }
+        }
         let Some(&start) = suspects.last() else {
             continue;
         };
@@ -553,11 +567,19 @@ fn judge_windows(
                 .enumerate()
                 .any(|(m, o)| m != n && (o.suspects.contains(t) || o.episode.contains(t)))
         };
+        // An episode's fixes another window suspects (a later fault that
+        // began inside the episode) are that window's to judge.
+        let others_suspect = |t: &GpsTime| {
+            windows
+                .iter()
+                .enumerate()
+                .any(|(m, o)| m != n && o.suspects.contains(t))
+        };
         let stands = current
             .range(w.span.0..=w.span.1)
             .filter(|(t, _)| {
                 !w.suspects.contains(t)
-                    && (w.episode.contains(t)
+                    && ((w.episode.contains(t) && !others_suspect(t))
                         || (!theirs(t)
                             && pass1.first.get(t).is_some_and(|f| {
                                 !matches!(f.1, FaultReason::Jump | FaultReason::Run)
@@ -897,5 +919,90 @@ mod tests {
         assert!(!jumps_back(&pos[60..]));
         // Nor a level with no jump after it.
         assert!(!jumps_back(&pos[..1]));
+    }
+
+    /// A second fault that began inside an earlier episode (a ramp after a
+    /// ramp's end, the monitor still excluding the correct fixes between):
+    /// the step at its end opens a window whose suspects reach back into
+    /// that episode to its jump, and the episode's window is judged
+    /// without them, so each hypothesis stands on its own fixes. Before,
+    /// the step's suspects stopped at the episode (the first pass excluded
+    /// it) and the episode's window fell on the second fault's fixes: the
+    /// smoothed solution kept both faults (drive ADIS16465 with the
+    /// misalignment states, fault seed 3: 0.659 m against 0.019 m).
+    #[test]
+    fn a_fault_that_began_inside_an_episode_is_its_own_window() {
+        let at = |t: i64| GpsTime::from_week_ns(2000, t * 1_000_000_000);
+        // An episode at 60 (a jump, six run fixes, persisted at 67), then
+        // used fixes; the second fault begins at 64 and ends at 90, after
+        // the episode's window (31-80).
+        let recs: Vec<FixRecord> = (0..120)
+            .map(|t| match t {
+                60 => record(t, FixStatus::Rejected, FaultReason::Jump),
+                61..=66 => record(t, FixStatus::Rejected, FaultReason::Run),
+                67 => record(t, FixStatus::DriftAccepted, FaultReason::Persisted),
+                _ => record(t, FixStatus::Used, FaultReason::None),
+            })
+            .collect();
+        let first = judged(&recs);
+        let first_verdicts: BTreeMap<GpsTime, bool> =
+            first.iter().map(|(t, j)| (*t, j.0)).collect();
+        let episodes = windows(&recs);
+        // Against the first smoothed solution, a step of 1 m north
+        // between 90 and 91 that holds.
+        let pass1: BTreeMap<GpsTime, Tested> = (0..120)
+            .map(|t| (at(t), tested(if t >= 91 { 1.0 } else { 0.0 })))
+            .collect();
+        let threshold = 21.1;
+        let mut last = None;
+        let steps = step_windows(
+            &first,
+            &first_verdicts,
+            &pass1,
+            &episodes,
+            threshold,
+            &mut last,
+        );
+        assert_eq!(last, None);
+        assert_eq!(steps.len(), 1);
+        // Newest first: 90 back through the episode (60-67) to its jump.
+        assert_eq!(
+            steps[0].suspects,
+            (60..91).rev().map(at).collect::<Vec<_>>()
+        );
+        assert_eq!(steps[0].episode, vec![at(91)]);
+        let all: Vec<Window> = episodes.into_iter().chain(steps).collect();
+        // The second pass: a ramp of 5 cm/s from 64, inside the episode,
+        // to 90 (the step's suspects, excluded); every other fix
+        // consistent.
+        let pass2: BTreeMap<GpsTime, Tested> = (0..120)
+            .map(|t| {
+                let fault = (64..91).contains(&t);
+                let z = if fault { 0.05 * (t - 63) as f64 } else { 0.0 };
+                let mut x = tested(z);
+                x.stat = if fault { 100.0 } else { 0.0 };
+                (at(t), x)
+            })
+            .collect();
+        let mut want = verdicts(&first, &pass2, threshold);
+        let mut fault_fixes = Vec::new();
+        judge_windows(
+            &all,
+            &Pass1 {
+                first: &first,
+                verdicts: &first_verdicts,
+            },
+            &first,
+            &pass2,
+            threshold,
+            &mut want,
+            &mut fault_fixes,
+        );
+        // Both hypotheses stand: the episode's fixes before the second
+        // fault are used (pass 1's exclusions not restored), and the
+        // second fault's fixes from its onset are the fault.
+        assert!((60..64).all(|t| want[&at(t)]));
+        fault_fixes.sort();
+        assert_eq!(fault_fixes, (64..91).map(at).collect::<Vec<_>>());
     }
 }
