@@ -137,3 +137,103 @@ fn faults_refuse_bad_requests() {
         .arg(dir.join("out")));
     assert!(!ok && err.contains("unknown fault class 'jump'"), "{err}");
 }
+
+/// The stale check on a vehicle pulling away: a receiver that repeats its
+/// last position while the antenna moved 0.5 m is caught (the old rule
+/// waited for 1 m of motion, so such a repeat dragged the filter or
+/// opened a false episode); a coarse receiver (1e-6°, 0.11 m; 0.1 m in
+/// height) that writes
+/// the same position again and again at rest is not stale.
+#[test]
+fn a_repeat_as_the_vehicle_pulls_away_is_stale_and_a_coarse_receiver_at_rest_is_not() {
+    let dir = temp_dir("faults-stale");
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args([
+            "simulate",
+            "--scenario",
+            "test-track",
+            "--duration",
+            "240",
+            "--seed",
+            "1",
+            "--quiet",
+            "--output",
+        ])
+        .arg(&sim));
+    assert!(ok, "{err}");
+    let read = |p: &std::path::Path| std::fs::read_to_string(p).unwrap();
+    let lines: Vec<Vec<String>> = read(&sim.join("gnss.txt"))
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(str::to_string).collect())
+        .collect();
+    // The drive starts at rest and pulls away: the first fix at least
+    // 0.3 m (and under 1 m) from the one before.
+    let metres = |a: &[String], b: &[String]| {
+        let f = |s: &String| s.parse::<f64>().unwrap();
+        let lat = f(&a[1]).to_radians();
+        let dn = (f(&b[1]) - f(&a[1])).to_radians() * 6.371e6;
+        let de = (f(&b[2]) - f(&a[2])).to_radians() * 6.371e6 * lat.cos();
+        dn.hypot(de)
+    };
+    let k = (1..lines.len())
+        .find(|&k| metres(&lines[k - 1], &lines[k]) > 0.3)
+        .unwrap();
+    let moved = metres(&lines[k - 1], &lines[k]);
+    assert!(moved < 1.0, "pulls away by {moved} m");
+    let fuse = |name: &str, fixes: &[Vec<String>]| {
+        let run_dir = dir.join(name);
+        std::fs::create_dir_all(&run_dir).unwrap();
+        let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
+        std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
+        let cfg = read(&sim.join("kf-gins.yaml"))
+            .replace("./imu.txt", &sim.join("imu.txt").display().to_string())
+            .replace(
+                "./gnss.txt",
+                &run_dir.join("gnss.txt").display().to_string(),
+            );
+        std::fs::write(run_dir.join("kf-gins.yaml"), cfg).unwrap();
+        let (ok, _, err) = run(bin()
+            .arg("fuse")
+            .arg("--config")
+            .arg(run_dir.join("kf-gins.yaml"))
+            .arg("--output")
+            .arg(run_dir.join("fused")));
+        assert!(ok, "{err}");
+        read(&run_dir.join("fused/gnss_residuals.txt"))
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(|l| l.split_whitespace().map(str::to_string).collect::<Vec<_>>())
+            .filter(|f| f[1] == "position" && f[13] == "stale")
+            .map(|f| f[0].parse::<f64>().unwrap())
+            .collect::<Vec<f64>>()
+    };
+    // Fix k repeats fix k−1's position, σ and all, at its own time.
+    let mut repeated = lines.clone();
+    let time = repeated[k][0].clone();
+    repeated[k] = lines[k - 1].clone();
+    repeated[k][0] = time;
+    let stale = fuse("repeat", &repeated);
+    let t_k: f64 = lines[k][0].parse().unwrap();
+    assert_eq!(stale, vec![t_k], "moved {moved:.2} m");
+    // A coarse receiver: latitude and longitude written to 1e-6°, height
+    // to 0.1 m (as NMEA writes it). At rest its fixes repeat exactly many
+    // times over.
+    let coarse: Vec<Vec<String>> = lines
+        .iter()
+        .map(|f| {
+            let mut f = f.clone();
+            for (i, decimals) in [(1, 6), (2, 6), (3, 1)] {
+                let v: f64 = f[i].parse().unwrap();
+                f[i] = format!("{v:.decimals$}");
+            }
+            f
+        })
+        .collect();
+    let repeats = (1..k)
+        .filter(|&i| coarse[i][1..4] == coarse[i - 1][1..4])
+        .count();
+    assert!(repeats > 5, "{repeats} repeats at rest");
+    assert_eq!(fuse("coarse", &coarse), Vec::<f64>::new());
+}

@@ -222,6 +222,10 @@ pub(in crate::fusion) struct GnssSource {
     /// The last fix used (time, fix position, solution position), to spot
     /// repeated ones.
     pub(in crate::fusion) last_fix: Option<(GpsTime, Geodetic, Geodetic)>,
+    /// The smallest nonzero change between consecutive fix positions seen
+    /// so far, per axis (m, NED): the resolution the receiver writes at,
+    /// or coarser (see `is_stale`).
+    position_step_m: [Option<f64>; 3],
     pub(in crate::fusion) counts: GnssCounts,
     /// The fault-episode monitor (robust weighting).
     pub(in crate::fusion) monitor: FaultMonitor,
@@ -361,15 +365,60 @@ impl GnssSource {
             GnssWeighting::Robust(rw) => self.robust_gnss_update(core, fix, &rw)?,
             GnssWeighting::Off | GnssWeighting::Gate { .. } => self.gated_gnss_update(core, fix)?,
         }
+        self.note_position_step(core, fix);
         self.last_fix = Some((fix.time, fix.pos, core.nav.pos));
         Ok(())
     }
 
+    /// Keeps the smallest nonzero change of each position axis between
+    /// consecutive fixes (`position_step_m`).
+    fn note_position_step(&mut self, core: &Core, fix: &GnssFix) {
+        let Some((_, prev, _)) = self.last_fix else {
+            return;
+        };
+        let le = LocalEarth::new(&core.nav.pos, &core.nav.vel);
+        let d = le.geodetic_delta_to_ned(
+            fix.pos.lat_rad - prev.lat_rad,
+            fix.pos.lon_rad - prev.lon_rad,
+            fix.pos.h_m - prev.h_m,
+        );
+        for (step, di) in self.position_step_m.iter_mut().zip(d.iter()) {
+            let di = di.abs();
+            if di > 0.0 && di.is_finite() {
+                *step = Some(step.map_or(di, |s| s.min(di)));
+            }
+        }
+    }
+
+    /// How far the solution may move between two fixes whose positions are
+    /// identical to the last bit before the second is a stale repeat (m).
+    /// A receiver that measured again writes a new position unless the
+    /// antenna stayed within a cell of the resolution it writes at. The
+    /// bound: twice that cell's diagonal (the smallest change seen per
+    /// axis), or 5 σ of the INS's velocity times the interval if larger,
+    /// kept within 0.1 m (twice the monitor's 5 cm fix floor) and the
+    /// old 1 m. Before every axis has changed once the resolution is
+    /// unknown: 1 m.
+    fn stale_motion_bound_m(&self, core: &Core, dt_s: f64) -> f64 {
+        let [Some(n), Some(e), Some(d)] = self.position_step_m else {
+            return 1.0;
+        };
+        let cell = (n * n + e * e + d * d).sqrt();
+        let f = &core.filter;
+        let vel_var: f64 = (0..3).map(|i| f.sd(idx::VEL + i).powi(2)).sum();
+        let ins = 5.0 * vel_var.sqrt() * dt_s.max(0.0);
+        // (f64::max drops a NaN: the bound stays finite.)
+        (2.0 * cell)
+            .max(ins)
+            .clamp(2.0 * super::integrity::FIX_CHANGE_FLOOR_M, 1.0)
+    }
+
     /// A fix whose position repeats the previous fix's to the last bit
-    /// while the solution moved more than 1 m: a receiver repeating a stale
-    /// output. Reported and skipped.
+    /// while the solution moved more than the receiver's resolution and
+    /// the INS's error allow (`stale_motion_bound_m`, at most 1 m): a
+    /// receiver repeating a stale output. Reported and skipped.
     fn is_stale(&mut self, core: &mut Core, fix: &GnssFix) -> bool {
-        let Some((_, prev_pos, prev_nav)) = self.last_fix else {
+        let Some((prev_time, prev_pos, prev_nav)) = self.last_fix else {
             return false;
         };
         if prev_pos != fix.pos {
@@ -383,7 +432,7 @@ impl GnssSource {
                 core.nav.pos.h_m - prev_nav.h_m,
             )
             .norm();
-        if moved <= 1.0 {
+        if moved <= self.stale_motion_bound_m(core, fix.time.seconds_since(prev_time)) {
             return false;
         }
         self.counts.stale += 1;
@@ -401,7 +450,7 @@ impl GnssSource {
         );
         core.fix_log.push(record);
         core.notes.push(format!(
-            "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.1} m: a stale receiver output; ignored",
+            "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.2} m: a stale receiver output; ignored",
             fix.time
         ));
         true
