@@ -6,10 +6,11 @@
 mod common;
 
 use common::{bin, json, run, temp_dir};
+use std::path::{Path, PathBuf};
 
-#[test]
-fn faults_are_labelled_reproducible_and_fused() {
-    let dir = temp_dir("faults");
+/// A 240 s test-track drive (simulator seed 1) in `dir/sim`: at rest for
+/// 26 s, then driving at up to 20 m/s.
+fn test_track(dir: &Path) -> PathBuf {
     let sim = dir.join("sim");
     let (ok, _, err) = run(bin()
         .args([
@@ -25,7 +26,24 @@ fn faults_are_labelled_reproducible_and_fused() {
         ])
         .arg(&sim));
     assert!(ok, "{err}");
-    let faulty = |out: &std::path::Path, seed: &str| {
+    sim
+}
+
+/// The drive's kf-gins.yaml, written to `out` with absolute paths to its
+/// IMU file and to `gnss`.
+fn config_for(sim: &Path, gnss: &Path, out: &Path) {
+    let cfg = std::fs::read_to_string(sim.join("kf-gins.yaml"))
+        .unwrap()
+        .replace("./imu.txt", &sim.join("imu.txt").display().to_string())
+        .replace("./gnss.txt", &gnss.display().to_string());
+    std::fs::write(out, cfg).unwrap();
+}
+
+#[test]
+fn faults_are_labelled_reproducible_and_fused() {
+    let dir = temp_dir("faults");
+    let sim = test_track(&dir);
+    let faulty = |out: &Path, seed: &str| {
         let (ok, stdout, err) = run(bin()
             .arg("faults")
             .arg("--gnss")
@@ -40,7 +58,7 @@ fn faults_are_labelled_reproducible_and_fused() {
     faulty(&b, "5");
     faulty(&c, "6");
     assert!(said.contains("4 episodes"), "{said}");
-    let read = |p: &std::path::Path| std::fs::read_to_string(p).unwrap();
+    let read = |p: &Path| std::fs::read_to_string(p).unwrap();
     assert_eq!(read(&a.join("gnss.txt")), read(&b.join("gnss.txt")));
     assert_eq!(read(&a.join("faults.txt")), read(&b.join("faults.txt")));
     assert_ne!(read(&a.join("faults.txt")), read(&c.join("faults.txt")));
@@ -55,9 +73,7 @@ fn faults_are_labelled_reproducible_and_fused() {
     assert_eq!(j["options"]["ranges"]["spike_m"][1].as_f64(), Some(50.0));
     // Fused: the faulty file is a valid GNSS file and every label is a
     // fix the filter weighed; the 15–50 m spike is not used as it is.
-    let cfg = read(&sim.join("kf-gins.yaml"))
-        .replace("./imu.txt", &sim.join("imu.txt").display().to_string());
-    std::fs::write(a.join("kf-gins.yaml"), cfg).unwrap();
+    config_for(&sim, &a.join("gnss.txt"), &a.join("kf-gins.yaml"));
     let (ok, _, err) = run(bin()
         .arg("fuse")
         .arg("--config")
@@ -142,27 +158,13 @@ fn faults_refuse_bad_requests() {
 /// last position while the antenna moved 0.5 m is caught (the old rule
 /// waited for 1 m of motion, so such a repeat dragged the filter or
 /// opened a false episode); a coarse receiver (1e-6°, 0.11 m; 0.1 m in
-/// height) that writes
-/// the same position again and again at rest is not stale.
+/// height) that writes the same position again and again at rest is not
+/// stale.
 #[test]
 fn a_repeat_as_the_vehicle_pulls_away_is_stale_and_a_coarse_receiver_at_rest_is_not() {
     let dir = temp_dir("faults-stale");
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin()
-        .args([
-            "simulate",
-            "--scenario",
-            "test-track",
-            "--duration",
-            "240",
-            "--seed",
-            "1",
-            "--quiet",
-            "--output",
-        ])
-        .arg(&sim));
-    assert!(ok, "{err}");
-    let read = |p: &std::path::Path| std::fs::read_to_string(p).unwrap();
+    let sim = test_track(&dir);
+    let read = |p: &Path| std::fs::read_to_string(p).unwrap();
     let lines: Vec<Vec<String>> = read(&sim.join("gnss.txt"))
         .lines()
         .filter(|l| !l.starts_with('#'))
@@ -187,13 +189,11 @@ fn a_repeat_as_the_vehicle_pulls_away_is_stale_and_a_coarse_receiver_at_rest_is_
         std::fs::create_dir_all(&run_dir).unwrap();
         let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
         std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
-        let cfg = read(&sim.join("kf-gins.yaml"))
-            .replace("./imu.txt", &sim.join("imu.txt").display().to_string())
-            .replace(
-                "./gnss.txt",
-                &run_dir.join("gnss.txt").display().to_string(),
-            );
-        std::fs::write(run_dir.join("kf-gins.yaml"), cfg).unwrap();
+        config_for(
+            &sim,
+            &run_dir.join("gnss.txt"),
+            &run_dir.join("kf-gins.yaml"),
+        );
         let (ok, _, err) = run(bin()
             .arg("fuse")
             .arg("--config")
