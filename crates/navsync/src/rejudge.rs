@@ -560,21 +560,13 @@ fn judge_windows(
 ) {
     for (n, w) in windows.iter().enumerate() {
         // Other windows' fixes are their hypotheses' business:
-        // two faults close together must not sink each other.
-        let theirs = |t: &GpsTime| {
-            windows
-                .iter()
-                .enumerate()
-                .any(|(m, o)| m != n && (o.suspects.contains(t) || o.episode.contains(t)))
-        };
-        // An episode's fixes another window suspects (a later fault that
-        // began inside the episode) are that window's to judge.
-        let others_suspect = |t: &GpsTime| {
-            windows
-                .iter()
-                .enumerate()
-                .any(|(m, o)| m != n && o.suspects.contains(t))
-        };
+        // two faults close together must not sink each other. An
+        // episode's fixes another window suspects (a later fault that
+        // began inside the episode) are that window's to judge too.
+        let others = || windows.iter().enumerate().filter(move |(m, _)| *m != n);
+        let others_suspect = |t: &GpsTime| others().any(|(_, o)| o.suspects.contains(t));
+        let theirs =
+            |t: &GpsTime| others_suspect(t) || others().any(|(_, o)| o.episode.contains(t));
         let stands = current
             .range(w.span.0..=w.span.1)
             .filter(|(t, _)| {
