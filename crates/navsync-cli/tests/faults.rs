@@ -29,14 +29,21 @@ fn test_track(dir: &Path) -> PathBuf {
     sim
 }
 
-/// The drive's kf-gins.yaml, written to `out` with absolute paths to its
-/// IMU file and to `gnss`.
-fn config_for(sim: &Path, gnss: &Path, out: &Path) {
+/// Fuses `dir/gnss.txt` with the drive's IMU (its kf-gins.yaml, written
+/// to `dir` with absolute paths) into `dir/fused`.
+fn fuse_in(sim: &Path, dir: &Path) {
     let cfg = std::fs::read_to_string(sim.join("kf-gins.yaml"))
         .unwrap()
         .replace("./imu.txt", &sim.join("imu.txt").display().to_string())
-        .replace("./gnss.txt", &gnss.display().to_string());
-    std::fs::write(out, cfg).unwrap();
+        .replace("./gnss.txt", &dir.join("gnss.txt").display().to_string());
+    std::fs::write(dir.join("kf-gins.yaml"), cfg).unwrap();
+    let (ok, _, err) = run(bin()
+        .arg("fuse")
+        .arg("--config")
+        .arg(dir.join("kf-gins.yaml"))
+        .arg("--output")
+        .arg(dir.join("fused")));
+    assert!(ok, "{err}");
 }
 
 #[test]
@@ -73,14 +80,7 @@ fn faults_are_labelled_reproducible_and_fused() {
     assert_eq!(j["options"]["ranges"]["spike_m"][1].as_f64(), Some(50.0));
     // Fused: the faulty file is a valid GNSS file and every label is a
     // fix the filter weighed; the 15–50 m spike is not used as it is.
-    config_for(&sim, &a.join("gnss.txt"), &a.join("kf-gins.yaml"));
-    let (ok, _, err) = run(bin()
-        .arg("fuse")
-        .arg("--config")
-        .arg(a.join("kf-gins.yaml"))
-        .arg("--output")
-        .arg(a.join("fused")));
-    assert!(ok, "{err}");
+    fuse_in(&sim, &a);
     let res = read(&a.join("fused/gnss_residuals.txt"));
     let status: std::collections::HashMap<String, (String, String)> = res
         .lines()
@@ -189,18 +189,7 @@ fn a_repeat_as_the_vehicle_pulls_away_is_stale_and_a_coarse_receiver_at_rest_is_
         std::fs::create_dir_all(&run_dir).unwrap();
         let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
         std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
-        config_for(
-            &sim,
-            &run_dir.join("gnss.txt"),
-            &run_dir.join("kf-gins.yaml"),
-        );
-        let (ok, _, err) = run(bin()
-            .arg("fuse")
-            .arg("--config")
-            .arg(run_dir.join("kf-gins.yaml"))
-            .arg("--output")
-            .arg(run_dir.join("fused")));
-        assert!(ok, "{err}");
+        fuse_in(&sim, &run_dir);
         read(&run_dir.join("fused/gnss_residuals.txt"))
             .lines()
             .filter(|l| !l.starts_with('#'))

@@ -376,6 +376,8 @@ impl GnssSource {
         let Some((_, prev, _)) = self.last_fix else {
             return;
         };
+        // By the local radii, not `earth::ned_offset` through ECEF: an axis
+        // the receiver did not change must give exactly 0, not round-off.
         let le = LocalEarth::new(&core.nav.pos, &core.nav.vel);
         let d = le.geodetic_delta_to_ned(
             fix.pos.lat_rad - prev.lat_rad,
