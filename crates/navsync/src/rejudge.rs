@@ -256,6 +256,9 @@ struct Window {
     /// stand: the window's start to [`CHECK_AFTER_S`] after the jump or
     /// the episode's end.
     span: (GpsTime, GpsTime),
+    /// The jump's size (m): the first pass's innovation at the episode's
+    /// first fix, or the step between the smoothed residuals.
+    jump_m: f64,
 }
 
 /// The windows before the first pass's episodes of more than one fix
@@ -312,6 +315,7 @@ fn windows(first_records: &[FixRecord]) -> Vec<Window> {
         };
         let episode: Vec<GpsTime> = pos[j..k].iter().map(|r| r.time).collect();
         let end = pos[k - 1].time.max(jump.add_seconds(CHECK_AFTER_S));
+        let jump_m = pos[j].innovation.iter().map(|x| x * x).sum::<f64>().sqrt();
         let followers = if persisted {
             pos[k..]
                 .iter()
@@ -329,6 +333,7 @@ fn windows(first_records: &[FixRecord]) -> Vec<Window> {
             episode,
             followers,
             span: (start, end),
+            jump_m,
         });
     }
     out
@@ -432,6 +437,7 @@ fn step_windows(
             episode: vec![tb],
             followers: Vec::new(),
             span: (start, tb.add_seconds(CHECK_AFTER_S)),
+            jump_m: (b.z - a.z).norm(),
         });
     }
     out
@@ -531,6 +537,23 @@ fn jumps_back(from: &[&FixRecord]) -> bool {
     })
 }
 
+/// A fault that ended in a jump of `jump_m` (a ramp the monitor followed,
+/// whose end is the jump back) was never much larger than the jump: a
+/// suspect whose residual `z` against the hypothesis's solution (variance
+/// bound `var`) exceeds [`FAULT_SIZE_MARGIN`] times it by more than the
+/// test allows is not that fault but the solution's own bridge drifting
+/// without the suspects (on the ArduCopter log, a 3.8 m jump in the last
+/// second of the data "explained" by a bridge 23 m off for 30 s), and the
+/// hypothesis falls.
+fn within_fault_size(z: &Vector3<f64>, var: &Vector3<f64>, jump_m: f64, threshold: f64) -> bool {
+    z.norm() <= FAULT_SIZE_MARGIN * jump_m + (threshold * var.sum()).sqrt()
+}
+
+/// How much larger than its ending jump a fault's offset may have been
+/// before it: a ramp grows to its end; twice for a fault that grew and
+/// then shrank a little before it ended.
+const FAULT_SIZE_MARGIN: f64 = 2.0;
+
 /// A jump back is "much closer to the old level than to the last" below
 /// this share (`fusion::aid::integrity`'s ramp-end criterion).
 const RAMP_END_CLOSER: f64 = 0.5;
@@ -548,7 +571,8 @@ struct Pass1<'a> {
 /// added to `fault_fixes`. Otherwise the first solution's verdicts there
 /// are restored, or, for an episode that persisted and was followed until
 /// a fix the first solution found inconsistent, the third hypothesis is
-/// taken: the persisted level was the fault, up to that fix.
+/// taken: the persisted level was the fault, up to that fix. Returns
+/// whether any hypothesis fell.
 fn judge_windows(
     windows: &[Window],
     pass1: &Pass1,
@@ -557,7 +581,8 @@ fn judge_windows(
     threshold: f64,
     want: &mut BTreeMap<GpsTime, bool>,
     fault_fixes: &mut Vec<GpsTime>,
-) {
+) -> bool {
+    let mut fell = false;
     for (n, w) in windows.iter().enumerate() {
         // Other windows' fixes are their hypotheses' business:
         // two faults close together must not sink each other. An
@@ -577,7 +602,12 @@ fn judge_windows(
                                 !matches!(f.1, FaultReason::Jump | FaultReason::Run)
                             })))
             })
-            .all(|(t, _)| tests.get(t).is_none_or(|s| s.stat <= threshold));
+            .all(|(t, _)| tests.get(t).is_none_or(|s| s.stat <= threshold))
+            && w.suspects.iter().all(|t| {
+                tests
+                    .get(t)
+                    .is_none_or(|s| within_fault_size(&s.z, &s.var_bound, w.jump_m, threshold))
+            });
         if stands {
             // The fault's extent from the data: the suspects
             // from the onset on; those before it come back
@@ -587,6 +617,7 @@ fn judge_windows(
             }
             continue;
         }
+        fell = true;
         for (t, _) in current.range(w.span.0..=w.span.1) {
             if theirs(t) && !w.suspects.contains(t) && !w.episode.contains(t) {
                 continue;
@@ -612,6 +643,7 @@ fn judge_windows(
             }
         }
     }
+    fell
 }
 
 /// The decisions forced on the next forward pass: every judged fix of the
@@ -702,18 +734,35 @@ pub(crate) fn smooth_rejudged(
                 }
             }
             // Each hypothesis stands or falls on its own solution.
-            2 => judge_windows(
-                &windows,
-                &Pass1 {
-                    first: &first,
-                    verdicts: &first_verdicts,
-                },
-                &current,
-                &tests,
-                threshold,
-                &mut want,
-                &mut fault_fixes,
-            ),
+            2 => {
+                let fell = judge_windows(
+                    &windows,
+                    &Pass1 {
+                        first: &first,
+                        verdicts: &first_verdicts,
+                    },
+                    &current,
+                    &tests,
+                    threshold,
+                    &mut want,
+                    &mut fault_fixes,
+                );
+                // A fallen hypothesis's solution is no evidence on the
+                // fixes beyond its window either (its bridge may reach
+                // them): outside every window, the first verdicts hold.
+                if fell {
+                    let in_window = |t: &GpsTime| {
+                        windows
+                            .iter()
+                            .any(|w| (w.span.0..=w.span.1).contains(t) || w.followers.contains(t))
+                    };
+                    for (t, v) in &first_verdicts {
+                        if !in_window(t) {
+                            want.insert(*t, *v);
+                        }
+                    }
+                }
+            }
             _ => {}
         }
         for t in &fault_fixes {
@@ -996,5 +1045,81 @@ mod tests {
         assert!((60..64).all(|t| want[&at(t)]));
         fault_fixes.sort();
         assert_eq!(fault_fixes, (64..91).map(at).collect::<Vec<_>>());
+    }
+
+    /// A hypothesis "the fixes before the jump were a fault" whose
+    /// solution bridges them far beyond the jump's size is the bridge
+    /// drifting without them, not that fault: it falls, and the first
+    /// pass's verdicts come back. On the ArduCopter log a 3.8 m jump in
+    /// the last second of the data stood on three fixes after it, and the
+    /// smoothed solution bridged the 30 s before 23 m off (27 m RMS against
+    /// the fixes, 0.37 m before).
+    #[test]
+    fn a_bridge_far_larger_than_its_jump_is_no_fault() {
+        let at = |t: i64| GpsTime::from_week_ns(2000, t * 1_000_000_000);
+        // Used fixes, a 3.8 m jump at 90, two run fixes, persisted at 93,
+        // the data's end at 95.
+        let recs: Vec<FixRecord> = (0..96)
+            .map(|t| {
+                let mut r = match t {
+                    90 => record(t, FixStatus::Rejected, FaultReason::Jump),
+                    91..=92 => record(t, FixStatus::Rejected, FaultReason::Run),
+                    93 => record(t, FixStatus::DriftAccepted, FaultReason::Persisted),
+                    _ => record(t, FixStatus::Used, FaultReason::None),
+                };
+                if t == 90 {
+                    r.innovation = [0.0, 0.0, 3.8];
+                }
+                r
+            })
+            .collect();
+        let first = judged(&recs);
+        let first_verdicts: BTreeMap<GpsTime, bool> =
+            first.iter().map(|(t, j)| (*t, j.0)).collect();
+        let all = windows(&recs);
+        assert_eq!(all.len(), 1);
+        assert_eq!(all[0].jump_m, 3.8);
+        let threshold = 21.1;
+        // The suspects: the 30 s before the jump.
+        assert_eq!(all[0].suspects, (61..90).rev().map(at).collect::<Vec<_>>());
+        // The second pass bridges them with a bend of `peak_m`; every
+        // other fix is consistent.
+        let judge = |peak_m: f64| {
+            let pass2: BTreeMap<GpsTime, Tested> = (0..96)
+                .map(|t| {
+                    let u = (t - 60) as f64 / 30.0;
+                    let suspect = (61..90).contains(&t);
+                    let mut x = tested(if suspect {
+                        4.0 * peak_m * u * (1.0 - u)
+                    } else {
+                        0.0
+                    });
+                    x.stat = if suspect { 100.0 } else { 0.0 };
+                    (at(t), x)
+                })
+                .collect();
+            let mut want = verdicts(&first, &pass2, threshold);
+            let mut fault_fixes = Vec::new();
+            let fell = judge_windows(
+                &all,
+                &Pass1 {
+                    first: &first,
+                    verdicts: &first_verdicts,
+                },
+                &first,
+                &pass2,
+                threshold,
+                &mut want,
+                &mut fault_fixes,
+            );
+            (fell, want)
+        };
+        // 23 m off: it falls, and the suspects are used again.
+        let (fell, want) = judge(23.0);
+        assert!(fell);
+        assert!((61..90).all(|t| want[&at(t)]));
+        // Within twice the jump: it stands.
+        let (fell, _) = judge(6.0);
+        assert!(!fell);
     }
 }
