@@ -899,6 +899,35 @@ mod tests {
         assert_eq!(d.len(), 100);
     }
 
+    /// The second pass's judgement of `all` windows, its tests `pass2`
+    /// against the first pass's records judged `first` (used as they
+    /// were): whether a hypothesis fell, the verdicts and the fault's
+    /// fixes.
+    fn second_pass(
+        all: &[Window],
+        first: &Judged,
+        pass2: &BTreeMap<GpsTime, Tested>,
+    ) -> (bool, BTreeMap<GpsTime, bool>, Vec<GpsTime>) {
+        let threshold = 21.1;
+        let first_verdicts: BTreeMap<GpsTime, bool> =
+            first.iter().map(|(t, j)| (*t, j.0)).collect();
+        let mut want = verdicts(first, pass2, threshold);
+        let mut fault_fixes = Vec::new();
+        let fell = judge_windows(
+            all,
+            &Pass1 {
+                first,
+                verdicts: &first_verdicts,
+            },
+            first,
+            pass2,
+            threshold,
+            &mut want,
+            &mut fault_fixes,
+        );
+        (fell, want, fault_fixes)
+    }
+
     fn tested(z_n_m: f64) -> Tested {
         Tested {
             stat: 0.0,
@@ -1025,20 +1054,7 @@ mod tests {
                 (at(t), x)
             })
             .collect();
-        let mut want = verdicts(&first, &pass2, threshold);
-        let mut fault_fixes = Vec::new();
-        judge_windows(
-            &all,
-            &Pass1 {
-                first: &first,
-                verdicts: &first_verdicts,
-            },
-            &first,
-            &pass2,
-            threshold,
-            &mut want,
-            &mut fault_fixes,
-        );
+        let (_, want, mut fault_fixes) = second_pass(&all, &first, &pass2);
         // Both hypotheses stand: the episode's fixes before the second
         // fault are used (pass 1's exclusions not restored), and the
         // second fault's fixes from its onset are the fault.
@@ -1074,12 +1090,9 @@ mod tests {
             })
             .collect();
         let first = judged(&recs);
-        let first_verdicts: BTreeMap<GpsTime, bool> =
-            first.iter().map(|(t, j)| (*t, j.0)).collect();
         let all = windows(&recs);
         assert_eq!(all.len(), 1);
         assert_eq!(all[0].jump_m, 3.8);
-        let threshold = 21.1;
         // The suspects: the 30 s before the jump.
         assert_eq!(all[0].suspects, (61..90).rev().map(at).collect::<Vec<_>>());
         // The second pass bridges them with a bend of `peak_m`; every
@@ -1098,20 +1111,7 @@ mod tests {
                     (at(t), x)
                 })
                 .collect();
-            let mut want = verdicts(&first, &pass2, threshold);
-            let mut fault_fixes = Vec::new();
-            let fell = judge_windows(
-                &all,
-                &Pass1 {
-                    first: &first,
-                    verdicts: &first_verdicts,
-                },
-                &first,
-                &pass2,
-                threshold,
-                &mut want,
-                &mut fault_fixes,
-            );
+            let (fell, want, _) = second_pass(&all, &first, &pass2);
             (fell, want)
         };
         // 23 m off: it falls, and the suspects are used again.

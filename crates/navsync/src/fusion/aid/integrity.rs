@@ -925,6 +925,39 @@ mod tests {
     fn r() -> Vector3<f64> {
         Vector3::repeat(RTK_VAR_M2)
     }
+    /// A monitor after 18 clean 1 Hz fixes from `t0` with the state's σ
+    /// `spread`, the fixes pulling the state `pull_m` north a fix from the
+    /// 6th on (GNSS corrections), the fix at `dragged_at` used only because
+    /// the robust weighting judged the INS drifted.
+    fn pulled(
+        spread: StateSpread,
+        pull_m: f64,
+        dragged_at: Option<usize>,
+    ) -> (FaultMonitor, GpsTime) {
+        let mut m = FaultMonitor::new(0.04 / 60.0);
+        let t0 = GpsTime::from_week_sow(2300, 1000.0);
+        for k in 0..18 {
+            let t = t0.add_seconds(k as f64);
+            assert_eq!(
+                m.judge(t, &Vector3::zeros(), &hph(), &r(), 1.0),
+                Judgement::Clean
+            );
+            if k >= 6 {
+                let mut dx = vec![0.0; 21];
+                dx[0] = -pull_m;
+                m.record_correction(t, &dx, 0, 3);
+            }
+            m.add_anchor(
+                t,
+                Vector3::zeros(),
+                Vector3::repeat(1e-4),
+                r(),
+                spread,
+                dragged_at == Some(k),
+            );
+        }
+        (m, t0.add_seconds(18.0))
+    }
 
     /// A coarse receiver (stated σ 2 m horizontal) whose fixes move by a
     /// centimetre or two from one to the next at 10 Hz, as a standalone or
@@ -1197,31 +1230,9 @@ mod tests {
             speed_mps: 10.0,
         };
         let jump_after = |dragged_at: Option<usize>| {
-            let mut m = FaultMonitor::new(0.04 / 60.0);
-            let t0 = GpsTime::from_week_sow(2300, 1000.0);
-            for k in 0..18 {
-                let t = t0.add_seconds(k as f64);
-                assert_eq!(
-                    m.judge(t, &Vector3::zeros(), &hph(), &r(), 1.0),
-                    Judgement::Clean
-                );
-                if k >= 6 {
-                    let mut dx = vec![0.0; 21];
-                    dx[0] = -0.01;
-                    m.record_correction(t, &dx, 0, 3);
-                }
-                let dragged = dragged_at == Some(k);
-                m.add_anchor(
-                    t,
-                    Vector3::zeros(),
-                    Vector3::repeat(1e-4),
-                    r(),
-                    spread,
-                    dragged,
-                );
-            }
+            let (mut m, t) = pulled(spread, 0.01, dragged_at);
             let z = Vector3::new(1.2, -0.8, 0.0);
-            m.judge(t0.add_seconds(18.0), &z, &hph(), &r(), 1.0)
+            m.judge(t, &z, &hph(), &r(), 1.0)
         };
         assert!(
             matches!(jump_after(Some(10)), Judgement::RampEnd { .. }),
@@ -1250,37 +1261,10 @@ mod tests {
                 gyro_bias_sd: 1e-6,
                 speed_mps: 10.0,
             };
-            let mut m = FaultMonitor::new(0.04 / 60.0);
-            let t0 = GpsTime::from_week_sow(2300, 1000.0);
-            for k in 0..18 {
-                let t = t0.add_seconds(k as f64);
-                assert_eq!(
-                    m.judge(t, &Vector3::zeros(), &hph(), &r(), 1.0),
-                    Judgement::Clean
-                );
-                // The fixes pull the state 0.5 m north a second from 6 s.
-                if k >= 6 {
-                    let mut dx = vec![0.0; 21];
-                    dx[0] = -0.5;
-                    m.record_correction(t, &dx, 0, 3);
-                }
-                m.add_anchor(
-                    t,
-                    Vector3::zeros(),
-                    Vector3::repeat(1e-4),
-                    r(),
-                    spread,
-                    false,
-                );
-            }
+            // The fixes pull the state 0.5 m north a second from 6 s.
+            let (mut m, t) = pulled(spread, 0.5, None);
             // 6 m back: where the fixes were before the pull.
-            m.judge(
-                t0.add_seconds(18.0),
-                &Vector3::new(6.0, 0.0, 0.0),
-                &hph(),
-                &r(),
-                1.0,
-            )
+            m.judge(t, &Vector3::new(6.0, 0.0, 0.0), &hph(), &r(), 1.0)
         };
         assert!(
             matches!(jump_back(0.01), Judgement::RampEnd { .. }),
