@@ -867,20 +867,20 @@ mod tests {
 
     const RTK_VAR_M2: f64 = 1e-4;
 
-    /// A monitor with clean 1 Hz fixes up to `t0 + n − 1` s: an INS with
-    /// 5 mm/s velocity σ, 0.01° tilt, 0.1° yaw at 10 m/s.
+    /// An INS with 5 mm/s velocity σ, 0.01° tilt, 0.1° yaw at 10 m/s.
+    fn sharp_ins() -> StateSpread {
+        StateSpread {
+            vel_sd: Vector3::repeat(0.005),
+            tilt_sd: 0.01f64.to_radians(),
+            yaw_sd: 0.1f64.to_radians(),
+            accel_bias_sd: 1e-3,
+            gyro_bias_sd: 1e-6,
+            speed_mps: 10.0,
+        }
+    }
+    /// A monitor with clean 1 Hz fixes up to `t0 + n − 1` s ([`sharp_ins`]).
     fn primed(n: usize) -> (FaultMonitor, GpsTime) {
-        primed_with(
-            n,
-            StateSpread {
-                vel_sd: Vector3::repeat(0.005),
-                tilt_sd: 0.01f64.to_radians(),
-                yaw_sd: 0.1f64.to_radians(),
-                accel_bias_sd: 1e-3,
-                gyro_bias_sd: 1e-6,
-                speed_mps: 10.0,
-            },
-        )
+        primed_with(n, sharp_ins())
     }
     fn primed_with(n: usize, spread: StateSpread) -> (FaultMonitor, GpsTime) {
         let mut m = FaultMonitor::new(0.04 / 60.0);
@@ -968,14 +968,7 @@ mod tests {
     /// its solution), the stated σ holds and the jump passes.
     #[test]
     fn a_jump_is_judged_by_the_receivers_measured_change_not_its_stated_sigma() {
-        let spread = StateSpread {
-            vel_sd: Vector3::repeat(0.005),
-            tilt_sd: 0.01f64.to_radians(),
-            yaw_sd: 0.1f64.to_radians(),
-            accel_bias_sd: 1e-3,
-            gyro_bias_sd: 1e-6,
-            speed_mps: 10.0,
-        };
+        let spread = sharp_ins();
         let coarse = Vector3::new(4.0, 4.0, 9.0);
         let wobble =
             |k: usize| Vector3::new(0.01 * ((k % 3) as f64 - 1.0), 0.01 * (k % 2) as f64, 0.0);
