@@ -330,7 +330,8 @@ pub(in crate::fusion) struct FaultMonitor {
     /// [`FIX_CHANGE_MIN_PAIRS`]: the share of the stated variance by which
     /// the fixes' error changes per second².
     fix_change_rate: Option<Vector3<f64>>,
-    /// The last fix judged clean against the previous anchor: its Δ, the
+    /// The last fix judged clean against the previous anchor, of the same
+    /// stated σ: its Δ, the
     /// time between and their stated R + R'; a pair once it becomes an
     /// anchor itself.
     pending_pair: Option<(GpsTime, Vector3<f64>, f64, Vector3<f64>)>,
@@ -395,11 +396,7 @@ impl FaultMonitor {
             && t == time
             && !drift_accepted
         {
-            let same = self
-                .anchors
-                .back()
-                .is_some_and(|a| (0..3).all(|i| same_sd(r[i], a.r[i])));
-            self.note_fix_change(time, &delta, dt, &stated, same);
+            self.note_fix_change(time, &delta, dt, &stated);
         }
         self.anchors_since_reset += 1;
         self.anchors.push_back(Anchor {
@@ -540,19 +537,18 @@ impl FaultMonitor {
         })
     }
 
-    /// Keeps a clean pair's Δ over `dt` s with stated R + R' `stated` (when
-    /// the two fixes' σ are the `same`) and updates the measured rate: per
-    /// axis, the median of Δ²/(stated·dt²) over [`CHI2_1_MEDIAN`].
+    /// Keeps a clean pair's Δ over `dt` s with stated R + R' `stated` and
+    /// updates the measured rate: per axis, the median of Δ²/(stated·dt²)
+    /// over [`CHI2_1_MEDIAN`].
     fn note_fix_change(
         &mut self,
         time: GpsTime,
         delta: &Vector3<f64>,
         dt: f64,
         stated: &Vector3<f64>,
-        same: bool,
     ) {
         let u = Vector3::from_fn(|i, _| delta[i] * delta[i] / (stated[i] * dt * dt));
-        if !(u.iter().all(|v| v.is_finite()) && same) {
+        if !u.iter().all(|v| v.is_finite()) {
             return;
         }
         self.fix_change.push_back((time, u));
@@ -650,7 +646,11 @@ impl FaultMonitor {
             self.open(last, time, delta, hph);
             return Judgement::Exclude(FaultReason::Jump);
         }
-        self.pending_pair = Some((time, delta, time.seconds_since(last.time), r + last.r));
+        // A pair measures the receiver's error change only between fixes of
+        // the same stated σ (see `fix_change_var`).
+        if (0..3).all(|i| same_sd(r[i], last.r[i])) {
+            self.pending_pair = Some((time, delta, time.seconds_since(last.time), r + last.r));
+        }
         Judgement::Clean
     }
 
