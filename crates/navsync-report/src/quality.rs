@@ -809,14 +809,28 @@ fn probe_lever_check(
     checks: &mut Vec<Check>,
     causes: &mut Vec<String>,
 ) {
-    let loss = loss_factor(l.difference_m, e.filter_h_sd_m);
     let d = [0, 1, 2].map(|k| l.estimate_m[k] - l.sheet_m[k]);
+    let horizontal_m = d[0].hypot(d[1]);
+    // States the drive did not observe stay within their prior in a
+    // consistent filter (the estimate moves by at most √(σ₀² − σ²)); ones
+    // that ran further than any antenna can be, observed or not, took up
+    // an error the filter does not model (the Husky bag: 28 m forward, its
+    // σ held near the initial 0.5 m by the covariance inflations).
+    let ran_off = horizontal_m > PLAUSIBLE_LEVER_M;
+    let loss = loss_factor(
+        if ran_off {
+            horizontal_m
+        } else {
+            l.difference_m
+        },
+        e.filter_h_sd_m,
+    );
     let inflate = correlation_inflation(e);
     let sigmas = (0..3)
         .filter(|&k| l.observed[k])
         .map(|k| d[k].abs() / (l.sd_m[k] * inflate).max(1e-9))
         .fold(0.0, f64::max);
-    let significant = sigmas > navsync::fusion::LEVER_SIGNIFICANT_SIGMAS;
+    let significant = sigmas > navsync::fusion::LEVER_SIGNIFICANT_SIGMAS || ran_off;
     let grade = cost_grade(significant, loss);
     checks.push(Check {
         name: "antenna lever arm (probe)",
@@ -828,16 +842,21 @@ fn probe_lever_check(
             l.sd_m[0],
             l.sd_m[1],
             if l.observed[0] || l.observed[1] { "" } else { "not " },
-            if significant { "significant" } else { "not significant" },
-            l.difference_m,
+            if ran_off {
+                "beyond any antenna"
+            } else if significant {
+                "significant"
+            } else {
+                "not significant"
+            },
+            if ran_off { horizontal_m } else { l.difference_m },
             e.filter_h_sd_m
         ),
         rule: format!(
-            "significant beyond {:.0}σ (σ × √(fixes / independent fixes)) on a component the drive observed; then caution when the difference costs more than {LOSS_CAUTION}× the filter's σ, poor above {LOSS_POOR}×",
+            "significant beyond {:.0}σ (σ × √(fixes / independent fixes)) on a component the drive observed, or beyond {PLAUSIBLE_LEVER_M:.0} m horizontally on any; then caution when the difference costs more than {LOSS_CAUTION}× the filter's σ, poor above {LOSS_POOR}×",
             navsync::fusion::LEVER_SIGNIFICANT_SIGMAS
         ),
     });
-    let horizontal_m = d[0].hypot(d[1]);
     if grade > Grade::Good && horizontal_m > PLAUSIBLE_LEVER_M {
         causes.push(format!(
             "not the antenna: the probe's lever-arm states ran to {horizontal_m:.0} m from the sheet's, which no antenna is; they absorbed an error the filter does not model. Most often the IMU's mounting (mount_deg: the vehicle's forward axis in the IMU's) or a heading the drive could not observe; then the IMU figures"

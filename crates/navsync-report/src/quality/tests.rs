@@ -587,20 +587,31 @@ fn the_probes_time_offset_is_graded_by_significance_and_cost() {
 
 /// A probe whose lever-arm states ran to 132 m (the Husky bag with the
 /// default sheet's mounting, 90° off) is poor, but its cause names the
-/// mounting, not the antenna; a 0.4 m difference names the lever arm.
+/// mounting, not the antenna; a 3 m difference names the lever arm. States
+/// the drive did not observe that still ran to 30 m (the Husky bag's probe
+/// since its covariance inflations keep their σ near the initial one) are
+/// as poor; unobserved ones near the sheet are not graded.
 #[test]
 fn an_implausible_probe_lever_arm_names_another_error() {
     let inn = quiet_innovations(900, 300.0, 1.0, 0.5);
-    let causes = |forward_m: f64, right_m: f64| {
+    let verdict = |forward_m: f64, right_m: f64, observed: bool| {
         let l = navsync::fusion::LeverArmSummary {
             estimate_m: [forward_m, right_m, 0.0],
-            sd_m: [0.1, 0.15, 1.0],
-            initial_sd_m: 1.0,
+            sd_m: if observed {
+                [0.1, 0.15, 1.0]
+            } else {
+                [0.51, 3.65, 318.8]
+            },
+            initial_sd_m: if observed { 1.0 } else { 0.5 },
             sheet_m: [0.0; 3],
-            observed: [true, true, false],
-            difference_m: forward_m.hypot(right_m),
-            difference_sigmas: 100.0,
-            significant: true,
+            observed: [observed, observed, false],
+            difference_m: if observed {
+                forward_m.hypot(right_m)
+            } else {
+                0.0
+            },
+            difference_sigmas: if observed { 100.0 } else { 0.0 },
+            significant: observed,
             note: String::new(),
         };
         let v = assess(&Evidence {
@@ -612,19 +623,26 @@ fn an_implausible_probe_lever_arm_names_another_error() {
             }),
             ..Evidence::default()
         });
-        assert_eq!(
-            graded(&v, "antenna lever arm (probe)").grade,
-            Some(Grade::Poor)
-        );
-        v.causes.join(" | ")
+        let grade = graded(&v, "antenna lever arm (probe)").grade;
+        (grade, v.causes.join(" | "))
     };
-    let far = causes(89.6, -97.1);
-    assert!(
-        far.contains("not the antenna") && far.contains("mount_deg"),
-        "{far}"
-    );
-    let near = causes(3.0, 0.0);
+    for observed in [true, false] {
+        let (grade, far) = verdict(89.6, -97.1, observed);
+        assert_eq!(grade, Some(Grade::Poor), "{far}");
+        assert!(
+            far.contains("not the antenna") && far.contains("mount_deg"),
+            "{far}"
+        );
+    }
+    let (grade, husky) = verdict(-27.9, -12.7, false);
+    assert_eq!(grade, Some(Grade::Poor), "{husky}");
+    assert!(husky.contains("not the antenna"), "{husky}");
+    let (grade, near) = verdict(3.0, 0.0, true);
+    assert_eq!(grade, Some(Grade::Poor), "{near}");
     assert!(near.starts_with("antenna lever arm"), "{near}");
+    let (grade, unobserved) = verdict(0.4, -0.3, false);
+    assert_eq!(grade, Some(Grade::Good), "{unobserved}");
+    assert!(!unobserved.contains("antenna"), "{unobserved}");
 }
 
 /// Innovation evidence with no lever-arm or time-offset signature: `fixes`
