@@ -468,7 +468,7 @@ fn placement_problem(
         let step = fixes[j].t_s - fixes[j - 1].t_s;
         if step > GAP_FACTOR * interval_s {
             return Some(format!(
-                "it would straddle a {step:.1} s gap before {} s",
+                "it would straddle a {step:.1} s gap before {:.3} s",
                 fixes[j].t_s
             ));
         }
@@ -477,7 +477,7 @@ fn placement_problem(
     for &(ta, tb) in taken {
         if a <= tb + sep_s && b >= ta - sep_s {
             return Some(format!(
-                "it would come within {sep_s} s of the episode at {ta}–{tb} s"
+                "it would come within {sep_s} s of the episode at {ta:.3}–{tb:.3} s"
             ));
         }
     }
@@ -524,7 +524,7 @@ fn place_drawn(
             return Err(Error::NoData {
                 path: path.to_path_buf(),
                 msg: format!(
-                    "no room for episode {} of {} ({}, {n} fixes): {} fixes over {:.0} s, none faulted in the first {} s, {} s clean between episodes, none across a gap over {GAP_FACTOR} × the {interval_s} s interval; ask for fewer (--count) or shorter episodes",
+                    "no room for episode {} of {} ({}, {n} fixes): {} fixes over {:.0} s, none faulted in the first {} s, {} s clean between episodes, none across a gap over {GAP_FACTOR} × the {interval_s:.3} s interval; ask for fewer (--count) or shorter episodes, or start sooner (--skip-start) with less clean time between them (--separation)",
                     placed.len() + 1,
                     o.count,
                     draft.class.name(),
