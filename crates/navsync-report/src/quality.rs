@@ -108,8 +108,9 @@ pub struct Check {
 pub struct Verdict {
     pub grade: Grade,
     pub checks: Vec<Check>,
-    /// The likely causes of the checks that failed, most specific first
-    /// (not in the page's JSON block, whose format is fixed: FORMATS.md).
+    /// The likely causes of the checks that failed: those of the worst
+    /// checks first, the most specific first within a grade (not in the
+    /// page's JSON block, whose format is fixed: FORMATS.md).
     #[serde(skip)]
     pub causes: Vec<String>,
 }
@@ -473,7 +474,7 @@ pub(crate) fn effective_count(x: &[f64]) -> f64 {
 
 /// The NIS mean against χ² with the fixes' correlation taken into account,
 /// and which way the σ figures are off.
-fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Vec<String>) {
+fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Causes) {
     let n = nis.len();
     if n == 0 {
         return;
@@ -527,7 +528,7 @@ fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Vec<String>) {
         (Grade::Good, "consistent".to_string())
     };
     if grade > Grade::Good {
-        causes.push(format!("noise figures: {how}"));
+        causes.add(grade, format!("noise figures: {how}"));
     }
     checks.push(Check {
         name: "NIS mean",
@@ -545,16 +546,16 @@ fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Vec<String>) {
 /// nothing when the INS bridged them; an episode that ended with the
 /// fixes followed again (the INS's drift covered the offset, or it lasted
 /// longer than the IMU can bridge) may have moved the solution.
-fn fault_check(f: &FaultEvidence, fixes: usize, checks: &mut Vec<Check>, causes: &mut Vec<String>) {
+fn fault_check(f: &FaultEvidence, fixes: usize, checks: &mut Vec<Check>, causes: &mut Causes) {
     let share = f.excluded as f64 / fixes.max(1) as f64;
     let grade = if f.persisted > 0 {
-        causes.push(format!(
+        causes.add(Grade::Caution, format!(
             "GNSS faults: {} fix(es) used again after a fault episode the INS could not resolve; the solution around them may follow the fault (gnss_residuals.txt, reason `persisted`)",
             f.persisted
         ));
         Grade::Caution
     } else if share > FAULT_EXCLUDED_CAUTION {
-        causes.push(format!(
+        causes.add(Grade::Caution, format!(
             "GNSS faults: {} of the fixes were excluded in fault episodes; the solution there rests on the INS alone: check the receiver and antenna (gnss_residuals.txt, reasons `jump`, `run`, `stale`)",
             pct(share)
         ));
@@ -582,7 +583,7 @@ fn fault_check(f: &FaultEvidence, fixes: usize, checks: &mut Vec<Check>, causes:
 /// A zero antenna lever arm is almost never the rig's: it is the sheet's
 /// default, left unmeasured. Every centimetre of it goes into the position
 /// and the filter cannot see it on a drive without varied turns.
-fn lever_arm_checks(ev: &Evidence, checks: &mut Vec<Check>, causes: &mut Vec<String>) {
+fn lever_arm_checks(ev: &Evidence, checks: &mut Vec<Check>, causes: &mut Causes) {
     let Some(l) = ev.antenna_lever_m else { return };
     let zero = l.iter().all(|x| *x == 0.0);
     if let Some(est) = &ev.lever_estimate {
@@ -600,9 +601,9 @@ fn lever_arm_checks(ev: &Evidence, checks: &mut Vec<Check>, causes: &mut Vec<Str
         rule: "caution when zero (the sheet's default, not a measurement)".into(),
     });
     if zero {
-        causes.push(
-            "antenna lever arm: zero in the sheet (antenna_lever_m), measure it (or estimate it on a drive with turns: estimate_lever_arm: true)"
-                .into(),
+        causes.add(
+            Grade::Caution,
+            "antenna lever arm: zero in the sheet (antenna_lever_m), measure it (or estimate it on a drive with turns: estimate_lever_arm: true)",
         );
     }
 }
@@ -616,7 +617,7 @@ fn estimated_lever_check(
     est: &navsync::fusion::LeverArmSummary,
     zero_sheet: bool,
     checks: &mut Vec<Check>,
-    causes: &mut Vec<String>,
+    causes: &mut Causes,
 ) {
     let horizontal = est.observed[0] && est.observed[1];
     let grade = match (horizontal, zero_sheet) {
@@ -639,10 +640,10 @@ fn estimated_lever_check(
         ),
     });
     if grade == Some(Grade::Caution) {
-        causes.push(
+        causes.add(
+            Grade::Caution,
             "antenna lever arm: zero in the sheet (antenna_lever_m) and the drive did not observe it \
-             (too few turns for the lever-arm states): measure it"
-                .into(),
+             (too few turns for the lever-arm states): measure it",
         );
     }
 }
@@ -660,7 +661,7 @@ fn signature_checks(
     e: &crate::innovation::InnovationEvidence,
     lever_estimated: bool,
     checks: &mut Vec<Check>,
-    causes: &mut Vec<String>,
+    causes: &mut Causes,
 ) {
     use crate::innovation::FALSE_ALARM;
     let rule = format!(
@@ -692,7 +693,7 @@ fn signature_checks(
         } else {
             "Measure it, or let the filter estimate it: lever-arm states (`estimate_lever_arm: true` in the sheet, `--estimate-lever-arm`) would help on a drive with turns like this one"
         };
-        causes.push(format!(
+        causes.add(g, format!(
             "antenna lever arm: the innovations turn with the heading; the antenna looks about {df:+.2} m forward, {dr:+.2} m right of the sheet's antenna_lever_m (an underestimate: the filter absorbs part of it). {remedy}. At a steady speed a GNSS time offset looks the same along the track (v·δt): if the lever arm is right, estimate the offset (time_offset: estimate: true)"
         ));
     }
@@ -712,7 +713,7 @@ fn signature_checks(
         rule,
     });
     if g > Grade::Good {
-        causes.push(format!(
+        causes.add(g, format!(
             "GNSS time offset: the innovations grow with the speed along the track; the tags look {:+.0} ms late. Estimate it (sheet: time_offset: estimate: true; fuse --estimate-time-offset) or synchronize with 1PPS",
             e.offset_s * 1e3
         ));
@@ -727,7 +728,7 @@ fn probe_checks(
     p: &ProbeEvidence,
     e: &crate::innovation::InnovationEvidence,
     checks: &mut Vec<Check>,
-    causes: &mut Vec<String>,
+    causes: &mut Causes,
 ) {
     if let Some(why) = &p.failed {
         checks.push(Check {
@@ -736,7 +737,7 @@ fn probe_checks(
             finding: format!("the second pass, with the time offset as a state, failed: {why}"),
             rule: "caution when the probe's filter broke down: the data do not fit the sheet's model even with the offset free".into(),
         });
-        causes.push(format!(
+        causes.add(Grade::Caution, format!(
             "consistency probe: a filter estimating the GNSS time offset broke down on these data ({why}): check the fixes' σ and the IMU figures"
         ));
         return;
@@ -769,7 +770,7 @@ fn probe_checks(
         ),
     });
     if grade > Grade::Good {
-        causes.push(format!(
+        causes.add(grade, format!(
             "GNSS time offset: with the offset estimated as a state the GNSS tags are {:+.0} ± {:.0} ms late, which the run's sheet assumes zero. Estimate it (sheet: time_offset: estimate: true; fuse --estimate-time-offset) or synchronize with 1PPS",
             offset_s * 1e3,
             sd_s * 1e3
@@ -807,7 +808,7 @@ fn probe_lever_check(
     l: &navsync::fusion::LeverArmSummary,
     e: &crate::innovation::InnovationEvidence,
     checks: &mut Vec<Check>,
-    causes: &mut Vec<String>,
+    causes: &mut Causes,
 ) {
     let d = [0, 1, 2].map(|k| l.estimate_m[k] - l.sheet_m[k]);
     let horizontal_m = d[0].hypot(d[1]);
@@ -858,11 +859,11 @@ fn probe_lever_check(
         ),
     });
     if grade > Grade::Good && horizontal_m > PLAUSIBLE_LEVER_M {
-        causes.push(format!(
+        causes.add(grade, format!(
             "not the antenna: the probe's lever-arm states ran to {horizontal_m:.0} m from the sheet's, which no antenna is; they absorbed an error the filter does not model. Most often the IMU's mounting (mount_deg: the vehicle's forward axis in the IMU's) or a heading the drive could not observe; then the IMU figures"
         ));
     } else if grade > Grade::Good {
-        causes.push(format!(
+        causes.add(grade, format!(
             "antenna lever arm: with it estimated as states the antenna is {:+.2} m forward, {:+.2} m right of the sheet's antenna_lever_m ({sigmas:.1}σ). Measure it, or estimate it in the run (estimate_lever_arm: true). At a steady speed a forward error and a late GNSS tag look alike: the time-offset row says which the probe preferred",
             d[0], d[1]
         ));
@@ -874,10 +875,28 @@ fn probe_lever_check(
 /// the IMU at most).
 const PLAUSIBLE_LEVER_M: f64 = navsync::pipeline::MAX_LEVER_ARM_SD_M;
 
+/// The likely causes found, each with the grade of the check that
+/// raised it.
+#[derive(Default)]
+struct Causes(Vec<(Grade, String)>);
+
+impl Causes {
+    fn add(&mut self, grade: Grade, cause: impl Into<String>) {
+        self.0.push((grade, cause.into()));
+    }
+
+    /// The causes, those of the worst checks first; in the order they were
+    /// found (the most specific first) within a grade.
+    fn by_grade(mut self) -> Vec<String> {
+        self.0.sort_by_key(|c| std::cmp::Reverse(c.0));
+        self.0.into_iter().map(|(_, c)| c).collect()
+    }
+}
+
 /// Weighs the evidence.
 pub(crate) fn assess(ev: &Evidence) -> Verdict {
     let mut checks = Vec::new();
-    let mut causes = Vec::new();
+    let mut causes = Causes::default();
     if let Some(why) = &ev.solution_incomplete {
         checks.push(Check {
             name: "solution file",
@@ -993,12 +1012,16 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
             probe_checks(p, e, &mut checks, &mut causes);
         }
     }
-    if checks
+    if let Some(bias_grade) = checks
         .iter()
-        .any(|c| c.name == "IMU biases vs datasheet" && c.grade > Some(Grade::Good))
+        .filter(|c| c.name == "IMU biases vs datasheet")
+        .filter_map(|c| c.grade)
+        .max()
+        .filter(|g| *g > Grade::Good)
     {
-        causes.push(
-            "IMU biases outside the datasheet envelope: the IMU is not the one the sheet describes, or the biases absorb another error (lever arm, time offset, mounting)".into(),
+        causes.add(
+            bias_grade,
+            "IMU biases outside the datasheet envelope: the IMU is not the one the sheet describes, or the biases absorb another error (lever arm, time offset, mounting)",
         );
     }
     if let Some(s) = &ev.sync {
@@ -1083,7 +1106,7 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
     Verdict {
         grade,
         checks,
-        causes,
+        causes: causes.by_grade(),
     }
 }
 

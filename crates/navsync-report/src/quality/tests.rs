@@ -407,7 +407,7 @@ fn the_nis_interval_widens_for_correlated_fixes() {
             .collect()
     };
     let check = |nis: Vec<f64>| {
-        let (mut c, mut causes) = (Vec::new(), Vec::new());
+        let (mut c, mut causes) = (Vec::new(), Causes::default());
         nis_check(&nis, &mut c, &mut causes);
         c.remove(0)
     };
@@ -637,6 +637,39 @@ fn an_implausible_probe_lever_arm_names_another_error() {
     let (grade, husky) = verdict(-27.9, -12.7, false);
     assert_eq!(grade, Some(Grade::Poor), "{husky}");
     assert!(husky.contains("not the antenna"), "{husky}");
+    // With the sheet's lever arm zero (a caution found first), the poor
+    // check's cause still leads.
+    let v = assess(&Evidence {
+        innovation: Some(inn.clone()),
+        antenna_lever_m: Some([0.0; 3]),
+        probe: Some(ProbeEvidence {
+            time_offset_s: None,
+            lever_arm: Some(navsync::fusion::LeverArmSummary {
+                estimate_m: [-27.9, -12.7, 0.0],
+                sd_m: [0.51, 3.65, 318.8],
+                initial_sd_m: 0.5,
+                sheet_m: [0.0; 3],
+                observed: [false; 3],
+                difference_m: 0.0,
+                difference_sigmas: 0.0,
+                significant: false,
+                note: String::new(),
+            }),
+            failed: None,
+        }),
+        ..Evidence::default()
+    });
+    assert_eq!(v.causes.len(), 2, "{:#?}", v.causes);
+    assert!(
+        v.causes[0].starts_with("not the antenna"),
+        "{:#?}",
+        v.causes
+    );
+    assert!(
+        v.causes[1].starts_with("antenna lever arm: zero"),
+        "{:#?}",
+        v.causes
+    );
     let (grade, near) = verdict(3.0, 0.0, true);
     assert_eq!(grade, Some(Grade::Poor), "{near}");
     assert!(near.starts_with("antenna lever arm"), "{near}");
