@@ -1055,12 +1055,35 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
         }
     }
     if let Some(sd) = ev.time_offset_sd_s {
+        let grade = grade_of(sd, SYNC_GOOD_S, SYNC_POOR_S);
         checks.push(Check {
             name: "time-offset σ",
-            grade: Some(grade_of(sd, SYNC_GOOD_S, SYNC_POOR_S)),
+            grade: Some(grade),
             finding: format!("{:.3} ms", sd * 1e3),
             rule: "good ≤ 1 ms, poor > 10 ms".into(),
         });
+        if grade > Grade::Good {
+            // The offset is seen as v·δt along the track: its σ costs
+            // that much position at the drive's speed.
+            let along = ev
+                .innovation
+                .as_ref()
+                .map(|e| {
+                    format!(
+                        " ({:.2} m along the track at the RMS speed {:.1} m/s)",
+                        sd * e.speed_rms_mps,
+                        e.speed_rms_mps
+                    )
+                })
+                .unwrap_or_default();
+            causes.add(
+                grade,
+                format!(
+                    "GNSS time offset poorly determined: the run estimated it with σ {:.1} ms{along}; the drive's speed changes did not pin it. Time the IMU and the receiver on one clock (1PPS: navsync sync) or log a drive with more speed changes",
+                    sd * 1e3
+                ),
+            );
+        }
     }
     if let Some(a) = &ev.alignment {
         let no_heading = a.method == "no-motion";

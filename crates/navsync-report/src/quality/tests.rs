@@ -708,3 +708,33 @@ fn lever_signature() -> crate::innovation::InnovationEvidence {
         ..quiet_innovations(300, 150.0, 10.0, 0.02)
     }
 }
+
+/// A time offset the run estimated with σ 36 ms (comma2k19's phone logs)
+/// is poor, and its cause says what that costs along the track and what
+/// removes it; at 0.5 ms it is good and says nothing.
+#[test]
+fn a_poorly_determined_time_offset_names_its_cost_and_remedy() {
+    let verdict = |sd_s: f64| {
+        assess(&Evidence {
+            innovation: Some(quiet_innovations(600, 200.0, 20.0, 0.5)),
+            time_offset_sd_s: Some(sd_s),
+            ..Evidence::default()
+        })
+    };
+    let v = verdict(0.036);
+    assert_eq!(graded(&v, "time-offset σ").grade, Some(Grade::Poor));
+    assert!(
+        v.causes[0].starts_with("GNSS time offset poorly determined")
+            && v.causes[0].contains("0.72 m along the track")
+            && v.causes[0].contains("1PPS"),
+        "{:#?}",
+        v.causes
+    );
+    let v = verdict(0.0005);
+    assert_eq!(graded(&v, "time-offset σ").grade, Some(Grade::Good));
+    assert!(
+        !v.causes.iter().any(|c| c.contains("time offset")),
+        "{:#?}",
+        v.causes
+    );
+}
