@@ -1079,7 +1079,7 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
             causes.add(
                 grade,
                 format!(
-                    "GNSS time offset poorly determined: the run estimated it with σ {:.1} ms{along}; the drive's speed changes did not pin it. Time the IMU and the receiver on one clock (1PPS: navsync sync) or log a drive with more speed changes",
+                    "GNSS time offset poorly determined: the run estimated it with σ {:.1} ms{along}; it shows only as v·δt along the track, which the fixes' errors hide at this drive's speeds. Time the IMU and the receiver on one clock (1PPS: navsync sync), or use fixes of smaller σ",
                     sd * 1e3
                 ),
             );
