@@ -32,7 +32,9 @@ use crate::stage::{Consumer, Drain, Producer, Source, fill_batch};
 use crate::time::GpsTime;
 
 mod align_stage;
+mod smooth_stage;
 use align_stage::align_stage;
+use smooth_stage::{ForwardResult, smooth_stage};
 
 /// Largest accelerometer cross-axis misalignment σ accepted (deg): the
 /// levelling term is linear in it (a datasheet gives a fraction of a
@@ -912,28 +914,7 @@ fn run_inner(
     let mut fc = fusion_config(cfg, opts);
     // Heading-file problems are kept apart from the GNSS file's count.
     let mut heading_diag = Diagnostics::with_cap(1000);
-    let headings = match &opts.heading {
-        Some(h) => crate::io::heading::read_headings(&h.path, opts.week, &mut heading_diag)?,
-        None => Vec::new(),
-    };
-    // Dual-antenna headings are measurements through the drive; a
-    // receiver's vehicle heading only seeds the alignment (it is the
-    // receiver's own filtered estimate: fusing it would count its errors
-    // as new information again and again).
-    let baselines: Vec<crate::io::heading::HeadingObs> = headings
-        .iter()
-        .filter(|h| h.source == crate::io::heading::HeadingSource::Baseline)
-        .copied()
-        .collect();
-    if let Some(h) = &opts.heading
-        && !baselines.is_empty()
-    {
-        fc.heading = Some(crate::fusion::HeadingOptions {
-            dual_antenna_yaw_rad: h.dual_antenna_yaw_deg.to_radians(),
-            dual_antenna_yaw_sd_rad: h.dual_antenna_yaw_sd_deg.to_radians(),
-            aligned_from_baseline: false,
-        });
-    }
+    let (headings, baselines) = heading_inputs(opts, &mut fc, &mut heading_diag)?;
     let (alignment, mount_yaw, align_used) = if opts.align.is_some() || !cfg.init_state_given {
         let (a, m, ao) = align_stage(cfg, opts, &mut fc, &headings, &mut diag)?;
         (Some(a), m, Some(ao))
@@ -997,49 +978,20 @@ fn run_inner(
     let mut stats = fusion.stats();
     let smoother = match smoothing {
         Some((out, _)) => {
-            let forward_s = started.elapsed().as_secs_f64();
-            let temp_bytes = fusion.smoother_record().map(|r| r.1).unwrap_or(0);
-            let tau_index = fusion.state_layout().index_of("time_offset");
-            // The smoother re-judges the fixes where the fault monitor
-            // judged them (robust weighting): `crate::rejudge`.
-            let judged = matches!(fc.gnss_weighting, GnssWeighting::Robust(_));
-            let (mut smoothed, smoothed_records, rejudge) = if judged {
-                let lever = fc.antenna_lever_b;
-                let rerun = |decisions| {
-                    let mut fc2 = fc.clone();
-                    fc2.gnss_decisions = Some(std::sync::Arc::new(decisions));
-                    let mut scratch = Diagnostics::with_cap(10);
-                    let p =
-                        forward_pass(&pass_input, fc2, &mut NullSink, &mut scratch, &mut |_| {})?;
-                    Ok((p.fusion, p.stream.fix_records))
-                };
-                let r =
-                    crate::rejudge::smooth_rejudged(&mut fusion, &records, &fixes, &lever, rerun)?;
-                all.extend(r.3);
-                (r.0, r.1, Some(r.2))
-            } else {
-                (fusion.smooth()?, records.clone(), None)
-            };
-            if let Some(r) = &rejudge {
-                stats.gnss_smoother_excluded = r.excluded;
-                stats.gnss_smoother_readmitted = r.readmitted;
-                stats.gnss_smoother_passes = r.passes;
-            }
-            if !opts.dry_run {
-                out.fix_records(&smoothed_records)?;
-            }
-            let times = SmoothTimes {
+            let forward = ForwardResult {
+                fusion: &mut fusion,
+                records: &records,
+                fixes: &fixes,
+                t0,
                 started,
-                forward_s,
-                temp_bytes,
             };
-            Some(write_smoothed(
-                &mut smoothed,
-                tau_index,
-                opts,
+            Some(smooth_stage(
+                &pass_input,
+                &fc,
+                forward,
                 out,
-                Some(t0),
-                times,
+                &mut stats,
+                &mut all,
             )?)
         }
         None => None,
@@ -1048,13 +1000,7 @@ fn run_inner(
     let deg_h = 180.0 / std::f64::consts::PI * 3600.0;
     let outages = opts
         .outages
-        .map(|o| {
-            o.windows(t0, last_time)
-                .iter()
-                .map(|w| w.to_string())
-                .collect::<Vec<_>>()
-                .join(",")
-        })
+        .map(|o| outage_windows(&o, t0, last_time))
         .unwrap_or_default();
     Ok(FuseSummary {
         tool: "navsync",
@@ -1125,6 +1071,53 @@ fn run_inner(
     })
 }
 
+/// The heading file's observations (all of them: a receiver's vehicle
+/// heading seeds the alignment) and the dual-antenna baselines among them,
+/// with `fc.heading` set when there are any; the file's problems go to
+/// `diag`. Dual-antenna headings are measurements through the drive; a
+/// receiver's vehicle heading is its own filtered estimate, and fusing it
+/// would count its errors as new information again and again.
+fn heading_inputs(
+    opts: &FuseOptions,
+    fc: &mut FusionConfig,
+    diag: &mut Diagnostics,
+) -> Result<
+    (
+        Vec<crate::io::heading::HeadingObs>,
+        Vec<crate::io::heading::HeadingObs>,
+    ),
+    Error,
+> {
+    let Some(h) = &opts.heading else {
+        return Ok((Vec::new(), Vec::new()));
+    };
+    let headings = crate::io::heading::read_headings(&h.path, opts.week, diag)?;
+    let baselines: Vec<_> = headings
+        .iter()
+        .filter(|o| o.source == crate::io::heading::HeadingSource::Baseline)
+        .copied()
+        .collect();
+    if !baselines.is_empty() {
+        fc.heading = Some(crate::fusion::HeadingOptions {
+            dual_antenna_yaw_rad: h.dual_antenna_yaw_deg.to_radians(),
+            dual_antenna_yaw_sd_rad: h.dual_antenna_yaw_sd_deg.to_radians(),
+            aligned_from_baseline: false,
+        });
+    }
+    Ok((headings, baselines))
+}
+
+/// The simulated outages' windows within the run, as summary.json's
+/// `outages` ("sow:len,…", what `navsync eval --outages` takes).
+fn outage_windows(schedule: &OutageSchedule, t0: GpsTime, last: GpsTime) -> String {
+    schedule
+        .windows(t0, last)
+        .iter()
+        .map(|w| w.to_string())
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
 /// What a forward pass needs besides its filter configuration.
 struct PassInput<'a> {
     cfg: &'a KfGinsConfig,
@@ -1145,13 +1138,6 @@ struct ForwardPass {
     /// The fixes handed to the filter, for the smoother's re-judgement
     /// (kept only when smoothing).
     fixes: Vec<GnssFix>,
-}
-
-/// Times and sizes of the smoothing, for its summary.
-struct SmoothTimes {
-    started: Instant,
-    forward_s: f64,
-    temp_bytes: u64,
 }
 
 /// One forward pass over the run's files: the IMU, the GNSS fixes, the
@@ -1312,62 +1298,6 @@ pub(crate) fn fix_lead_s(opts: &FuseOptions) -> f64 {
             .map(|t| t.search_range_s.max(3.0 * t.sd_s))
             .unwrap_or(0.0)
     }
-}
-
-/// The smoother's backward pass, then the smoothed solution through `sink`
-/// at every forward epoch (the same epochs, `--output-at` and auxiliary
-/// lines as the forward run).
-fn write_smoothed(
-    smoothed: &mut Smoothed,
-    tau_index: Option<usize>,
-    opts: &FuseOptions,
-    sink: &mut dyn NavSink,
-    t0: Option<GpsTime>,
-    times: SmoothTimes,
-) -> Result<SmootherSummary, Error> {
-    let SmoothTimes {
-        started,
-        forward_s,
-        temp_bytes,
-    } = times;
-    let backward_s = started.elapsed().as_secs_f64() - forward_s;
-    // The forward run's output rules (GNSS time, output-at epochs, the
-    // auxiliary interval from the start sample on).
-    let mut output = SolutionOutput::new(
-        opts.output_gnss_time,
-        Some(opts.aux_interval_s),
-        output_at_interpolator(opts)?,
-    );
-    if let Some(t) = t0 {
-        output.start(t);
-    }
-    let mut start_offset: Option<(f64, f64)> = None;
-    smoothed.for_each(|ep| {
-        let offset = tau_index.map(|i| TimeOffsetState {
-            offset_s: ep.time_offset_s,
-            sd_s: ep.sd[i],
-            observable: true,
-        });
-        if start_offset.is_none() {
-            start_offset = offset.map(|o| (o.offset_s, o.sd_s));
-        }
-        output.write(&ep.nav, &ep.imu, offset, sink, || {
-            (ep.sd.clone(), ep.p_pos, offset)
-        })?;
-        Ok(())
-    })?;
-    output.finish();
-    Ok(SmootherSummary {
-        nodes: smoothed.node_count(),
-        regularised_nodes: smoothed.failures,
-        epochs: smoothed.epochs(),
-        temp_bytes,
-        forward_s,
-        backward_s,
-        output_s: started.elapsed().as_secs_f64() - forward_s - backward_s,
-        time_offset_start_s: start_offset.map(|o| o.0),
-        time_offset_start_sd_s: start_offset.map(|o| o.1),
-    })
 }
 
 /// The `--output-at` interpolator with the requested epochs, if any.
