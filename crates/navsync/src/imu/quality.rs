@@ -310,6 +310,65 @@ struct ChannelState {
 }
 
 impl ChannelState {
+    /// The spike test on the middle of the last three contiguous samples
+    /// and the new one `x` (and on the middle pair of four), updating the
+    /// channel's running level; `q_step` the channel's resolution so far.
+    /// Returns the spike's offset, line and time.
+    fn spike_test(
+        &mut self,
+        x: f64,
+        q_step: f64,
+        gap: bool,
+        k_spike: f64,
+        alpha: f64,
+    ) -> Option<(f64, usize, i64)> {
+        // Spike test on the middle of three contiguous samples, and on
+        // the middle pair of four: a one-sample spike in rates becomes
+        // two equal halves in trapezoid increments (seed 001 §1.1).
+        if gap {
+            self.hist_n = 0;
+        }
+        let thr = (k_spike * self.scale).max(10.0 * q_step);
+        let mut spike: Option<(f64, usize, i64)> = None;
+        if self.hist_n >= 2 {
+            let (a, b) = (self.hist[1], self.hist[2]);
+            let d = b - 0.5 * (a + x);
+            let spread = (x - a).abs();
+            if self.scale_n >= 32 && d.abs() > thr && spread < 0.25 * d.abs() {
+                spike = Some((d, self.hist_line[2], self.hist_ns[2]));
+                self.hist[2] = 0.5 * (a + x);
+            } else if self.hist_n >= 3 {
+                let (a, b1, b2) = (self.hist[0], self.hist[1], self.hist[2]);
+                let base = 0.5 * (a + x);
+                let d2 = 0.5 * (b1 + b2) - base;
+                let thr2 = (k_spike * self.scale_before[0]).max(10.0 * q_step);
+                if self.scale_n >= 34
+                    && d2.abs() > thr2
+                    && (b1 - b2).abs() < 0.25 * d2.abs()
+                    && (x - a).abs() < 0.25 * d2.abs()
+                {
+                    // The two updates the pair made to the level are undone.
+                    self.scale = self.scale_before[0];
+                    spike = Some((d2, self.hist_line[1], self.hist_ns[1]));
+                    self.hist[1] = base;
+                    self.hist[2] = base;
+                }
+            }
+            if spike.is_none() {
+                self.second.push(d);
+                self.scale_before = [self.scale_before[1], self.scale];
+                if self.scale_n < 32 {
+                    self.scale =
+                        (self.scale * self.scale_n as f64 + d.abs()) / (self.scale_n + 1) as f64;
+                } else {
+                    self.scale += alpha * (d.abs() - self.scale);
+                }
+                self.scale_n += 1;
+            }
+        }
+        spike
+    }
+
     fn new() -> Self {
         ChannelState {
             moments: Moments::default(),
@@ -568,59 +627,90 @@ impl QualityAnalyzer {
         Ok(())
     }
 
-    fn accept(&mut self, rec: &LogRecord, last: Option<LogRecord>) {
-        let mut gap = false;
-        if let Some(last) = last {
-            let dt_ns = rec.time_ns - last.time_ns;
-            let dt = dt_ns as f64 * 1e-9;
-            self.dt_all.push(dt);
-            let bin = (dt_ns as f64 / self.hist_bin_ns) as usize;
-            if let Some(h) = self.hist.get_mut(bin) {
-                *h += 1;
+    /// Accounts the interval from `last` to `rec` (histogram, moments, the
+    /// index of samples); a gap is counted, with its lost samples and its
+    /// event. Returns true for a gap.
+    fn note_interval(&mut self, rec: &LogRecord, last: &LogRecord) -> bool {
+        let dt_ns = rec.time_ns - last.time_ns;
+        let dt = dt_ns as f64 * 1e-9;
+        self.dt_all.push(dt);
+        let bin = (dt_ns as f64 / self.hist_bin_ns) as usize;
+        if let Some(h) = self.hist.get_mut(bin) {
+            *h += 1;
+        }
+        let mut lost = 0usize;
+        let gap = dt_ns as f64 > self.cfg.gap_factor * self.nominal_ns as f64;
+        if gap {
+            lost = ((dt_ns as f64 / self.nominal_ns as f64).round() as usize)
+                .saturating_sub(1)
+                .max(1);
+            self.counts.gaps += 1;
+            self.counts.lost_samples += lost;
+            let over = dt > self.cfg.max_gap_s;
+            if over {
+                self.counts.gaps_over_limit += 1;
             }
-            let mut lost = 0usize;
-            if dt_ns as f64 > self.cfg.gap_factor * self.nominal_ns as f64 {
-                gap = true;
-                lost = ((dt_ns as f64 / self.nominal_ns as f64).round() as usize)
-                    .saturating_sub(1)
-                    .max(1);
-                self.counts.gaps += 1;
-                self.counts.lost_samples += lost;
-                let over = dt > self.cfg.max_gap_s;
-                if over {
-                    self.counts.gaps_over_limit += 1;
-                }
-                if dt > self.longest_gap_s {
-                    self.longest_gap_s = dt;
-                    self.longest_gap_line = rec.line;
-                }
+            if dt > self.longest_gap_s {
+                self.longest_gap_s = dt;
+                self.longest_gap_line = rec.line;
+            }
+            self.event(
+                EventKind::Gap,
+                rec.line,
+                rec.time_ns,
+                None,
+                format!(
+                    "{dt:.6} s since line {} (≈ {lost} sample{} lost){}",
+                    last.line,
+                    if lost == 1 { "" } else { "s" },
+                    if over {
+                        format!(
+                            "; longer than {} s (Tang, Zhang & Niu 2022 §1.5-5)",
+                            self.cfg.max_gap_s
+                        )
+                    } else {
+                        String::new()
+                    }
+                ),
+            );
+            if let Some(s) = self.statics.as_mut() {
+                s.gap();
+            }
+        } else {
+            self.dt_regular.push(dt);
+        }
+        self.idx += 1.0 + lost as f64;
+        gap
+    }
+
+    /// A stale record: all six values repeat the previous record, where the
+    /// channels' repeat rates make that a < 1e-6 chance.
+    fn check_stale(&mut self, rec: &LogRecord, last: &LogRecord) {
+        if rec.values == last.values && self.accepted > self.stale_ok_after {
+            let n = (self.accepted - 1) as f64;
+            let chance: f64 = self
+                .ch
+                .iter()
+                .map(|c| (c.repeats as f64 / n).max(1.0 / n))
+                .product();
+            if chance < 1e-6 {
+                self.counts.stale_records += 1;
                 self.event(
-                    EventKind::Gap,
+                    EventKind::Stale,
                     rec.line,
                     rec.time_ns,
                     None,
                     format!(
-                        "{dt:.6} s since line {} (≈ {lost} sample{} lost){}",
-                        last.line,
-                        if lost == 1 { "" } else { "s" },
-                        if over {
-                            format!(
-                                "; longer than {} s (Tang, Zhang & Niu 2022 §1.5-5)",
-                                self.cfg.max_gap_s
-                            )
-                        } else {
-                            String::new()
-                        }
+                        "all six values repeat line {} (stale data re-sent?)",
+                        last.line
                     ),
                 );
-                if let Some(s) = self.statics.as_mut() {
-                    s.gap();
-                }
-            } else {
-                self.dt_regular.push(dt);
             }
-            self.idx += 1.0 + lost as f64;
         }
+    }
+
+    fn accept(&mut self, rec: &LogRecord, last: Option<LogRecord>) {
+        let gap = last.is_some_and(|last| self.note_interval(rec, &last));
         // Time-on-index regression (Welford), y relative to the first time.
         let y = (rec.time_ns - self.first_ns.unwrap_or(rec.time_ns)) as f64 * 1e-9;
         self.reg_n += 1.0;
@@ -642,33 +732,9 @@ impl QualityAnalyzer {
             r[c] = rec.values[c] * scale;
         }
 
-        // Stale record: all six values repeat the previous record, where
-        // the channels' repeat rates make that a < 1e-6 chance.
-        if let Some(last) = last
-            && rec.values == last.values
-            && self.accepted > self.stale_ok_after
-        {
-            let n = (self.accepted - 1) as f64;
-            let chance: f64 = self
-                .ch
-                .iter()
-                .map(|c| (c.repeats as f64 / n).max(1.0 / n))
-                .product();
-            if chance < 1e-6 {
-                self.counts.stale_records += 1;
-                self.event(
-                    EventKind::Stale,
-                    rec.line,
-                    rec.time_ns,
-                    None,
-                    format!(
-                        "all six values repeat line {} (stale data re-sent?)",
-                        last.line
-                    ),
-                );
-            }
+        if let Some(last) = last {
+            self.check_stale(rec, &last);
         }
-
         let idx = self.accepted - 1;
         let k_spike = self.cfg.spike_factor;
         let alpha = 1.0 / (0.5 / self.nominal_s).clamp(16.0, 256.0);
@@ -731,50 +797,7 @@ impl QualityAnalyzer {
             } else {
                 0.0
             };
-            // Spike test on the middle of three contiguous samples, and on
-            // the middle pair of four: a one-sample spike in rates becomes
-            // two equal halves in trapezoid increments (seed 001 §1.1).
-            if gap {
-                st.hist_n = 0;
-            }
-            let thr = (k_spike * st.scale).max(10.0 * q[c]);
-            let mut spike: Option<(f64, usize, i64)> = None;
-            if st.hist_n >= 2 {
-                let (a, b) = (st.hist[1], st.hist[2]);
-                let d = b - 0.5 * (a + x);
-                let spread = (x - a).abs();
-                if st.scale_n >= 32 && d.abs() > thr && spread < 0.25 * d.abs() {
-                    spike = Some((d, st.hist_line[2], st.hist_ns[2]));
-                    st.hist[2] = 0.5 * (a + x);
-                } else if st.hist_n >= 3 {
-                    let (a, b1, b2) = (st.hist[0], st.hist[1], st.hist[2]);
-                    let base = 0.5 * (a + x);
-                    let d2 = 0.5 * (b1 + b2) - base;
-                    let thr2 = (k_spike * st.scale_before[0]).max(10.0 * q[c]);
-                    if st.scale_n >= 34
-                        && d2.abs() > thr2
-                        && (b1 - b2).abs() < 0.25 * d2.abs()
-                        && (x - a).abs() < 0.25 * d2.abs()
-                    {
-                        // The two updates the pair made to the level are undone.
-                        st.scale = st.scale_before[0];
-                        spike = Some((d2, st.hist_line[1], st.hist_ns[1]));
-                        st.hist[1] = base;
-                        st.hist[2] = base;
-                    }
-                }
-                if spike.is_none() {
-                    st.second.push(d);
-                    st.scale_before = [st.scale_before[1], st.scale];
-                    if st.scale_n < 32 {
-                        st.scale =
-                            (st.scale * st.scale_n as f64 + d.abs()) / (st.scale_n + 1) as f64;
-                    } else {
-                        st.scale += alpha * (d.abs() - st.scale);
-                    }
-                    st.scale_n += 1;
-                }
-            }
+            let spike = st.spike_test(x, q[c], gap, k_spike, alpha);
             if let Some((d, line, t_ns)) = spike {
                 st.spikes += 1;
                 let detail = format!(
