@@ -287,6 +287,22 @@ pub(crate) fn levelling_tilt_coupling(c_nb: &Matrix3<f64>, g_mps2: f64) -> Matri
     swap * c_nb / g_mps2
 }
 
+/// The levelling at an alignment fix (`Aligner::level_at`).
+struct Levelling {
+    roll: f64,
+    pitch: f64,
+    /// σ of roll and pitch (rad).
+    tilt_sd: f64,
+    method: AlignMethod,
+    /// Length of the standstill levelled over (s; 0 in motion).
+    standstill_s: f64,
+    /// The vehicle found reversing, and whether that could be checked.
+    reversing: bool,
+    checked: bool,
+    /// The standstill levelled over: its sums, start and end.
+    recent_still: Option<(Sums, GpsTime, GpsTime)>,
+}
+
 /// Running sums of specific force and angular rate over a span.
 #[derive(Clone, Copy, Debug, Default)]
 struct Sums {
@@ -873,16 +889,20 @@ impl Aligner {
         }
     }
 
-    fn align_at(
+    /// Roll and pitch at `fix`: levelled over a standstill that ended at
+    /// most 60 s before (with the reversing check against the GNSS
+    /// along-track acceleration), else in motion with the acceleration from
+    /// the GNSS velocity removed.
+    fn level_at(
         &self,
         fix: &GnssFix,
         v: &Vector3<f64>,
         v_sd: &Vector3<f64>,
         speed: f64,
         interval: &Sums,
-    ) -> Alignment {
+        g: f64,
+    ) -> Levelling {
         let o = &self.opts;
-        let g = crate::earth::gravity(fix.pos.lat_rad.sin(), fix.pos.h_m);
         // Vehicle acceleration over the interval, from GNSS velocity.
         let accel = self.prev_fix.as_ref().and_then(|(p, pv)| {
             let dt = fix.time.seconds_since(p.time);
@@ -934,6 +954,38 @@ impl Aligner {
                 (r, p, sd, AlignMethod::InMotion, 0.0)
             }
         };
+        Levelling {
+            roll,
+            pitch,
+            tilt_sd,
+            method,
+            standstill_s,
+            reversing,
+            checked,
+            recent_still,
+        }
+    }
+
+    fn align_at(
+        &self,
+        fix: &GnssFix,
+        v: &Vector3<f64>,
+        v_sd: &Vector3<f64>,
+        speed: f64,
+        interval: &Sums,
+    ) -> Alignment {
+        let o = &self.opts;
+        let g = crate::earth::gravity(fix.pos.lat_rad.sin(), fix.pos.h_m);
+        let Levelling {
+            roll,
+            pitch,
+            tilt_sd,
+            method,
+            standstill_s,
+            reversing,
+            checked,
+            recent_still,
+        } = self.level_at(fix, v, v_sd, speed, interval, g);
         let course = v.y.atan2(v.x);
         let mut course_yaw = course + o.mount_yaw_rad;
         if reversing {
