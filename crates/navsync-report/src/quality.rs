@@ -1118,6 +1118,13 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
         .filter_map(|c| c.grade)
         .max()
         .unwrap_or(Grade::Caution);
+    // The verdict always says why: a grade no cause explains is named by
+    // the checks that set it.
+    if grade > Grade::Good && !causes.0.iter().any(|(g, _)| *g == grade) {
+        for c in checks.iter().filter(|c| c.grade == Some(grade)) {
+            causes.add(grade, format!("{}: {} ({})", c.name, c.finding, c.rule));
+        }
+    }
     if checks.iter().all(|c| c.grade.is_none()) {
         checks.push(Check {
             name: "evidence",

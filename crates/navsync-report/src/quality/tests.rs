@@ -738,3 +738,35 @@ fn a_poorly_determined_time_offset_names_its_cost_and_remedy() {
         v.causes
     );
 }
+
+/// A grade no cause explains (10 % of the fixes rejected, nothing else
+/// wrong) is named by the check that set it, first; a grade a cause
+/// already explains gets no such line.
+#[test]
+fn a_grade_without_a_cause_is_named_by_its_check() {
+    let v = assess(&Evidence {
+        fixes: Some(fixes(600, 60, 0, 3.0)),
+        ..Evidence::default()
+    });
+    assert_eq!(v.grade, Grade::Poor, "{v:#?}");
+    assert!(
+        v.causes[0].starts_with("GNSS fixes rejected: 60 of 600"),
+        "{:#?}",
+        v.causes
+    );
+    let v = assess(&Evidence {
+        fixes: Some(fixes(600, 0, 0, 3.0)),
+        time_offset_sd_s: Some(0.036),
+        ..Evidence::default()
+    });
+    assert_eq!(v.grade, Grade::Poor, "{v:#?}");
+    assert_eq!(
+        v.causes
+            .iter()
+            .filter(|c| c.contains("time offset") || c.starts_with("time-offset σ"))
+            .count(),
+        1,
+        "{:#?}",
+        v.causes
+    );
+}
