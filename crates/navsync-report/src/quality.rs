@@ -818,14 +818,14 @@ fn probe_lever_check(
     // an error the filter does not model (the Husky bag: 28 m forward, its
     // σ held near the initial 0.5 m by the covariance inflations).
     let ran_off = horizontal_m > PLAUSIBLE_LEVER_M;
-    let loss = loss_factor(
-        if ran_off {
-            horizontal_m
-        } else {
-            l.difference_m
-        },
-        e.filter_h_sd_m,
-    );
+    // The difference graded: over the observed components, or all of it
+    // for states that ran off.
+    let difference_m = if ran_off {
+        horizontal_m
+    } else {
+        l.difference_m
+    };
+    let loss = loss_factor(difference_m, e.filter_h_sd_m);
     let inflate = correlation_inflation(e);
     let sigmas = (0..3)
         .filter(|&k| l.observed[k])
@@ -850,7 +850,7 @@ fn probe_lever_check(
             } else {
                 "not significant"
             },
-            if ran_off { horizontal_m } else { l.difference_m },
+            difference_m,
             e.filter_h_sd_m
         ),
         rule: format!(
@@ -858,7 +858,7 @@ fn probe_lever_check(
             navsync::fusion::LEVER_SIGNIFICANT_SIGMAS
         ),
     });
-    if grade > Grade::Good && horizontal_m > PLAUSIBLE_LEVER_M {
+    if grade > Grade::Good && ran_off {
         causes.add(grade, format!(
             "not the antenna: the probe's lever-arm states ran to {horizontal_m:.0} m from the sheet's, which no antenna is; they absorbed an error the filter does not model. Most often the IMU's mounting (mount_deg: the vehicle's forward axis in the IMU's) or a heading the drive could not observe; then the IMU figures"
         ));
