@@ -559,7 +559,7 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         dt.sort_by(f64::total_cmp);
         dt.get(dt.len() / 2).copied()
     };
-    let gaps = sections::gaps(&fix_times, &outage_spans, &sigma_h, t0);
+    let mut gaps = sections::gaps(&fix_times, &outage_spans, &sigma_h, t0);
     // The written file and the forward pass it came from (the same file
     // when not smoothed): heading, velocity and tilt for the checks below.
     let (track, forward_track) = match ep.origin {
@@ -582,6 +582,12 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
     };
     let filter_track = forward_track.as_ref().or(track.as_ref());
     let filter_std = forward_std_full.as_deref().or(std_full.as_deref());
+    // The first fix after each gap against the forward filter's σ.
+    let gap_ends = filter_std.and_then(|s| {
+        sections::test_gap_ends(&mut gaps, &fixes, s, t0);
+        let ends: Vec<_> = gaps.iter().filter_map(|g| g.end_test).collect();
+        crate::gap_ends::evidence(&ends, inp.forward_nav.is_none())
+    });
     let tilt = filter_track.and_then(|t| t.median_roll_pitch_rad());
     let biases = sections::bias_checks(summary.as_ref(), imu_err_full.as_deref(), tilt);
     let innovation = match (filter_track, filter_std) {
@@ -600,6 +606,7 @@ pub fn build(inp: &ReportInputs) -> Result<Report, Error> {
         incomplete: incomplete_solution(&inp.nav, &ep, summary.as_ref()),
         innovation,
         probe: probe.as_ref(),
+        gap_ends,
     }));
     let gap_shade = Shade {
         name: "GNSS gap or outage".into(),

@@ -8,6 +8,7 @@
 
 pub mod demo;
 pub mod drive;
+pub(crate) mod gap_ends;
 pub(crate) mod html;
 pub(crate) mod innovation;
 pub(crate) mod inputs;

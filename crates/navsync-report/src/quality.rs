@@ -64,7 +64,13 @@ pub(crate) fn find_gaps(times: &[f64]) -> Vec<(f64, f64)> {
 /// start and the largest σ inside it (reached just before the first fix
 /// after it). `None` when the history does not cover the gap.
 pub(crate) fn drift_through(sigma_h: &[(f64, f64)], start: f64, end: f64) -> Option<(f64, f64)> {
-    let before = sigma_h.iter().rev().find(|(t, _)| *t <= start)?.1;
+    // The σ just after the last fix before the gap, its update applied
+    // (the epoch at or before it still has the prediction).
+    let before = sigma_h
+        .iter()
+        .find(|(t, _)| *t > start && *t < end)
+        .or_else(|| sigma_h.iter().rev().find(|(t, _)| *t <= start))?
+        .1;
     let peak = sigma_h
         .iter()
         .filter(|(t, _)| *t >= start && *t <= end)
@@ -239,6 +245,8 @@ pub(crate) struct Evidence {
     /// Predicted horizontal σ at the end of the worst GNSS gap: (gap
     /// length s, σ m).
     pub worst_gap: Option<(f64, f64)>,
+    /// The first fixes after the gaps against the forward filter's σ.
+    pub gap_ends: Option<crate::gap_ends::GapEndEvidence>,
     /// The written file against the fixes and the forward pass.
     pub written: Option<crate::written::WrittenEvidence>,
     /// Why the solution file is incomplete (a cut last line, or it ends
@@ -546,6 +554,71 @@ fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Causes) {
 /// nothing when the INS bridged them; an episode that ended with the
 /// fixes followed again (the INS's drift covered the offset, or it lasted
 /// longer than the IMU can bridge) may have moved the solution.
+/// The forward σ through GNSS gaps, tested at their ends
+/// ([`crate::gap_ends`]): a caution when a gap's end is past χ²₂ at 1 %
+/// over the run and the fix after it confirms the INS drifted. Graded
+/// only when the written file is the forward filter's.
+fn gap_end_check(
+    e: &crate::gap_ends::GapEndEvidence,
+    checks: &mut Vec<Check>,
+    causes: &mut Causes,
+) {
+    let grade = if e.exceeded > 0 {
+        Grade::Caution
+    } else {
+        Grade::Good
+    };
+    let whose = if e.written_is_forward {
+        ""
+    } else {
+        " (the forward pass; the smoothed σ written are not tested by it)"
+    };
+    let finding = match e.worst() {
+        Some(w) => format!(
+            "{} of {} gap ends past the predicted σ{whose}; worst after the {:.1} s gap ending at SOW {:.1}: the first fix {:.2} m from the prediction, σ {:.2} m (NEES {:.1}), and the fix after it agreed",
+            e.exceeded, e.tested, w.gap_s, w.sow, w.offset_h_m, w.filter_sd_h_m, w.nees
+        ),
+        None => format!("{} gap ends within the predicted σ{whose}", e.tested),
+    };
+    checks.push(Check {
+        name: "σ through GNSS gaps",
+        grade: e.written_is_forward.then_some(grade),
+        finding,
+        rule: format!(
+            "caution when the first fix after a gap is past χ²₂ at {:.0} % false alarms over the {} gap ends tested (NEES > {:.1}) and the next fix confirms the INS drifted",
+            crate::gap_ends::FAMILY_FALSE_ALARM * 100.0,
+            e.tested,
+            e.threshold
+        ),
+    });
+    if !e.written_is_forward {
+        return;
+    }
+    for w in [e.worst_drift, e.worst_entry].into_iter().flatten() {
+        let growth = w.filter_sd_h_m / w.start_sd_h_m;
+        let why = if w.drifted_through_gap() {
+            format!(
+                "σ grew ×{growth:.1} through the gap, so the INS drifted past its model: the IMU has errors the model leaves out, in turns most often the axis misalignment (fuse --misalignment with the datasheet's figure estimates it)"
+            )
+        } else {
+            format!(
+                "σ hardly grew through the gap (×{growth:.1}), so the position entering it was off: the fixes before the gap had errors correlated in time (float solutions, multipath) that their stated σ treat as independent"
+            )
+        };
+        causes.add(
+            Grade::Caution,
+            format!(
+                "σ through GNSS gaps understated: after the {:.1} s gap ending at SOW {:.1} the solution was {:.2} m off where its σ said {:.2} m ({:.1}σ); {why}. Positions in and after gaps are worse than their σ; a smoothed run (--smooth) bridges gaps from both ends",
+                w.gap_s,
+                w.sow,
+                w.offset_h_m,
+                w.filter_sd_h_m,
+                w.offset_h_m / w.filter_sd_h_m.max(1e-9)
+            ),
+        );
+    }
+}
+
 fn fault_check(f: &FaultEvidence, fixes: usize, checks: &mut Vec<Check>, causes: &mut Causes) {
     let share = f.excluded as f64 / fixes.max(1) as f64;
     let grade = if f.persisted > 0 {
@@ -1112,6 +1185,9 @@ pub(crate) fn assess(ev: &Evidence) -> Verdict {
             finding: format!("{len:.1} s; predicted horizontal σ at its end {sd:.2} m"),
             rule: "not graded (what is acceptable depends on the application)".into(),
         });
+    }
+    if let Some(e) = &ev.gap_ends {
+        gap_end_check(e, &mut checks, &mut causes);
     }
     let grade = checks
         .iter()

@@ -29,6 +29,8 @@ pub(crate) struct Gap {
     pub kind: &'static str,
     /// Predicted horizontal σ at the start and its peak inside (m).
     pub drift: Option<(f64, f64)>,
+    /// The first fix after it against the prediction, when tested.
+    pub end_test: Option<crate::gap_ends::GapEnd>,
 }
 
 /// The filter's horizontal σ over time, (t, √(σ_n² + σ_e²)) from std.txt.
@@ -55,6 +57,7 @@ pub(crate) fn gaps(
             start_sow: t0 + a,
             kind: "gap in the fixes",
             drift: None,
+            end_test: None,
         })
         .collect();
     for &(a, b) in outages {
@@ -65,6 +68,7 @@ pub(crate) fn gaps(
                 start_sow: t0 + a,
                 kind: "scheduled outage",
                 drift: None,
+                end_test: None,
             });
         }
     }
@@ -75,6 +79,28 @@ pub(crate) fn gaps(
         }
     }
     out
+}
+
+/// Tests the end of every gap of at least [`DRIFT_MIN_GAP_S`]: the first
+/// fix after it against the forward filter's σ (`std`, its std.txt rows)
+/// and the fix after that ([`crate::gap_ends`]).
+pub(crate) fn test_gap_ends(gaps: &mut [Gap], fixes: &[FixWeight], std: &[Vec<f64>], t0: f64) {
+    let long: Vec<usize> = (0..gaps.len())
+        .filter(|&i| gaps[i].end - gaps[i].start >= DRIFT_MIN_GAP_S)
+        .collect();
+    let spans: Vec<(f64, f64)> = long
+        .iter()
+        .map(|&i| {
+            let end_sow = (t0 + gaps[i].end).rem_euclid(604_800.0);
+            (gaps[i].end - gaps[i].start, end_sow)
+        })
+        .collect();
+    for (i, end) in long
+        .into_iter()
+        .zip(crate::gap_ends::measure_all(&spans, fixes, std))
+    {
+        gaps[i].end_test = end;
+    }
 }
 
 /// The fixes' share of the evidence.
@@ -981,7 +1007,7 @@ pub(crate) fn drift_section(html: &mut String, gaps: &[Gap], forward: bool, have
     html.push_str("<section id=\"outage-drift\"><h2>Predicted drift through GNSS gaps</h2>\n");
     let _ = writeln!(
         html,
-        "<p class=\"note\">For every GNSS gap or outage of at least {DRIFT_MIN_GAP_S} s: the {} horizontal σ √(σ_n² + σ_e²) at the gap's start and its largest value inside it (just before the first fix after it). This is the drift the filter predicts with its error model; the NIS section shows whether that model fits the data.</p>",
+        "<p class=\"note\">For every GNSS gap or outage of at least {DRIFT_MIN_GAP_S} s: the {} horizontal σ √(σ_n² + σ_e²) at the gap's start and its largest value inside it (just before the first fix after it). This is the drift the filter predicts with its error model. The last columns measure it: the first fix after the gap against the prediction (horizontal offset and NEES, χ²₂ for a consistent filter: 99 % below 9.2), and whether the fix after that confirms the INS drifted (yes) or says the first fix was off (no); – where the fix was less certain than the INS or had no residual line.</p>",
         if forward {
             "forward filter's (forward/std.txt, not the smoother's)"
         } else {
@@ -997,7 +1023,7 @@ pub(crate) fn drift_section(html: &mut String, gaps: &[Gap], forward: bool, have
     } else if long.is_empty() {
         let _ = writeln!(html, "<p>No GNSS gap of {DRIFT_MIN_GAP_S} s or more.</p>");
     } else {
-        html.push_str("<table class=\"metrics\"><tr><th>start t (s)</th><th>length (s)</th><th>kind</th><th>σ_h at start (m)</th><th>σ_h at end (m)</th><th>growth</th><th>3σ_h at end (m)</th></tr>\n");
+        html.push_str("<table class=\"metrics\"><tr><th>start t (s)</th><th>length (s)</th><th>kind</th><th>σ_h at start (m)</th><th>σ_h at end (m)</th><th>growth</th><th>3σ_h at end (m)</th><th>first fix after: offset (m)</th><th>NEES</th><th>INS drift confirmed</th></tr>\n");
         for g in long.iter().take(200) {
             let cells = match g.drift {
                 Some((a, b)) => [
@@ -1014,6 +1040,18 @@ pub(crate) fn drift_section(html: &mut String, gaps: &[Gap], forward: bool, have
                 g.kind.to_string(),
             ];
             r.extend(cells);
+            r.extend(match g.end_test {
+                Some(e) => [
+                    format!("{:.3}", e.offset_h_m),
+                    format!("{:.1}", e.nees),
+                    match e.drift_confirmed {
+                        Some(true) => "yes".into(),
+                        Some(false) => "no".into(),
+                        None => "–".into(),
+                    },
+                ],
+                None => ["–".into(), "–".into(), "–".into()],
+            });
             row(html, &r);
         }
         html.push_str("</table>\n");
@@ -1036,6 +1074,8 @@ pub(crate) struct Gathered<'a> {
     pub innovation: Option<crate::innovation::InnovationEvidence>,
     /// `probe.json` of `navsync process`.
     pub probe: Option<&'a Value>,
+    /// The gaps' ends against the forward σ, when measured.
+    pub gap_ends: Option<crate::gap_ends::GapEndEvidence>,
 }
 
 /// The consistency probe's estimates (`probe.json`).
@@ -1066,6 +1106,7 @@ pub(crate) fn evidence(g: Gathered) -> Evidence {
         time_offset_sd_s: g.time_offset.and_then(|r| r.last()).map(|r| r[2]),
         alignment: align_evidence(g.summary),
         worst_gap: worst_gap(g.gaps),
+        gap_ends: g.gap_ends,
         written: g.written,
         solution_incomplete: g.incomplete,
         innovation: g.innovation,

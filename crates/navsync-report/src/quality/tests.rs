@@ -77,13 +77,17 @@ fn gaps_and_the_drift_through_them() {
     let g = find_gaps(&t);
     assert_eq!(g.len(), 1);
     assert!(close(g[0].0, 4.9, 1e-12) && close(g[0].1, 10.0, 1e-12));
-    // σ grows through the gap and falls after the first fix.
+    // σ grows through the gap and falls after the first fix. The epoch of
+    // the last fix before the gap (4.9 s) still carries the prediction
+    // (0.9 m); the gap starts from the updated σ.
     let sig: Vec<(f64, f64)> = (0..130)
         .map(|k| {
             let t = 0.1 * k as f64;
             (
                 t,
-                if t > 4.9 && t < 10.0 {
+                if (t - 4.9).abs() < 1e-9 {
+                    0.9
+                } else if t > 4.9 && t < 10.0 {
                     0.5 + 0.3 * (t - 4.9)
                 } else {
                     0.5
@@ -92,8 +96,9 @@ fn gaps_and_the_drift_through_them() {
         })
         .collect();
     let (a, b) = drift_through(&sig, g[0].0, g[0].1).unwrap();
-    // The peak is the last epoch before the fix at 10 s: 0.5 + 0.3 × 5.0.
-    assert!(close(a, 0.5, 1e-12) && close(b, 2.0, 1e-9), "{a} {b}");
+    // The start is the first epoch after the fix at 4.9 s: 0.5 + 0.3 × 0.1;
+    // the peak the last epoch before the fix at 10 s: 0.5 + 0.3 × 5.0.
+    assert!(close(a, 0.53, 1e-9) && close(b, 2.0, 1e-9), "{a} {b}");
     assert!(drift_through(&sig, -5.0, -1.0).is_none());
 }
 
@@ -769,4 +774,74 @@ fn a_grade_without_a_cause_is_named_by_its_check() {
         "{:#?}",
         v.causes
     );
+}
+
+/// The forward σ through gaps: a confirmed gap end past its σ makes a
+/// forward file cautious, with the cause its σ growth points to (the INS
+/// drifted, or the position entering the gap was off); a smoothed file
+/// shows the forward pass's finding ungraded; ends within σ are good.
+#[test]
+fn a_gap_end_past_its_sigma_names_the_drift_or_the_entry() {
+    use crate::gap_ends::{GapEnd, evidence};
+    let drift = GapEnd {
+        sow: 100202.0,
+        gap_s: 26.0,
+        offset_h_m: 4.7,
+        filter_sd_h_m: 1.0,
+        start_sd_h_m: 0.03,
+        nees: 41.0,
+        drift_confirmed: Some(true),
+    };
+    let entry = GapEnd {
+        sow: 116715.0,
+        gap_s: 6.0,
+        offset_h_m: 1.09,
+        filter_sd_h_m: 0.27,
+        start_sd_h_m: 0.26,
+        nees: 26.0,
+        ..drift
+    };
+    let fine = GapEnd { nees: 1.0, ..drift };
+    let judged = |ends: &[GapEnd], forward: bool| {
+        assess(&Evidence {
+            fixes: Some(fixes(600, 0, 0, 3.0)),
+            gap_ends: evidence(ends, forward),
+            ..Evidence::default()
+        })
+    };
+    let v = judged(&[drift, entry, fine], true);
+    assert_eq!(v.grade, Grade::Caution, "{v:#?}");
+    let gap_causes: Vec<&String> = v
+        .causes
+        .iter()
+        .filter(|c| c.starts_with("σ through GNSS gaps"))
+        .collect();
+    assert_eq!(gap_causes.len(), 2, "{:#?}", v.causes);
+    assert!(
+        gap_causes[0].contains("4.70 m off") && gap_causes[0].contains("--misalignment"),
+        "{gap_causes:#?}"
+    );
+    assert!(
+        gap_causes[1].contains("1.09 m off") && gap_causes[1].contains("correlated in time"),
+        "{gap_causes:#?}"
+    );
+    // A smoothed file: the forward pass's finding, not graded.
+    let v = judged(&[drift], false);
+    assert_eq!(v.grade, Grade::Good, "{v:#?}");
+    let c = v
+        .checks
+        .iter()
+        .find(|c| c.name == "σ through GNSS gaps")
+        .unwrap();
+    assert_eq!(c.grade, None);
+    assert!(c.finding.contains("the forward pass"), "{}", c.finding);
+    // Within σ, or not confirmed by the next fix: good.
+    let unconfirmed = GapEnd {
+        drift_confirmed: Some(false),
+        ..drift
+    };
+    for ends in [vec![fine], vec![unconfirmed, fine]] {
+        let v = judged(&ends, true);
+        assert_eq!(v.grade, Grade::Good, "{v:#?}");
+    }
 }
