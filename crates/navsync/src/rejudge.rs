@@ -826,6 +826,11 @@ pub(crate) fn smooth_rejudged(
 mod tests {
     use super::*;
 
+    /// The re-judgement's χ²₃ threshold, as `smooth_rejudged` sets it.
+    fn rejudge_threshold() -> f64 {
+        crate::stats::chi2_quantile(1.0 - crate::fusion::FALSE_ALARM_PROB, 3.0)
+    }
+
     fn record(t_s: i64, status: FixStatus, reason: FaultReason) -> FixRecord {
         let time = GpsTime::from_week_ns(2000, t_s * 1_000_000_000);
         FixRecord {
@@ -908,7 +913,7 @@ mod tests {
         first: &Judged,
         pass2: &BTreeMap<GpsTime, Tested>,
     ) -> (bool, BTreeMap<GpsTime, bool>, Vec<GpsTime>) {
-        let threshold = 21.1;
+        let threshold = rejudge_threshold();
         let first_verdicts: BTreeMap<GpsTime, bool> =
             first.iter().map(|(t, j)| (*t, j.0)).collect();
         let mut want = verdicts(first, pass2, threshold);
@@ -946,12 +951,18 @@ mod tests {
         let ramp: BTreeMap<GpsTime, Tested> = (31..60)
             .map(|t| (at(t), tested(0.05 * (t - 44).max(0) as f64)))
             .collect();
-        assert_eq!(fault_onset(&suspects, &ramp, 21.1), Some(at(45)));
+        assert_eq!(
+            fault_onset(&suspects, &ramp, rejudge_threshold()),
+            Some(at(45))
+        );
         // A constant 0.3 m from 50 (a false fix).
         let level: BTreeMap<GpsTime, Tested> = (31..60)
             .map(|t| (at(t), tested(if t >= 50 { 0.3 } else { 0.0 })))
             .collect();
-        assert_eq!(fault_onset(&suspects, &level, 21.1), Some(at(50)));
+        assert_eq!(
+            fault_onset(&suspects, &level, rejudge_threshold()),
+            Some(at(50))
+        );
         // The same ramp under a bridge that bent 0.3 m at its middle (the
         // solution's own error over the excluded suspects): the bend is
         // projected out, the onset stays.
@@ -964,12 +975,15 @@ mod tests {
                 )
             })
             .collect();
-        assert_eq!(fault_onset(&suspects, &bent, 21.1), Some(at(45)));
+        assert_eq!(
+            fault_onset(&suspects, &bent, rejudge_threshold()),
+            Some(at(45))
+        );
         // Residuals of 5 cm alternating in sign: no fault.
         let noise: BTreeMap<GpsTime, Tested> = (31..60)
             .map(|t| (at(t), tested(if t % 2 == 0 { 0.05 } else { -0.05 })))
             .collect();
-        assert_eq!(fault_onset(&suspects, &noise, 21.1), None);
+        assert_eq!(fault_onset(&suspects, &noise, rejudge_threshold()), None);
     }
 
     #[test]
@@ -1023,7 +1037,7 @@ mod tests {
         let pass1: BTreeMap<GpsTime, Tested> = (0..120)
             .map(|t| (at(t), tested(if t >= 91 { 1.0 } else { 0.0 })))
             .collect();
-        let threshold = 21.1;
+        let threshold = rejudge_threshold();
         let mut last = None;
         let steps = step_windows(
             &first,
