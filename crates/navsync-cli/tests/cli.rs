@@ -349,6 +349,64 @@ fn turns_reveal_the_gyro_misalignment_that_couples_yaw_rate_into_tilt() {
     assert_eq!(s["stats"]["gnss_fixes_rejected"], 0, "{out}");
 }
 
+/// Fixes whose σ are stated 5× too small are rejected in runs, and each
+/// run's drift acceptance inflates P. With the 12 misalignment states
+/// inflated without bound, the fixes drove them and the biases to a
+/// solution at 10⁴ m/s on this drive (the run stopped at SOW 100202.6);
+/// with their σ capped at 1° the run ends as well as the 21 states' (0.24
+/// against 0.27 m measured).
+#[test]
+fn overconfident_fixes_do_not_drive_the_misalignment_states_off() {
+    let dir = temp_dir("misalign-overconfident");
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args([
+            "simulate",
+            "--quiet",
+            "--scenario",
+            "test-track",
+            "--seed",
+            "1",
+        ])
+        .args(["--internal-rate", "0", "--set", "output.rig_log=false"])
+        .args([
+            "--set",
+            "gnss.std_written_m=[0.0036,0.0036,0.00584]",
+            "--output",
+        ])
+        .arg(&sim));
+    assert!(ok, "{err}");
+    let hrms = |name: &str, extra: &[&str]| -> f64 {
+        let out = dir.join(name);
+        let (ok, text, err) = run(bin()
+            .arg("fuse")
+            .args(extra)
+            .arg("--config")
+            .arg(sim.join("kf-gins.yaml"))
+            .arg("--output")
+            .arg(&out));
+        assert!(ok, "{name}: {text}\n{err}");
+        let json = dir.join(format!("{name}.json"));
+        let (ok, _, err) = run(bin()
+            .args(["eval", "--truth"])
+            .arg(sim.join("truth.nav"))
+            .arg("--nav")
+            .arg(out.join("navresult.nav"))
+            .arg("--json")
+            .arg(&json));
+        assert!(ok, "{err}");
+        let e: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        e["pos_horizontal_m"]["rms"].as_f64().unwrap()
+    };
+    let core = hrms("core", &[]);
+    let with_states = hrms("misalign", &["--misalignment", "0.05"]);
+    assert!(
+        with_states < 1.5 * core,
+        "misalignment states {with_states:.3} m against 21 states {core:.3} m"
+    );
+}
+
 #[test]
 #[cfg(target_os = "linux")]
 fn live_refuses_bad_settings_and_survives_missing_devices() {

@@ -891,7 +891,9 @@ fn breakdown(sample: &ImuSample, why: String) -> Error {
         time: sample.time,
         msg: format!(
             "{why}, after the IMU record at sow {:.6} (dtheta {:e} {:e} {:e} rad, dvel {:e} {:e} {:e} m/s); \
-             stopped rather than write it: check that record and the ones before it",
+             stopped rather than write it: check that record and the ones before it; if they are ordinary, \
+             the filter's model drove it off: IMU figures far better than the data's (another IMU's sheet) \
+             or fixes whose σ are stated far too small",
             sample.time.sow(),
             sample.dtheta.x,
             sample.dtheta.y,
