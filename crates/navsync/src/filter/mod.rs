@@ -80,13 +80,6 @@ pub(crate) struct StateLayout {
     pub(crate) misalign: Option<usize>,
 }
 
-/// The largest σ (rad) a covariance inflation gives a misalignment state:
-/// 1°, the cross-axis sensitivity of the worst MEMS datasheets (the
-/// ICM-20602's ±2 % is 1.15°); past a few degrees the small-angle model
-/// fails, and fixes with understated σ drove inflated states to tens of
-/// degrees and the solution to 10⁴ m/s.
-pub(crate) const MISALIGNMENT_SD_CAP_RAD: f64 = 1.0 * std::f64::consts::PI / 180.0;
-
 /// Names of the misalignment states (see [`crate::ins::ImuErrors`]).
 const MISALIGN_NAMES: [&str; 12] = [
     "gyro_misalign_xy",
@@ -636,37 +629,28 @@ impl ErrorStateFilter {
 
     /// Multiplies the covariance by `factor` ≥ 1 (a fading-memory step,
     /// Fagin 1964; Xia et al. 1994): the filter admits that its model left
-    /// errors out. An axis misalignment's σ grows no further than
-    /// [`MISALIGNMENT_SD_CAP_RAD`]: repeated inflations by fixes whose σ
-    /// were stated 5× too small (×17, ×32, ×23 in 100 s) opened those
-    /// states to tens of degrees, past the small-angle model, and the
-    /// solution reached 10⁴ m/s. P becomes D P D with D the per-state σ
-    /// scale (√factor, a misalignment's capped): a congruence, so P stays
-    /// positive semi-definite and its correlations are kept.
+    /// errors out. The axis misalignments are held: they are constants of
+    /// the IMU whose σ is the datasheet's, not errors that grew, and
+    /// inflated they take up whatever the fixes disagree with. Fixes whose
+    /// σ were stated 5× too small inflated P ×17, ×32, ×23 in 100 s, which
+    /// opened them to tens of degrees, past the small-angle model, and the
+    /// solution reached 10⁴ m/s; capped at 1° they still ran to it and left
+    /// the solution 8× worse than the 21 states' (docs/integrity.md). P
+    /// becomes D P D with D = diag(√factor, …, 1 on the misalignments): a
+    /// congruence, so P stays positive semi-definite; their
+    /// cross-covariances scale by √factor.
     pub(crate) fn inflate(&mut self, factor: f64) {
         if !(factor.is_finite() && factor > 1.0) {
             return;
         }
         let held = self.layout.misalign.map_or(0..0, |first| first..first + 12);
         let root = factor.sqrt();
-        // Per-state σ scale: √factor, a misalignment's no further than
-        // MISALIGNMENT_SD_CAP_RAD (and never down).
-        let scale: Vec<f64> = (0..self.n)
-            .map(|i| {
-                if held.contains(&i) {
-                    let sd = self.p.get(i, i).max(0.0).sqrt();
-                    (MISALIGNMENT_SD_CAP_RAD / sd).clamp(1.0, root)
-                } else {
-                    root
-                }
-            })
-            .collect();
         for i in 0..self.n {
             for j in 0..self.n {
-                let m = if held.contains(&i) || held.contains(&j) {
-                    scale[i] * scale[j]
-                } else {
-                    factor
+                let m = match (held.contains(&i), held.contains(&j)) {
+                    (false, false) => factor,
+                    (true, true) => 1.0,
+                    _ => root,
                 };
                 let x = self.p.get(i, j) * m;
                 self.p.set(i, j, x);
