@@ -550,10 +550,6 @@ fn nis_check(nis: &[f64], checks: &mut Vec<Check>, causes: &mut Causes) {
     });
 }
 
-/// The GNSS fault episodes (docs/integrity.md). Excluded faults cost
-/// nothing when the INS bridged them; an episode that ended with the
-/// fixes followed again (the INS's drift covered the offset, or it lasted
-/// longer than the IMU can bridge) may have moved the solution.
 /// The forward σ through GNSS gaps, tested at their ends
 /// ([`crate::gap_ends`]): a caution when a gap's end is past χ²₂ at 1 %
 /// over the run and the fix after it confirms the INS drifted. Graded
@@ -619,6 +615,10 @@ fn gap_end_check(
     }
 }
 
+/// The GNSS fault episodes (docs/integrity.md). Excluded faults cost
+/// nothing when the INS bridged them; an episode that ended with the
+/// fixes followed again (the INS's drift covered the offset, or it lasted
+/// longer than the IMU can bridge) may have moved the solution.
 fn fault_check(f: &FaultEvidence, fixes: usize, checks: &mut Vec<Check>, causes: &mut Causes) {
     let share = f.excluded as f64 / fixes.max(1) as f64;
     let grade = if f.persisted > 0 {
