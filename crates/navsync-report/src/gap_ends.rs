@@ -89,15 +89,24 @@ fn chi2_2_upper(alpha: f64) -> f64 {
 /// The filter's σ north, east at the last std.txt row before `sow`
 /// (rows: sow, σ_n, σ_e, …).
 fn filter_sd_before(std: &[Vec<f64>], sow: f64) -> Option<[f64; 2]> {
-    let j = std.partition_point(|r| r[0] < sow - 1e-6).checked_sub(1)?;
-    let r = std.get(j)?;
+    let r = crate::inputs::std_row_before(std, sow)?;
     (r.len() >= 3 && r[1].is_finite() && r[2].is_finite()).then(|| [r[1], r[2]])
+}
+
+/// One gap to measure: its length (s), the SOW of the first fix after it,
+/// and the filter's horizontal σ just after the last fix before it (the
+/// drift table's start, [`crate::quality::drift_through`]; NaN unknown).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct GapSpan {
+    pub gap_s: f64,
+    pub end_sow: f64,
+    pub start_sd_h_m: f64,
 }
 
 /// Measures the end of the gap whose first fix is `fixes[k]`; `None` when
 /// the fix is sharper than the INS there (the test would be about the
 /// fix) or σ are missing.
-fn measure(fixes: &[FixWeight], k: usize, gap_s: f64, std: &[Vec<f64>]) -> Option<GapEnd> {
+fn measure(fixes: &[FixWeight], k: usize, span: GapSpan, std: &[Vec<f64>]) -> Option<GapEnd> {
     let f = &fixes[k];
     let sf = filter_sd_before(std, f.sow)?;
     let var_f = [sf[0] * sf[0], sf[1] * sf[1]];
@@ -132,16 +141,10 @@ fn measure(fixes: &[FixWeight], k: usize, gap_s: f64, std: &[Vec<f64>]) -> Optio
             }
             (d_drift.is_finite() && d_off.is_finite()).then_some(d_drift <= d_off)
         });
-    // The σ just after the last fix before the gap (its update applied).
-    let start_sow = f.sow - gap_s;
-    let start_sd_h_m = std
-        .get(std.partition_point(|r| r[0] <= start_sow + 1e-6))
-        .filter(|r| r.len() >= 3 && r[0] < f.sow)
-        .map_or(f64::NAN, |r| r[1].hypot(r[2]));
     Some(GapEnd {
         sow: f.sow,
-        gap_s,
-        start_sd_h_m,
+        gap_s: span.gap_s,
+        start_sd_h_m: span.start_sd_h_m,
         offset_h_m: nu[0].hypot(nu[1]),
         filter_sd_h_m: sf[0].hypot(sf[1]),
         nees,
@@ -149,22 +152,22 @@ fn measure(fixes: &[FixWeight], k: usize, gap_s: f64, std: &[Vec<f64>]) -> Optio
     })
 }
 
-/// Measures every gap's end: `gaps` are (gap length s, SOW of the first
-/// fix after it); `fixes` the position lines of gnss_residuals.txt in
-/// time order; `std` the forward filter's std.txt rows. A gap whose first
-/// fix has no residual line (refused before weighing) is skipped.
+/// Measures every gap's end: `fixes` are the position lines of
+/// gnss_residuals.txt in time order, `std` the forward filter's std.txt
+/// rows. A gap whose first fix has no residual line (refused before
+/// weighing) is skipped.
 pub(crate) fn measure_all(
-    gaps: &[(f64, f64)],
+    gaps: &[GapSpan],
     fixes: &[FixWeight],
     std: &[Vec<f64>],
 ) -> Vec<Option<GapEnd>> {
     gaps.iter()
-        .map(|&(gap_s, end_sow)| {
-            let k = fixes.partition_point(|f| f.sow < end_sow - 1e-3);
+        .map(|&span| {
+            let k = fixes.partition_point(|f| f.sow < span.end_sow - 1e-3);
             fixes
                 .get(k)
-                .filter(|f| (f.sow - end_sow).abs() <= 1e-3)
-                .and_then(|_| measure(fixes, k, gap_s, std))
+                .filter(|f| (f.sow - span.end_sow).abs() <= 1e-3)
+                .and_then(|_| measure(fixes, k, span, std))
         })
         .collect()
 }
@@ -230,6 +233,16 @@ mod tests {
         }
     }
 
+    /// A gap of `gap_s` ending at `end_sow`, entered at the rows' floor σ
+    /// (0.02 m per axis).
+    fn span(gap_s: f64, end_sow: f64) -> GapSpan {
+        GapSpan {
+            gap_s,
+            end_sow,
+            start_sd_h_m: 0.02f64.hypot(0.02),
+        }
+    }
+
     /// std.txt rows at 0.1 s: σ `floor` per axis, growing linearly from
     /// `start` (the last fix before a gap) to `peak` just before `update`
     /// (the first fix that updates the state), `floor` again from it.
@@ -265,7 +278,7 @@ mod tests {
     #[test]
     fn a_drift_past_sigma_is_counted_only_when_the_next_fix_confirms_it() {
         let std = std_rows(4.0, 30.0, 0.7, 0.02);
-        let gaps = [(26.0, 30.0)];
+        let gaps = [span(26.0, 30.0)];
         // Drifted 4.7 m; the fix (σ 2 cm, weight 1) takes K ≈ 1 of it, the
         // next innovation is ~0.
         let drifted = [
@@ -329,8 +342,8 @@ mod tests {
             fix(30.0, [3.0, 0.0], 2.0, 1.0),
             fix(31.0, [0.0, 0.0], 2.0, 1.0),
         ];
-        assert_eq!(measure_all(&[(5.0, 30.0)], &coarse, &std), vec![None]);
-        assert_eq!(measure_all(&[(5.0, 29.0)], &coarse, &std), vec![None]);
+        assert_eq!(measure_all(&[span(5.0, 30.0)], &coarse, &std), vec![None]);
+        assert_eq!(measure_all(&[span(5.0, 29.0)], &coarse, &std), vec![None]);
         assert_eq!(evidence(&[], true), None);
     }
 

@@ -89,14 +89,12 @@ pub(crate) fn samples(
         .filter(|f| f.status != "rejected")
         .filter_map(|f| {
             let k = track.nearest(f.sow, 0.5)?;
-            let j = std
-                .partition_point(|r| r[0] < f.sow - 1e-6)
-                .checked_sub(1)?;
+            let r = crate::inputs::std_row_before(std, f.sow)?;
             Some(FixSample {
                 sow: f.sow,
                 innov_ne_m: [f.innovation[0], f.innovation[1]],
                 fix_sd_ne_m: [f.sd[0], f.sd[1]],
-                filter_sd_ne_m: [std[j][1], std[j][2]],
+                filter_sd_ne_m: [r[1], r[2]],
                 yaw_rad: track.att_rad[k][2],
                 vel_ne_mps: track.vel_ne_mps[k],
             })

@@ -151,6 +151,14 @@ pub(crate) fn rel_s(sow: f64, t0_sow: f64) -> f64 {
     }
 }
 
+/// The last std.txt row (sow, σ_n, σ_e, …) before `sow` (1 µs tolerance,
+/// so a row at the fix's own epoch, which already has its update, is not
+/// taken): the filter's prediction for a fix at `sow`.
+pub(crate) fn std_row_before(std: &[Vec<f64>], sow: f64) -> Option<&[f64]> {
+    let j = std.partition_point(|r| r[0] < sow - 1e-6).checked_sub(1)?;
+    std.get(j).map(Vec::as_slice)
+}
+
 /// Every compared epoch of the solution (times relative to its first
 /// epoch; horizontal positions relative to the first truth state, m).
 #[derive(Clone, Debug, Default)]

@@ -88,11 +88,12 @@ pub(crate) fn test_gap_ends(gaps: &mut [Gap], fixes: &[FixWeight], std: &[Vec<f6
     let long: Vec<usize> = (0..gaps.len())
         .filter(|&i| gaps[i].end - gaps[i].start >= DRIFT_MIN_GAP_S)
         .collect();
-    let spans: Vec<(f64, f64)> = long
+    let spans: Vec<crate::gap_ends::GapSpan> = long
         .iter()
-        .map(|&i| {
-            let end_sow = (t0 + gaps[i].end).rem_euclid(604_800.0);
-            (gaps[i].end - gaps[i].start, end_sow)
+        .map(|&i| crate::gap_ends::GapSpan {
+            gap_s: gaps[i].end - gaps[i].start,
+            end_sow: (t0 + gaps[i].end).rem_euclid(604_800.0),
+            start_sd_h_m: gaps[i].drift.map_or(f64::NAN, |(start, _)| start),
         })
         .collect();
     for (i, end) in long
