@@ -680,7 +680,7 @@ pub(crate) fn smooth_rejudged(
 ) -> Result<(Smoothed, Vec<FixRecord>, RejudgeSummary, Diagnostics), Error> {
     let n = fusion.state_layout().n();
     let tau_state = fusion.state_layout().index_of("time_offset").is_some();
-    let threshold = crate::stats::chi2_quantile(1.0 - crate::fusion::FALSE_ALARM_PROB, 3.0);
+    let threshold = crate::fusion::fix_test_threshold();
     let first = judged(records);
     let mut smoothed = fusion.smooth()?;
     let mut current_records = records.to_vec();
@@ -826,11 +826,6 @@ pub(crate) fn smooth_rejudged(
 mod tests {
     use super::*;
 
-    /// The re-judgement's χ²₃ threshold, as `smooth_rejudged` sets it.
-    fn rejudge_threshold() -> f64 {
-        crate::stats::chi2_quantile(1.0 - crate::fusion::FALSE_ALARM_PROB, 3.0)
-    }
-
     fn record(t_s: i64, status: FixStatus, reason: FaultReason) -> FixRecord {
         let time = GpsTime::from_week_ns(2000, t_s * 1_000_000_000);
         FixRecord {
@@ -913,7 +908,7 @@ mod tests {
         first: &Judged,
         pass2: &BTreeMap<GpsTime, Tested>,
     ) -> (bool, BTreeMap<GpsTime, bool>, Vec<GpsTime>) {
-        let threshold = rejudge_threshold();
+        let threshold = crate::fusion::fix_test_threshold();
         let first_verdicts: BTreeMap<GpsTime, bool> =
             first.iter().map(|(t, j)| (*t, j.0)).collect();
         let mut want = verdicts(first, pass2, threshold);
@@ -952,7 +947,7 @@ mod tests {
             .map(|t| (at(t), tested(0.05 * (t - 44).max(0) as f64)))
             .collect();
         assert_eq!(
-            fault_onset(&suspects, &ramp, rejudge_threshold()),
+            fault_onset(&suspects, &ramp, crate::fusion::fix_test_threshold()),
             Some(at(45))
         );
         // A constant 0.3 m from 50 (a false fix).
@@ -960,7 +955,7 @@ mod tests {
             .map(|t| (at(t), tested(if t >= 50 { 0.3 } else { 0.0 })))
             .collect();
         assert_eq!(
-            fault_onset(&suspects, &level, rejudge_threshold()),
+            fault_onset(&suspects, &level, crate::fusion::fix_test_threshold()),
             Some(at(50))
         );
         // The same ramp under a bridge that bent 0.3 m at its middle (the
@@ -976,14 +971,17 @@ mod tests {
             })
             .collect();
         assert_eq!(
-            fault_onset(&suspects, &bent, rejudge_threshold()),
+            fault_onset(&suspects, &bent, crate::fusion::fix_test_threshold()),
             Some(at(45))
         );
         // Residuals of 5 cm alternating in sign: no fault.
         let noise: BTreeMap<GpsTime, Tested> = (31..60)
             .map(|t| (at(t), tested(if t % 2 == 0 { 0.05 } else { -0.05 })))
             .collect();
-        assert_eq!(fault_onset(&suspects, &noise, rejudge_threshold()), None);
+        assert_eq!(
+            fault_onset(&suspects, &noise, crate::fusion::fix_test_threshold()),
+            None
+        );
     }
 
     #[test]
@@ -1037,7 +1035,7 @@ mod tests {
         let pass1: BTreeMap<GpsTime, Tested> = (0..120)
             .map(|t| (at(t), tested(if t >= 91 { 1.0 } else { 0.0 })))
             .collect();
-        let threshold = rejudge_threshold();
+        let threshold = crate::fusion::fix_test_threshold();
         let mut last = None;
         let steps = step_windows(
             &first,

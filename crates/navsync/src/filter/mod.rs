@@ -634,8 +634,9 @@ impl ErrorStateFilter {
     /// inflated they take up whatever the fixes disagree with. Fixes whose
     /// σ were stated 5× too small inflated P ×17, ×32, ×23 in 100 s, which
     /// opened them to tens of degrees, past the small-angle model, and the
-    /// solution reached 10⁴ m/s; capped at 1° they still ran to it and left
-    /// the solution 8× worse than the 21 states' (docs/integrity.md). P
+    /// solution reached 10⁴ m/s; capped at 1° instead, they left the
+    /// solution 8× worse than the 21 states' on another drive
+    /// (docs/integrity.md). P
     /// becomes D P D with D = diag(√factor, …, 1 on the misalignments): a
     /// congruence, so P stays positive semi-definite; their
     /// cross-covariances scale by √factor.

@@ -66,7 +66,7 @@ use aid::gnss::invalid_fix;
 pub use aid::integrity::{
     EpisodeClass, EpisodeEnd, FaultEpisode, FaultReason, MAX_EPISODE_S, PROTECTION_K,
 };
-pub(crate) use aid::integrity::{FALSE_ALARM_PROB, FIX_CHANGE_FLOOR_M};
+pub(crate) use aid::integrity::{FIX_CHANGE_FLOOR_M, fix_test_threshold};
 pub use aid::lever_arm::{
     LEVER_OBSERVED_FRACTION, LEVER_SIGNIFICANT_SIGMAS, LeverArmState, LeverArmSummary,
 };

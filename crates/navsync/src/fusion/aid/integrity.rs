@@ -76,6 +76,12 @@ use crate::time::GpsTime;
 /// False-alarm probability of one test of one clean fix (χ², 3 degrees
 /// of freedom).
 pub const FALSE_ALARM_PROB: f64 = 1e-4;
+
+/// The threshold of that test: χ²₃'s quantile at 1 − [`FALSE_ALARM_PROB`]
+/// (21.1), shared by the monitor and the smoother's re-judgement.
+pub(crate) fn fix_test_threshold() -> f64 {
+    chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0)
+}
 /// A ramp's end is judged against an anchor at least this old (s).
 const RAMP_END_MIN_LAG_S: f64 = 3.0;
 /// A fix more than this (s) after the last clean one is not tested for a
@@ -587,7 +593,7 @@ impl FaultMonitor {
         if let Some(ep) = self.episode {
             return self.judge_in_episode(ep, time, z, hph, r, lambda);
         }
-        let threshold = chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0);
+        let threshold = fix_test_threshold();
         // The INS becomes a reference again only after a few clean fixes
         // in a row (at the start, after a re-initialisation or an episode
         // it could not resolve): an INS that just left its model would
@@ -666,7 +672,7 @@ impl FaultMonitor {
         r: &Vector3<f64>,
         lambda: f64,
     ) -> Judgement {
-        let threshold = chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0);
+        let threshold = fix_test_threshold();
         let (delta, d, _) = self.test(&ep.anchor, time, z, hph, r, lambda);
         if d <= threshold {
             // Back at the clean level, or the INS can no longer tell.
