@@ -153,7 +153,7 @@ pub(crate) fn fault_spans(fixes: &[FixWeight]) -> Vec<FaultSpan> {
                 open = None;
                 Some("jump")
             }
-            "run" | "ramp" => Some("jump"),
+            "run" => Some("jump"),
             "stale" => Some("stale"),
             // Fixes the smoother's re-judgement excluded (a ramp the
             // forward pass followed, a level it accepted): one episode
