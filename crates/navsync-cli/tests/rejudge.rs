@@ -328,3 +328,69 @@ fn a_step_at_the_last_fix_is_reported_not_guessed() {
     let summary = std::fs::read_to_string(run_dir.join("summary.json")).unwrap();
     assert!(summary.contains("with no fix after it"), "{summary}");
 }
+
+/// A navigation-grade INS drifts millimetres in the seconds a ramp takes to
+/// grow past the fixes' noise: the forward monitor finds the ramp's onset
+/// against the clean fixes before it, returns to the filter's state after
+/// the last of them and runs again without the ramp's fixes
+/// (`navsync::fusion` rollback). Every ramp fix past the detection limit
+/// is excluded forward, and the forward solution comes within the
+/// issue's bar (1.25×) of the oracle's.
+#[test]
+fn a_navigation_grade_ins_catches_a_ramp_forward() {
+    let dir = temp_dir("onset");
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args([
+            "simulate",
+            "--scenario",
+            "test-track",
+            "--duration",
+            "240",
+            "--imu-grade",
+            "nav",
+            "--seed",
+            "1",
+            "--quiet",
+            "--output",
+        ])
+        .arg(&sim));
+    assert!(ok, "{err}");
+    let (faulty, labels) = inject_ramp(&dir, &sim, 100.0);
+    let oracle_gnss = dir.join("gnss-oracle.txt");
+    without(&faulty.join("gnss.txt"), &oracle_gnss, |ms| {
+        labels.contains_key(&ms)
+    });
+    let (run_dir, oracle) = (dir.join("run"), dir.join("oracle"));
+    fuse(&sim, &faulty.join("gnss.txt"), &run_dir);
+    fuse(&sim, &oracle_gnss, &oracle);
+
+    let fwd = decisions(&run_dir.join("forward/gnss_residuals.txt"));
+    let mut onsets = 0;
+    for (t, offset) in &labels {
+        let (st, reason) = &fwd[t];
+        onsets += usize::from(reason == "ramp");
+        if *offset >= detection_limit_m() {
+            assert_eq!(
+                st, "rejected",
+                "ramp fix at {t} ms, {offset:.2} m: {reason}"
+            );
+            assert!(reason == "ramp" || reason == "run", "{t} ms: {reason}");
+        }
+    }
+    assert_eq!(onsets, 1, "one onset opens the episode");
+    let episodes = json(&run_dir.join("summary.json"))["stats"]["gnss_fault_episodes"].clone();
+    assert!(
+        episodes
+            .as_array()
+            .is_some_and(|e| e.iter().any(|e| e["class"] == "ramp")),
+        "{episodes}"
+    );
+    let truth = sim.join("truth.nav");
+    let forward = horizontal_rms(&truth, &run_dir.join("forward/navresult.nav"), &dir);
+    let forward_oracle = horizontal_rms(&truth, &oracle.join("forward/navresult.nav"), &oracle);
+    assert!(
+        forward <= 1.25 * forward_oracle,
+        "forward {forward:.3} m, oracle {forward_oracle:.3} m"
+    );
+}

@@ -149,7 +149,8 @@ pub(crate) fn fault_spans(fixes: &[FixWeight]) -> Vec<FaultSpan> {
     let mut open: Option<&'static str> = None;
     for f in fixes {
         let kind = match f.reason.as_str() {
-            "jump" => {
+            // A jump or a ramp's onset opens an episode.
+            "jump" | "ramp" => {
                 open = None;
                 Some("jump")
             }

@@ -715,7 +715,7 @@ impl NavSink for KfGinsSink {
     fn fix_records(&mut self, records: &[FixRecord]) -> Result<(), Error> {
         let mut w = TextWriter::create(&self.dir.join("gnss_residuals.txt"))?;
         let mut text = String::from(
-            "# navsync GNSS residuals: sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status reason hpl_m\n# innovation = predicted - measured (m or m/s, NED); w = weight (R divided by it); reason: jump, run, stale, persisted, outlier, smoother-excluded, smoother-readmitted or -; hpl_m: horizontal protection level K*sigma after the fix, K = 6\n",
+            "# navsync GNSS residuals: sow kind innov_n innov_e innov_d sd_n sd_e sd_d nis w_n w_e w_d status reason hpl_m\n# innovation = predicted - measured (m or m/s, NED); w = weight (R divided by it); reason: jump, ramp, run, stale, persisted, outlier, smoother-excluded, smoother-readmitted or -; hpl_m: horizontal protection level K*sigma after the fix, K = 6\n",
         );
         for r in records {
             use std::fmt::Write as _;

@@ -227,6 +227,28 @@ pub(crate) fn test_fixes(
         .collect())
 }
 
+/// The forward monitor's onset episodes: a fix excluded as a ramp's onset
+/// and the excluded fixes that continue it.
+fn onset_episodes(first: &Judged) -> Vec<Vec<GpsTime>> {
+    let mut out: Vec<Vec<GpsTime>> = Vec::new();
+    let mut open = false;
+    for (t, (used, reason)) in first {
+        match (used, reason) {
+            (false, FaultReason::Ramp) => {
+                out.push(vec![*t]);
+                open = true;
+            }
+            (false, FaultReason::Run) if open => {
+                if let Some(last) = out.last_mut() {
+                    last.push(*t);
+                }
+            }
+            _ => open = false,
+        }
+    }
+    out
+}
+
 /// The median of χ² with 3 degrees of freedom.
 const CHI2_3_MEDIAN: f64 = 2.366;
 
@@ -732,6 +754,17 @@ pub(crate) fn smooth_rejudged(
                         want.insert(*t, true);
                     }
                 }
+                // A ramp the forward monitor found at its onset stands as
+                // one fault when any of its fixes is inconsistent with the
+                // smoothed solution: its first fixes, a few centimetres off,
+                // are consistent alone and, let back one by one, would pull
+                // the bridge over the rest (a drive's smoothed error went
+                // 0.019 → 0.073 m so).
+                for episode in onset_episodes(&first) {
+                    if episode.iter().any(|t| want.get(t) == Some(&false)) {
+                        fault_fixes.extend(episode);
+                    }
+                }
             }
             // Each hypothesis stands or falls on its own solution.
             2 => {
@@ -840,6 +873,31 @@ mod tests {
             reason,
             hpl_m: 0.0,
         }
+    }
+
+    /// The forward monitor's onset episodes are read from the reasons: a
+    /// `ramp` and the excluded `run` fixes after it; a jump's run is not
+    /// one, and a used fix ends it.
+    #[test]
+    fn onset_episodes_are_a_ramp_and_its_run() {
+        use FaultReason::{Jump, None as Clean, Ramp, Run};
+        use FixStatus::{Rejected, Used};
+        let records = [
+            record(1, Used, Clean),
+            record(2, Rejected, Ramp),
+            record(3, Rejected, Run),
+            record(4, Rejected, Run),
+            record(5, Used, Clean),
+            record(6, Rejected, Jump),
+            record(7, Rejected, Run),
+            record(8, Used, Clean),
+            record(9, Rejected, Ramp),
+        ];
+        let t = |s: i64| GpsTime::from_week_ns(2000, s * 1_000_000_000);
+        assert_eq!(
+            onset_episodes(&judged(&records)),
+            vec![vec![t(2), t(3), t(4)], vec![t(9)]]
+        );
     }
 
     /// 1 Hz fixes 0–99 s: used, except an episode at 60 s (a jump, two run

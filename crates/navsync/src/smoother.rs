@@ -119,6 +119,27 @@ impl RecordFile {
         Ok(())
     }
 
+    /// Keeps the first `k` records (while writing): a rollback's re-run
+    /// records the epochs after them again.
+    pub(crate) fn truncate(&mut self, k: usize) -> Result<(), Error> {
+        if k >= self.len {
+            return Ok(());
+        }
+        let w = self
+            .writer
+            .as_mut()
+            .ok_or_else(|| Error::Invalid("record file already read".into()))?;
+        let bytes = (k * self.record_len * 8) as u64;
+        w.flush().map_err(|e| Error::io(&self.path, e))?;
+        w.get_mut()
+            .set_len(bytes)
+            .map_err(|e| Error::io(&self.path, e))?;
+        w.seek(SeekFrom::Start(bytes))
+            .map_err(|e| Error::io(&self.path, e))?;
+        self.len = k;
+        Ok(())
+    }
+
     /// Record `k` (the file is closed for writing on the first read).
     pub(crate) fn get(&mut self, k: usize) -> Result<&[f64], Error> {
         if k >= self.len {
@@ -306,6 +327,17 @@ impl Recorder {
             q.j,
             q.k,
         ])
+    }
+
+    /// The numbers of nodes and of solutions recorded.
+    pub(crate) fn lengths(&self) -> (usize, usize) {
+        (self.nodes.len(), self.tape.len())
+    }
+
+    /// Keeps the first `nodes` nodes and `tape` solutions (a rollback).
+    pub(crate) fn truncate(&mut self, nodes: usize, tape: usize) -> Result<(), Error> {
+        self.nodes.truncate(nodes)?;
+        self.tape.truncate(tape)
     }
 
     pub(crate) fn node_count(&self) -> usize {
@@ -863,6 +895,35 @@ mod tests {
         // And the smoothing did something: the gap's middle differs from
         // the forward filter by more than the tolerance.
         assert!((smoothed[20][0] - nominals[20][0]).abs() > 1e-3);
+    }
+
+    /// A rollback cuts the record back and writes the epochs after again:
+    /// the re-written records replace the old, and none of the old remain
+    /// (records bigger than the write buffer's block, so that some of the
+    /// cut ones were already on disk).
+    #[test]
+    fn a_truncated_record_file_reads_back_what_was_written_after() {
+        let dir = std::env::temp_dir();
+        let len = 40_000;
+        let mut f = RecordFile::create(&dir, "truncate", len).unwrap();
+        for k in 0..10 {
+            f.push(&vec![k as f64; len]).unwrap();
+        }
+        f.truncate(4).unwrap();
+        assert_eq!(f.len(), 4);
+        for k in 4..7 {
+            f.push(&vec![100.0 + k as f64; len]).unwrap();
+        }
+        assert_eq!(f.len(), 7);
+        assert_eq!(f.bytes(), (7 * len * 8) as u64);
+        for k in 0..7 {
+            let want = if k < 4 { k as f64 } else { 100.0 + k as f64 };
+            let got = f.get(k).unwrap();
+            assert!(got.iter().all(|v| *v == want), "record {k}: {}", got[0]);
+        }
+        assert!(f.get(7).is_err());
+        // Once read, the file is closed for writing: no cut then.
+        assert!(f.truncate(2).is_err());
     }
 
     #[test]

@@ -58,6 +58,7 @@ mod config;
 pub mod course_heading;
 mod gap;
 mod latency;
+mod rollback;
 #[cfg(test)]
 mod tests;
 
@@ -128,6 +129,9 @@ struct Core {
     /// nodes completed since the wrapper last drained them.
     node_interval_s: Option<f64>,
     nodes: Vec<(SmootherNode, NodeNominal)>,
+    /// The fault monitor found a ramp's onset: the anchor to return to and
+    /// the onset's fix (`rollback.rs`).
+    rollback_to: Option<(GpsTime, GpsTime)>,
 }
 
 impl Core {
@@ -273,6 +277,7 @@ impl Core {
             record_steps,
             node_interval_s: None,
             nodes: Vec::new(),
+            rollback_to: None,
             cfg,
         }
     }
@@ -558,6 +563,10 @@ pub struct Fusion {
     fix_log: Vec<FixRecord>,
     /// The forward run's record for the smoother, when enabled.
     recorder: Option<Recorder>,
+    /// Rollback (`rollback.rs`): the states stored after clean fixes.
+    rollback_states: std::collections::VecDeque<rollback::Stored>,
+    /// Rollbacks run.
+    rollbacks: usize,
 }
 
 impl Fusion {
@@ -585,7 +594,10 @@ impl Fusion {
             diag: Diagnostics::with_cap(1000),
             fix_log: Vec::new(),
             recorder: None,
+            rollback_states: std::collections::VecDeque::new(),
+            rollbacks: 0,
         }
+        .with_onset_test()
     }
 
     /// Records the forward run for fixed-interval smoothing
@@ -815,7 +827,13 @@ impl Fusion {
             s.push_fix(fix.time, &fix.pos, &fix.pos_sd);
         }
         match self.cfg().latency {
-            LatencyMode::Offline | LatencyMode::FixedLag { .. } => self.core.queue(fix),
+            LatencyMode::Offline | LatencyMode::FixedLag { .. } => {
+                // Kept for a rollback's re-run (`rollback.rs`).
+                if self.core.aid.gnss.monitor.onset_enabled {
+                    self.applied.push_back(fix);
+                }
+                self.core.queue(fix)
+            }
             LatencyMode::Naive => {
                 if self.core.started {
                     let mut f = fix;
@@ -855,6 +873,9 @@ impl Fusion {
         self.store_nodes()?;
         if let (Some(rec), Some(o)) = (self.recorder.as_mut(), &out) {
             rec.push_nav(&o.nav)?;
+        }
+        if out.is_some() {
+            self.after_sample(sample)?;
         }
         Ok(out)
     }

@@ -843,6 +843,19 @@ impl GnssSource {
                 ));
                 Ok(true)
             }
+            Judgement::Onset { anchor, offset_m } => {
+                // Excluded here; the wrapper returns to the state after
+                // `anchor` and runs again without the ramp's fixes.
+                self.counts.excluded += 1;
+                self.counts.fixes_rejected += 1;
+                let record = excluded_record(core, obs, &s, time, FaultReason::Ramp, lambda);
+                core.fix_log.push(record);
+                core.rollback_to = Some((anchor, time));
+                core.notes.push(format!(
+                    "GNSS fix at {time} excluded by the integrity monitor (ramp: {offset_m:.3} m from the INS carried from the clean fix at {anchor}, beyond its drift since); the filter returns to its state after that fix and runs again without the fixes since"
+                ));
+                Ok(true)
+            }
             Judgement::RampEnd { offset } => {
                 grow_position_variance(core, &offset);
                 core.notes.push(format!(
@@ -981,6 +994,19 @@ impl GnssSource {
         rw: &RobustWeighting,
     ) -> Result<bool, Error> {
         let threshold = chi2_quantile(0.9999, obs.dim() as f64);
+        // "The INS drifted" only where it could have: not while the fault
+        // monitor holds a clean fix seconds back against which the INS's
+        // drift is within the fixes' own error change (a navigation-grade
+        // INS drifts millimetres in seconds; three fixes that moved 0.2 m
+        // together are a ramp, which the monitor's onset test then finds).
+        if obs.dim() == 3 {
+            let r = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
+            let hph = Matrix3::from_fn(|i, j| s.get(i, j)) - Matrix3::from_diagonal(&r);
+            let lambda = self.overconfidence_scale();
+            if self.monitor.ins_is_reference(time, &hph, &r, lambda) {
+                return Ok(false);
+            }
+        }
         if let Some(prev) = self.rejected_run.last() {
             let n = self.rejected_run.len();
             let trend = n >= 2

@@ -1,0 +1,141 @@
+//! Rollback after a ramp's onset (issue 33).
+//!
+//! A slow ramp in the fixes is followed fix by fix: each step is within
+//! the jump test, and the filter moves its position, velocity, attitude and
+//! biases toward it. When the fault monitor finds the onset against a
+//! clean fix seconds back ([`super::aid::integrity`]), taking back the
+//! position and velocity the ramp's fixes moved is not enough: the
+//! attitude and bias corrections they made stay, consistent with the
+//! dragged velocity, and a MEMS INS then coasts metres off (measured,
+//! docs/integrity.md). So the wrapper returns to the whole filter state
+//! stored after that clean fix and runs the IMU samples since again,
+//! without the ramp's fixes: the stored-state replay of
+//! [`LatencyMode::DelayedState`] (`latency.rs`), used here to drop
+//! measurements instead of adding a late one.
+//!
+//! The solutions already returned stay as they were (a causal filter
+//! cannot take back what it output); the state from now on, the smoother's
+//! record and the fixes' records (`gnss_residuals.txt`: the ramp's fixes
+//! become `ramp`, `run`) are those of the re-run. Offline only, and only
+//! with no dual-antenna heading, odometer or coarse time-offset search,
+//! whose inputs would have to be replayed too; elsewhere the monitor makes
+//! no onset test.
+
+use super::*;
+
+/// States are kept this long (s): the monitor's anchors reach back this far.
+const KEEP_S: f64 = 21.0;
+
+/// The filter after a clean fix, with the smoother's record lengths then.
+pub(super) struct Stored {
+    /// The clean fix (anchor) it follows.
+    anchor: GpsTime,
+    core: Core,
+    nodes: usize,
+    tape: usize,
+}
+
+impl Fusion {
+    /// Turns the monitor's onset test on where a rollback can follow it.
+    pub(super) fn with_onset_test(mut self) -> Self {
+        let cfg = self.cfg();
+        let enabled = cfg.latency == LatencyMode::Offline
+            && cfg.heading.is_none()
+            && cfg.odometer.is_none()
+            && self.search.is_none();
+        self.core.aid.gnss.monitor.onset_enabled = enabled;
+        self
+    }
+
+    /// After each returned solution: rolls back when the monitor found an
+    /// onset; stores the state after each new clean fix; keeps the IMU
+    /// samples the stored states may need.
+    pub(super) fn after_sample(&mut self, sample: &ImuSample) -> Result<(), Error> {
+        if !self.core.aid.gnss.monitor.onset_enabled {
+            return Ok(());
+        }
+        self.imu_buffer.push_back(*sample);
+        if let Some((anchor, onset)) = self.core.rollback_to.take() {
+            self.roll_back(anchor, onset)?;
+        }
+        let monitor = &self.core.aid.gnss.monitor;
+        if let Some(anchor) = monitor.last_anchor_time()
+            && self
+                .rollback_states
+                .back()
+                .is_none_or(|s| s.anchor < anchor)
+        {
+            let (nodes, tape) = self.recorder.as_ref().map_or((0, 0), |r| r.lengths());
+            self.rollback_states.push_back(Stored {
+                anchor,
+                core: self.core.clone(),
+                nodes,
+                tape,
+            });
+        }
+        let oldest = sample.time.add_seconds(-KEEP_S);
+        while self.rollback_states.len() > 1
+            && self
+                .rollback_states
+                .front()
+                .is_some_and(|s| s.anchor < oldest)
+        {
+            self.rollback_states.pop_front();
+        }
+        let keep_from = self
+            .rollback_states
+            .front()
+            .map_or(sample.time, |s| s.core.nav.time);
+        self.imu_buffer.drop_through(keep_from);
+        let current = &self.core;
+        self.applied
+            .drop_while(|f| current.proc_time(f) <= keep_from);
+        Ok(())
+    }
+
+    /// Returns to the state stored after the clean fix at `anchor` and runs
+    /// the samples since again, the fixes up to `onset` excluded as the
+    /// ramp's. Without that state (it was not kept), nothing is done: the
+    /// monitor's episode stands, without the rollback.
+    fn roll_back(&mut self, anchor: GpsTime, onset: GpsTime) -> Result<(), Error> {
+        let Some(k) = self
+            .rollback_states
+            .iter()
+            .rposition(|s| s.anchor == anchor)
+        else {
+            return Ok(());
+        };
+        self.rollback_states.truncate(k + 1);
+        let stored = &self.rollback_states[k];
+        let mut core = stored.core.clone();
+        if let Some(rec) = self.recorder.as_mut() {
+            rec.truncate(stored.nodes, stored.tape)?;
+        }
+        core.notes = std::mem::take(&mut self.core.notes);
+        core.aid.gnss.monitor.replay_ramp(onset);
+        // Fixes pushed after the state was stored are queued again.
+        let t_stored = core.nav.time;
+        for f in &self.applied {
+            if core.proc_time(f) > t_stored && !core.pending.contains_time(f.time) {
+                core.queue(*f);
+            }
+        }
+        let replay: Vec<ImuSample> = self
+            .imu_buffer
+            .iter()
+            .filter(|s| s.time > t_stored)
+            .copied()
+            .collect();
+        self.core = core;
+        self.rollbacks += 1;
+        for s in &replay {
+            let out = self.core.push_imu(s)?;
+            self.store_nodes()?;
+            if let (Some(rec), Some(o)) = (self.recorder.as_mut(), &out) {
+                rec.push_nav(&o.nav)?;
+            }
+        }
+        self.drain_notes();
+        Ok(())
+    }
+}
