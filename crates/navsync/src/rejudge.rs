@@ -227,6 +227,19 @@ pub(crate) fn test_fixes(
         .collect())
 }
 
+/// The fixes of the forward monitor's onset episodes that stand as one
+/// fault: those with any fix inconsistent with the smoothed solution
+/// (`want` false). A ramp's first fixes, a few centimetres off, are
+/// consistent alone and, let back one by one, would pull the bridge over
+/// the rest (a drive's smoothed error went 0.019 → 0.073 m so).
+fn onset_faults(first: &Judged, want: &BTreeMap<GpsTime, bool>) -> Vec<GpsTime> {
+    onset_episodes(first)
+        .into_iter()
+        .filter(|episode| episode.iter().any(|t| want.get(t) == Some(&false)))
+        .flatten()
+        .collect()
+}
+
 /// The forward monitor's onset episodes: a fix excluded as a ramp's onset
 /// and the excluded fixes that continue it.
 fn onset_episodes(first: &Judged) -> Vec<Vec<GpsTime>> {
@@ -754,17 +767,7 @@ pub(crate) fn smooth_rejudged(
                         want.insert(*t, true);
                     }
                 }
-                // A ramp the forward monitor found at its onset stands as
-                // one fault when any of its fixes is inconsistent with the
-                // smoothed solution: its first fixes, a few centimetres off,
-                // are consistent alone and, let back one by one, would pull
-                // the bridge over the rest (a drive's smoothed error went
-                // 0.019 → 0.073 m so).
-                for episode in onset_episodes(&first) {
-                    if episode.iter().any(|t| want.get(t) == Some(&false)) {
-                        fault_fixes.extend(episode);
-                    }
-                }
+                fault_fixes.extend(onset_faults(&first, &want));
             }
             // Each hypothesis stands or falls on its own solution.
             2 => {

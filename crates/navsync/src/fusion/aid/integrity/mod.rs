@@ -79,7 +79,10 @@ use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 use crate::stats::chi2_quantile;
+
+mod onset;
 use crate::time::GpsTime;
+use onset::{ONSET_CAL_MEMORY_S, ONSET_HOLD_RATIO};
 
 /// False-alarm probability of one test of one clean fix (χ², 3 degrees
 /// of freedom).
@@ -90,27 +93,6 @@ pub const FALSE_ALARM_PROB: f64 = 1e-4;
 pub(crate) fn fix_test_threshold() -> f64 {
     chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0)
 }
-/// A ramp's onset is judged against anchors at least this old (s): over
-/// the last seconds a slow ramp is below any test.
-const ONSET_MIN_LAG_S: f64 = 3.5;
-/// Anchors tested for a ramp's onset are at least this far apart (s):
-/// neighbours test the same thing, and fixes at 10 Hz would cost 200
-/// tests a fix.
-const ONSET_ANCHOR_SPACING_S: f64 = 0.9;
-/// The onset test's calibration keeps, for each clean fix, its largest D
-/// against the older anchors, over this many seconds…
-const ONSET_CAL_MEMORY_S: f64 = 600.0;
-/// …and is used from this many fixes on.
-const ONSET_CAL_MIN: usize = 60;
-/// χ²₃'s 99th percentile.
-const CHI2_3_P99: f64 = 11.345;
-/// χ²₃'s 95th percentile: the onset test's threshold is scaled by the
-/// measured 95th percentile of the clean fixes' D over this.
-const CHI2_3_P95: f64 = 7.815;
-/// An onset's episode holds while the INS's drift variance since its
-/// anchor is within this many times the fixes' error change (its σ twice
-/// theirs).
-const ONSET_HOLD_RATIO: f64 = 4.0;
 /// A ramp's end is judged against an anchor at least this old (s).
 const RAMP_END_MIN_LAG_S: f64 = 3.0;
 /// A fix more than this (s) after the last clean one is not tested for a
@@ -404,23 +386,6 @@ pub(in crate::fusion) struct FaultMonitor {
     /// The first fix after the last gap in the fixes: no onset test
     /// reaches back past it.
     gap_end: Option<GpsTime>,
-}
-
-impl Anchor {
-    /// Whether the anchor's own fix agreed with the filter: its NIS,
-    /// Σ r⁺ᵢ² / (Rᵢ − (H P⁺ Hᵀ)ᵢ) (the posterior residual's form of
-    /// zᵀ S⁻¹ z, per axis), within χ²₃'s 99th percentile times `scale`.
-    /// A fix already off (dataset2's real fixes: 0.54 m down at a NIS of
-    /// 14.5) is no level to measure a ramp from.
-    fn fits(&self, scale: f64) -> bool {
-        let nis: f64 = (0..3)
-            .map(|i| {
-                let v = (self.r[i] - self.hph_post[i]).max(f64::MIN_POSITIVE);
-                self.residual[i] * self.residual[i] / v
-            })
-            .sum();
-        nis <= CHI2_3_P99 * scale
-    }
 }
 
 impl FaultMonitor {
@@ -883,214 +848,6 @@ impl FaultMonitor {
         ep.max_offset_m = ep.max_offset_m.max(delta.norm());
         self.episode = Some(ep);
         Judgement::Exclude(FaultReason::Run)
-    }
-
-    /// The ramp-onset test: the fix against the clean anchors at least
-    /// [`ONSET_MIN_LAG_S`] back. A ramp's steps are each within the jump
-    /// test, and the filter follows them; against a fix seconds back the
-    /// offset it built shows, once it is beyond the free INS's drift since
-    /// (Δ and V as for a jump, the INS's growth over the longer lag). The
-    /// filter's growth model is not a calibrated χ² over seconds (a MEMS
-    /// INS in turns drifts past it; a receiver's multipath moves real
-    /// fixes by decimetres over seconds: dataset2's clean fixes reach
-    /// D = 31 against the χ²₃ 10⁻⁴ quantile 21.1), so the threshold is that
-    /// quantile times the measured 99th percentile of D on clean fixes over
-    /// χ²₃'s (11.3), at least 1: a test calibrated on the fixes the monitor
-    /// accepted (the same idea as the INS overconfidence λ). Until enough
-    /// have been seen there is no onset test. On an onset, the anchor with
-    /// the largest D becomes the episode's, the anchors since are dropped
-    /// (they were on the ramp) and the corrections the fixes since made
-    /// are taken back ([`Judgement::Onset`]).
-    fn ramp_onset(
-        &mut self,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> Option<Judgement> {
-        self.onset_pending = None;
-        let scale_now = self.onset_scale().unwrap_or(1.0);
-        let mut worst: Option<(Anchor, f64, Vector3<f64>)> = None;
-        if !self.fixes_continuous {
-            return None;
-        }
-        let mut last_tested: Option<GpsTime> = None;
-        let mut newer = self.anchors.back()?.time;
-        for a in self.anchors.iter().rev() {
-            // Not across a gap in the fixes: a ramp is followed fix by fix,
-            // and a receiver's fixes around a gap move by metres (dataset2's
-            // real fixes: 2–3 m against anchors before a 6–7 s gap).
-            if newer.seconds_since(a.time) > JUMP_MAX_GAP_S
-                || self.gap_end.is_some_and(|g| a.time < g)
-            {
-                break;
-            }
-            newer = a.time;
-            let lag = time.seconds_since(a.time);
-            if lag < ONSET_MIN_LAG_S
-                || a.dragged
-                || !a.fits(scale_now)
-                || last_tested.is_some_and(|t| t.seconds_since(a.time) < ONSET_ANCHOR_SPACING_S)
-            {
-                continue;
-            }
-            if !self.ins_is_sharper(a, time, hph, r, lambda) {
-                continue;
-            }
-            last_tested = Some(a.time);
-            let (delta, d, _) = self.test(a, time, z, hph, r, lambda);
-            if worst.is_none_or(|(_, dw, _)| d > dw) {
-                worst = Some((*a, d, delta));
-            }
-        }
-        if let (Some(scale), Some((a, d, delta))) = (self.onset_scale(), worst)
-            && d > fix_test_threshold() * scale
-        {
-            self.anchors.retain(|b| b.seq <= a.seq);
-            self.pending_pair = None;
-            self.open(a, time, delta, hph, true);
-            return Some(Judgement::Onset {
-                anchor: a.time,
-                offset_m: delta.norm(),
-            });
-        }
-        // A fix beyond the test's threshold is under suspicion even while
-        // the test cannot yet be used, and a fix the robust weighting then
-        // refuses or takes for drift is too: neither calibrates it (a
-        // ramp's own fixes, let in, raised the scale 1.0 → 3.3 in five
-        // seconds and hid it on dataset2).
-        self.onset_pending = worst
-            .filter(|(_, d, _)| *d <= fix_test_threshold() * self.onset_scale().unwrap_or(1.0))
-            .map(|(_, d, _)| (time, d));
-        None
-    }
-
-    /// The time of the last clean anchor.
-    pub(in crate::fusion) fn last_anchor_time(&self) -> Option<GpsTime> {
-        self.anchors.back().map(|a| a.time)
-    }
-
-    /// Prepares a rollback's re-run from the state stored after the
-    /// anchor: the fixes up to `onset` are the ramp's.
-    pub(in crate::fusion) fn replay_ramp(&mut self, onset: GpsTime) {
-        self.replay_onset_until = Some(onset);
-    }
-
-    /// A fix of the ramp in a rollback's re-run: the first opens the
-    /// onset's episode against the last anchor (the one rolled back to),
-    /// the others continue it.
-    fn replay_ramp_fix(
-        &mut self,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> Judgement {
-        if let Some(mut ep) = self.episode {
-            let (delta, _, _) = self.test(&ep.anchor, time, z, hph, r, lambda);
-            ep.fixes += 1;
-            ep.last = time;
-            ep.last_delta = delta;
-            ep.hph_last = hph.diagonal();
-            ep.max_offset_m = ep.max_offset_m.max(delta.norm());
-            self.episode = Some(ep);
-            return Judgement::Exclude(FaultReason::Run);
-        }
-        let Some(a) = self.anchors.back().copied() else {
-            return Judgement::Exclude(FaultReason::Ramp);
-        };
-        let (delta, _, _) = self.test(&a, time, z, hph, r, lambda);
-        self.pending_pair = None;
-        self.open(a, time, delta, hph, true);
-        Judgement::Exclude(FaultReason::Ramp)
-    }
-
-    /// Whether the INS's horizontal drift since anchor `a` is within the
-    /// fixes' own error change over the same time: there a test against
-    /// `a` stands on the measured fix noise, not on the INS's drift model,
-    /// which over seconds a MEMS INS leaves (the test-track drive with the
-    /// ADIS16465, clean: 0.44 m in 7 s where its model said 0.19 m, 100 s
-    /// into the drive).
-    fn ins_is_sharper(
-        &self,
-        a: &Anchor,
-        time: GpsTime,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> bool {
-        self.ins_within(a, time, hph, r, lambda, 1.0)
-    }
-
-    /// Whether the INS's horizontal drift variance since `a` is within
-    /// `ratio` times the fixes' error-change variance.
-    fn ins_within(
-        &self,
-        a: &Anchor,
-        time: GpsTime,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-        ratio: f64,
-    ) -> bool {
-        let lag = time.seconds_since(a.time);
-        let growth = self.ins_growth(a, lag, hph) * lambda;
-        let fixes = self.fix_change_var(r, &a.r, lag);
-        (0..2).all(|i| growth[i] <= ratio * fixes[i])
-    }
-
-    /// Whether the onset test holds a clean anchor at least
-    /// [`ONSET_MIN_LAG_S`] back, within the fixes, against which the INS
-    /// is the sharper reference ([`Self::ins_is_sharper`]).
-    pub(in crate::fusion) fn ins_is_reference(
-        &self,
-        time: GpsTime,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> bool {
-        if !self.onset_enabled
-            || self.onset_scale().is_none()
-            || self.anchors_since_reset < MIN_ANCHORS
-        {
-            return false;
-        }
-        if !self.fixes_continuous {
-            return false;
-        }
-        let Some(mut newer) = self.anchors.back().map(|a| a.time) else {
-            return false;
-        };
-        for a in self.anchors.iter().rev() {
-            if newer.seconds_since(a.time) > JUMP_MAX_GAP_S
-                || self.gap_end.is_some_and(|g| a.time < g)
-            {
-                return false;
-            }
-            newer = a.time;
-            if !a.dragged
-                && a.fits(self.onset_scale().unwrap_or(1.0))
-                && time.seconds_since(a.time) >= ONSET_MIN_LAG_S
-            {
-                return self.ins_is_sharper(a, time, hph, r, lambda);
-            }
-        }
-        false
-    }
-
-    /// The onset test's threshold scale: the 95th percentile of the clean
-    /// fixes' D over χ²₃'s, at least 1; `None` before [`ONSET_CAL_MIN`].
-    fn onset_scale(&self) -> Option<f64> {
-        if self.onset_cal.len() < ONSET_CAL_MIN {
-            return None;
-        }
-        let mut d: Vec<f64> = self.onset_cal.iter().map(|(_, d)| *d).collect();
-        let k = ((d.len() as f64) * 0.95) as usize;
-        let k = k.min(d.len() - 1);
-        let (_, p95, _) = d.select_nth_unstable_by(k, f64::total_cmp);
-        Some((*p95 / CHI2_3_P95).max(1.0))
     }
 
     /// The oldest anchor at least [`RAMP_END_MIN_LAG_S`] before `time` (and
