@@ -19,7 +19,7 @@
 //! | `nhc.rs` | non-holonomic constraint | KF-GINS §3.7 ODO/NHC (`filter/nhc.rs`); Sun, Petovello & Cannon 2010 |
 //! | `odometer.rs` | odometer speed, scale-factor state | the same |
 //! | `zupt.rs` | standstill: ZUPT and ZARU | Groves §15.3.1, Skog et al. 2010 (`filter/standstill.rs`) |
-//! | `integrity.rs` | GNSS fault episodes (jumps, runs, ramps) against the INS's displacement | time-differenced tests (Joerger & Pervan 2013); INS error growth (Titterton & Weston §12.3) |
+//! | `integrity/` | GNSS fault episodes (jumps, ramp onsets, runs) against the INS's displacement | time-differenced tests (Joerger & Pervan 2013); INS error growth (Titterton & Weston §12.3) |
 //! | `heading.rs` | dual-antenna heading | Groves §10.2.5, §16.3.2 (`filter/heading.rs`) |
 //! | `time_offset.rs` | the IMU–GNSS time offset τ | seed 004 eqs 11–16 (Wang, Guan & Ding 2019) |
 //! | `lever_arm.rs` | the antenna lever arm as states | KF-GINS §3.5–3.6; Groves §14.2.7 |
