@@ -17,10 +17,15 @@ pub(super) const ONSET_ANCHOR_SPACING_S: f64 = 0.9;
 /// The onset test's calibration keeps, for each clean fix, its largest D
 /// against the older anchors, over this many seconds…
 pub(super) const ONSET_CAL_MEMORY_S: f64 = 600.0;
-/// …and is used from this many fixes on.
+/// …and is used once it holds this many fixes spanning at least
+/// [`ONSET_CAL_SPAN_S`]: the filter's σ, which the test's drift model
+/// reads, is optimistic while its heading and biases settle (a clean urban
+/// drive with the ADIS16465 had a false onset 74 s in, on 60 fixes).
 pub(super) const ONSET_CAL_MIN: usize = 60;
 /// χ²₃'s 99th percentile.
 pub(super) const CHI2_3_P99: f64 = 11.345;
+/// The shortest span (s) of clean fixes the onset test is calibrated on.
+pub(super) const ONSET_CAL_SPAN_S: f64 = 120.0;
 /// χ²₃'s 95th percentile: the onset test's threshold is scaled by the
 /// measured 95th percentile of the clean fixes' D over this.
 pub(super) const CHI2_3_P95: f64 = 7.815;
@@ -245,7 +250,11 @@ impl FaultMonitor {
     /// The onset test's threshold scale: the 95th percentile of the clean
     /// fixes' D over χ²₃'s, at least 1; `None` before [`ONSET_CAL_MIN`].
     pub(super) fn onset_scale(&self) -> Option<f64> {
-        if self.onset_cal.len() < ONSET_CAL_MIN {
+        let (Some((first, _)), Some((last, _))) = (self.onset_cal.front(), self.onset_cal.back())
+        else {
+            return None;
+        };
+        if self.onset_cal.len() < ONSET_CAL_MIN || last.seconds_since(*first) < ONSET_CAL_SPAN_S {
             return None;
         }
         let mut d: Vec<f64> = self.onset_cal.iter().map(|(_, d)| *d).collect();
