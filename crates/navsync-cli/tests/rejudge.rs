@@ -47,7 +47,8 @@ fn decisions(path: &Path) -> HashMap<i64, (String, String)> {
         .collect()
 }
 
-fn simulate(dir: &Path) -> std::path::PathBuf {
+/// A 240 s test-track drive with an IMU of `grade`, seed 1.
+fn simulate(dir: &Path, grade: &str) -> std::path::PathBuf {
     let sim = dir.join("sim");
     let (ok, _, err) = run(bin()
         .args([
@@ -57,7 +58,7 @@ fn simulate(dir: &Path) -> std::path::PathBuf {
             "--duration",
             "240",
             "--imu-grade",
-            "adis16465",
+            grade,
             "--seed",
             "1",
             "--quiet",
@@ -147,7 +148,7 @@ fn ramp_bound_m(smoothed_oracle: f64) -> f64 {
 #[test]
 fn a_ramp_the_forward_pass_followed_is_excluded_when_smoothed() {
     let dir = temp_dir("ramp");
-    let sim = simulate(&dir);
+    let sim = simulate(&dir, "adis16465");
     // A ramp to 1.5 m horizontal over 20 s, 100 s into the drive; the
     // oracle leaves its fixes out.
     let (faulty, labels) = inject_ramp(&dir, &sim, 100.0);
@@ -209,7 +210,7 @@ fn a_ramp_the_forward_pass_followed_is_excluded_when_smoothed() {
 #[test]
 fn a_clean_run_is_smoothed_once_and_loses_no_fix() {
     let dir = temp_dir("clean");
-    let sim = simulate(&dir);
+    let sim = simulate(&dir, "adis16465");
     let out = dir.join("run");
     fuse(&sim, &sim.join("gnss.txt"), &out);
     let s = json(&out.join("summary.json"))["stats"].clone();
@@ -225,7 +226,7 @@ fn a_clean_run_is_smoothed_once_and_loses_no_fix() {
 #[test]
 fn a_ramp_ending_in_a_gap_is_found_from_the_smoothed_residual_step() {
     let dir = temp_dir("gap");
-    let sim = simulate(&dir);
+    let sim = simulate(&dir, "adis16465");
     // The ramp of the test above, then no fix for 10 s: the first fixes
     // after the gap are judged alone (no jump test over a gap), so the
     // forward monitor opens no episode of more than one fix at the ramp's
@@ -279,7 +280,7 @@ fn a_ramp_ending_in_a_gap_is_found_from_the_smoothed_residual_step() {
 #[test]
 fn a_step_at_the_last_fix_is_reported_not_guessed() {
     let dir = temp_dir("last");
-    let sim = simulate(&dir);
+    let sim = simulate(&dir, "adis16465");
     // A 15 m spike on the drive's last fix: with no fix after it, a spike
     // and the end of a ramp the fixes before it followed look alike.
     let gnss = sim.join("gnss.txt");
@@ -339,23 +340,7 @@ fn a_step_at_the_last_fix_is_reported_not_guessed() {
 #[test]
 fn a_navigation_grade_ins_catches_a_ramp_forward() {
     let dir = temp_dir("onset");
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin()
-        .args([
-            "simulate",
-            "--scenario",
-            "test-track",
-            "--duration",
-            "240",
-            "--imu-grade",
-            "nav",
-            "--seed",
-            "1",
-            "--quiet",
-            "--output",
-        ])
-        .arg(&sim));
-    assert!(ok, "{err}");
+    let sim = simulate(&dir, "nav");
     // 160 s in: the onset test is calibrated on at least 120 s of clean
     // fixes first (the filter's σ is optimistic while it settles).
     let (faulty, labels) = inject_ramp(&dir, &sim, 160.0);

@@ -272,6 +272,15 @@ impl Fusion {
         }
     }
 
+    /// The buffered IMU samples after `t`, for a re-run from a stored state.
+    pub(super) fn samples_after(&self, t: GpsTime) -> Vec<ImuSample> {
+        self.imu_buffer
+            .iter()
+            .filter(|s| s.time > t)
+            .copied()
+            .collect()
+    }
+
     /// Stores the filter state every [`SNAPSHOT_INTERVAL_NS`] (a delayed fix
     /// replays at most that much more than its latency).
     pub(super) fn maybe_snapshot(&mut self) {
@@ -307,23 +316,14 @@ impl Fusion {
         self.replays += 1;
         // Fixes already applied after the snapshot must be applied again.
         let t_snap = core.nav.time;
-        for f in &self.applied {
-            if core.proc_time(f) > t_snap && !core.pending.contains_time(f.time) {
-                core.queue(*f);
-            }
-        }
+        requeue_applied(&self.applied, &mut core);
         core.queue(fix);
         self.applied.push_back(fix);
         let oldest = self.snapshots[0].nav.time;
         let current = &self.core;
         self.applied.drop_while(|f| current.proc_time(f) < oldest);
         self.snapshots.truncate(k + 1);
-        let replay: Vec<ImuSample> = self
-            .imu_buffer
-            .iter()
-            .filter(|s| s.time > t_snap)
-            .copied()
-            .collect();
+        let replay = self.samples_after(t_snap);
         self.core = core;
         // Headings given to the filter after the snapshot was stored are
         // given again, each before the first sample at or after its time
@@ -363,5 +363,16 @@ impl Fusion {
         // The coarse search already saw these steps on the first pass.
         self.core.steps.clear();
         Ok(())
+    }
+}
+
+/// Queues again, into a stored `core`, the fixes pushed after its time
+/// that it has not queued yet (a re-run from a stored state).
+pub(super) fn requeue_applied(applied: &DelayBuffer<GnssFix>, core: &mut Core) {
+    let t_stored = core.nav.time;
+    for f in applied {
+        if core.proc_time(f) > t_stored && !core.pending.contains_time(f.time) {
+            core.queue(*f);
+        }
     }
 }

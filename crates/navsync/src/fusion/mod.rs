@@ -565,8 +565,6 @@ pub struct Fusion {
     recorder: Option<Recorder>,
     /// Rollback (`rollback.rs`): the states stored after clean fixes.
     rollback_states: std::collections::VecDeque<rollback::Stored>,
-    /// Rollbacks run.
-    rollbacks: usize,
 }
 
 impl Fusion {
@@ -595,7 +593,6 @@ impl Fusion {
             fix_log: Vec::new(),
             recorder: None,
             rollback_states: std::collections::VecDeque::new(),
-            rollbacks: 0,
         }
         .with_onset_test()
     }

@@ -114,20 +114,9 @@ impl Fusion {
         core.notes = std::mem::take(&mut self.core.notes);
         core.aid.gnss.monitor.replay_ramp(onset);
         // Fixes pushed after the state was stored are queued again.
-        let t_stored = core.nav.time;
-        for f in &self.applied {
-            if core.proc_time(f) > t_stored && !core.pending.contains_time(f.time) {
-                core.queue(*f);
-            }
-        }
-        let replay: Vec<ImuSample> = self
-            .imu_buffer
-            .iter()
-            .filter(|s| s.time > t_stored)
-            .copied()
-            .collect();
+        super::latency::requeue_applied(&self.applied, &mut core);
+        let replay = self.samples_after(core.nav.time);
         self.core = core;
-        self.rollbacks += 1;
         for s in &replay {
             let out = self.core.push_imu(s)?;
             self.store_nodes()?;

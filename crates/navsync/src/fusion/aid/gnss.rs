@@ -811,6 +811,24 @@ impl GnssSource {
         Ok(record.status)
     }
 
+    /// Excludes a position fix for `reason`: counted and recorded (its
+    /// record returned).
+    fn exclude(
+        &mut self,
+        core: &mut Core,
+        obs: &Observation,
+        s: &Mat,
+        time: GpsTime,
+        reason: FaultReason,
+        lambda: f64,
+    ) -> FixRecord {
+        self.counts.excluded += 1;
+        self.counts.fixes_rejected += 1;
+        let record = excluded_record(core, obs, s, time, reason, lambda);
+        core.fix_log.push(record);
+        record
+    }
+
     /// Puts a position fix before the fault monitor
     /// ([`super::integrity`]). Returns true when the fix was excluded
     /// (recorded and counted here); a fix the monitor vouches for after an
@@ -824,17 +842,13 @@ impl GnssSource {
     ) -> Result<bool, Error> {
         core.propagate();
         let s = core.filter.innovation_covariance(obs);
-        let r = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
-        let hph = Matrix3::from_fn(|i, j| s.get(i, j)) - Matrix3::from_diagonal(&r);
+        let (r, hph) = stated_parts(obs, &s);
         let z = Vector3::new(obs.z[0], obs.z[1], obs.z[2]);
         let lambda = self.overconfidence_scale();
         match self.monitor.judge(time, &z, &hph, &r, lambda) {
             Judgement::Clean => Ok(false),
             Judgement::Exclude(reason) => {
-                self.counts.excluded += 1;
-                self.counts.fixes_rejected += 1;
-                let record = excluded_record(core, obs, &s, time, reason, lambda);
-                core.fix_log.push(record);
+                let record = self.exclude(core, obs, &s, time, reason, lambda);
                 core.notes.push(format!(
                     "GNSS fix at {time} excluded by the integrity monitor ({}: innovation {:.3} m, NIS {:.1})",
                     reason.word(),
@@ -846,10 +860,7 @@ impl GnssSource {
             Judgement::Onset { anchor, offset_m } => {
                 // Excluded here; the wrapper returns to the state after
                 // `anchor` and runs again without the ramp's fixes.
-                self.counts.excluded += 1;
-                self.counts.fixes_rejected += 1;
-                let record = excluded_record(core, obs, &s, time, FaultReason::Ramp, lambda);
-                core.fix_log.push(record);
+                self.exclude(core, obs, &s, time, FaultReason::Ramp, lambda);
                 core.rollback_to = Some((anchor, time));
                 core.notes.push(format!(
                     "GNSS fix at {time} excluded by the integrity monitor (ramp: {offset_m:.3} m from the INS carried from the clean fix at {anchor}, beyond its drift since); the filter returns to its state after that fix and runs again without the fixes since"
@@ -909,10 +920,7 @@ impl GnssSource {
                 core.propagate();
                 let s = core.filter.innovation_covariance(obs);
                 let lambda = self.overconfidence_scale();
-                self.counts.excluded += 1;
-                self.counts.fixes_rejected += 1;
-                let record = excluded_record(core, obs, &s, time, reason, lambda);
-                core.fix_log.push(record);
+                self.exclude(core, obs, &s, time, reason, lambda);
                 true
             }
         }
@@ -1000,8 +1008,7 @@ impl GnssSource {
         // INS drifts millimetres in seconds; three fixes that moved 0.2 m
         // together are a ramp, which the monitor's onset test then finds).
         if obs.dim() == 3 {
-            let r = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
-            let hph = Matrix3::from_fn(|i, j| s.get(i, j)) - Matrix3::from_diagonal(&r);
+            let (r, hph) = stated_parts(obs, s);
             let lambda = self.overconfidence_scale();
             if self.monitor.ins_is_reference(time, &hph, &r, lambda) {
                 return Ok(false);
@@ -1152,6 +1159,14 @@ fn grow_position_variance(core: &mut Core, offset: &Vector3<f64>) {
         let k = idx::POS + i;
         p.set(k, k, p.get(k, k) + offset[i] * offset[i]);
     }
+}
+
+/// A 3-D position observation's stated R (diagonal) and H P Hᵀ, from its
+/// innovation covariance `s` = H P Hᵀ + R.
+fn stated_parts(obs: &Observation, s: &Mat) -> (Vector3<f64>, Matrix3<f64>) {
+    let r = Vector3::new(obs.r.get(0, 0), obs.r.get(1, 1), obs.r.get(2, 2));
+    let hph = Matrix3::from_fn(|i, j| s.get(i, j)) - Matrix3::from_diagonal(&r);
+    (r, hph)
 }
 
 /// The state's σ the fault monitor's growth model needs, now.

@@ -79,9 +79,9 @@ use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 use crate::stats::chi2_quantile;
+use crate::time::GpsTime;
 
 mod onset;
-use crate::time::GpsTime;
 use onset::{ONSET_CAL_MEMORY_S, ONSET_HOLD_RATIO};
 
 /// False-alarm probability of one test of one clean fix (χ², 3 degrees
@@ -161,8 +161,8 @@ pub enum FaultReason {
     /// It continues an episode opened by a jump or a ramp's onset.
     Run,
     /// Its offset from the INS grew, since a clean fix seconds before,
-    /// beyond what the INS can drift: a ramp's onset. The corrections the
-    /// fixes since made were undone.
+    /// beyond what the INS can drift: a ramp's onset. The filter returned
+    /// to its state after that fix and ran again without the fixes since.
     Ramp,
     /// It repeats the previous fix's position while the vehicle moved.
     Stale,
@@ -300,6 +300,15 @@ struct Episode {
     onset: bool,
 }
 
+impl Episode {
+    /// One more excluded fix at `time`, `delta` from the INS.
+    fn count(&mut self, time: GpsTime, delta: &Vector3<f64>) {
+        self.fixes += 1;
+        self.last = time;
+        self.max_offset_m = self.max_offset_m.max(delta.norm());
+    }
+}
+
 /// What the monitor says of a fix.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub(in crate::fusion) enum Judgement {
@@ -371,11 +380,12 @@ pub(in crate::fusion) struct FaultMonitor {
     /// This fix's largest D in the onset test, until it is found clean
     /// (an anchor not drift-accepted): only then does it calibrate.
     onset_pending: Option<(GpsTime, f64)>,
+    /// The onset test's threshold scale from `onset_cal`
+    /// ([`Self::recalibrate_onset`]); `None` until it is calibrated.
+    onset_scale: Option<f64>,
     /// The onset test runs only where a rollback can follow it (set by
     /// the wrapper: offline, no heading or odometer input to replay).
     pub(in crate::fusion) onset_enabled: bool,
-    /// Clean anchors added so far (the wrapper stores a state at each).
-    pub(in crate::fusion) anchors_added: u64,
     /// In a rollback's re-run: the fixes up to this time (the onset's)
     /// are the ramp's, excluded as one episode from the last anchor.
     replay_onset_until: Option<GpsTime>,
@@ -461,9 +471,9 @@ impl FaultMonitor {
             {
                 self.onset_cal.pop_front();
             }
+            self.recalibrate_onset();
         }
         self.anchors_since_reset += 1;
-        self.anchors_added += 1;
         self.anchors.push_back(Anchor {
             time,
             dragged,
@@ -768,7 +778,7 @@ impl FaultMonitor {
         // An onset's episode is judged with the onset test's calibrated
         // threshold: its anchor is seconds back.
         let threshold = if ep.onset {
-            fix_test_threshold() * self.onset_scale().unwrap_or(1.0)
+            fix_test_threshold() * self.onset_scale.unwrap_or(1.0)
         } else {
             fix_test_threshold()
         };
@@ -812,9 +822,7 @@ impl FaultMonitor {
         ep.last_delta = delta;
         ep.hph_last = hph_diag;
         if new_fault {
-            ep.fixes += 1;
-            ep.last = time;
-            ep.max_offset_m = ep.max_offset_m.max(delta.norm());
+            ep.count(time, &delta);
             self.episode = Some(ep);
             return Judgement::Exclude(FaultReason::Jump);
         }
@@ -843,9 +851,7 @@ impl FaultMonitor {
             self.ledger.clear();
             return self.end_unresolved(ep, EpisodeEnd::Unbridged, delta);
         }
-        ep.fixes += 1;
-        ep.last = time;
-        ep.max_offset_m = ep.max_offset_m.max(delta.norm());
+        ep.count(time, &delta);
         self.episode = Some(ep);
         Judgement::Exclude(FaultReason::Run)
     }

@@ -61,13 +61,14 @@ impl FaultMonitor {
     /// INS in turns drifts past it; a receiver's multipath moves real
     /// fixes by decimetres over seconds: dataset2's clean fixes reach
     /// D = 31 against the χ²₃ 10⁻⁴ quantile 21.1), so the threshold is that
-    /// quantile times the measured 99th percentile of D on clean fixes over
-    /// χ²₃'s (11.3), at least 1: a test calibrated on the fixes the monitor
-    /// accepted (the same idea as the INS overconfidence λ). Until enough
-    /// have been seen there is no onset test. On an onset, the anchor with
-    /// the largest D becomes the episode's, the anchors since are dropped
-    /// (they were on the ramp) and the corrections the fixes since made
-    /// are taken back ([`Judgement::Onset`]).
+    /// quantile times the measured 95th percentile of D on clean fixes over
+    /// χ²₃'s, at least 1 ([`Self::recalibrate_onset`]): a test calibrated
+    /// on the fixes the monitor accepted (the same idea as the INS
+    /// overconfidence λ). Until enough have been seen there is no onset
+    /// test. On an onset, the anchor with the largest D becomes the
+    /// episode's, the anchors since are dropped (they were on the ramp) and
+    /// the wrapper rolls the filter back to that anchor
+    /// ([`Judgement::Onset`]).
     pub(super) fn ramp_onset(
         &mut self,
         time: GpsTime,
@@ -77,32 +78,12 @@ impl FaultMonitor {
         lambda: f64,
     ) -> Option<Judgement> {
         self.onset_pending = None;
-        let scale_now = self.onset_scale().unwrap_or(1.0);
         let mut worst: Option<(Anchor, f64, Vector3<f64>)> = None;
-        if !self.fixes_continuous {
-            return None;
-        }
         let mut last_tested: Option<GpsTime> = None;
-        let mut newer = self.anchors.back()?.time;
-        for a in self.anchors.iter().rev() {
-            // Not across a gap in the fixes: a ramp is followed fix by fix,
-            // and a receiver's fixes around a gap move by metres (dataset2's
-            // real fixes: 2–3 m against anchors before a 6–7 s gap).
-            if newer.seconds_since(a.time) > JUMP_MAX_GAP_S
-                || self.gap_end.is_some_and(|g| a.time < g)
+        for a in self.onset_anchors(time) {
+            if last_tested.is_some_and(|t| t.seconds_since(a.time) < ONSET_ANCHOR_SPACING_S)
+                || !self.ins_is_sharper(a, time, hph, r, lambda)
             {
-                break;
-            }
-            newer = a.time;
-            let lag = time.seconds_since(a.time);
-            if lag < ONSET_MIN_LAG_S
-                || a.dragged
-                || !a.fits(scale_now)
-                || last_tested.is_some_and(|t| t.seconds_since(a.time) < ONSET_ANCHOR_SPACING_S)
-            {
-                continue;
-            }
-            if !self.ins_is_sharper(a, time, hph, r, lambda) {
                 continue;
             }
             last_tested = Some(a.time);
@@ -111,7 +92,7 @@ impl FaultMonitor {
                 worst = Some((*a, d, delta));
             }
         }
-        if let (Some(scale), Some((a, d, delta))) = (self.onset_scale(), worst)
+        if let (Some(scale), Some((a, d, delta))) = (self.onset_scale, worst)
             && d > fix_test_threshold() * scale
         {
             self.anchors.retain(|b| b.seq <= a.seq);
@@ -128,7 +109,7 @@ impl FaultMonitor {
         // ramp's own fixes, let in, raised the scale 1.0 → 3.3 in five
         // seconds and hid it on dataset2).
         self.onset_pending = worst
-            .filter(|(_, d, _)| *d <= fix_test_threshold() * self.onset_scale().unwrap_or(1.0))
+            .filter(|(_, d, _)| *d <= fix_test_threshold() * self.onset_scale.unwrap_or(1.0))
             .map(|(_, d, _)| (time, d));
         None
     }
@@ -157,11 +138,9 @@ impl FaultMonitor {
     ) -> Judgement {
         if let Some(mut ep) = self.episode {
             let (delta, _, _) = self.test(&ep.anchor, time, z, hph, r, lambda);
-            ep.fixes += 1;
-            ep.last = time;
             ep.last_delta = delta;
             ep.hph_last = hph.diagonal();
-            ep.max_offset_m = ep.max_offset_m.max(delta.norm());
+            ep.count(time, &delta);
             self.episode = Some(ep);
             return Judgement::Exclude(FaultReason::Run);
         }
@@ -219,48 +198,58 @@ impl FaultMonitor {
         lambda: f64,
     ) -> bool {
         if !self.onset_enabled
-            || self.onset_scale().is_none()
+            || self.onset_scale.is_none()
             || self.anchors_since_reset < MIN_ANCHORS
         {
             return false;
         }
-        if !self.fixes_continuous {
-            return false;
-        }
-        let Some(mut newer) = self.anchors.back().map(|a| a.time) else {
-            return false;
-        };
-        for a in self.anchors.iter().rev() {
-            if newer.seconds_since(a.time) > JUMP_MAX_GAP_S
-                || self.gap_end.is_some_and(|g| a.time < g)
-            {
-                return false;
-            }
-            newer = a.time;
-            if !a.dragged
-                && a.fits(self.onset_scale().unwrap_or(1.0))
-                && time.seconds_since(a.time) >= ONSET_MIN_LAG_S
-            {
-                return self.ins_is_sharper(a, time, hph, r, lambda);
-            }
-        }
-        false
+        self.onset_anchors(time)
+            .next()
+            .is_some_and(|a| self.ins_is_sharper(a, time, hph, r, lambda))
     }
 
-    /// The onset test's threshold scale: the 95th percentile of the clean
-    /// fixes' D over χ²₃'s, at least 1; `None` before [`ONSET_CAL_MIN`].
-    pub(super) fn onset_scale(&self) -> Option<f64> {
+    /// The anchors an onset test at `time` may use, newest first: at least
+    /// [`ONSET_MIN_LAG_S`] back, not dragged, fitting the filter
+    /// ([`Anchor::fits`]), and not across a gap in the fixes (a ramp is
+    /// followed fix by fix, and a receiver's fixes around a gap move by
+    /// metres: dataset2's real fixes, 2–3 m against anchors before a 6–7 s
+    /// gap). None when the fix itself came after a gap.
+    fn onset_anchors(&self, time: GpsTime) -> impl Iterator<Item = &Anchor> {
+        let scale = self.onset_scale.unwrap_or(1.0);
+        let gap_end = self.gap_end;
+        let mut newer = self.anchors.back().map(|a| a.time);
+        self.anchors
+            .iter()
+            .rev()
+            .take(if self.fixes_continuous { usize::MAX } else { 0 })
+            .take_while(move |a| {
+                let within = newer.is_some_and(|n| n.seconds_since(a.time) <= JUMP_MAX_GAP_S)
+                    && gap_end.is_none_or(|g| a.time >= g);
+                newer = Some(a.time);
+                within
+            })
+            .filter(move |a| {
+                !a.dragged && a.fits(scale) && time.seconds_since(a.time) >= ONSET_MIN_LAG_S
+            })
+    }
+
+    /// Sets the onset test's threshold scale from `onset_cal` (after it
+    /// changed): the 95th percentile of the clean fixes' D over χ²₃'s, at
+    /// least 1; `None` before [`ONSET_CAL_MIN`] fixes over
+    /// [`ONSET_CAL_SPAN_S`].
+    pub(super) fn recalibrate_onset(&mut self) {
+        self.onset_scale = None;
         let (Some((first, _)), Some((last, _))) = (self.onset_cal.front(), self.onset_cal.back())
         else {
-            return None;
+            return;
         };
         if self.onset_cal.len() < ONSET_CAL_MIN || last.seconds_since(*first) < ONSET_CAL_SPAN_S {
-            return None;
+            return;
         }
         let mut d: Vec<f64> = self.onset_cal.iter().map(|(_, d)| *d).collect();
         let k = ((d.len() as f64) * 0.95) as usize;
         let k = k.min(d.len() - 1);
         let (_, p95, _) = d.select_nth_unstable_by(k, f64::total_cmp);
-        Some((*p95 / CHI2_3_P95).max(1.0))
+        self.onset_scale = Some((*p95 / CHI2_3_P95).max(1.0));
     }
 }
