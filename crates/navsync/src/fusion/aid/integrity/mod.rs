@@ -82,7 +82,7 @@ use crate::stats::chi2_quantile;
 use crate::time::GpsTime;
 
 mod onset;
-use onset::{ONSET_CAL_MEMORY_S, ONSET_HOLD_RATIO};
+use onset::{ONSET_ANCHOR_SPACING_S, ONSET_CAL_MEMORY_S, ONSET_HOLD_RATIO};
 
 /// False-alarm probability of one test of one clean fix (χ², 3 degrees
 /// of freedom).
@@ -91,7 +91,11 @@ pub const FALSE_ALARM_PROB: f64 = 1e-4;
 /// The threshold of that test: χ²₃'s quantile at 1 − [`FALSE_ALARM_PROB`]
 /// (21.1), shared by the monitor and the smoother's re-judgement.
 pub(crate) fn fix_test_threshold() -> f64 {
-    chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0)
+    // Computed once: a bisection over the incomplete gamma function, and
+    // the monitor asks for it several times a fix (a fifth of a run's
+    // time with 10 Hz fixes).
+    static THRESHOLD: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    *THRESHOLD.get_or_init(|| chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0))
 }
 /// A ramp's end is judged against an anchor at least this old (s).
 const RAMP_END_MIN_LAG_S: f64 = 3.0;
@@ -386,9 +390,10 @@ pub(in crate::fusion) struct FaultMonitor {
     /// The onset test runs only where a rollback can follow it (set by
     /// the wrapper: offline, no heading or odometer input to replay).
     pub(in crate::fusion) onset_enabled: bool,
-    /// In a rollback's re-run: the fixes up to this time (the onset's)
-    /// are the ramp's, excluded as one episode from the last anchor.
-    replay_onset_until: Option<GpsTime>,
+    /// In a rollback's re-run: the fixes after the first time (the
+    /// anchor's) up to the second (the onset's) are the ramp's, excluded
+    /// as one episode from the anchor.
+    replay_onset: Option<(GpsTime, GpsTime)>,
     /// The last fix judged, and whether the one judged now came within
     /// [`JUMP_MAX_GAP_S`] of it.
     last_judged: Option<GpsTime>,
@@ -459,9 +464,16 @@ impl FaultMonitor {
         {
             self.note_fix_change(time, &delta, dt, &stated);
         }
+        // One calibration value per anchor spacing: fixes at 10 Hz test
+        // nearly the same thing ten times a second, and each value costs
+        // a recalibration.
         if let Some((t, d)) = self.onset_pending.take()
             && t == time
             && !drift_accepted
+            && self
+                .onset_cal
+                .back()
+                .is_none_or(|(last, _)| time.seconds_since(*last) >= ONSET_ANCHOR_SPACING_S)
         {
             self.onset_cal.push_back((time, d));
             while self
@@ -573,7 +585,8 @@ impl FaultMonitor {
         // drift several times, and let a 9 m false fix pass as drift after
         // 7 s). After updates, H P Hᵀ no longer holds it: the model's
         // growth from A's σ, or the filter's if larger.
-        let free = !self.ledger.iter().any(|k| k.seq > a.seq);
+        // (The ledger is in the order of its sequence numbers.)
+        let free = self.ledger.back().is_none_or(|k| k.seq <= a.seq);
         let mut g = if free {
             Vector3::zeros()
         } else {
@@ -674,11 +687,13 @@ impl FaultMonitor {
             self.gap_end = Some(time);
         }
         self.last_judged = Some(time);
-        if let Some(until) = self.replay_onset_until {
-            if time <= until {
+        if let Some((anchor, until)) = self.replay_onset {
+            if time > anchor && time <= until {
                 return self.replay_ramp_fix(time, z, hph, r, lambda);
             }
-            self.replay_onset_until = None;
+            if time > until {
+                self.replay_onset = None;
+            }
         }
         if let Some(ep) = self.episode {
             return self.judge_in_episode(ep, time, z, hph, r, lambda);

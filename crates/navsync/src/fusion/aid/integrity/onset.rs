@@ -14,7 +14,7 @@ pub(super) const ONSET_MIN_LAG_S: f64 = 3.5;
 /// neighbours test the same thing, and fixes at 10 Hz would cost 200
 /// tests a fix.
 pub(super) const ONSET_ANCHOR_SPACING_S: f64 = 0.9;
-/// The onset test's calibration keeps, for each clean fix, its largest D
+/// The onset test's calibration keeps, for a clean fix per anchor spacing, its largest D
 /// against the older anchors, over this many seconds…
 pub(super) const ONSET_CAL_MEMORY_S: f64 = 600.0;
 /// …and is used once it holds this many fixes spanning at least
@@ -119,10 +119,11 @@ impl FaultMonitor {
         self.anchors.back().map(|a| a.time)
     }
 
-    /// Prepares a rollback's re-run from the state stored after the
-    /// anchor: the fixes up to `onset` are the ramp's.
-    pub(in crate::fusion) fn replay_ramp(&mut self, onset: GpsTime) {
-        self.replay_onset_until = Some(onset);
+    /// Prepares a rollback's re-run from a state stored at or before the
+    /// clean fix `anchor`: the fixes after it up to `onset` are the
+    /// ramp's; those up to it are judged again as they were.
+    pub(in crate::fusion) fn replay_ramp(&mut self, anchor: GpsTime, onset: GpsTime) {
+        self.replay_onset = Some((anchor, onset));
     }
 
     /// A fix of the ramp in a rollback's re-run: the first opens the
