@@ -65,6 +65,9 @@ for bed in $BEDS; do
     drive-*) "$B" simulate --scenario test-track --duration 600 --imu-grade "$grade" \
             --seed 1 --quiet --output "$sim"
           count=8 ;;
+    drive10-*) "$B" simulate --scenario test-track --duration 600 --imu-grade "$grade" \
+            --gnss-rate 10 --seed 1 --quiet --output "$sim"
+          count=8 ;;
     *) echo "unknown bed $bed" >&2; exit 2 ;;
   esac
   truth="$sim/truth.nav"

@@ -66,7 +66,7 @@
 //! verdicts come back to pass 1's, pass 1's solution is kept.
 #![warn(missing_docs)]
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -298,6 +298,7 @@ struct Window {
 /// (a jump, then a run of excluded fixes, ended by a persisted fix, by the
 /// monitor's ramp-end test, by the fixes coming back or by the data's end).
 fn windows(first_records: &[FixRecord]) -> Vec<Window> {
+    let onset: BTreeSet<GpsTime> = onset_faults(&judged(first_records)).into_iter().collect();
     let pos: Vec<&FixRecord> = first_records
         .iter()
         .filter(|r| r.kind == "position" && r.reason != FaultReason::Stale)
@@ -335,9 +336,19 @@ fn windows(first_records: &[FixRecord]) -> Vec<Window> {
             continue; // a spike, or a fault the fixes came back from
         }
         let jump = pos[j].time;
+        // The used fixes before the jump, also through the forward
+        // monitor's onset episodes (excluded in every pass): a ramp the
+        // monitor caught late (its onset anchor already on the ramp), held
+        // until the INS could no longer tell, released onto its level and
+        // caught again (10 Hz fixes on the test-track drive with the
+        // ADIS16465) leaves used fixes on the ramp before and between its
+        // episodes, which pulled the smoothed solution 1 m onto it. Where
+        // the fault began among them is the onset test's to find
+        // ([`fault_onset`]).
         let suspects: Vec<GpsTime> = pos[..j]
             .iter()
             .rev()
+            .filter(|w| !onset.contains(&w.time))
             .take_while(|w| {
                 jump.seconds_since(w.time) <= RAMP_WINDOW_S && w.status != FixStatus::Rejected
             })
@@ -632,7 +643,10 @@ fn judge_windows(
                     && ((w.episode.contains(t) && !others_suspect(t))
                         || (!theirs(t)
                             && pass1.first.get(t).is_some_and(|f| {
-                                !matches!(f.1, FaultReason::Jump | FaultReason::Run)
+                                !matches!(
+                                    f.1,
+                                    FaultReason::Jump | FaultReason::Run | FaultReason::Ramp
+                                )
                             })))
             })
             .all(|(t, _)| tests.get(t).is_none_or(|s| s.stat <= threshold))
@@ -1132,6 +1146,70 @@ mod tests {
         assert!((60..64).all(|t| want[&at(t)]));
         fault_fixes.sort();
         assert_eq!(fault_fixes, (64..91).map(at).collect::<Vec<_>>());
+    }
+
+    /// A ramp the forward monitor caught late and released onto its level
+    /// twice (1 Hz here; 10 Hz fixes on the test-track drive with the
+    /// ADIS16465 did this): used fixes on the ramp before its first onset
+    /// and between its episodes, then the jump back at its end. The
+    /// jump's window suspects the used fixes through the onset episodes
+    /// (which stay excluded anyway), and the onset's first fix (`ramp`,
+    /// excluded, off by the ramp) is the fault's, not a fix the hypothesis
+    /// must fit. Before, the suspects stopped at the nearer episode and the
+    /// hypothesis fell on that fix: the released fixes, 1 m up the ramp,
+    /// held the smoothed solution there (0.189 against the oracle's
+    /// 0.017 m).
+    #[test]
+    fn a_ramp_released_between_its_onsets_is_the_jumps_window() {
+        use FaultReason::{Jump, None as Clean, Persisted, Ramp, Run};
+        use FixStatus::{DriftAccepted, Rejected, Used};
+        let at = |t: i64| GpsTime::from_week_ns(2000, t * 1_000_000_000);
+        // Ramp 40..=69 (5 cm/s); onsets at 45 and 56, released at 53 and
+        // 64; the jump back at 70, persisted at 75; data to 99.
+        let recs: Vec<FixRecord> = (0..100)
+            .map(|t| match t {
+                45 | 56 => record(t, Rejected, Ramp),
+                46..=52 | 57..=63 => record(t, Rejected, Run),
+                53 | 64 => record(t, DriftAccepted, Persisted),
+                70 => {
+                    let mut r = record(t, Rejected, Jump);
+                    r.innovation = [1.5, 0.0, 0.0];
+                    r
+                }
+                71..=74 => record(t, Rejected, Run),
+                75 => record(t, DriftAccepted, Persisted),
+                _ => record(t, Used, Clean),
+            })
+            .collect();
+        let first = judged(&recs);
+        let all = windows(&recs);
+        assert_eq!(all.len(), 1);
+        let onset = onset_faults(&first);
+        let want_suspects: Vec<GpsTime> = (41..70)
+            .rev()
+            .map(at)
+            .filter(|t| !onset.contains(t))
+            .collect();
+        assert_eq!(all[0].suspects, want_suspects);
+        // The second pass: the suspects bridged, the ramp's fixes off by
+        // it (the onsets' too), every other fix consistent.
+        let pass2: BTreeMap<GpsTime, Tested> = (0..100)
+            .map(|t| {
+                let fault = (40..70).contains(&t);
+                let mut x = tested(if fault { 0.05 * (t - 39) as f64 } else { 0.0 });
+                x.stat = if fault { 100.0 } else { 0.0 };
+                (at(t), x)
+            })
+            .collect();
+        let (fell, want, mut fault_fixes) = second_pass(&all, &first, &pass2);
+        assert!(!fell);
+        // The jump's episode is used, and the fault is every suspect (the
+        // ramp began at 40, before the window's first).
+        assert!((70..=75).all(|t| want[&at(t)]));
+        fault_fixes.sort();
+        let mut ramp_suspects = want_suspects;
+        ramp_suspects.sort();
+        assert_eq!(fault_fixes, ramp_suspects);
     }
 
     /// A hypothesis "the fixes before the jump were a fault" whose
