@@ -18,8 +18,8 @@
 //! same either way; only the wall time and the cores used differ.
 #![warn(missing_docs)]
 
-use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::mpsc;
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::{Arc, mpsc};
 use std::thread::JoinHandle;
 
 use crate::error::Error;
@@ -152,15 +152,45 @@ impl<P: Producer> Source<P> {
     }
 }
 
-/// A consumer, on its own thread or inline.
+/// A consumer, on its own thread or inline. Dropped without
+/// [`Drain::finish`] (the run failed), its consumer is dropped unfinished
+/// in both modes: a writer's file is then never committed under its final
+/// name. (The threaded stage used to finish on its own when the channel
+/// closed, so a run stopped by a diverged solution left a `navresult.nav`
+/// holding the diverged states.)
 pub(crate) enum Drain<C: Consumer> {
     Threaded {
         tx: Option<mpsc::SyncSender<Vec<C::Item>>>,
         /// `None` once a failed send has collected the thread's error.
         handle: Option<JoinHandle<Result<C::Output, Error>>>,
         name: &'static str,
+        /// Set before the channel closes when the drain is dropped
+        /// unfinished: the thread then drops its consumer unfinished.
+        abandoned: Arc<AtomicBool>,
     },
-    Inline(C),
+    /// `None` once finished.
+    Inline(Option<C>),
+}
+
+impl<C: Consumer> Drop for Drain<C> {
+    fn drop(&mut self) {
+        if let Drain::Threaded {
+            tx,
+            handle,
+            abandoned,
+            ..
+        } = self
+            && tx.is_some()
+        {
+            abandoned.store(true, Ordering::SeqCst);
+            tx.take();
+            // Waits for the consumer to be dropped (its temporaries
+            // removed) before the caller goes on to report the error.
+            if let Some(h) = handle.take() {
+                let _ = h.join();
+            }
+        }
+    }
 }
 
 impl<C: Consumer> Drain<C> {
@@ -172,14 +202,20 @@ impl<C: Consumer> Drain<C> {
     /// Starts `consumer` on its own thread (`threaded`) or inline.
     pub(crate) fn new(mut consumer: C, name: &'static str, threaded: bool) -> Result<Self, Error> {
         if !threaded {
-            return Ok(Drain::Inline(consumer));
+            return Ok(Drain::Inline(Some(consumer)));
         }
         let (tx, rx) = mpsc::sync_channel::<Vec<C::Item>>(DEPTH);
+        let abandoned = Arc::new(AtomicBool::new(false));
+        let abandoned_in_thread = Arc::clone(&abandoned);
         let handle = std::thread::Builder::new()
             .name(name.into())
             .spawn(move || {
                 for batch in rx {
                     consumer.consume(batch)?;
+                }
+                if abandoned_in_thread.load(Ordering::SeqCst) {
+                    drop(consumer);
+                    return Err(Error::Invalid(format!("the {name} stage was abandoned")));
                 }
                 consumer.finish()
             })
@@ -188,6 +224,7 @@ impl<C: Consumer> Drain<C> {
             tx: Some(tx),
             handle: Some(handle),
             name,
+            abandoned,
         })
     }
 
@@ -195,7 +232,9 @@ impl<C: Consumer> Drain<C> {
     /// (a threaded one: at the first send after it stopped).
     pub(crate) fn send(&mut self, batch: Vec<C::Item>) -> Result<(), Error> {
         match self {
-            Drain::Threaded { tx, handle, name } => {
+            Drain::Threaded {
+                tx, handle, name, ..
+            } => {
                 if tx.as_ref().is_some_and(|t| t.send(batch).is_ok()) {
                     return Ok(());
                 }
@@ -206,25 +245,32 @@ impl<C: Consumer> Drain<C> {
                     _ => Err(Error::Invalid(format!("the {name} thread has stopped"))),
                 }
             }
-            Drain::Inline(c) => c.consume(batch),
+            Drain::Inline(c) => match c.as_mut() {
+                Some(c) => c.consume(batch),
+                None => Err(Error::Invalid("the writer has stopped".into())),
+            },
         }
     }
 
     /// Waits for everything sent to be consumed; the consumer's output.
-    pub(crate) fn finish(self) -> Result<C::Output, Error> {
-        match self {
+    pub(crate) fn finish(mut self) -> Result<C::Output, Error> {
+        match &mut self {
             Drain::Threaded {
-                mut tx,
-                handle,
-                name,
+                tx, handle, name, ..
             } => {
+                // The channel closes without `abandoned`: the thread
+                // finishes its consumer.
                 tx.take();
-                match handle {
+                let name = *name;
+                match handle.take() {
                     Some(h) => h.join().map_err(|_| failed(name))?,
                     None => Err(Error::Invalid(format!("the {name} thread has stopped"))),
                 }
             }
-            Drain::Inline(c) => c.finish(),
+            Drain::Inline(c) => match c.take() {
+                Some(c) => c.finish(),
+                None => Err(Error::Invalid("the writer has stopped".into())),
+            },
         }
     }
 }
@@ -322,6 +368,41 @@ mod tests {
         }
         fn finish(self) -> Result<(), Error> {
             Ok(())
+        }
+    }
+
+    /// Records whether it was finished.
+    struct Finishes(Arc<AtomicBool>);
+    impl Consumer for Finishes {
+        type Item = u32;
+        type Output = ();
+        fn consume(&mut self, _: Vec<u32>) -> Result<(), Error> {
+            Ok(())
+        }
+        fn finish(self) -> Result<(), Error> {
+            self.0.store(true, Ordering::SeqCst);
+            Ok(())
+        }
+    }
+
+    /// A run that fails drops its writer unfinished: the consumer is not
+    /// finished (a file writer's temporary is not committed) in either
+    /// mode, and is finished when the drain is.
+    #[test]
+    fn a_drain_dropped_unfinished_does_not_finish_its_consumer() {
+        for threads in [true, false] {
+            let finished = Arc::new(AtomicBool::new(false));
+            let mut drain =
+                Drain::new(Finishes(Arc::clone(&finished)), "test writer", threads).unwrap();
+            drain.send(vec![1, 2, 3]).unwrap();
+            drop(drain);
+            assert!(!finished.load(Ordering::SeqCst), "threads {threads}");
+            let finished = Arc::new(AtomicBool::new(false));
+            let mut drain =
+                Drain::new(Finishes(Arc::clone(&finished)), "test writer", threads).unwrap();
+            drain.send(vec![1, 2, 3]).unwrap();
+            drain.finish().unwrap();
+            assert!(finished.load(Ordering::SeqCst), "threads {threads}");
         }
     }
 
