@@ -5,7 +5,8 @@
 #     dataset2; an exact IMU simulated along it, as scripts/real-gnss/
 #     table.sh), IMU grades adis16465, icm20602, nav;
 #   - a simulated driving-speed drive (the test-track scenario, 600 s,
-#     up to 22 m/s, 1 Hz RTK), adis16465 and icm20602;
+#     up to 22 m/s, 1 Hz RTK), adis16465 and icm20602, and the same with
+#     10 Hz RTK (drive10-*);
 # each with several fault seeds (sizes, durations, directions and
 # placements drawn per seed), fused forward and smoothed (`fuse --smooth`)
 # with clean fixes, faulty fixes (default weighting), the oracle (the same
@@ -19,8 +20,8 @@
 # forward figures.
 #
 # Usage (from the repository root): scripts/integrity/table.sh
-# QUICK=1: one fault seed per bed instead of five (~30 s instead of
-# ~1.5–2.5 min on 2 shared cores); VERBOSE=1: each row as it is measured;
+# QUICK=1: one fault seed per bed instead of five (~45 s instead of
+# ~2.5–3.5 min on 2 shared cores); VERBOSE=1: each row as it is measured;
 # FAULT_SEEDS="1 2 3": the fault seeds; BEDS="d2-adis16465 drive-icm20602":
 # the beds; EXTRA="--nhc": more fuse options for every run; KEEP=1: keep
 # every run's navresult.nav, std.txt, imu_err.txt (~2.4 GB for the full set;
@@ -35,7 +36,7 @@ HERE=scripts/integrity
 EXTRA=${EXTRA:-}
 VEL=${VEL:---no-gnss-velocity}
 if [ "${QUICK:-0}" = 1 ]; then FAULT_SEEDS=${FAULT_SEEDS:-1}; else FAULT_SEEDS=${FAULT_SEEDS:-1 2 3 4 5}; fi
-BEDS=${BEDS:-d2-adis16465 d2-icm20602 d2-nav drive-adis16465 drive-icm20602}
+BEDS=${BEDS:-d2-adis16465 d2-icm20602 d2-nav drive-adis16465 drive-icm20602 drive10-adis16465 drive10-icm20602}
 mkdir -p "$W"
 W=$(cd "$W" && pwd)
 rows="$W/rows.txt"

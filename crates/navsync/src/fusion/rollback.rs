@@ -8,7 +8,8 @@
 //! attitude and bias corrections they made stay, consistent with the
 //! dragged velocity, and a MEMS INS then coasts metres off (measured,
 //! docs/integrity.md). So the wrapper returns to the whole filter state
-//! stored after that clean fix and runs the IMU samples since again,
+//! stored after that clean fix (or the one before it: states are kept at
+//! most every [`STORE_SPACING_S`]) and runs the IMU samples since again,
 //! without the ramp's fixes: the stored-state replay of
 //! [`LatencyMode::DelayedState`] (`latency.rs`), used here to drop
 //! measurements instead of adding a late one.
