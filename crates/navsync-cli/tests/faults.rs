@@ -5,52 +5,13 @@
 
 mod common;
 
-use common::{bin, json, run, temp_dir};
+use common::{bin, json, run, simulate_test_track, temp_dir};
 use std::path::{Path, PathBuf};
 
 /// A 240 s test-track drive (simulator seed 1) in `dir/sim`: at rest for
 /// 26 s, then driving at up to 20 m/s.
 fn test_track(dir: &Path) -> PathBuf {
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin()
-        .args([
-            "simulate",
-            "--scenario",
-            "test-track",
-            "--duration",
-            "240",
-            "--seed",
-            "1",
-            "--quiet",
-            "--output",
-        ])
-        .arg(&sim));
-    assert!(ok, "{err}");
-    sim
-}
-
-/// [`test_track`] with an IMU grade and fixes at 10 Hz.
-fn test_track_10_hz(dir: &Path, grade: &str) -> PathBuf {
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin()
-        .args([
-            "simulate",
-            "--scenario",
-            "test-track",
-            "--duration",
-            "240",
-            "--imu-grade",
-            grade,
-            "--gnss-rate",
-            "10",
-            "--seed",
-            "1",
-            "--quiet",
-            "--output",
-        ])
-        .arg(&sim));
-    assert!(ok, "{err}");
-    sim
+    simulate_test_track(dir, &[])
 }
 
 /// Fuses `dir/gnss.txt` with the drive's IMU (its kf-gins.yaml, written
@@ -262,7 +223,7 @@ fn a_repeat_as_the_vehicle_pulls_away_is_stale_and_a_coarse_receiver_at_rest_is_
 #[test]
 fn repeats_at_10_hz_as_the_vehicle_pulls_away_are_stale() {
     let dir = temp_dir("faults-stale-10hz");
-    let sim = test_track_10_hz(&dir, "icm20602");
+    let sim = simulate_test_track(&dir, &["--imu-grade", "icm20602", "--gnss-rate", "10"]);
     let read = |p: &Path| std::fs::read_to_string(p).unwrap();
     let lines: Vec<Vec<String>> = read(&sim.join("gnss.txt"))
         .lines()

@@ -11,7 +11,7 @@ mod common;
 use std::collections::HashMap;
 use std::path::Path;
 
-use common::{bin, horizontal_rms, json, run, temp_dir};
+use common::{bin, horizontal_rms, json, run, simulate_test_track, temp_dir};
 
 /// `navsync fuse --smooth --no-gnss-velocity` (as the integrity bed) of the
 /// simulated run's IMU with `gnss` into `out`.
@@ -54,26 +54,8 @@ fn simulate(dir: &Path, grade: &str) -> std::path::PathBuf {
 
 /// [`simulate`] with fixes at `gnss_rate_hz`.
 fn simulate_at(dir: &Path, grade: &str, gnss_rate_hz: f64) -> std::path::PathBuf {
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin()
-        .args([
-            "simulate",
-            "--scenario",
-            "test-track",
-            "--duration",
-            "240",
-            "--imu-grade",
-            grade,
-            "--gnss-rate",
-            &gnss_rate_hz.to_string(),
-            "--seed",
-            "1",
-            "--quiet",
-            "--output",
-        ])
-        .arg(&sim));
-    assert!(ok, "{err}");
-    sim
+    let rate = gnss_rate_hz.to_string();
+    simulate_test_track(dir, &["--imu-grade", grade, "--gnss-rate", &rate])
 }
 
 /// The first fix's time (s of week) in a gnss.txt.

@@ -70,6 +70,20 @@ pub fn simulate_adis16465(
     sim
 }
 
+/// `navsync simulate` of the 240 s test-track drive with seed 1 (at rest
+/// for 26 s, then driving at up to 20 m/s), plus `extra` arguments (an
+/// IMU grade, a GNSS rate), into `dir/sim`; returns that folder.
+pub fn simulate_test_track(dir: &Path, extra: &[&str]) -> std::path::PathBuf {
+    let sim = dir.join("sim");
+    let (ok, _, err) = run(bin()
+        .args(["simulate", "--scenario", "test-track", "--duration", "240"])
+        .args(["--seed", "1", "--quiet", "--output"])
+        .arg(&sim)
+        .args(extra));
+    assert!(ok, "{err}");
+    sim
+}
+
 /// `navsync init --preset adis16465` written to `dir/name` with the
 /// simulator's antenna lever arm (0.1 m forward, 0.5 m right, 1.2 m up)
 /// and each `(from, to)` replacement of the template's text, every one of
