@@ -14,6 +14,25 @@ fn test_track(dir: &Path) -> PathBuf {
     simulate_test_track(dir, &[])
 }
 
+/// The fix lines of a gnss.txt, split into fields.
+fn fix_lines(path: &Path) -> Vec<Vec<String>> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(str::to_string).collect())
+        .collect()
+}
+
+/// The horizontal distance (m, spherical earth) between two fix lines.
+fn horizontal_m(a: &[String], b: &[String]) -> f64 {
+    let f = |s: &String| s.parse::<f64>().unwrap();
+    let lat = f(&a[1]).to_radians();
+    let dn = (f(&b[1]) - f(&a[1])).to_radians() * 6.371e6;
+    let de = (f(&b[2]) - f(&a[2])).to_radians() * 6.371e6 * lat.cos();
+    dn.hypot(de)
+}
+
 /// Fuses `dir/gnss.txt` with the drive's IMU (its kf-gins.yaml, written
 /// to `dir` with absolute paths) into `dir/fused`.
 fn fuse_in(sim: &Path, dir: &Path) {
@@ -150,20 +169,10 @@ fn a_repeat_as_the_vehicle_pulls_away_is_stale_and_a_coarse_receiver_at_rest_is_
     let dir = temp_dir("faults-stale");
     let sim = test_track(&dir);
     let read = |p: &Path| std::fs::read_to_string(p).unwrap();
-    let lines: Vec<Vec<String>> = read(&sim.join("gnss.txt"))
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| l.split_whitespace().map(str::to_string).collect())
-        .collect();
+    let lines = fix_lines(&sim.join("gnss.txt"));
     // The drive starts at rest and pulls away: the first fix at least
     // 0.3 m (and under 1 m) from the one before.
-    let metres = |a: &[String], b: &[String]| {
-        let f = |s: &String| s.parse::<f64>().unwrap();
-        let lat = f(&a[1]).to_radians();
-        let dn = (f(&b[1]) - f(&a[1])).to_radians() * 6.371e6;
-        let de = (f(&b[2]) - f(&a[2])).to_radians() * 6.371e6 * lat.cos();
-        dn.hypot(de)
-    };
+    let metres = horizontal_m;
     let k = (1..lines.len())
         .find(|&k| metres(&lines[k - 1], &lines[k]) > 0.3)
         .unwrap();
@@ -225,18 +234,9 @@ fn repeats_at_10_hz_as_the_vehicle_pulls_away_are_stale() {
     let dir = temp_dir("faults-stale-10hz");
     let sim = simulate_test_track(&dir, &["--imu-grade", "icm20602", "--gnss-rate", "10"]);
     let read = |p: &Path| std::fs::read_to_string(p).unwrap();
-    let lines: Vec<Vec<String>> = read(&sim.join("gnss.txt"))
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| l.split_whitespace().map(str::to_string).collect())
-        .collect();
+    let lines = fix_lines(&sim.join("gnss.txt"));
     let f = |s: &String| s.parse::<f64>().unwrap();
-    let metres = |a: &[String], b: &[String]| {
-        let lat = f(&a[1]).to_radians();
-        let dn = (f(&b[1]) - f(&a[1])).to_radians() * 6.371e6;
-        let de = (f(&b[2]) - f(&a[2])).to_radians() * 6.371e6 * lat.cos();
-        dn.hypot(de)
-    };
+    let metres = horizontal_m;
     // The first fix 0.3 m from the one a second before: the vehicle
     // pulls away (fix to fix, the RTK noise is as large as the motion).
     let k = (10..lines.len())
