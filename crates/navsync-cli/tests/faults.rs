@@ -222,13 +222,11 @@ fn a_repeat_as_the_vehicle_pulls_away_is_stale_and_a_coarse_receiver_at_rest_is_
 }
 
 /// A receiver that repeats its position for 8 s at 10 Hz while the
-/// vehicle pulls away: each repeat is within centimetres of the solution
-/// at the one before (the vehicle is slow, and the repeats used hold the
-/// solution there), so judged fix by fix none was stale, 8 s of repeats
-/// dragged an ICM-20602 filter to a stop, and when the fixes came back
-/// metres on it broke down (the bed's 10 Hz drive, fault seed 9). Judged
-/// by the INS's own motion since the position was first written, every
-/// repeat after the antenna moved 1 m is stale, and the run goes through.
+/// vehicle pulls away: 0.1 s after the repeat before, a slow vehicle's
+/// solution moved less than the stale bound, so judged fix by fix no
+/// repeat was stale and all were used. Judged by the motion since the
+/// position was first written, every repeat after the antenna moved 1 m
+/// is stale.
 #[test]
 fn repeats_at_10_hz_as_the_vehicle_pulls_away_are_stale() {
     let dir = temp_dir("faults-stale-10hz");

@@ -225,10 +225,6 @@ pub(in crate::fusion) struct GnssSource {
     /// When the last fix's position was first written, and the solution
     /// then: a repeat is judged by the motion since (see `is_stale`).
     repeat_since: Option<(GpsTime, Geodetic)>,
-    /// The position corrections GNSS updates made since then (NED, m):
-    /// Σ δp, Σ δv and Σ δv·(t − t_since), so that their effect at T is
-    /// Σ δp + Σ δv·(T − t_since) − Σ δv·(t − t_since).
-    repeat_corrections: [Vector3<f64>; 3],
     /// The smallest nonzero change between consecutive fix positions seen
     /// so far, per axis (m, NED): the resolution the receiver writes at,
     /// or coarser (see `is_stale`).
@@ -375,7 +371,6 @@ impl GnssSource {
         self.note_position_step(core, fix);
         if self.last_fix.is_none_or(|(_, p, _)| p != fix.pos) {
             self.repeat_since = Some((fix.time, core.nav.pos));
-            self.repeat_corrections = [Vector3::zeros(); 3];
         }
         self.last_fix = Some((fix.time, fix.pos, core.nav.pos));
         Ok(())
@@ -431,9 +426,8 @@ impl GnssSource {
     /// the INS's error allow (`stale_motion_bound_m`, at most 1 m) since
     /// that position was first written: a receiver repeating a stale
     /// output. Reported and skipped. (Measured from the previous fix only,
-    /// a slow vehicle's repeats at 10 Hz each moved less than the bound:
-    /// 9 s of them were used, dragged the filter to a stop and, when the
-    /// fixes came back 43 m on, broke it.)
+    /// the repeats of a receiver at 10 Hz as its vehicle pulled away each
+    /// moved less than the bound, and all were used.)
     fn is_stale(&mut self, core: &mut Core, fix: &GnssFix) -> bool {
         let Some((_, prev_pos, _)) = self.last_fix else {
             return false;
@@ -444,18 +438,13 @@ impl GnssSource {
         let Some((prev_time, prev_nav)) = self.repeat_since else {
             return false;
         };
-        // The INS's own motion since: the solution's, less what the
-        // updates on the repeats moved it (they hold it at the repeated
-        // position: at 10 Hz a slow vehicle's solution moved centimetres
-        // between repeats while its INS moved metres).
         let le = LocalEarth::new(&core.nav.pos, &core.nav.vel);
-        let [p, v, vt] = self.repeat_corrections;
-        let corrections = p + v * fix.time.seconds_since(prev_time) - vt;
-        let moved = (le.geodetic_delta_to_ned(
-            core.nav.pos.lat_rad - prev_nav.lat_rad,
-            core.nav.pos.lon_rad - prev_nav.lon_rad,
-            core.nav.pos.h_m - prev_nav.h_m,
-        ) - corrections)
+        let moved = le
+            .geodetic_delta_to_ned(
+                core.nav.pos.lat_rad - prev_nav.lat_rad,
+                core.nav.pos.lon_rad - prev_nav.lon_rad,
+                core.nav.pos.h_m - prev_nav.h_m,
+            )
             .norm();
         if moved <= self.stale_motion_bound_m(core, fix.time.seconds_since(prev_time)) {
             return false;
@@ -808,25 +797,6 @@ impl GnssSource {
         if outcome.accepted {
             self.monitor
                 .record_correction(time, &outcome.dx, idx::POS, idx::VEL);
-            if let Some((since, _)) = self.repeat_since
-                && outcome.dx.len() >= idx::VEL + 3
-            {
-                // (Error-state convention: the state moved by −dx.)
-                let dp = -Vector3::new(
-                    outcome.dx[idx::POS],
-                    outcome.dx[idx::POS + 1],
-                    outcome.dx[idx::POS + 2],
-                );
-                let dv = -Vector3::new(
-                    outcome.dx[idx::VEL],
-                    outcome.dx[idx::VEL + 1],
-                    outcome.dx[idx::VEL + 2],
-                );
-                let [p, v, vt] = &mut self.repeat_corrections;
-                *p += dp;
-                *v += dv;
-                *vt += dv * time.seconds_since(since);
-            }
         }
         record.hpl_m = protection_level(core, ins_scale);
         // Posterior residual z⁺ = R' S⁻¹ z and H P⁺ Hᵀ = HPHᵀ S⁻¹ R'.
