@@ -321,11 +321,7 @@ impl Core {
 
     fn queue(&mut self, fix: GnssFix) {
         if self.pending.contains_time(fix.time)
-            || self
-                .aid
-                .gnss
-                .last_fix
-                .is_some_and(|(t, _, _)| t == fix.time)
+            || self.aid.gnss.last_fix.is_some_and(|(t, _)| t == fix.time)
         {
             self.stats.gnss_fixes_duplicate += 1;
             self.notes.push(format!(

@@ -219,9 +219,8 @@ pub(in crate::fusion) struct GnssSource {
     noise_scale: [([(f64, f64); 3], GpsTime); 2],
     /// Robust weighting: the last fix's posterior residual, per slot.
     last_residual: [Option<ResidualMemo>; 2],
-    /// The last fix used (time, fix position, solution position), to spot
-    /// repeated ones.
-    pub(in crate::fusion) last_fix: Option<(GpsTime, Geodetic, Geodetic)>,
+    /// The last fix used (time, fix position), to spot repeated ones.
+    pub(in crate::fusion) last_fix: Option<(GpsTime, Geodetic)>,
     /// When the last fix's position was first written, and the solution
     /// then: a repeat is judged by the motion since (see `is_stale`).
     repeat_since: Option<(GpsTime, Geodetic)>,
@@ -369,17 +368,17 @@ impl GnssSource {
             GnssWeighting::Off | GnssWeighting::Gate { .. } => self.gated_gnss_update(core, fix)?,
         }
         self.note_position_step(core, fix);
-        if self.last_fix.is_none_or(|(_, p, _)| p != fix.pos) {
+        if self.last_fix.is_none_or(|(_, p)| p != fix.pos) {
             self.repeat_since = Some((fix.time, core.nav.pos));
         }
-        self.last_fix = Some((fix.time, fix.pos, core.nav.pos));
+        self.last_fix = Some((fix.time, fix.pos));
         Ok(())
     }
 
     /// Keeps the smallest nonzero change of each position axis between
     /// consecutive fixes (`position_step_m`).
     fn note_position_step(&mut self, core: &Core, fix: &GnssFix) {
-        let Some((_, prev, _)) = self.last_fix else {
+        let Some((_, prev)) = self.last_fix else {
             return;
         };
         // By the local radii, not `earth::ned_offset` through ECEF: an axis
@@ -429,7 +428,7 @@ impl GnssSource {
     /// the repeats of a receiver at 10 Hz as its vehicle pulled away each
     /// moved less than the bound, and all were used.)
     fn is_stale(&mut self, core: &mut Core, fix: &GnssFix) -> bool {
-        let Some((_, prev_pos, _)) = self.last_fix else {
+        let Some((_, prev_pos)) = self.last_fix else {
             return false;
         };
         if prev_pos != fix.pos {

@@ -14,8 +14,9 @@ pub(super) const ONSET_MIN_LAG_S: f64 = 3.5;
 /// neighbours test the same thing, and fixes at 10 Hz would cost 200
 /// tests a fix.
 pub(super) const ONSET_ANCHOR_SPACING_S: f64 = 0.9;
-/// The onset test's calibration keeps, for a clean fix per anchor spacing, its largest D
-/// against the older anchors, over this many seconds…
+/// The onset test's calibration keeps, for a clean fix per anchor
+/// spacing, its largest D against the older anchors, over this many
+/// seconds…
 pub(super) const ONSET_CAL_MEMORY_S: f64 = 600.0;
 /// …and is used once it holds this many fixes spanning at least
 /// [`ONSET_CAL_SPAN_S`]: the filter's σ, which the test's drift model
