@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{bin, json, run, simulate_test_track, temp_dir};
+use common::{bin, horizontal_rms, json, run, simulate_test_track, temp_dir};
 use std::path::{Path, PathBuf};
 
 /// A 240 s test-track drive (simulator seed 1) in `dir/sim`: at rest for
@@ -265,4 +265,129 @@ fn repeats_at_10_hz_as_the_vehicle_pulls_away_are_stale() {
     assert!(far.len() > 20, "{} repeats 1 m away", far.len());
     let missed: Vec<&i64> = far.iter().filter(|t| !stale.contains(t)).collect();
     assert!(missed.is_empty(), "repeats 1 m away not stale: {missed:?}");
+}
+
+/// A receiver at 10 Hz that, at rest, begins to repeat its position and
+/// goes on for 8 s as the vehicle pulls away (`navsync faults`' stale
+/// class on held-out seed 9 of the 10 Hz ICM-20602 drive). Until the
+/// antenna has moved the repeats are right; after, each is checked
+/// against the INS's own motion since the position was first written,
+/// not the solution's (which the repeats hold), and against the drift the
+/// INS could have made since. Before, the repeats held the solution, three
+/// of them were taken for INS drift (P inflated ×84) and the filter broke
+/// down when the fixes came back 43 m on. Now the run stays within
+/// 1.25 × the same run with the repeats left out.
+#[test]
+fn repeats_from_rest_as_the_vehicle_pulls_away_leave_the_solution_on_track() {
+    let dir = temp_dir("faults-stale-rest-10hz");
+    let sim = simulate_test_track(&dir, &["--imu-grade", "icm20602", "--gnss-rate", "10"]);
+    let lines = fix_lines(&sim.join("gnss.txt"));
+    // The pull-away: the first fix 0.3 m from the one a second before.
+    let k = (10..lines.len())
+        .find(|&k| horizontal_m(&lines[k - 10], &lines[k]) > 0.3)
+        .unwrap();
+    // The repeats begin 2 s before it, at rest, and last 8 s.
+    let first = k - 20;
+    let repeats = first + 1..first + 81;
+    assert!(
+        horizontal_m(&lines[first], &lines[repeats.end - 1]) > 10.0,
+        "the antenna moves on during the repeats"
+    );
+    let write = |name: &str, fixes: &[Vec<String>]| {
+        let run_dir = dir.join(name);
+        std::fs::create_dir_all(&run_dir).unwrap();
+        let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
+        std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
+        fuse_in(&sim, &run_dir);
+        horizontal_rms(
+            &sim.join("truth.nav"),
+            &run_dir.join("fused/navresult.nav"),
+            &run_dir,
+        )
+    };
+    let mut repeated = lines.clone();
+    for i in repeats.clone() {
+        let time = lines[i][0].clone();
+        repeated[i] = lines[first].clone();
+        repeated[i][0] = time;
+    }
+    let faulty = write("repeat", &repeated);
+    let oracle: Vec<Vec<String>> = lines
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !repeats.contains(i))
+        .map(|(_, f)| f.clone())
+        .collect();
+    let oracle = write("oracle", &oracle);
+    assert!(
+        faulty <= 1.25 * oracle,
+        "horizontal RMS {faulty:.3} m against {oracle:.3} m without the repeats"
+    );
+}
+
+/// A receiver in static hold (one position written again and again while
+/// the antenna is still) under an INS whose figures are another, better
+/// IMU's: the ICM-20602's data fused with the ADIS16465's sheet. Its own
+/// motion at rest runs past its model's drift within a second, so a stale
+/// test on the INS's own motion that trusted the model refused the
+/// repeats, and the INS ran 1 km off (120 m RMS). The test is calibrated
+/// on the clean fixes first; the held fixes must cost nothing.
+#[test]
+fn a_static_hold_under_an_overconfident_ins_is_not_stale() {
+    let dir = temp_dir("faults-static-hold");
+    let extra = |grade| ["--imu-grade", grade, "--gnss-rate", "10"];
+    let icm = simulate_test_track(&dir.join("icm"), &extra("icm20602"));
+    let adis = simulate_test_track(&dir.join("adis"), &extra("adis16465"));
+    let lines = fix_lines(&icm.join("gnss.txt"));
+    // At rest from the start until the pull-away (0.3 m in a second).
+    let k = (10..lines.len())
+        .find(|&k| horizontal_m(&lines[k - 10], &lines[k]) > 0.3)
+        .unwrap();
+    assert!(k > 200, "{k} fixes at rest");
+    // And through a later stop of at least 6 s, after the test's
+    // calibration, where the solution rule found it stale after 3 s: the
+    // rest of the hold must be judged again, not refused with it.
+    let stop = (k + 1000..lines.len() - 60)
+        .find(|&j| horizontal_m(&lines[j - 10], &lines[j + 60]) < 0.05)
+        .expect("a later stop");
+    let mut held = lines.clone();
+    for (from, to) in [(49, k - 10), (stop, stop + 60)] {
+        for i in from + 1..to {
+            let time = lines[i][0].clone();
+            held[i] = lines[from].clone();
+            held[i][0] = time;
+        }
+    }
+    let fuse = |name: &str, fixes: &[Vec<String>]| {
+        let run_dir = dir.join(name);
+        std::fs::create_dir_all(&run_dir).unwrap();
+        let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
+        std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
+        let cfg = std::fs::read_to_string(adis.join("kf-gins.yaml"))
+            .unwrap()
+            .replace("./imu.txt", &icm.join("imu.txt").display().to_string())
+            .replace(
+                "./gnss.txt",
+                &run_dir.join("gnss.txt").display().to_string(),
+            );
+        std::fs::write(run_dir.join("kf-gins.yaml"), cfg).unwrap();
+        let (ok, _, err) = run(bin()
+            .arg("fuse")
+            .arg("--config")
+            .arg(run_dir.join("kf-gins.yaml"))
+            .arg("--output")
+            .arg(run_dir.join("fused")));
+        assert!(ok, "{err}");
+        horizontal_rms(
+            &icm.join("truth.nav"),
+            &run_dir.join("fused/navresult.nav"),
+            &run_dir,
+        )
+    };
+    let plain = fuse("plain", &lines);
+    let hold = fuse("hold", &held);
+    assert!(
+        hold <= 1.25 * plain,
+        "horizontal RMS {hold:.3} m with the static hold, {plain:.3} m without"
+    );
 }

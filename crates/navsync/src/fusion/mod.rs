@@ -129,9 +129,9 @@ struct Core {
     /// nodes completed since the wrapper last drained them.
     node_interval_s: Option<f64>,
     nodes: Vec<(SmootherNode, NodeNominal)>,
-    /// The fault monitor found a ramp's onset: the anchor to return to and
-    /// the onset's fix (`rollback.rs`).
-    rollback_to: Option<(GpsTime, GpsTime)>,
+    /// A fault found after its first fixes were used: what to take back
+    /// (`rollback.rs`).
+    rollback_to: Option<rollback::Rollback>,
 }
 
 impl Core {

@@ -1,4 +1,4 @@
-//! Rollback after a ramp's onset (issue 33).
+//! Rollback after a ramp's onset or a stale run (issue 33).
 //!
 //! A slow ramp in the fixes is followed fix by fix: each step is within
 //! the jump test, and the filter moves its position, velocity, attitude and
@@ -13,6 +13,14 @@
 //! without the ramp's fixes: the stored-state replay of
 //! [`LatencyMode::DelayedState`] (`latency.rs`), used here to drop
 //! measurements instead of adding a late one.
+//!
+//! A receiver that begins to repeat its position at rest and goes on as
+//! the vehicle pulls away is the same case: its first repeats are within
+//! the INS's drift and used, and they drag its velocity and biases to a
+//! stop until the INS's own motion shows them stale (`aid::gnss`). The
+//! re-run returns to the state at or before the position's first write
+//! and leaves the run's repeats out (stale): a repeat carries no
+//! measurement the first write did not.
 //!
 //! The solutions already returned stay as they were (a causal filter
 //! cannot take back what it output); the state from now on, the smoother's
@@ -32,6 +40,16 @@ const KEEP_S: f64 = 21.0;
 /// state after every one cost 2.3× the time and 3.5× the memory of the
 /// whole run (`fuse` on a 600 s drive).
 const STORE_SPACING_S: f64 = 0.9;
+
+/// What a rollback takes back.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Rollback {
+    /// A ramp: the fixes after the clean fix `anchor` up to `onset`.
+    Ramp { anchor: GpsTime, onset: GpsTime },
+    /// A stale run: the repeats of the position first written at `since`,
+    /// up to the one found stale at `until`.
+    Stale { since: GpsTime, until: GpsTime },
+}
 
 /// The filter after a clean fix, with the smoother's record lengths then.
 pub(super) struct Stored {
@@ -62,8 +80,8 @@ impl Fusion {
             return Ok(());
         }
         self.imu_buffer.push_back(*sample);
-        if let Some((anchor, onset)) = self.core.rollback_to.take() {
-            self.roll_back(anchor, onset)?;
+        if let Some(rollback) = self.core.rollback_to.take() {
+            self.roll_back(rollback)?;
         }
         let monitor = &self.core.aid.gnss.monitor;
         if let Some(anchor) = monitor.last_anchor_time()
@@ -101,11 +119,15 @@ impl Fusion {
     }
 
     /// Returns to the newest state stored after a clean fix at or before
-    /// `anchor` and runs the samples since again, the fixes after `anchor`
-    /// up to `onset` excluded as the ramp's. Without such a state (it was
-    /// not kept), nothing is done: the monitor's episode stands, without
-    /// the rollback.
-    fn roll_back(&mut self, anchor: GpsTime, onset: GpsTime) -> Result<(), Error> {
+    /// the ramp's anchor (the stale run's first write) and runs the
+    /// samples since again, the ramp's fixes (the run's repeats) excluded.
+    /// Without such a state (it was not kept), nothing is done: the
+    /// episode stands, without the rollback.
+    fn roll_back(&mut self, rollback: Rollback) -> Result<(), Error> {
+        let anchor = match rollback {
+            Rollback::Ramp { anchor, .. } => anchor,
+            Rollback::Stale { since, .. } => since,
+        };
         let Some(k) = self
             .rollback_states
             .iter()
@@ -120,7 +142,10 @@ impl Fusion {
             rec.truncate(stored.nodes, stored.tape)?;
         }
         core.notes = std::mem::take(&mut self.core.notes);
-        core.aid.gnss.monitor.replay_ramp(anchor, onset);
+        match rollback {
+            Rollback::Ramp { anchor, onset } => core.aid.gnss.monitor.replay_ramp(anchor, onset),
+            Rollback::Stale { since, until } => core.aid.gnss.replay_stale(since, until),
+        }
         // Fixes pushed after the state was stored are queued again.
         super::latency::requeue_applied(&self.applied, &mut core);
         let replay = self.samples_after(core.nav.time);

@@ -193,7 +193,7 @@ fn robust_weighting_follows_smooth_drift_and_rejects_a_jump() {
         }
     });
     assert!(stats.gnss_fixes_downweighted >= 5, "{stats:?}");
-    assert!(err.abs() < 0.01, "north error {err} m");
+    assert!(err.abs() < 0.01, "north error {err} m; {stats:?}");
 }
 
 /// Robust weighting against fixes that leave the INS faster than its

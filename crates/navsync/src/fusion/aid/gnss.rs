@@ -10,6 +10,7 @@
 use super::integrity::{FaultMonitor, FaultReason, Judgement, PROTECTION_K, StateSpread};
 use super::*;
 use crate::filter::idx;
+use crate::fusion::rollback::Rollback;
 use std::collections::VecDeque;
 
 /// A GNSS position fix the gate rejected (or robust weighting rejected or
@@ -194,6 +195,51 @@ const MIN_OVERCONFIDENCE_FIXES: usize = 3;
 /// Largest covariance inflation of one drift acceptance.
 const MAX_INFLATION: f64 = 100.0;
 
+/// Where a run of identical fix positions began (see `is_stale`).
+#[derive(Clone, Copy)]
+struct RepeatStart {
+    time: GpsTime,
+    /// The solution after the first fix of the run.
+    nav_pos: Geodetic,
+    /// The INS's predicted position error variance running free from
+    /// then, as a polynomial in the time since, Σ cₖ tᵏ (m², k = 0..4):
+    /// see [`free_drift_variance`].
+    drift_var_poly: [f64; 5],
+}
+
+/// The variance (summed over the axes, m²) of the error in the distance
+/// an INS running free from now would travel in t s, Σ cₖ tᵏ: to second
+/// order, δp(t) − δp(0) = δv t + (f×φ − C δb_a) t²/2 (the velocity error
+/// equation of `filter::model`; Groves, *Principles of GNSS, Inertial, and
+/// Multisensor Integrated Navigation Systems*, 2nd ed., §14.2), so with
+/// A(t) = A₁ t + A₂ t²/2 the variance is tr(A P Aᵀ) over the
+/// filter's covariance with its correlations (at a standstill tilt and
+/// accelerometer bias cancel: their sum is well known while each alone
+/// is not). The specific force is taken as gravity's reaction.
+fn free_drift_variance(core: &Core) -> [f64; 5] {
+    use idx::{ATT, BA, VEL};
+    if core.filter.n() < BA + 3 {
+        return [0.0; 5];
+    }
+    let p = core.filter.covariance();
+    let g = crate::earth::gravity(core.nav.pos.lat_rad.sin(), core.nav.pos.h_m);
+    let attitude_to_accel = crate::attitude::skew(&Vector3::new(0.0, 0.0, -g));
+    let bias_to_accel = -core.nav.q_nb.to_rotation_matrix().into_inner();
+    // P A₂ᵀ restricted to the rows of `row`: Σ over (att, ba) of P_row,j B_jᵀ.
+    let p_a2 = |row: usize| {
+        p.block3(row, ATT) * attitude_to_accel.transpose()
+            + p.block3(row, BA) * bias_to_accel.transpose()
+    };
+    let a2_p_a2 = attitude_to_accel * p_a2(ATT) + bias_to_accel * p_a2(BA);
+    [
+        0.0,
+        0.0,
+        p.block3(VEL, VEL).trace(),
+        p_a2(VEL).trace(),
+        a2_p_a2.trace() / 4.0,
+    ]
+}
+
 /// Control state of the GNSS source: the gate and its run of
 /// rejections, the robust weighting's noise scales and residuals, the
 /// last fix used.
@@ -221,9 +267,24 @@ pub(in crate::fusion) struct GnssSource {
     last_residual: [Option<ResidualMemo>; 2],
     /// The last fix used (time, fix position), to spot repeated ones.
     pub(in crate::fusion) last_fix: Option<(GpsTime, Geodetic)>,
-    /// When the last fix's position was first written, and the solution
-    /// then: a repeat is judged by the motion since (see `is_stale`).
-    repeat_since: Option<(GpsTime, Geodetic)>,
+    /// Repeats of the position first written at this fix that were used
+    /// (a stale run found after them is rolled back, `rollback.rs`).
+    repeats_used: usize,
+    /// A rollback's re-run: the repeats of the position first written at
+    /// the first time, up to the second (the one found stale), are stale.
+    /// After it, repeats are judged again: a receiver in static hold at
+    /// rest under an INS with another IMU's figures was found stale after
+    /// 3 s, and refusing the rest of its 7 s hold left the INS free at rest
+    /// (0.20 m RMS over those seconds against 0.034 m).
+    replay_stale: Option<(GpsTime, GpsTime)>,
+    /// When the last fix's position was first written, the solution then
+    /// and the INS's spread then: a repeat is judged by the motion since
+    /// (see `is_stale`).
+    repeat_since: Option<RepeatStart>,
+    /// The corrections GNSS updates made since `repeat_since` (NED, m and
+    /// m/s): Σ δp, Σ δv and Σ δv·(t − t_since), so that at T they moved
+    /// the solution by Σ δp + Σ δv·(T − t_since) − Σ δv·(t − t_since).
+    repeat_corrections: [Vector3<f64>; 3],
     /// The smallest nonzero change between consecutive fix positions seen
     /// so far, per axis (m, NED): the resolution the receiver writes at,
     /// or coarser (see `is_stale`).
@@ -363,16 +424,49 @@ impl GnssSource {
         if self.is_stale(core, fix) {
             return Ok(());
         }
+        if self.last_fix.is_some_and(|(_, p)| p == fix.pos) {
+            self.repeats_used += 1;
+        }
         match core.cfg.gnss_weighting {
             GnssWeighting::Robust(rw) => self.robust_gnss_update(core, fix, &rw)?,
             GnssWeighting::Off | GnssWeighting::Gate { .. } => self.gated_gnss_update(core, fix)?,
         }
         self.note_position_step(core, fix);
         if self.last_fix.is_none_or(|(_, p)| p != fix.pos) {
-            self.repeat_since = Some((fix.time, core.nav.pos));
+            self.repeat_since = Some(RepeatStart {
+                time: fix.time,
+                nav_pos: core.nav.pos,
+                drift_var_poly: free_drift_variance(core),
+            });
+            self.repeat_corrections = [Vector3::zeros(); 3];
+            self.repeats_used = 0;
         }
         self.last_fix = Some((fix.time, fix.pos));
         Ok(())
+    }
+
+    /// Prepares a rollback's re-run: the repeats of the position first
+    /// written at `since`, up to the one at `until`, are stale.
+    pub(in crate::fusion) fn replay_stale(&mut self, since: GpsTime, until: GpsTime) {
+        self.replay_stale = Some((since, until));
+    }
+
+    /// Adds an update's position and velocity corrections to
+    /// `repeat_corrections` (error-state convention: the state moved by
+    /// −dx).
+    fn note_correction(&mut self, time: GpsTime, dx: &[f64]) {
+        let Some(start) = self.repeat_since else {
+            return;
+        };
+        if dx.len() < idx::VEL + 3 {
+            return;
+        }
+        let dp = -Vector3::new(dx[idx::POS], dx[idx::POS + 1], dx[idx::POS + 2]);
+        let dv = -Vector3::new(dx[idx::VEL], dx[idx::VEL + 1], dx[idx::VEL + 2]);
+        let [p, v, vt] = &mut self.repeat_corrections;
+        *p += dp;
+        *v += dv;
+        *vt += dv * time.seconds_since(start.time);
     }
 
     /// Keeps the smallest nonzero change of each position axis between
@@ -397,36 +491,62 @@ impl GnssSource {
         }
     }
 
-    /// How far the solution may move between two fixes whose positions are
-    /// identical to the last bit before the second is a stale repeat (m).
-    /// A receiver that measured again writes a new position unless the
-    /// antenna stayed within a cell of the resolution it writes at. The
-    /// bound: twice that cell's diagonal (the smallest change seen per
-    /// axis), or 5 σ of the INS's velocity times the interval if larger,
-    /// kept within 0.1 m (twice the monitor's 5 cm fix floor) and the
-    /// old 1 m. Before every axis has changed once the resolution is
-    /// unknown: 1 m.
-    fn stale_motion_bound_m(&self, core: &Core, dt_s: f64) -> f64 {
+    /// How far the antenna may move without the receiver writing a new
+    /// position (m): twice the diagonal of the cell of the resolution it
+    /// writes at (the smallest change seen per axis), kept within 0.1 m
+    /// (twice the monitor's 5 cm fix floor) and 1 m. Before every axis has
+    /// changed once the resolution is unknown: 1 m.
+    fn resolution_bound_m(&self) -> f64 {
         let [Some(n), Some(e), Some(d)] = self.position_step_m else {
             return 1.0;
         };
         let cell = (n * n + e * e + d * d).sqrt();
+        (2.0 * cell).clamp(2.0 * super::integrity::FIX_CHANGE_FLOOR_M, 1.0)
+    }
+
+    /// How far the solution may move between two fixes whose positions are
+    /// identical to the last bit before the second is a stale repeat (m):
+    /// the receiver's resolution (`resolution_bound_m`), or 5 σ of the
+    /// INS's velocity times the interval if larger, at most 1 m.
+    fn stale_motion_bound_m(&self, core: &Core, dt_s: f64) -> f64 {
         let f = &core.filter;
         let vel_var: f64 = (0..3).map(|i| f.sd(idx::VEL + i).powi(2)).sum();
         let ins = 5.0 * vel_var.sqrt() * dt_s.max(0.0);
         // (f64::max drops a NaN: the bound stays finite.)
-        (2.0 * cell)
-            .max(ins)
-            .clamp(2.0 * super::integrity::FIX_CHANGE_FLOOR_M, 1.0)
+        self.resolution_bound_m().max(ins.min(1.0))
+    }
+
+    /// How far the INS running free could have drifted in `dt_s` since a
+    /// run of repeats began (m): 5 σ of its predicted position error, the
+    /// variance λ Σ cₖ tᵏ from its covariance then (`free_drift_variance`),
+    /// λ the robust weighting's overconfidence scale.
+    fn free_drift_bound_m(&self, start: &RepeatStart, dt_s: f64) -> f64 {
+        let t = dt_s.max(0.0);
+        let var = start
+            .drift_var_poly
+            .iter()
+            .rev()
+            .fold(0.0, |acc, c| acc * t + c);
+        5.0 * (self.overconfidence_scale() * var.max(0.0)).sqrt()
     }
 
     /// A fix whose position repeats the previous fix's to the last bit
-    /// while the solution moved more than the receiver's resolution and
-    /// the INS's error allow (`stale_motion_bound_m`, at most 1 m) since
-    /// that position was first written: a receiver repeating a stale
-    /// output. Reported and skipped. (Measured from the previous fix only,
-    /// the repeats of a receiver at 10 Hz as its vehicle pulled away each
-    /// moved less than the bound, and all were used.)
+    /// while, since that position was first written, either the solution
+    /// moved more than the receiver's resolution and the INS's error allow
+    /// (`stale_motion_bound_m`, at most 1 m), or the INS's own motion (the
+    /// solution's less what the GNSS updates moved it) went past that and
+    /// past the drift the INS could have made free (`free_drift_bound_m`)
+    /// times the onset test's calibration: a receiver repeating a stale
+    /// output. Reported and skipped. (Used, the repeats of a receiver as
+    /// its vehicle pulls away hold the solution within centimetres of the
+    /// repeated position, so its motion alone misses them. The INS's own
+    /// motion needs the calibration: while the filter's σ settle, or with
+    /// another IMU's figures, an INS at rest under a receiver's static
+    /// hold runs past its model's drift within a second; judged by it
+    /// uncalibrated, the repeats were refused and the INS ran 1 km off.)
+    /// When repeats of the run were used before, offline, the filter
+    /// returns to its state before them and runs again with the whole run
+    /// stale (`rollback.rs`).
     fn is_stale(&mut self, core: &mut Core, fix: &GnssFix) -> bool {
         let Some((_, prev_pos)) = self.last_fix else {
             return false;
@@ -434,20 +554,44 @@ impl GnssSource {
         if prev_pos != fix.pos {
             return false;
         }
-        let Some((prev_time, prev_nav)) = self.repeat_since else {
+        let Some(start) = self.repeat_since else {
             return false;
         };
+        let dt_s = fix.time.seconds_since(start.time);
         let le = LocalEarth::new(&core.nav.pos, &core.nav.vel);
-        let moved = le
-            .geodetic_delta_to_ned(
-                core.nav.pos.lat_rad - prev_nav.lat_rad,
-                core.nav.pos.lon_rad - prev_nav.lon_rad,
-                core.nav.pos.h_m - prev_nav.h_m,
+        let solution_moved = le.geodetic_delta_to_ned(
+            core.nav.pos.lat_rad - start.nav_pos.lat_rad,
+            core.nav.pos.lon_rad - start.nav_pos.lon_rad,
+            core.nav.pos.h_m - start.nav_pos.h_m,
+        );
+        let [dp, dv, dvt] = self.repeat_corrections;
+        let own_moved = (solution_moved - (dp + dv * dt_s - dvt)).norm();
+        let solution_moved = solution_moved.norm();
+        let bound = self.stale_motion_bound_m(core, dt_s);
+        let replayed = match self.replay_stale {
+            Some((_, until)) if fix.time > until => {
+                self.replay_stale = None;
+                false
+            }
+            Some((since, _)) => since == start.time,
+            None => false,
+        };
+        let what = if replayed {
+            "a later repeat was found stale (the run is left out up to it)".to_string()
+        } else if solution_moved > bound {
+            format!("the solution moved {solution_moved:.2} m")
+        } else if let Some(scale) = self.monitor.drift_test_scale()
+            && own_moved
+                > self
+                    .resolution_bound_m()
+                    .max(scale.sqrt() * self.free_drift_bound_m(&start, dt_s))
+        {
+            format!(
+                "the INS moved {own_moved:.2} m on its own (more than it could drift; the fixes held the solution within {solution_moved:.2} m)"
             )
-            .norm();
-        if moved <= self.stale_motion_bound_m(core, fix.time.seconds_since(prev_time)) {
+        } else {
             return false;
-        }
+        };
         self.counts.stale += 1;
         self.monitor.note_stale(fix.time);
         core.propagate();
@@ -463,9 +607,20 @@ impl GnssSource {
         );
         core.fix_log.push(record);
         core.notes.push(format!(
-            "GNSS fix at {} repeats the previous fix's position while the solution moved {moved:.2} m: a stale receiver output; ignored",
-            fix.time
+            "GNSS fix at {} repeats the position first written at {} while {what}: a stale receiver output; ignored",
+            fix.time, start.time
         ));
+        if self.repeats_used > 0 && self.monitor.onset_enabled && core.rollback_to.is_none() {
+            core.notes.push(format!(
+                "GNSS fix at {}: the {} repeats used since {} were stale too; the filter returns to its state before them and runs again without them",
+                fix.time, self.repeats_used, start.time
+            ));
+            core.rollback_to = Some(Rollback::Stale {
+                since: start.time,
+                until: fix.time,
+            });
+            self.repeats_used = 0;
+        }
         true
     }
 
@@ -479,6 +634,9 @@ impl GnssSource {
             self.gate
         };
         let outcome = core.apply(&obs, gate, &frozen)?;
+        if outcome.accepted {
+            self.note_correction(fix.time, &outcome.dx);
+        }
         let mut record = FixRecord {
             time: fix.time,
             sow: fix.time.sow(),
@@ -510,7 +668,8 @@ impl GnssSource {
                         fix.time, outcome.nis, threshold, factor
                     ));
                     core.filter.inflate(factor);
-                    core.apply(&obs, None, &frozen)?;
+                    let outcome = core.apply(&obs, None, &frozen)?;
+                    self.note_correction(fix.time, &outcome.dx);
                     self.counts.fixes_accepted_consistent += 1;
                     self.last_drift_accept = Some(fix.time);
                 }
@@ -554,7 +713,9 @@ impl GnssSource {
         if core.cfg.use_gnss_velocity
             && let Some(obs) = Self::velocity_obs(core, fix)
         {
-            if core.apply(&obs, self.gate, &frozen)?.accepted {
+            let outcome = core.apply(&obs, self.gate, &frozen)?;
+            if outcome.accepted {
+                self.note_correction(fix.time, &outcome.dx);
                 self.counts.velocity_used += 1;
             } else {
                 self.counts.velocity_rejected += 1;
@@ -796,6 +957,7 @@ impl GnssSource {
         if outcome.accepted {
             self.monitor
                 .record_correction(time, &outcome.dx, idx::POS, idx::VEL);
+            self.note_correction(time, &outcome.dx);
         }
         record.hpl_m = protection_level(core, ins_scale);
         // Posterior residual z⁺ = R' S⁻¹ z and H P⁺ Hᵀ = HPHᵀ S⁻¹ R'.
@@ -872,7 +1034,10 @@ impl GnssSource {
                 // Excluded here; the wrapper returns to the state after
                 // `anchor` and runs again without the ramp's fixes.
                 self.exclude(core, obs, &s, time, FaultReason::Ramp, lambda);
-                core.rollback_to = Some((anchor, time));
+                core.rollback_to = Some(Rollback::Ramp {
+                    anchor,
+                    onset: time,
+                });
                 core.notes.push(format!(
                     "GNSS fix at {time} excluded by the integrity monitor (ramp: {offset_m:.3} m from the INS carried from the clean fix at {anchor}, beyond its drift since); the filter returns to its state after that fix and runs again without the fixes since"
                 ));
@@ -1197,6 +1362,59 @@ fn state_spread(core: &Core) -> StateSpread {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::types::{ImuNoise, InitialStd};
+    use std::sync::Arc;
+
+    /// The free INS's displacement-error variance from a known covariance:
+    /// level and heading north, f = (0, 0, −g), so a tilt φ gives an
+    /// acceleration error (g φ_E, −g φ_N, 0) and a bias δb_a gives −δb_a;
+    /// its position error does not enter a displacement. With the tilt and
+    /// the bias correlated as a standstill leaves them (g φ_E = δb_a,x),
+    /// their errors cancel on that axis.
+    #[test]
+    fn free_drift_variance_is_the_second_order_error_growth() {
+        let g = crate::earth::gravity(0.0, 0.0);
+        let nav = NavState {
+            time: GpsTime::from_week_sow(2300, 1000.0),
+            pos: Geodetic::from_deg(0.0, 0.0, 0.0),
+            vel: Vector3::zeros(),
+            q_nb: nalgebra::UnitQuaternion::identity(),
+        };
+        let (sd_v, sd_att, sd_ba) = (0.1, 0.01, 1e-3);
+        let std = InitialStd {
+            pos: Vector3::repeat(1.0),
+            vel: Vector3::repeat(sd_v),
+            att: Vector3::repeat(sd_att),
+            gyro_bias: Vector3::repeat(1e-5),
+            accel_bias: Vector3::repeat(sd_ba),
+            gyro_scale: Vector3::repeat(1e-4),
+            accel_scale: Vector3::repeat(1e-4),
+        };
+        let noise = ImuNoise {
+            arw: Vector3::repeat(1e-5),
+            vrw: Vector3::repeat(1e-4),
+            gyro_bias_sd: Vector3::repeat(1e-6),
+            accel_bias_sd: Vector3::repeat(1e-5),
+            gyro_scale_sd: Vector3::repeat(1e-5),
+            accel_scale_sd: Vector3::repeat(1e-5),
+            corr_time_s: 3600.0,
+        };
+        let mut core = Core::new(Arc::new(FusionConfig::new(nav, std, noise, 200.0)));
+        let c = free_drift_variance(&core);
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1e-12);
+        assert_eq!((c[0], c[1], c[3]), (0.0, 0.0, 0.0), "{c:?}");
+        assert!(close(c[2], 3.0 * sd_v * sd_v), "{c:?}");
+        let accel_var = 2.0 * (g * sd_att).powi(2) + 3.0 * sd_ba * sd_ba;
+        assert!(close(c[4], accel_var / 4.0), "{c:?}");
+        // Tilt east and the x bias tied: σ_b = g σ_φ, correlation 1.
+        let p = core.filter.covariance_mut();
+        p.set(idx::BA, idx::BA, (g * sd_att).powi(2));
+        p.set(idx::ATT + 1, idx::BA, g * sd_att * sd_att);
+        p.set(idx::BA, idx::ATT + 1, g * sd_att * sd_att);
+        let c = free_drift_variance(&core);
+        let accel_var = (g * sd_att).powi(2) + 2.0 * sd_ba * sd_ba;
+        assert!(close(c[4], accel_var / 4.0), "{c:?}");
+    }
 
     /// The INS overconfidence scale: the median moment ratio of fixes
     /// sharper than the INS after a gap, from the fixes before.

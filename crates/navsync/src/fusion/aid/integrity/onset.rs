@@ -115,6 +115,13 @@ impl FaultMonitor {
         None
     }
 
+    /// The onset test's calibration: the measured 95th percentile of its
+    /// statistic on clean fixes over χ²₃'s (a variance ratio, at least 1),
+    /// once enough clean fixes were seen (see [`Self::ramp_onset`]).
+    pub(in crate::fusion) fn drift_test_scale(&self) -> Option<f64> {
+        self.onset_scale
+    }
+
     /// The time of the last clean anchor.
     pub(in crate::fusion) fn last_anchor_time(&self) -> Option<GpsTime> {
         self.anchors.back().map(|a| a.time)
