@@ -36,9 +36,16 @@ fn horizontal_m(a: &[String], b: &[String]) -> f64 {
 /// Fuses `dir/gnss.txt` with the drive's IMU (its kf-gins.yaml, written
 /// to `dir` with absolute paths) into `dir/fused`.
 fn fuse_in(sim: &Path, dir: &Path) {
-    let cfg = std::fs::read_to_string(sim.join("kf-gins.yaml"))
+    fuse_with(&sim.join("kf-gins.yaml"), &sim.join("imu.txt"), dir);
+}
+
+/// `fuse` of `dir/gnss.txt` and `imu` with the configuration `cfg` (a
+/// simulation's `kf-gins.yaml`, written to `dir` with absolute paths)
+/// into `dir/fused`.
+fn fuse_with(cfg: &Path, imu: &Path, dir: &Path) {
+    let cfg = std::fs::read_to_string(cfg)
         .unwrap()
-        .replace("./imu.txt", &sim.join("imu.txt").display().to_string())
+        .replace("./imu.txt", &imu.display().to_string())
         .replace("./gnss.txt", &dir.join("gnss.txt").display().to_string());
     std::fs::write(dir.join("kf-gins.yaml"), cfg).unwrap();
     let (ok, _, err) = run(bin()
@@ -363,21 +370,7 @@ fn a_static_hold_under_an_overconfident_ins_is_not_stale() {
         std::fs::create_dir_all(&run_dir).unwrap();
         let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
         std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
-        let cfg = std::fs::read_to_string(adis.join("kf-gins.yaml"))
-            .unwrap()
-            .replace("./imu.txt", &icm.join("imu.txt").display().to_string())
-            .replace(
-                "./gnss.txt",
-                &run_dir.join("gnss.txt").display().to_string(),
-            );
-        std::fs::write(run_dir.join("kf-gins.yaml"), cfg).unwrap();
-        let (ok, _, err) = run(bin()
-            .arg("fuse")
-            .arg("--config")
-            .arg(run_dir.join("kf-gins.yaml"))
-            .arg("--output")
-            .arg(run_dir.join("fused")));
-        assert!(ok, "{err}");
+        fuse_with(&adis.join("kf-gins.yaml"), &icm.join("imu.txt"), &run_dir);
         horizontal_rms(
             &icm.join("truth.nav"),
             &run_dir.join("fused/navresult.nav"),

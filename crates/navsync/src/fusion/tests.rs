@@ -1,7 +1,7 @@
 use super::*;
 use crate::testutil::TurningAtRest;
 
-fn setup(latency: LatencyMode) -> (TurningAtRest, FusionConfig) {
+pub(super) fn setup(latency: LatencyMode) -> (TurningAtRest, FusionConfig) {
     let m = TurningAtRest {
         pos: Geodetic::from_deg(30.4, 114.5, 25.0),
         yaw0_rad: 0.3,

@@ -1362,44 +1362,23 @@ fn state_spread(core: &Core) -> StateSpread {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::types::{ImuNoise, InitialStd};
     use std::sync::Arc;
 
-    /// The free INS's displacement-error variance from a known covariance:
-    /// level and heading north, f = (0, 0, −g), so a tilt φ gives an
-    /// acceleration error (g φ_E, −g φ_N, 0) and a bias δb_a gives −δb_a;
-    /// its position error does not enter a displacement. With the tilt and
-    /// the bias correlated as a standstill leaves them (g φ_E = δb_a,x),
-    /// their errors cancel on that axis.
+    /// The free INS's displacement-error variance from a known covariance
+    /// (the fusion tests' initial σ: velocity 0.1 m/s, tilt 0.01 rad,
+    /// accelerometer bias 1 mm/s², uncorrelated): level and heading north,
+    /// f = (0, 0, −g), so a tilt φ gives an acceleration error
+    /// (g φ_E, −g φ_N, 0) and a bias δb_a gives −δb_a; its position error
+    /// does not enter a displacement. With the tilt and the bias
+    /// correlated as a standstill leaves them (g φ_E = δb_a,x), their
+    /// errors cancel on that axis.
     #[test]
     fn free_drift_variance_is_the_second_order_error_growth() {
-        let g = crate::earth::gravity(0.0, 0.0);
-        let nav = NavState {
-            time: GpsTime::from_week_sow(2300, 1000.0),
-            pos: Geodetic::from_deg(0.0, 0.0, 0.0),
-            vel: Vector3::zeros(),
-            q_nb: nalgebra::UnitQuaternion::identity(),
-        };
+        let (_, cfg) = crate::fusion::tests::setup(LatencyMode::Offline);
+        let mut core = Core::new(Arc::new(cfg));
+        core.nav.q_nb = nalgebra::UnitQuaternion::identity();
+        let g = crate::earth::gravity(core.nav.pos.lat_rad.sin(), core.nav.pos.h_m);
         let (sd_v, sd_att, sd_ba) = (0.1, 0.01, 1e-3);
-        let std = InitialStd {
-            pos: Vector3::repeat(1.0),
-            vel: Vector3::repeat(sd_v),
-            att: Vector3::repeat(sd_att),
-            gyro_bias: Vector3::repeat(1e-5),
-            accel_bias: Vector3::repeat(sd_ba),
-            gyro_scale: Vector3::repeat(1e-4),
-            accel_scale: Vector3::repeat(1e-4),
-        };
-        let noise = ImuNoise {
-            arw: Vector3::repeat(1e-5),
-            vrw: Vector3::repeat(1e-4),
-            gyro_bias_sd: Vector3::repeat(1e-6),
-            accel_bias_sd: Vector3::repeat(1e-5),
-            gyro_scale_sd: Vector3::repeat(1e-5),
-            accel_scale_sd: Vector3::repeat(1e-5),
-            corr_time_s: 3600.0,
-        };
-        let mut core = Core::new(Arc::new(FusionConfig::new(nav, std, noise, 200.0)));
         let c = free_drift_variance(&core);
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1e-12);
         assert_eq!((c[0], c[1], c[3]), (0.0, 0.0, 0.0), "{c:?}");
