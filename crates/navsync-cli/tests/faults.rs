@@ -24,6 +24,14 @@ fn fix_lines(path: &Path) -> Vec<Vec<String>> {
         .collect()
 }
 
+/// Writes fix lines (as [`fix_lines`] reads them) to `dir/gnss.txt`,
+/// creating `dir`.
+fn write_fixes(dir: &Path, fixes: &[Vec<String>]) {
+    std::fs::create_dir_all(dir).unwrap();
+    let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
+    std::fs::write(dir.join("gnss.txt"), text).unwrap();
+}
+
 /// The horizontal distance (m, spherical earth) between two fix lines.
 fn horizontal_m(a: &[String], b: &[String]) -> f64 {
     let f = |s: &String| s.parse::<f64>().unwrap();
@@ -187,9 +195,7 @@ fn a_repeat_as_the_vehicle_pulls_away_is_stale_and_a_coarse_receiver_at_rest_is_
     assert!(moved < 1.0, "pulls away by {moved} m");
     let fuse = |name: &str, fixes: &[Vec<String>]| {
         let run_dir = dir.join(name);
-        std::fs::create_dir_all(&run_dir).unwrap();
-        let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
-        std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
+        write_fixes(&run_dir, fixes);
         fuse_in(&sim, &run_dir);
         read(&run_dir.join("fused/gnss_residuals.txt"))
             .lines()
@@ -254,9 +260,7 @@ fn repeats_at_10_hz_as_the_vehicle_pulls_away_are_stale() {
         fix[0] = time;
     }
     let run_dir = dir.join("repeat");
-    std::fs::create_dir_all(&run_dir).unwrap();
-    let text: String = repeated.iter().map(|f| f.join(" ") + "\n").collect();
-    std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
+    write_fixes(&run_dir, &repeated);
     fuse_in(&sim, &run_dir);
     let stale: Vec<i64> = read(&run_dir.join("fused/gnss_residuals.txt"))
         .lines()
@@ -302,9 +306,7 @@ fn repeats_from_rest_as_the_vehicle_pulls_away_leave_the_solution_on_track() {
     );
     let write = |name: &str, fixes: &[Vec<String>]| {
         let run_dir = dir.join(name);
-        std::fs::create_dir_all(&run_dir).unwrap();
-        let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
-        std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
+        write_fixes(&run_dir, fixes);
         fuse_in(&sim, &run_dir);
         horizontal_rms(
             &sim.join("truth.nav"),
@@ -367,9 +369,7 @@ fn a_static_hold_under_an_overconfident_ins_is_not_stale() {
     }
     let fuse = |name: &str, fixes: &[Vec<String>]| {
         let run_dir = dir.join(name);
-        std::fs::create_dir_all(&run_dir).unwrap();
-        let text: String = fixes.iter().map(|f| f.join(" ") + "\n").collect();
-        std::fs::write(run_dir.join("gnss.txt"), text).unwrap();
+        write_fixes(&run_dir, fixes);
         fuse_with(&adis.join("kf-gins.yaml"), &icm.join("imu.txt"), &run_dir);
         horizontal_rms(
             &icm.join("truth.nav"),

@@ -19,8 +19,8 @@
 //! the INS's drift and used, and they drag its velocity and biases to a
 //! stop until the INS's own motion shows them stale (`aid::gnss`). The
 //! re-run returns to the state at or before the position's first write
-//! and leaves the run's repeats out (stale): a repeat carries no
-//! measurement the first write did not.
+//! and leaves the run's repeats out (stale) up to the one found stale: a
+//! repeat carries no measurement the first write did not.
 //!
 //! The solutions already returned stay as they were (a causal filter
 //! cannot take back what it output); the state from now on, the smoother's
@@ -120,7 +120,8 @@ impl Fusion {
 
     /// Returns to the newest state stored after a clean fix at or before
     /// the ramp's anchor (the stale run's first write) and runs the
-    /// samples since again, the ramp's fixes (the run's repeats) excluded.
+    /// samples since again, the ramp's fixes (the run's repeats up to the
+    /// one found stale) excluded.
     /// Without such a state (it was not kept), nothing is done: the
     /// episode stands, without the rollback.
     fn roll_back(&mut self, rollback: Rollback) -> Result<(), Error> {

@@ -201,25 +201,25 @@ struct RepeatStart {
     time: GpsTime,
     /// The solution after the first fix of the run.
     nav_pos: Geodetic,
-    /// The INS's predicted position error variance running free from
-    /// then, as a polynomial in the time since, Σ cₖ tᵏ (m², k = 0..4):
-    /// see [`free_drift_variance`].
-    drift_var_poly: [f64; 5],
+    /// The INS's predicted displacement-error variance running free from
+    /// then, t² (c₂ + c₃ t + c₄ t²) in the time t since (m²): see
+    /// [`free_drift_variance`].
+    drift_var_coeffs: [f64; 3],
 }
 
 /// The variance (summed over the axes, m²) of the error in the distance
-/// an INS running free from now would travel in t s, Σ cₖ tᵏ: to second
-/// order, δp(t) − δp(0) = δv t + (f×φ − C δb_a) t²/2 (the velocity error
+/// an INS running free from now would travel in t s, t² (c₂ + c₃ t +
+/// c₄ t²), as [c₂, c₃, c₄]: to second order, δp(t) − δp(0) = δv t + (f×φ − C δb_a) t²/2 (the velocity error
 /// equation of `filter::model`; Groves, *Principles of GNSS, Inertial, and
 /// Multisensor Integrated Navigation Systems*, 2nd ed., §14.2), so with
 /// A(t) = A₁ t + A₂ t²/2 the variance is tr(A P Aᵀ) over the
 /// filter's covariance with its correlations (at a standstill tilt and
 /// accelerometer bias cancel: their sum is well known while each alone
 /// is not). The specific force is taken as gravity's reaction.
-fn free_drift_variance(core: &Core) -> [f64; 5] {
+fn free_drift_variance(core: &Core) -> [f64; 3] {
     use idx::{ATT, BA, VEL};
     if core.filter.n() < BA + 3 {
-        return [0.0; 5];
+        return [0.0; 3];
     }
     let p = core.filter.covariance();
     let g = crate::earth::gravity(core.nav.pos.lat_rad.sin(), core.nav.pos.h_m);
@@ -232,8 +232,6 @@ fn free_drift_variance(core: &Core) -> [f64; 5] {
     };
     let a2_p_a2 = attitude_to_accel * p_a2(ATT) + bias_to_accel * p_a2(BA);
     [
-        0.0,
-        0.0,
         p.block3(VEL, VEL).trace(),
         p_a2(VEL).trace(),
         a2_p_a2.trace() / 4.0,
@@ -272,6 +270,8 @@ pub(in crate::fusion) struct GnssSource {
     repeats_used: usize,
     /// A rollback's re-run: the repeats of the position first written at
     /// the first time, up to the second (the one found stale), are stale.
+    /// (Set before the re-run writes that position again: kept until the
+    /// next rollback.)
     /// After it, repeats are judged again: a receiver in static hold at
     /// rest under an INS with another IMU's figures was found stale after
     /// 3 s, and refusing the rest of its 7 s hold left the INS free at rest
@@ -436,7 +436,7 @@ impl GnssSource {
             self.repeat_since = Some(RepeatStart {
                 time: fix.time,
                 nav_pos: core.nav.pos,
-                drift_var_poly: free_drift_variance(core),
+                drift_var_coeffs: free_drift_variance(core),
             });
             self.repeat_corrections = [Vector3::zeros(); 3];
             self.repeats_used = 0;
@@ -458,11 +458,9 @@ impl GnssSource {
         let Some(start) = self.repeat_since else {
             return;
         };
-        if dx.len() < idx::VEL + 3 {
+        let Some((dp, dv)) = super::integrity::state_change(dx, idx::POS, idx::VEL) else {
             return;
-        }
-        let dp = -Vector3::new(dx[idx::POS], dx[idx::POS + 1], dx[idx::POS + 2]);
-        let dv = -Vector3::new(dx[idx::VEL], dx[idx::VEL + 1], dx[idx::VEL + 2]);
+        };
         let [p, v, vt] = &mut self.repeat_corrections;
         *p += dp;
         *v += dv;
@@ -517,16 +515,14 @@ impl GnssSource {
     }
 
     /// How far the INS running free could have drifted in `dt_s` since a
-    /// run of repeats began (m): 5 σ of its predicted position error, the
-    /// variance λ Σ cₖ tᵏ from its covariance then (`free_drift_variance`),
-    /// λ the robust weighting's overconfidence scale.
+    /// run of repeats began (m): 5 σ of its predicted displacement error,
+    /// the variance λ t² (c₂ + c₃ t + c₄ t²) from its covariance then
+    /// (`free_drift_variance`), λ the robust weighting's overconfidence
+    /// scale.
     fn free_drift_bound_m(&self, start: &RepeatStart, dt_s: f64) -> f64 {
         let t = dt_s.max(0.0);
-        let var = start
-            .drift_var_poly
-            .iter()
-            .rev()
-            .fold(0.0, |acc, c| acc * t + c);
+        let [c2, c3, c4] = start.drift_var_coeffs;
+        let var = t * t * (c2 + t * (c3 + t * c4));
         5.0 * (self.overconfidence_scale() * var.max(0.0)).sqrt()
     }
 
@@ -545,8 +541,8 @@ impl GnssSource {
     /// hold runs past its model's drift within a second; judged by it
     /// uncalibrated, the repeats were refused and the INS ran 1 km off.)
     /// When repeats of the run were used before, offline, the filter
-    /// returns to its state before them and runs again with the whole run
-    /// stale (`rollback.rs`).
+    /// returns to its state before them and runs again with the run stale
+    /// up to this repeat (`rollback.rs`).
     fn is_stale(&mut self, core: &mut Core, fix: &GnssFix) -> bool {
         let Some((_, prev_pos)) = self.last_fix else {
             return false;
@@ -568,14 +564,9 @@ impl GnssSource {
         let own_moved = (solution_moved - (dp + dv * dt_s - dvt)).norm();
         let solution_moved = solution_moved.norm();
         let bound = self.stale_motion_bound_m(core, dt_s);
-        let replayed = match self.replay_stale {
-            Some((_, until)) if fix.time > until => {
-                self.replay_stale = None;
-                false
-            }
-            Some((since, _)) => since == start.time,
-            None => false,
-        };
+        let replayed = self
+            .replay_stale
+            .is_some_and(|(since, until)| since == start.time && fix.time <= until);
         let what = if replayed {
             "a later repeat was found stale (the run is left out up to it)".to_string()
         } else if solution_moved > bound {
@@ -1381,10 +1372,10 @@ mod tests {
         let (sd_v, sd_att, sd_ba) = (0.1, 0.01, 1e-3);
         let c = free_drift_variance(&core);
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1e-12);
-        assert_eq!((c[0], c[1], c[3]), (0.0, 0.0, 0.0), "{c:?}");
-        assert!(close(c[2], 3.0 * sd_v * sd_v), "{c:?}");
+        assert_eq!(c[1], 0.0, "{c:?}");
+        assert!(close(c[0], 3.0 * sd_v * sd_v), "{c:?}");
         let accel_var = 2.0 * (g * sd_att).powi(2) + 3.0 * sd_ba * sd_ba;
-        assert!(close(c[4], accel_var / 4.0), "{c:?}");
+        assert!(close(c[2], accel_var / 4.0), "{c:?}");
         // Tilt east and the x bias tied: σ_b = g σ_φ, correlation 1.
         let p = core.filter.covariance_mut();
         p.set(idx::BA, idx::BA, (g * sd_att).powi(2));
@@ -1392,7 +1383,7 @@ mod tests {
         p.set(idx::BA, idx::ATT + 1, g * sd_att * sd_att);
         let c = free_drift_variance(&core);
         let accel_var = (g * sd_att).powi(2) + 2.0 * sd_ba * sd_ba;
-        assert!(close(c[4], accel_var / 4.0), "{c:?}");
+        assert!(close(c[2], accel_var / 4.0), "{c:?}");
     }
 
     /// The INS overconfidence scale: the median moment ratio of fixes

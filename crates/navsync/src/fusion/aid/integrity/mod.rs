@@ -403,6 +403,23 @@ pub(in crate::fusion) struct FaultMonitor {
     gap_end: Option<GpsTime>,
 }
 
+/// What an update's correction `dx` moved the position (at `pos`) and
+/// the velocity (at `vel`) by (error-state convention: the state moves by
+/// −dx); none when `dx` is shorter.
+pub(in crate::fusion) fn state_change(
+    dx: &[f64],
+    pos: usize,
+    vel: usize,
+) -> Option<(Vector3<f64>, Vector3<f64>)> {
+    if dx.len() < pos.max(vel) + 3 {
+        return None;
+    }
+    Some((
+        -Vector3::new(dx[pos], dx[pos + 1], dx[pos + 2]),
+        -Vector3::new(dx[vel], dx[vel + 1], dx[vel + 2]),
+    ))
+}
+
 impl FaultMonitor {
     pub(in crate::fusion) fn new(vrw: f64) -> Self {
         FaultMonitor {
@@ -431,15 +448,15 @@ impl FaultMonitor {
         pos: usize,
         vel: usize,
     ) {
-        if dx.len() < pos.max(vel) + 3 {
+        let Some((dpos, dvel)) = state_change(dx, pos, vel) else {
             return;
-        }
+        };
         self.seq += 1;
         self.ledger.push_back(Correction {
             time,
             seq: self.seq,
-            dpos: -Vector3::new(dx[pos], dx[pos + 1], dx[pos + 2]),
-            dvel: -Vector3::new(dx[vel], dx[vel + 1], dx[vel + 2]),
+            dpos,
+            dvel,
         });
     }
 
