@@ -513,6 +513,9 @@ impl Core {
                 .standstill
                 .detect(&f_n, &self.last_w_ib, &self.imu.gyro_bias, dt, speed);
         }
+        if let Some(free) = self.aid.gnss.free_ins.as_mut() {
+            free.step(dtheta, dvel, dt);
+        }
         let step = self.mech.step(&mut self.nav, &inc);
         self.filter.accumulate(&step);
         self.kin.push(&step);

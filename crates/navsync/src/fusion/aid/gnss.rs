@@ -207,6 +207,29 @@ struct RepeatStart {
     drift_var_coeffs: [f64; 3],
 }
 
+/// An INS running free from a repeat run's first write, on the IMU
+/// samples alone with the biases and scale factors estimated then: where
+/// the antenna went if the repeats were stale (see `judge_run_end`).
+#[derive(Clone)]
+pub(in crate::fusion) struct FreeIns {
+    nav: NavState,
+    imu: ImuErrors,
+    mech: Mechanization,
+}
+
+impl FreeIns {
+    /// Advances over one raw increment (`Core::integrate`).
+    pub(in crate::fusion) fn step(&mut self, dtheta: &Vector3<f64>, dvel: &Vector3<f64>, dt: f64) {
+        let inc = self.imu.compensate(dtheta, dvel, dt);
+        self.mech.step(&mut self.nav, &inc);
+    }
+}
+
+/// A run of repeats ended by a new position is judged stale when the new
+/// position is this many times closer to the free INS's antenna than to
+/// the repeated position (see `judge_run_end`).
+const RUN_END_RATIO: f64 = 4.0;
+
 /// The variance (summed over the axes, m²) of the error in the distance
 /// an INS running free from now would travel in t s, t² (c₂ + c₃ t +
 /// c₄ t²), as [c₂, c₃, c₄]: to second order, δp(t) − δp(0) = δv t + (f×φ − C δb_a) t²/2 (the velocity error
@@ -285,6 +308,9 @@ pub(in crate::fusion) struct GnssSource {
     /// m/s): Σ δp, Σ δv and Σ δv·(t − t_since), so that at T they moved
     /// the solution by Σ δp + Σ δv·(T − t_since) − Σ δv·(t − t_since).
     repeat_corrections: [Vector3<f64>; 3],
+    /// From the first repeat of the last position on: the INS running free
+    /// since that position was first written (see `judge_run_end`).
+    pub(in crate::fusion) free_ins: Option<FreeIns>,
     /// The smallest nonzero change between consecutive fix positions seen
     /// so far, per axis (m, NED): the resolution the receiver writes at,
     /// or coarser (see `is_stale`).
@@ -424,12 +450,25 @@ impl GnssSource {
         if self.is_stale(core, fix) {
             return Ok(());
         }
-        if self.last_fix.is_some_and(|(_, p)| p == fix.pos) {
-            self.repeats_used += 1;
+        let repeat = self.last_fix.is_some_and(|(_, p)| p == fix.pos);
+        if !repeat {
+            self.judge_run_end(core, fix);
+        } else if self.free_ins.is_none() {
+            // No update since the first write: the solution now is the INS
+            // run free from it.
+            self.free_ins = Some(FreeIns {
+                nav: core.nav,
+                imu: core.imu,
+                mech: core.mech.clone(),
+            });
         }
+        let used_before = self.counts.fixes_used;
         match core.cfg.gnss_weighting {
             GnssWeighting::Robust(rw) => self.robust_gnss_update(core, fix, &rw)?,
             GnssWeighting::Off | GnssWeighting::Gate { .. } => self.gated_gnss_update(core, fix)?,
+        }
+        if repeat && self.counts.fixes_used > used_before {
+            self.repeats_used += 1;
         }
         self.note_position_step(core, fix);
         if self.last_fix.is_none_or(|(_, p)| p != fix.pos) {
@@ -440,9 +479,62 @@ impl GnssSource {
             });
             self.repeat_corrections = [Vector3::zeros(); 3];
             self.repeats_used = 0;
+            self.free_ins = None;
         }
         self.last_fix = Some((fix.time, fix.pos));
         Ok(())
+    }
+
+    /// When a new position ends a run of repeats that were used: were they
+    /// stale? A receiver that repeats its position truly (a static hold, a
+    /// coarse resolution) does so while the antenna stays within a cell of
+    /// it, so the new position is near the repeated one; a stale output
+    /// repeats while the antenna goes on, and the new position is where
+    /// the IMU alone carried it from the first write (`FreeIns`). So the
+    /// run was stale when the new position left the repeated one by more
+    /// than the receiver's resolution and three σ of the two fixes, and is
+    /// [`RUN_END_RATIO`] times closer to the free INS's antenna: the
+    /// likelier hypothesis by far, with no model of the INS's drift needed
+    /// (the test the repeats themselves could not make while they held
+    /// the solution and dragged the INS to a stop: a receiver repeating
+    /// from rest as its vehicle pulls away). Offline, the filter returns to
+    /// its state before the run and runs again with the run stale
+    /// (`rollback.rs`).
+    fn judge_run_end(&mut self, core: &mut Core, fix: &GnssFix) {
+        let (Some(free), Some((last_time, repeated)), Some(start)) =
+            (self.free_ins.as_ref(), self.last_fix, self.repeat_since)
+        else {
+            return;
+        };
+        if self.repeats_used == 0 || !self.monitor.onset_enabled || core.rollback_to.is_some() {
+            return;
+        }
+        let le = LocalEarth::new(&fix.pos, &core.nav.vel);
+        let ned_from_fix = |p: &Geodetic| {
+            le.geodetic_delta_to_ned(
+                p.lat_rad - fix.pos.lat_rad,
+                p.lon_rad - fix.pos.lon_rad,
+                p.h_m - fix.pos.h_m,
+            )
+        };
+        let left_repeated_m = ned_from_fix(&repeated).norm();
+        let free_antenna = ned_from_fix(&free.nav.pos) + free.nav.q_nb * core.lever_b;
+        let from_free_m = free_antenna.norm();
+        let fix_sd_m = 3.0 * (2.0 * fix.pos_sd.norm_squared()).sqrt();
+        if !(left_repeated_m > self.resolution_bound_m().max(fix_sd_m)
+            && from_free_m * RUN_END_RATIO < left_repeated_m)
+        {
+            return;
+        }
+        core.notes.push(format!(
+            "GNSS fix at {}: the position repeated since {} was stale: the new one is {left_repeated_m:.2} m from it and {from_free_m:.2} m from where the IMU alone carried the antenna; the filter returns to its state before the {} repeats used and runs again without them",
+            fix.time, start.time, self.repeats_used
+        ));
+        core.rollback_to = Some(Rollback::Stale {
+            since: start.time,
+            until: last_time,
+        });
+        self.repeats_used = 0;
     }
 
     /// Prepares a rollback's re-run: the repeats of the position first
