@@ -58,7 +58,7 @@ use nalgebra::Matrix3;
 use crate::error::{Diagnostics, Error};
 use crate::filter::gnss::GnssFix;
 use crate::fusion::TimeOffsetState;
-use crate::fusion::{FixRecord, Fusion, FusionConfig, LatencyMode, NavOutput};
+use crate::fusion::{FixRecord, Fusion, FusionConfig, LatencyMode, NavOutput, Revised};
 use crate::ins::{ImuErrors, ImuSample, NavState};
 use crate::interp::NavInterpolator;
 use crate::io::riglog::{RigHeader, RigRecord};
@@ -153,6 +153,26 @@ struct RigFrontEnd {
     line: usize,
 }
 
+/// How long [`Navigator::with_revised_output`] holds solutions back (s):
+/// longer than the filter keeps the states a rollback returns to
+/// (`fusion::rollback`, 21 s, stored at most every 0.9 s).
+const HOLD_S: f64 = 25.0;
+
+/// The auxiliary line of a solution: all state σ, the position
+/// covariance (m², NED) and the time offset with its σ.
+pub(crate) type AuxLine = (Vec<f64>, Matrix3<f64>, Option<TimeOffsetState>);
+
+/// A solution held back before it is written (see
+/// [`Navigator::with_revised_output`]).
+struct Held {
+    nav: NavState,
+    imu: ImuErrors,
+    offset: Option<TimeOffsetState>,
+    aux: Option<AuxLine>,
+    /// The auxiliary schedule before this solution.
+    next_aux_before: Option<GpsTime>,
+}
+
 /// The streaming navigator: push GNSS fixes, speeds and IMU samples (or raw
 /// rig-log records); solutions come out through a [`NavSink`].
 pub struct Navigator {
@@ -173,6 +193,9 @@ pub struct Navigator {
     reduced_imu: Option<ReducedImu>,
     nominal_dt_s: f64,
     output: SolutionOutput,
+    /// With [`Self::with_revised_output`]: the solutions of the last
+    /// [`HOLD_S`] not yet written, oldest first.
+    held: Option<VecDeque<Held>>,
     /// The navigator's own counts (the output's are read from `output`:
     /// see [`Self::counts`]).
     counts: StreamCounts,
@@ -219,18 +242,46 @@ impl SolutionOutput {
         self.next_aux = self.aux_ns.map(|_| t);
     }
 
-    /// One solution at IMU time `nav.time` with the time offset `offset`.
-    /// `aux` gives all state σ, the position covariance and the time
-    /// offset with its σ when an auxiliary line is due (the filter
-    /// propagates its covariance for them). `false`: left out (GNSS time
-    /// stepped back).
+    /// Whether an auxiliary line is due with the solution at `t` (advancing
+    /// the schedule when it is).
+    pub(crate) fn take_aux_due(&mut self, t: GpsTime) -> bool {
+        let Some(na) = self.next_aux else {
+            return false;
+        };
+        if t < na {
+            return false;
+        }
+        self.next_aux = Some(match self.aux_ns {
+            Some(ns) if ns > 0 => na + ns,
+            _ => t,
+        });
+        true
+    }
+
+    /// The schedule as it was before [`Self::take_aux_due`] answered
+    /// `due` (to return to it: [`Self::set_next_aux`]).
+    fn aux_before(&self, due: bool) -> Option<GpsTime> {
+        match (self.next_aux, self.aux_ns) {
+            (Some(na), Some(ns)) if due && ns > 0 => Some(na + (-ns)),
+            (na, _) => na,
+        }
+    }
+
+    fn set_next_aux(&mut self, next: Option<GpsTime>) {
+        self.next_aux = next;
+    }
+
+    /// One solution at IMU time `nav.time` with the time offset `offset`,
+    /// and its auxiliary line when one is due ([`Self::take_aux_due`]):
+    /// all state σ, the position covariance and the time offset with its
+    /// σ. `false`: left out (GNSS time stepped back).
     pub(crate) fn write(
         &mut self,
         nav: &NavState,
         imu: &ImuErrors,
         offset: Option<TimeOffsetState>,
         sink: &mut dyn NavSink,
-        aux: impl FnOnce() -> (Vec<f64>, Matrix3<f64>, Option<TimeOffsetState>),
+        aux: Option<AuxLine>,
     ) -> Result<bool, Error> {
         // Solutions are on the IMU's time base; on request, move them to
         // GNSS time with the offset estimate (GNSS time = IMU time + τ̂).
@@ -255,16 +306,9 @@ impl SolutionOutput {
                 sink.nav_at(&at)?;
             }
         }
-        if let Some(na) = self.next_aux
-            && nav.time >= na
-        {
-            let (sd, p_pos, offset) = aux();
+        if let Some((sd, p_pos, offset)) = aux {
             sink.aux(nav.time, imu, &sd, offset)?;
             sink.position_covariance(nav.time, &p_pos)?;
-            self.next_aux = Some(match self.aux_ns {
-                Some(ns) if ns > 0 => na + ns,
-                _ => nav.time,
-            });
         }
         Ok(true)
     }
@@ -299,6 +343,7 @@ impl Navigator {
             reduced_imu: None,
             nominal_dt_s,
             output: SolutionOutput::new(false, Some(0.1), None),
+            held: None,
             counts: StreamCounts::default(),
             rig: None,
         }
@@ -312,6 +357,23 @@ impl Navigator {
     pub fn for_batch(mut self, lead_s: f64) -> Self {
         self.drop_fixes_before_start = true;
         self.fix_lead_ns = Some(seconds_to_ns(lead_s));
+        self
+    }
+
+    /// Offline: solutions reach the sink [`HOLD_S`] late, so that when the
+    /// filter returns to a stored state and runs again (a ramp's onset or
+    /// a stale run found, `fusion::rollback`) the re-run's solutions are
+    /// written in place of those it replaces: the written forward solution
+    /// is then the filter's on the fixes it kept, not one led off by the
+    /// fault until it was found. The solutions [`Self::push_imu`] returns
+    /// are not held (a streaming caller gets each at once, and the re-run's
+    /// last in place of the current one). No effect without rollbacks
+    /// (the real-time latency modes).
+    pub fn with_revised_output(mut self) -> Self {
+        self.fusion.keep_revisions();
+        if self.fusion.keeps_revisions() {
+            self.held = Some(VecDeque::new());
+        }
         self
     }
 
@@ -479,11 +541,74 @@ impl Navigator {
         self.counts.last_epoch = Some(out.nav.time);
         let fusion = &mut self.fusion;
         let offset = fusion.time_offset();
-        self.output.write(&out.nav, &out.imu, offset, sink, || {
+        let aux_due = self.output.take_aux_due(out.nav.time);
+        let aux = aux_due.then(|| {
             let sd = fusion.std_devs();
             (sd, fusion.position_covariance(), fusion.time_offset())
-        })?;
+        });
+        let Some(held) = self.held.as_mut() else {
+            self.output.write(&out.nav, &out.imu, offset, sink, aux)?;
+            return Ok(Step::Solution(out));
+        };
+        held.push_back(Held {
+            nav: out.nav,
+            imu: out.imu,
+            offset,
+            aux,
+            next_aux_before: self.output.aux_before(aux_due),
+        });
+        let out = match self.fusion.take_revision() {
+            Some(revised) => self.revise(revised).unwrap_or(out),
+            None => out,
+        };
+        self.write_held(sink, Some(out.nav.time.add_seconds(-HOLD_S)))?;
         Ok(Step::Solution(out))
+    }
+
+    /// Replaces the held solutions from the first revised one's time on by
+    /// the revised ones (their auxiliary lines on the same schedule);
+    /// returns the last. Revised solutions older than every held one are
+    /// dropped (they were written: a rollback further back than
+    /// [`HOLD_S`]).
+    fn revise(&mut self, revised: Vec<Revised>) -> Option<NavOutput> {
+        let held = self.held.as_mut()?;
+        let first = revised.first()?.out.nav.time;
+        let oldest = held.front().map(|h| h.nav.time);
+        if let Some(k) = held.iter().position(|h| h.nav.time >= first) {
+            self.output.set_next_aux(held[k].next_aux_before);
+            held.truncate(k);
+        }
+        let last = revised.last().map(|r| r.out);
+        for r in revised {
+            if oldest.is_some_and(|t| r.out.nav.time < t) {
+                continue;
+            }
+            let aux_due = self.output.take_aux_due(r.out.nav.time);
+            held.push_back(Held {
+                nav: r.out.nav,
+                imu: r.out.imu,
+                offset: r.offset,
+                aux: aux_due.then_some((r.sd, r.position_covariance, r.offset)),
+                next_aux_before: self.output.aux_before(aux_due),
+            });
+        }
+        last
+    }
+
+    /// Writes the held solutions older than `before` (all with `None`).
+    fn write_held(&mut self, sink: &mut dyn NavSink, before: Option<GpsTime>) -> Result<(), Error> {
+        let Some(held) = self.held.as_mut() else {
+            return Ok(());
+        };
+        while let Some(h) = held.front()
+            && before.is_none_or(|t| h.nav.time < t)
+        {
+            let Some(h) = held.pop_front() else {
+                break;
+            };
+            self.output.write(&h.nav, &h.imu, h.offset, sink, h.aux)?;
+        }
+        Ok(())
     }
 
     /// One raw rig-log record (needs [`Self::with_rig_sync`]): stamped by
@@ -555,6 +680,7 @@ impl Navigator {
             self.consume_synced(&mut out, &mut increments, sink)?;
             sync_report = Some(report);
         }
+        self.write_held(sink, None)?;
         self.counts.output_at_skipped = self.output.finish();
         diagnostics.extend(self.fusion.take_diagnostics());
         if self.output.out_of_order > 0 {

@@ -1282,7 +1282,8 @@ pub fn batch_navigator(cfg: FusionConfig, opts: &FuseOptions) -> Result<Navigato
         .with_reduced_imu(opts.reduced_imu)
         .with_gnss_time_output(opts.output_gnss_time)
         .with_aux_interval(Some(opts.aux_interval_s))
-        .with_interpolator(output_at_interpolator(opts)?))
+        .with_interpolator(output_at_interpolator(opts)?)
+        .with_revised_output())
 }
 
 /// How far ahead of the IMU a fix is handed to the filter (s): offline,

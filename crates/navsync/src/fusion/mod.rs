@@ -75,6 +75,7 @@ use aid::time_offset::Kinematics;
 use aid::{AidSources, DelayBuffer, Timed};
 pub use config::*;
 use latency::{HistoryEntry, Predictor};
+pub(crate) use rollback::Revised;
 
 /// The filter and navigation state: everything that a delayed-state update
 /// must be able to restore (cloned at each IMU epoch in that mode).
@@ -564,6 +565,9 @@ pub struct Fusion {
     recorder: Option<Recorder>,
     /// Rollback (`rollback.rs`): the states stored after clean fixes.
     rollback_states: std::collections::VecDeque<rollback::Stored>,
+    /// With [`Self::keep_revisions`]: the last rollback's re-run solutions
+    /// not yet taken.
+    revisions: Option<Vec<rollback::Revised>>,
 }
 
 impl Fusion {
@@ -592,6 +596,7 @@ impl Fusion {
             fix_log: Vec::new(),
             recorder: None,
             rollback_states: std::collections::VecDeque::new(),
+            revisions: None,
         }
         .with_onset_test()
     }

@@ -17,15 +17,21 @@
 //! A receiver that begins to repeat its position at rest and goes on as
 //! the vehicle pulls away is the same case: its first repeats are within
 //! the INS's drift and used, and they drag its velocity and biases to a
-//! stop until the INS's own motion shows them stale (`aid::gnss`). The
+//! stop until the INS's own motion shows them stale, or until the run
+//! ends far from the repeated position and near the INS run free from
+//! the first write (`aid::gnss`). The
 //! re-run returns to the state at or before the position's first write
 //! and leaves the run's repeats out (stale) up to the one found stale: a
 //! repeat carries no measurement the first write did not.
 //!
-//! The solutions already returned stay as they were (a causal filter
-//! cannot take back what it output); the state from now on, the smoother's
-//! record and the fixes' records (`gnss_residuals.txt`: the ramp's fixes
-//! become `ramp`, `run`) are those of the re-run. Offline only, and only
+//! The state from now on, the smoother's record and the fixes' records
+//! (`gnss_residuals.txt`: the ramp's fixes become `ramp`, `run`) are those
+//! of the re-run. The solutions already returned stay as they were (a
+//! causal filter cannot take back what it output), but the re-run's are
+//! kept for a writer that holds its output back
+//! (`Navigator::with_revised_output`, `fuse`'s files), so that the
+//! written forward solution is not one a found fault led off (a stale run
+//! from rest left it 43 m off for 9 s, at centimetre σ). Offline only, and only
 //! with no dual-antenna heading, odometer or coarse time-offset search,
 //! whose inputs would have to be replayed too; elsewhere the monitor makes
 //! no onset test.
@@ -151,14 +157,67 @@ impl Fusion {
         super::latency::requeue_applied(&self.applied, &mut core);
         let replay = self.samples_after(core.nav.time);
         self.core = core;
+        let mut revised = self.revisions.as_ref().map(|_| Vec::new());
         for s in &replay {
             let out = self.core.push_imu(s)?;
             self.store_nodes()?;
             if let (Some(rec), Some(o)) = (self.recorder.as_mut(), &out) {
                 rec.push_nav(&o.nav)?;
             }
+            if let (Some(list), Some(o)) = (revised.as_mut(), out) {
+                list.push(self.revised(o));
+            }
+        }
+        if let (Some(slot), Some(list)) = (self.revisions.as_mut(), revised) {
+            *slot = list;
         }
         self.drain_notes();
         Ok(())
     }
+
+    /// A re-run's solution with its auxiliary figures: the state σ and
+    /// position covariance as of the last covariance propagation (at most
+    /// `cov_step_s` old: propagating for each would change the re-run).
+    fn revised(&self, out: NavOutput) -> Revised {
+        let f = &self.core.filter;
+        let p = f.covariance();
+        let i0 = crate::filter::idx::POS;
+        Revised {
+            out,
+            offset: self.time_offset(),
+            sd: (0..f.n()).map(|i| f.sd(i)).collect(),
+            position_covariance: Matrix3::from_fn(|r, c| p.get(i0 + r, i0 + c)),
+        }
+    }
+
+    /// Keeps the solutions of each rollback's re-run for
+    /// [`Self::take_revision`] (a writer that holds its output back).
+    /// Nothing is kept where there is no rollback (real time).
+    pub(crate) fn keep_revisions(&mut self) {
+        if self.core.aid.gnss.monitor.onset_enabled {
+            self.revisions = Some(Vec::new());
+        }
+    }
+
+    /// Whether [`Self::keep_revisions`] took effect.
+    pub(crate) fn keeps_revisions(&self) -> bool {
+        self.revisions.is_some()
+    }
+
+    /// The solutions of the last rollback's re-run, oldest first, when one
+    /// ran since the last call: they replace those returned from the first
+    /// one's time on (the last is the current sample's).
+    pub(crate) fn take_revision(&mut self) -> Option<Vec<Revised>> {
+        let list = self.revisions.as_mut()?;
+        (!list.is_empty()).then(|| std::mem::take(list))
+    }
+}
+
+/// A solution of a rollback's re-run, with what the auxiliary output
+/// writes beside it.
+pub(crate) struct Revised {
+    pub(crate) out: NavOutput,
+    pub(crate) offset: Option<TimeOffsetState>,
+    pub(crate) sd: Vec<f64>,
+    pub(crate) position_covariance: Matrix3<f64>,
 }

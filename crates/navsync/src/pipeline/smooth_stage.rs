@@ -118,9 +118,10 @@ fn write_smoothed(
         if start_offset.is_none() {
             start_offset = offset.map(|o| (o.offset_s, o.sd_s));
         }
-        output.write(&ep.nav, &ep.imu, offset, sink, || {
-            (ep.sd.clone(), ep.p_pos, offset)
-        })?;
+        let aux = output
+            .take_aux_due(ep.nav.time)
+            .then(|| (ep.sd.clone(), ep.p_pos, offset));
+        output.write(&ep.nav, &ep.imu, offset, sink, aux)?;
         Ok(())
     })?;
     output.finish();
