@@ -461,9 +461,9 @@ impl GnssSource {
         let repeat = self.last_fix.is_some_and(|(_, p)| p == fix.pos);
         if !repeat {
             self.judge_run_end(core, fix);
-        } else if self.free_ins.is_none() {
+        } else if self.free_ins.is_none() && self.monitor.onset_enabled {
             // No update since the first write: the solution now is the INS
-            // run free from it.
+            // run free from it. (Only where a rollback can follow.)
             self.free_ins = Some(FreeIns {
                 nav: core.nav,
                 imu: core.imu,
@@ -500,7 +500,8 @@ impl GnssSource {
     /// repeats while the antenna goes on, and the new position is where
     /// the IMU alone carried it from the first write (`FreeIns`). So the
     /// run was stale when the new position left the repeated one by more
-    /// than the receiver's resolution and three σ of the two fixes, and is
+    /// than the receiver's resolution and 3 σ of the difference of two
+    /// fixes of the new one's σ, and is
     /// [`RUN_END_RATIO`] times closer to the free INS's antenna: the
     /// likelier hypothesis by far, with no model of the INS's drift needed
     /// (the test the repeats themselves could not make while they held
