@@ -1158,7 +1158,12 @@ fn forward_pass(
         smoother,
     } = *input;
     let start = fc.init_nav.time;
-    let mut navigator = batch_navigator(fc, opts)?.with_end(end);
+    // The files are written whole at the end: a rollback's re-run may
+    // replace the solutions of the last seconds (a streaming caller of
+    // `batch_navigator` gets each solution as it comes).
+    let mut navigator = batch_navigator(fc, opts)?
+        .with_end(end)
+        .with_revised_output();
     if let Some((dir, interval_s)) = smoother {
         navigator.fusion_mut().enable_smoother(dir, interval_s)?;
     }
@@ -1282,8 +1287,7 @@ pub fn batch_navigator(cfg: FusionConfig, opts: &FuseOptions) -> Result<Navigato
         .with_reduced_imu(opts.reduced_imu)
         .with_gnss_time_output(opts.output_gnss_time)
         .with_aux_interval(Some(opts.aux_interval_s))
-        .with_interpolator(output_at_interpolator(opts)?)
-        .with_revised_output())
+        .with_interpolator(output_at_interpolator(opts)?))
 }
 
 /// How far ahead of the IMU a fix is handed to the filter (s): offline,
