@@ -258,19 +258,6 @@ impl SolutionOutput {
         true
     }
 
-    /// The schedule as it was before [`Self::take_aux_due`] answered
-    /// `due` (to return to it: [`Self::set_next_aux`]).
-    fn aux_before(&self, due: bool) -> Option<GpsTime> {
-        match (self.next_aux, self.aux_ns) {
-            (Some(na), Some(ns)) if due && ns > 0 => Some(na + (-ns)),
-            (na, _) => na,
-        }
-    }
-
-    fn set_next_aux(&mut self, next: Option<GpsTime>) {
-        self.next_aux = next;
-    }
-
     /// One solution at IMU time `nav.time` with the time offset `offset`,
     /// and its auxiliary line when one is due ([`Self::take_aux_due`]):
     /// all state σ, the position covariance and the time offset with its
@@ -541,6 +528,7 @@ impl Navigator {
         self.counts.last_epoch = Some(out.nav.time);
         let fusion = &mut self.fusion;
         let offset = fusion.time_offset();
+        let next_aux_before = self.output.next_aux;
         let aux_due = self.output.take_aux_due(out.nav.time);
         let aux = aux_due.then(|| {
             let sd = fusion.std_devs();
@@ -555,7 +543,7 @@ impl Navigator {
             imu: out.imu,
             offset,
             aux,
-            next_aux_before: self.output.aux_before(aux_due),
+            next_aux_before,
         });
         let out = match self.fusion.take_revision() {
             Some(revised) => self.revise(revised).unwrap_or(out),
@@ -575,7 +563,7 @@ impl Navigator {
         let first = revised.first()?.out.nav.time;
         let oldest = held.front().map(|h| h.nav.time);
         if let Some(k) = held.iter().position(|h| h.nav.time >= first) {
-            self.output.set_next_aux(held[k].next_aux_before);
+            self.output.next_aux = held[k].next_aux_before;
             held.truncate(k);
         }
         let last = revised.last().map(|r| r.out);
@@ -583,13 +571,14 @@ impl Navigator {
             if oldest.is_some_and(|t| r.out.nav.time < t) {
                 continue;
             }
+            let next_aux_before = self.output.next_aux;
             let aux_due = self.output.take_aux_due(r.out.nav.time);
             held.push_back(Held {
                 nav: r.out.nav,
                 imu: r.out.imu,
                 offset: r.offset,
                 aux: aux_due.then_some((r.sd, r.position_covariance, r.offset)),
-                next_aux_before: self.output.aux_before(aux_due),
+                next_aux_before,
             });
         }
         last

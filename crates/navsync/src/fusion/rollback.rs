@@ -180,13 +180,11 @@ impl Fusion {
     /// `cov_step_s` old: propagating for each would change the re-run).
     fn revised(&self, out: NavOutput) -> Revised {
         let f = &self.core.filter;
-        let p = f.covariance();
-        let i0 = crate::filter::idx::POS;
         Revised {
             out,
             offset: self.time_offset(),
             sd: (0..f.n()).map(|i| f.sd(i)).collect(),
-            position_covariance: Matrix3::from_fn(|r, c| p.get(i0 + r, i0 + c)),
+            position_covariance: self.position_covariance(),
         }
     }
 
