@@ -133,6 +133,9 @@ struct Core {
     /// A fault found after its first fixes were used: what to take back
     /// (`rollback.rs`).
     rollback_to: Option<rollback::Rollback>,
+    /// A fix that jumped from the clean level, for the wrapper to judge
+    /// against the INS run free from seconds back (`rollback.rs`).
+    jump_check: Option<rollback::JumpCheck>,
 }
 
 impl Core {
@@ -279,6 +282,7 @@ impl Core {
             node_interval_s: None,
             nodes: Vec::new(),
             rollback_to: None,
+            jump_check: None,
             cfg,
         }
     }

@@ -1,4 +1,4 @@
-//! Rollback after a ramp's onset or a stale run (issue 33).
+//! Rollback after a ramp's onset or end, or a stale run (issue 33).
 //!
 //! A slow ramp in the fixes is followed fix by fix: each step is within
 //! the jump test, and the filter moves its position, velocity, attitude and
@@ -23,6 +23,15 @@
 //! re-run returns to the state at or before the position's first write
 //! and leaves the run's repeats out (stale) up to the one found stale: a
 //! repeat carries no measurement the first write did not.
+//!
+//! A ramp the onset test did not see (a MEMS INS is no sharper than the
+//! fixes over the seconds a ramp needs to show) is followed to its end,
+//! where the fixes jump back. A jump from the clean level is judged again
+//! here against the INS run free from each state kept
+//! ([`Fusion::ramp_start`]): a fix back from a ramp is where the IMU alone
+//! carried the antenna from before it. The re-run returns to that state
+//! and leaves the fixes since out (`ramp`, `run`) up to the jump, which
+//! ends the episode.
 //!
 //! The state from now on, the smoother's record and the fixes' records
 //! (`gnss_residuals.txt`: the ramp's fixes become `ramp`, `run`) are those
@@ -55,6 +64,40 @@ pub(super) enum Rollback {
     /// A stale run: the repeats of the position first written at `since`,
     /// up to the one found stale at `until`.
     Stale { since: GpsTime, until: GpsTime },
+    /// A ramp found at its end: the fixes after the clean fix `anchor`
+    /// before the one at `end`, which jumped back to the anchor's level.
+    RampEnded { anchor: GpsTime, end: GpsTime },
+}
+
+/// A fix at a ramp's end is this many times closer to the INS run free
+/// from before the ramp than to the solution the ramp had led off (as for
+/// a stale run's end, `aid::gnss`). At 3, a 0.7 m false fix's onset was
+/// 0.21 m from the INS run free for 11 s on the 1 Hz ADIS16465 drive,
+/// and taken for a ramp's end.
+const RAMP_END_RATIO: f64 = 4.0;
+/// …and farther from the solution than this many σ of the free INS's
+/// predicted drift since the state (λ-scaled): where the INS could have
+/// drifted as far, a fix that jumped to where it drifted is as likely a
+/// false fix (an ICM-20602 16 s free: σ 12.7 m; a 4 m false fix's onset
+/// was 0.83 m from one such free INS).
+const RAMP_END_DRIFT_K: f64 = 3.0;
+/// Consecutive stored states whose free INS must fit a ramp's end.
+const RAMP_END_MIN_STATES: usize = 2;
+/// A ramp's end is judged against states stored at least this long (s)
+/// before the fix: over the last seconds a ramp is below any test.
+const RAMP_END_MIN_LAG_S: f64 = 3.0;
+
+/// A fix that jumped from the clean level, as the GNSS source saw it, for
+/// [`Fusion::ramp_start`].
+#[derive(Clone, Copy, Debug)]
+pub(super) struct JumpCheck {
+    /// The fix's time, and the INS time it was fused at.
+    pub(super) time: GpsTime,
+    pub(super) at: GpsTime,
+    pub(super) pos: Geodetic,
+    pub(super) pos_sd: Vector3<f64>,
+    /// Its distance from the filter's predicted antenna (m).
+    pub(super) from_filter_m: f64,
 }
 
 /// The filter after a clean fix, with the smoother's record lengths then.
@@ -86,6 +129,19 @@ impl Fusion {
             return Ok(());
         }
         self.imu_buffer.push_back(*sample);
+        if let Some(check) = self.core.jump_check.take()
+            && self.core.rollback_to.is_none()
+            && let Some((anchor, from_free_m)) = self.ramp_start(&check)
+        {
+            self.core.notes.push(format!(
+                "GNSS fix at {}: {:.2} m from the solution and {from_free_m:.2} m from where the IMU alone carried the antenna from the clean fix at {anchor}: the fixes since had drifted away (a ramp the filter followed); the filter returns to its state then and runs again without them",
+                check.time, check.from_filter_m
+            ));
+            self.core.rollback_to = Some(Rollback::RampEnded {
+                anchor,
+                end: check.time,
+            });
+        }
         if let Some(rollback) = self.core.rollback_to.take() {
             self.roll_back(rollback)?;
         }
@@ -132,7 +188,7 @@ impl Fusion {
     /// episode stands, without the rollback.
     fn roll_back(&mut self, rollback: Rollback) -> Result<(), Error> {
         let anchor = match rollback {
-            Rollback::Ramp { anchor, .. } => anchor,
+            Rollback::Ramp { anchor, .. } | Rollback::RampEnded { anchor, .. } => anchor,
             Rollback::Stale { since, .. } => since,
         };
         let Some(k) = self
@@ -152,6 +208,9 @@ impl Fusion {
         match rollback {
             Rollback::Ramp { anchor, onset } => core.aid.gnss.monitor.replay_ramp(anchor, onset),
             Rollback::Stale { since, until } => core.aid.gnss.replay_stale(since, until),
+            Rollback::RampEnded { anchor, end } => {
+                core.aid.gnss.monitor.replay_ramp_end(anchor, end)
+            }
         }
         // Fixes pushed after the state was stored are queued again.
         super::latency::requeue_applied(&self.applied, &mut core);
@@ -168,11 +227,94 @@ impl Fusion {
                 list.push(self.revised(o));
             }
         }
+        // A jump in the re-run was judged when its fix first came.
+        self.core.jump_check = None;
         if let (Some(slot), Some(list)) = (self.revisions.as_mut(), revised) {
             *slot = list;
         }
         self.drain_notes();
         Ok(())
+    }
+
+    /// Whether a fix that jumped from the clean level ended a ramp the
+    /// filter had followed, and where the ramp began. Two hypotheses meet
+    /// at such a jump: the fixes before it had drifted away (a ramp) and
+    /// this one is back, or the fixes were right and this one is off (a
+    /// false fix's onset, a spike). The INS run free (the IMU alone) from
+    /// a state stored seconds back tells them apart: a ramp's end is
+    /// [`RAMP_END_RATIO`] times closer to it than to the solution the
+    /// ramp had led off, farther from that solution than 3 σ of a fix
+    /// difference, and farther than the free INS could have drifted by its
+    /// own predicted σ ([`RAMP_END_DRIFT_K`]: where it could have drifted
+    /// as far, a false fix may sit where it drifted). The distances are
+    /// compared with each other, not the free INS's with a bound of its
+    /// own (its drift model was measured optimistic in a MEMS INS's turns),
+    /// and the INS is run, not the monitor's ledger undone (which leaves
+    /// in the attitude that the ramp's fixes corrected). States
+    /// before the ramp fit; those on it do not (the ramp's fixes had
+    /// dragged their velocity), nor, by their drift, those long before it.
+    /// A run of [`RAMP_END_MIN_STATES`] fitting states is needed, not one:
+    /// a single state's free INS drifts by its own errors (metres in 20 s
+    /// in a MEMS INS's turns), and one of many may land near a false fix
+    /// by chance. Returns the clean fix of the
+    /// state whose free INS is nearest the fix (the ramp's start), and
+    /// that distance.
+    fn ramp_start(&self, check: &JumpCheck) -> Option<(GpsTime, f64)> {
+        let resolution_m = 3.0 * (2.0 * check.pos_sd.norm_squared()).sqrt();
+        if check.from_filter_m <= resolution_m {
+            return None;
+        }
+        let n = self
+            .rollback_states
+            .iter()
+            .take_while(|s| check.time.seconds_since(s.anchor) >= RAMP_END_MIN_LAG_S)
+            .count();
+        let mut run: Vec<(GpsTime, f64)> = Vec::new();
+        let mut best: Option<(GpsTime, f64)> = None;
+        let mut close_run = |run: &mut Vec<(GpsTime, f64)>| {
+            if run.len() >= RAMP_END_MIN_STATES {
+                for &(anchor, d) in run.iter() {
+                    if best.is_none_or(|(_, b)| d < b) {
+                        best = Some((anchor, d));
+                    }
+                }
+            }
+            run.clear();
+        };
+        for stored in self.rollback_states.iter().take(n) {
+            let d = self.free_distance(&stored.core, check);
+            let drift_bound_m = RAMP_END_DRIFT_K * free_drift_sd_m(&stored.core, check.at);
+            if d * RAMP_END_RATIO < check.from_filter_m && check.from_filter_m > drift_bound_m {
+                run.push((stored.anchor, d));
+            } else {
+                close_run(&mut run);
+            }
+        }
+        close_run(&mut run);
+        best
+    }
+
+    /// The distance (m) of the fix in `check` from the antenna of the INS
+    /// run free from `from` over the samples kept since, to the time the
+    /// fix was fused at.
+    fn free_distance(&self, from: &Core, check: &JumpCheck) -> f64 {
+        let mut free = super::aid::gnss::FreeIns::from_core(from);
+        let start = from.nav.time;
+        let mut prev = start;
+        for s in self.imu_buffer.iter().filter(|s| s.time > start) {
+            let dt = (s.time - prev) as f64 * 1e-9;
+            if s.time <= check.at {
+                free.step(&s.dtheta, &s.dvel, dt);
+                prev = s.time;
+                continue;
+            }
+            let frac = (check.at - prev) as f64 / (s.time - prev) as f64;
+            if frac > 0.0 {
+                free.step(&(s.dtheta * frac), &(s.dvel * frac), dt * frac);
+            }
+            break;
+        }
+        free.antenna_from(&check.pos, &from.lever_b).norm()
     }
 
     /// A re-run's solution with its auxiliary figures: the state σ and
@@ -218,4 +360,15 @@ pub(crate) struct Revised {
     pub(crate) offset: Option<TimeOffsetState>,
     pub(crate) sd: Vec<f64>,
     pub(crate) position_covariance: Matrix3<f64>,
+}
+
+/// The σ (m) of the drift of the INS run free from `from` until `at`: its
+/// predicted displacement error, λ t² (c₂ + c₃ t + c₄ t²)
+/// (`aid::gnss::free_drift_variance`), λ the INS overconfidence the robust
+/// weighting measured then.
+fn free_drift_sd_m(from: &Core, at: GpsTime) -> f64 {
+    let [c2, c3, c4] = super::aid::gnss::free_drift_variance(from);
+    let t = at.seconds_since(from.nav.time).max(0.0);
+    let lambda = from.aid.gnss.overconfidence_scale();
+    (lambda * t * t * (c2 + t * (c3 + t * c4))).max(0.0).sqrt()
 }

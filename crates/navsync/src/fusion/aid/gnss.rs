@@ -10,7 +10,7 @@
 use super::integrity::{FaultMonitor, FaultReason, Judgement, PROTECTION_K, StateSpread};
 use super::*;
 use crate::filter::idx;
-use crate::fusion::rollback::Rollback;
+use crate::fusion::rollback::{JumpCheck, Rollback};
 use std::collections::VecDeque;
 
 /// A GNSS position fix the gate rejected (or robust weighting rejected or
@@ -218,6 +218,29 @@ pub(in crate::fusion) struct FreeIns {
 }
 
 impl FreeIns {
+    /// The INS as the filter has it now, to run on free of any update.
+    pub(in crate::fusion) fn from_core(core: &Core) -> Self {
+        FreeIns {
+            nav: core.nav,
+            imu: core.imu,
+            mech: core.mech.clone(),
+        }
+    }
+
+    /// Its antenna's offset from `pos` (m, NED), antenna lever `lever_b`.
+    pub(in crate::fusion) fn antenna_from(
+        &self,
+        pos: &Geodetic,
+        lever_b: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        let le = LocalEarth::new(pos, &self.nav.vel);
+        le.geodetic_delta_to_ned(
+            self.nav.pos.lat_rad - pos.lat_rad,
+            self.nav.pos.lon_rad - pos.lon_rad,
+            self.nav.pos.h_m - pos.h_m,
+        ) + self.nav.q_nb * lever_b
+    }
+
     /// Advances over one raw increment (`Core::integrate`).
     pub(in crate::fusion) fn step(&mut self, dtheta: &Vector3<f64>, dvel: &Vector3<f64>, dt: f64) {
         let inc = self.imu.compensate(dtheta, dvel, dt);
@@ -247,7 +270,7 @@ const RUN_END_MIN_S: f64 = 1.0;
 /// filter's covariance with its correlations (at a standstill tilt and
 /// accelerometer bias cancel: their sum is well known while each alone
 /// is not). The specific force is taken as gravity's reaction.
-fn free_drift_variance(core: &Core) -> [f64; 3] {
+pub(in crate::fusion) fn free_drift_variance(core: &Core) -> [f64; 3] {
     use idx::{ATT, BA, VEL};
     if core.filter.n() < BA + 3 {
         return [0.0; 3];
@@ -464,11 +487,7 @@ impl GnssSource {
         } else if self.free_ins.is_none() && self.monitor.onset_enabled {
             // No update since the first write: the solution now is the INS
             // run free from it. (Only where a rollback can follow.)
-            self.free_ins = Some(FreeIns {
-                nav: core.nav,
-                imu: core.imu,
-                mech: core.mech.clone(),
-            });
+            self.free_ins = Some(FreeIns::from_core(core));
         }
         let used_before = self.counts.fixes_used;
         match core.cfg.gnss_weighting {
@@ -523,16 +542,14 @@ impl GnssSource {
             return;
         }
         let le = LocalEarth::new(&fix.pos, &core.nav.vel);
-        let ned_from_fix = |p: &Geodetic| {
-            le.geodetic_delta_to_ned(
-                p.lat_rad - fix.pos.lat_rad,
-                p.lon_rad - fix.pos.lon_rad,
-                p.h_m - fix.pos.h_m,
+        let left_repeated_m = le
+            .geodetic_delta_to_ned(
+                repeated.lat_rad - fix.pos.lat_rad,
+                repeated.lon_rad - fix.pos.lon_rad,
+                repeated.h_m - fix.pos.h_m,
             )
-        };
-        let left_repeated_m = ned_from_fix(&repeated).norm();
-        let free_antenna = ned_from_fix(&free.nav.pos) + free.nav.q_nb * core.lever_b;
-        let from_free_m = free_antenna.norm();
+            .norm();
+        let from_free_m = free.antenna_from(&fix.pos, &core.lever_b).norm();
         let fix_sd_m = 3.0 * (2.0 * fix.pos_sd.norm_squared()).sqrt();
         if !(left_repeated_m > self.resolution_bound_m().max(fix_sd_m)
             && from_free_m * RUN_END_RATIO < left_repeated_m)
@@ -842,6 +859,15 @@ impl GnssSource {
             Some(d) => self.apply_decision(core, &obs, fix.time, d),
             None => self.judge_integrity(core, &obs, fix.time)?,
         };
+        if self.monitor.take_jump() && self.monitor.onset_enabled && core.rollback_to.is_none() {
+            core.jump_check = Some(JumpCheck {
+                time: fix.time,
+                at: core.nav.time,
+                pos: fix.pos,
+                pos_sd: fix.pos_sd,
+                from_filter_m: Vector3::new(obs.z[0], obs.z[1], obs.z[2]).norm(),
+            });
+        }
         if excluded {
             self.last_received = Some(fix.time);
             return Ok(());
@@ -1201,7 +1227,7 @@ impl GnssSource {
     /// The median of the kept overconfidence ratios, within
     /// [1, MAX_INFLATION]; 1 before [`MIN_OVERCONFIDENCE_FIXES`] of them
     /// (the median of two is the larger: one bad fix would set it).
-    fn overconfidence_scale(&self) -> f64 {
+    pub(in crate::fusion) fn overconfidence_scale(&self) -> f64 {
         if self.overconfidence.len() < MIN_OVERCONFIDENCE_FIXES {
             return 1.0;
         }

@@ -394,6 +394,14 @@ pub(in crate::fusion) struct FaultMonitor {
     /// anchor's) up to the second (the onset's) are the ramp's, excluded
     /// as one episode from the anchor.
     replay_onset: Option<(GpsTime, GpsTime)>,
+    /// In a ramp end's re-run: the fix that jumped back, which ends the
+    /// replayed episode (the fixes before it from `replay_onset`'s anchor
+    /// were the ramp's).
+    replay_return: Option<GpsTime>,
+    /// The fix judged last jumped from the clean level (a spike, a false
+    /// fix's onset, or a ramp's end): the wrapper may judge it against
+    /// the INS run free from seconds back ([`Self::take_jump`]).
+    jumped: bool,
     /// The last fix judged, and whether the one judged now came within
     /// [`JUMP_MAX_GAP_S`] of it.
     last_judged: Option<GpsTime>,
@@ -704,6 +712,17 @@ impl FaultMonitor {
             self.gap_end = Some(time);
         }
         self.last_judged = Some(time);
+        if let Some(end) = self.replay_return
+            && time >= end
+        {
+            self.replay_return = None;
+            self.replay_onset = None;
+            if let Some(ep) = self.episode.take() {
+                let (delta, _, _) = self.test(&ep.anchor, time, z, hph, r, lambda);
+                self.close(ep, EpisodeEnd::Returned);
+                return Judgement::RampEnd { offset: delta };
+            }
+        }
         if let Some((anchor, until)) = self.replay_onset {
             if time > anchor && time <= until {
                 return self.replay_ramp_fix(time, z, hph, r, lambda);
@@ -742,6 +761,7 @@ impl FaultMonitor {
         }
         let (delta, d, _) = self.test(&last, time, z, hph, r, lambda);
         if d > threshold {
+            self.jumped = true;
             // Back to the level of the fixes seconds before? Then those
             // since drifted away (a ramp the filter followed) and this one
             // is the good one. It must be much closer to the old level than
@@ -886,6 +906,12 @@ impl FaultMonitor {
         ep.count(time, &delta);
         self.episode = Some(ep);
         Judgement::Exclude(FaultReason::Run)
+    }
+
+    /// Whether the fix judged last jumped from the clean level (cleared
+    /// by the call).
+    pub(in crate::fusion) fn take_jump(&mut self) -> bool {
+        std::mem::take(&mut self.jumped)
     }
 
     /// The oldest anchor at least [`RAMP_END_MIN_LAG_S`] before `time` (and

@@ -134,6 +134,14 @@ impl FaultMonitor {
         self.replay_onset = Some((anchor, onset));
     }
 
+    /// Prepares a ramp end's re-run from a state stored at or before the
+    /// clean fix `anchor`: the fixes after it and before `end` were the
+    /// ramp's, and the fix at `end`, back at the anchor's level, ends it.
+    pub(in crate::fusion) fn replay_ramp_end(&mut self, anchor: GpsTime, end: GpsTime) {
+        self.replay_onset = Some((anchor, end));
+        self.replay_return = Some(end);
+    }
+
     /// A fix of the ramp in a rollback's re-run: the first opens the
     /// onset's episode against the last anchor (the one rolled back to),
     /// the others continue it.
