@@ -256,6 +256,14 @@ struct Anchor {
     /// INS was a reference: the fixes were pulling the state away, most
     /// often along a ramp.
     dragged: bool,
+    /// Added after [`MIN_ANCHORS`] clean fixes since the start or a reset:
+    /// the INS was a reference again. The first clean fixes after an
+    /// episode the fixes outlasted follow an INS whose velocity the
+    /// episode had led off (its position alone was put back): against
+    /// them, the clean fixes after drift like a ramp's onset (a ramp
+    /// followed for 23 s on the 1 Hz ADIS16465 drive, then 7 clean fixes
+    /// excluded as one).
+    settled: bool,
     /// Ledger sequence number after its own position update.
     seq: u64,
     /// Posterior residual r⁺ (predicted after the update − measured, NED).
@@ -510,10 +518,12 @@ impl FaultMonitor {
             }
             self.recalibrate_onset();
         }
+        let settled = self.anchors_since_reset >= MIN_ANCHORS;
         self.anchors_since_reset += 1;
         self.anchors.push_back(Anchor {
             time,
             dragged,
+            settled,
             seq: self.seq,
             residual,
             hph_post,
@@ -1459,6 +1469,56 @@ mod tests {
 
     /// The ledger: a GNSS correction the filter applied after the anchor
     /// is taken out of the comparison (position, and velocity carried).
+    /// The onset test measures a ramp from settled anchors only: the
+    /// first clean fixes after a reset (an episode the fixes outlasted)
+    /// follow an INS the episode had led off. With an onset test
+    /// calibrated on 130 s of clean fixes, fixes that the filter follows
+    /// north by 0.1 m a second are a ramp's onset within 8 s; the same
+    /// fixes right after a reset are not.
+    #[test]
+    fn an_onset_is_not_measured_from_the_first_fixes_after_a_reset() {
+        let onset_within_8_s = |reset: bool| {
+            let mut m = FaultMonitor::new(0.04 / 60.0);
+            m.onset_enabled = true;
+            let t0 = GpsTime::from_week_sow(2300, 1000.0);
+            let spread = StateSpread {
+                speed_mps: 0.0,
+                ..sharp_ins()
+            };
+            // A fix at k s whose innovation is `z_north` (m); used, it
+            // moves the state that far north.
+            let mut fix = |m: &mut FaultMonitor, k: usize, z_north: f64| {
+                let t = t0.add_seconds(k as f64);
+                let z = Vector3::new(z_north, 0.0, 0.0);
+                let judged = m.judge(t, &z, &hph(), &r(), 1.0);
+                if judged == Judgement::Clean {
+                    let mut dx = vec![0.0; 21];
+                    dx[0] = z_north;
+                    m.record_correction(t, &dx, 0, 3);
+                    m.add_anchor(
+                        t,
+                        Vector3::zeros(),
+                        Vector3::repeat(1e-4),
+                        r(),
+                        spread,
+                        false,
+                    );
+                }
+                judged
+            };
+            for k in 0..130 {
+                assert_eq!(fix(&mut m, k, 0.0), Judgement::Clean);
+            }
+            assert_eq!(m.drift_test_scale(), Some(1.0), "calibrated");
+            if reset {
+                m.reset();
+            }
+            (130..138).any(|k| matches!(fix(&mut m, k, -0.1), Judgement::Onset { .. }))
+        };
+        assert!(onset_within_8_s(false));
+        assert!(!onset_within_8_s(true));
+    }
+
     #[test]
     fn corrections_after_the_anchor_are_taken_out() {
         let (mut m, t) = primed(3);

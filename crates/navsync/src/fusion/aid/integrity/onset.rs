@@ -226,7 +226,7 @@ impl FaultMonitor {
     }
 
     /// The anchors an onset test at `time` may use, newest first: at least
-    /// [`ONSET_MIN_LAG_S`] back, not dragged, fitting the filter
+    /// [`ONSET_MIN_LAG_S`] back, settled, not dragged, fitting the filter
     /// ([`Anchor::fits`]), and not across a gap in the fixes (a ramp is
     /// followed fix by fix, and a receiver's fixes around a gap move by
     /// metres: dataset2's real fixes, 2–3 m against anchors before a 6–7 s
@@ -246,7 +246,10 @@ impl FaultMonitor {
                 within
             })
             .filter(move |a| {
-                !a.dragged && a.fits(scale) && time.seconds_since(a.time) >= ONSET_MIN_LAG_S
+                a.settled
+                    && !a.dragged
+                    && a.fits(scale)
+                    && time.seconds_since(a.time) >= ONSET_MIN_LAG_S
             })
     }
 
