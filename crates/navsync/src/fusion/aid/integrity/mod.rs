@@ -1142,21 +1142,34 @@ mod tests {
                 m.judge(t, &Vector3::zeros(), &hph(), &r(), 1.0),
                 Judgement::Clean
             );
-            if k >= 6 {
-                let mut dx = vec![0.0; 21];
-                dx[0] = -pull_m;
-                m.record_correction(t, &dx, 0, 3);
-            }
-            m.add_anchor(
-                t,
-                Vector3::zeros(),
-                Vector3::repeat(1e-4),
-                r(),
-                spread,
-                dragged_at == Some(k),
-            );
+            let pulled_north = (k >= 6).then_some(pull_m);
+            use_fix(&mut m, t, pulled_north, spread, dragged_at == Some(k));
         }
         (m, t0.add_seconds(18.0))
+    }
+    /// Records the fix at `t` as used: its update moved the state
+    /// `north_m` north (a GNSS correction, when given), and it became an
+    /// anchor with the state's σ `spread`.
+    fn use_fix(
+        m: &mut FaultMonitor,
+        t: GpsTime,
+        north_m: Option<f64>,
+        spread: StateSpread,
+        dragged: bool,
+    ) {
+        if let Some(north_m) = north_m {
+            let mut dx = vec![0.0; 21];
+            dx[0] = -north_m;
+            m.record_correction(t, &dx, 0, 3);
+        }
+        m.add_anchor(
+            t,
+            Vector3::zeros(),
+            Vector3::repeat(1e-4),
+            r(),
+            spread,
+            dragged,
+        );
     }
 
     /// A coarse receiver (stated σ 2 m horizontal) whose fixes move by a
@@ -1487,22 +1500,12 @@ mod tests {
             };
             // A fix at k s whose innovation is `z_north` (m); used, it
             // moves the state that far north.
-            let mut fix = |m: &mut FaultMonitor, k: usize, z_north: f64| {
+            let fix = |m: &mut FaultMonitor, k: usize, z_north: f64| {
                 let t = t0.add_seconds(k as f64);
                 let z = Vector3::new(z_north, 0.0, 0.0);
                 let judged = m.judge(t, &z, &hph(), &r(), 1.0);
                 if judged == Judgement::Clean {
-                    let mut dx = vec![0.0; 21];
-                    dx[0] = z_north;
-                    m.record_correction(t, &dx, 0, 3);
-                    m.add_anchor(
-                        t,
-                        Vector3::zeros(),
-                        Vector3::repeat(1e-4),
-                        r(),
-                        spread,
-                        false,
-                    );
+                    use_fix(m, t, Some(-z_north), spread, false);
                 }
                 judged
             };
