@@ -347,8 +347,8 @@ impl Navigator {
         self
     }
 
-    /// Offline: solutions reach the sink [`HOLD_S`] late, so that when the
-    /// filter returns to a stored state and runs again (a ramp's onset or
+    /// Offline: solutions reach the sink `HOLD_S` (25 s) late, so that when the
+    /// filter returns to a stored state and runs again (a ramp's onset or end or
     /// a stale run found, `fusion::rollback`) the re-run's solutions are
     /// written in place of those it replaces: the written forward solution
     /// is then the filter's on the fixes it kept, not one led off by the

@@ -29,7 +29,7 @@
 //!    is the one constant receive times cannot observe.
 //!
 //! A caller that knows more tells it with the sample
-//! ([`SampleClock::push_with`]): samples known lost just before it (a
+//! (`SampleClock::push_with`): samples known lost just before it (a
 //! serial reader that saw their lines corrupted), the start of a new
 //! segment (the port was reopened: the IMU may have restarted its clock),
 //! or how many more samples were read together with it (same receive
