@@ -45,6 +45,8 @@
 //! whose inputs would have to be replayed too; elsewhere the monitor makes
 //! no onset test.
 
+use super::aid::gnss::{FreeIns, fix_difference_3sd_m, free_drift_sd_m, free_drift_variance};
+use super::aid::integrity::RAMP_END_MIN_LAG_S;
 use super::*;
 
 /// States are kept this long (s): the monitor's anchors reach back this far.
@@ -83,9 +85,6 @@ const RAMP_END_RATIO: f64 = 4.0;
 const RAMP_END_DRIFT_K: f64 = 3.0;
 /// Consecutive stored states whose free INS must fit a ramp's end.
 const RAMP_END_MIN_STATES: usize = 2;
-/// A ramp's end is judged against states stored at least this long (s)
-/// before the fix: over the last seconds a ramp is below any test.
-const RAMP_END_MIN_LAG_S: f64 = 3.0;
 
 /// A fix that jumped from the clean level, as the GNSS source saw it, for
 /// [`Fusion::ramp_start`].
@@ -260,15 +259,9 @@ impl Fusion {
     /// state whose free INS is nearest the fix (the ramp's start), and
     /// that distance.
     fn ramp_start(&self, check: &JumpCheck) -> Option<(GpsTime, f64)> {
-        let resolution_m = 3.0 * (2.0 * check.pos_sd.norm_squared()).sqrt();
-        if check.from_filter_m <= resolution_m {
+        if check.from_filter_m <= fix_difference_3sd_m(&check.pos_sd) {
             return None;
         }
-        let n = self
-            .rollback_states
-            .iter()
-            .take_while(|s| check.time.seconds_since(s.anchor) >= RAMP_END_MIN_LAG_S)
-            .count();
         let mut run: Vec<(GpsTime, f64)> = Vec::new();
         let mut best: Option<(GpsTime, f64)> = None;
         let mut close_run = |run: &mut Vec<(GpsTime, f64)>| {
@@ -281,9 +274,16 @@ impl Fusion {
             }
             run.clear();
         };
-        for stored in self.rollback_states.iter().take(n) {
+        let old_enough = |s: &&Stored| check.time.seconds_since(s.anchor) >= RAMP_END_MIN_LAG_S;
+        for stored in self.rollback_states.iter().take_while(old_enough) {
             let d = self.free_distance(&stored.core, check);
-            let drift_bound_m = RAMP_END_DRIFT_K * free_drift_sd_m(&stored.core, check.at);
+            let core = &stored.core;
+            let drift_sd_m = free_drift_sd_m(
+                free_drift_variance(core),
+                core.aid.gnss.overconfidence_scale(),
+                check.at.seconds_since(core.nav.time),
+            );
+            let drift_bound_m = RAMP_END_DRIFT_K * drift_sd_m;
             if d * RAMP_END_RATIO < check.from_filter_m && check.from_filter_m > drift_bound_m {
                 run.push((stored.anchor, d));
             } else {
@@ -298,7 +298,7 @@ impl Fusion {
     /// run free from `from` over the samples kept since, to the time the
     /// fix was fused at.
     fn free_distance(&self, from: &Core, check: &JumpCheck) -> f64 {
-        let mut free = super::aid::gnss::FreeIns::from_core(from);
+        let mut free = FreeIns::from_core(from);
         let start = from.nav.time;
         let mut prev = start;
         for s in self.imu_buffer.iter().filter(|s| s.time > start) {
@@ -360,15 +360,4 @@ pub(crate) struct Revised {
     pub(crate) offset: Option<TimeOffsetState>,
     pub(crate) sd: Vec<f64>,
     pub(crate) position_covariance: Matrix3<f64>,
-}
-
-/// The σ (m) of the drift of the INS run free from `from` until `at`: its
-/// predicted displacement error, λ t² (c₂ + c₃ t + c₄ t²)
-/// (`aid::gnss::free_drift_variance`), λ the INS overconfidence the robust
-/// weighting measured then.
-fn free_drift_sd_m(from: &Core, at: GpsTime) -> f64 {
-    let [c2, c3, c4] = super::aid::gnss::free_drift_variance(from);
-    let t = at.seconds_since(from.nav.time).max(0.0);
-    let lambda = from.aid.gnss.overconfidence_scale();
-    (lambda * t * t * (c2 + t * (c3 + t * c4))).max(0.0).sqrt()
 }

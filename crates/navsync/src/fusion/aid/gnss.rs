@@ -292,6 +292,22 @@ pub(in crate::fusion) fn free_drift_variance(core: &Core) -> [f64; 3] {
     ]
 }
 
+/// The σ (m) of the displacement error of an INS run free for `dt_s`:
+/// √(λ t² (c₂ + c₃ t + c₄ t²)), the coefficients from
+/// [`free_drift_variance`] at its start, λ ≥ 1 the INS overconfidence.
+pub(in crate::fusion) fn free_drift_sd_m(coeffs: [f64; 3], lambda: f64, dt_s: f64) -> f64 {
+    let t = dt_s.max(0.0);
+    let [c2, c3, c4] = coeffs;
+    let var = t * t * (c2 + t * (c3 + t * c4));
+    (lambda * var.max(0.0)).sqrt()
+}
+
+/// 3 σ (m) of the difference of two fixes of stated σ `pos_sd` (N, E, D):
+/// what a new position must leave an old one by to be another.
+pub(in crate::fusion) fn fix_difference_3sd_m(pos_sd: &Vector3<f64>) -> f64 {
+    3.0 * (2.0 * pos_sd.norm_squared()).sqrt()
+}
+
 /// Control state of the GNSS source: the gate and its run of
 /// rejections, the robust weighting's noise scales and residuals, the
 /// last fix used.
@@ -550,7 +566,7 @@ impl GnssSource {
             )
             .norm();
         let from_free_m = free.antenna_from(&fix.pos, &core.lever_b).norm();
-        let fix_sd_m = 3.0 * (2.0 * fix.pos_sd.norm_squared()).sqrt();
+        let fix_sd_m = fix_difference_3sd_m(&fix.pos_sd);
         if !(left_repeated_m > self.resolution_bound_m().max(fix_sd_m)
             && from_free_m * RUN_END_RATIO < left_repeated_m)
         {
@@ -637,15 +653,11 @@ impl GnssSource {
     }
 
     /// How far the INS running free could have drifted in `dt_s` since a
-    /// run of repeats began (m): 5 σ of its predicted displacement error,
-    /// the variance λ t² (c₂ + c₃ t + c₄ t²) from its covariance then
-    /// (`free_drift_variance`), λ the robust weighting's overconfidence
-    /// scale.
+    /// run of repeats began (m): 5 σ of its predicted displacement error
+    /// ([`free_drift_sd_m`] from its covariance then, λ the robust
+    /// weighting's overconfidence scale now).
     fn free_drift_bound_m(&self, start: &RepeatStart, dt_s: f64) -> f64 {
-        let t = dt_s.max(0.0);
-        let [c2, c3, c4] = start.drift_var_coeffs;
-        let var = t * t * (c2 + t * (c3 + t * c4));
-        5.0 * (self.overconfidence_scale() * var.max(0.0)).sqrt()
+        5.0 * free_drift_sd_m(start.drift_var_coeffs, self.overconfidence_scale(), dt_s)
     }
 
     /// A fix whose position repeats the previous fix's to the last bit

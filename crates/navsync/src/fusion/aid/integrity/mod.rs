@@ -97,8 +97,10 @@ pub(crate) fn fix_test_threshold() -> f64 {
     static THRESHOLD: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
     *THRESHOLD.get_or_init(|| chi2_quantile(1.0 - FALSE_ALARM_PROB, 3.0))
 }
-/// A ramp's end is judged against an anchor at least this old (s).
-const RAMP_END_MIN_LAG_S: f64 = 3.0;
+/// A ramp's end is judged against an anchor (or, in `rollback.rs`, a
+/// stored state) at least this old (s): over the last seconds a ramp is
+/// below any test.
+pub(in crate::fusion) const RAMP_END_MIN_LAG_S: f64 = 3.0;
 /// A fix more than this (s) after the last clean one is not tested for a
 /// jump.
 const JUMP_MAX_GAP_S: f64 = 2.5;
