@@ -1,4 +1,5 @@
-//! Rollback after a ramp's onset or end, or a stale run (issue 33).
+//! Rollback after a ramp's onset or end, a false fix's end, or a stale
+//! run (issue 33).
 //!
 //! A slow ramp in the fixes is followed fix by fix: each step is within
 //! the jump test, and the filter moves its position, velocity, attitude and
@@ -32,6 +33,12 @@
 //! carried the antenna from before it. The re-run returns to that state
 //! and leaves the fixes since out (`ramp`, `run`) up to the jump, which
 //! ends the episode.
+//!
+//! A false fix the filter was led onto (its episode persisted: the INS
+//! could no longer tell its level from its own drift) is found at its
+//! end, where a jump back undoes the jump that opened it
+//! (`aid::integrity`'s `followed`): the re-run returns to the state after
+//! the clean fix before it and leaves its fixes out (`jump`, `run`).
 //!
 //! The state from now on, the smoother's record and the fixes' records
 //! (`gnss_residuals.txt`: the ramp's fixes become `ramp`, `run`) are those
@@ -69,6 +76,10 @@ pub(super) enum Rollback {
     /// A ramp found at its end: the fixes after the clean fix `anchor`
     /// before the one at `end`, which jumped back to the anchor's level.
     RampEnded { anchor: GpsTime, end: GpsTime },
+    /// A false fix the filter was led onto, found at its end: the fixes
+    /// after the clean fix `anchor` before the one at `end`, whose jump
+    /// back undid the one that opened them.
+    FalseFixEnded { anchor: GpsTime, end: GpsTime },
 }
 
 /// A fix at a ramp's end is this many times closer to the INS run free
@@ -187,7 +198,9 @@ impl Fusion {
     /// episode stands, without the rollback.
     fn roll_back(&mut self, rollback: Rollback) -> Result<(), Error> {
         let anchor = match rollback {
-            Rollback::Ramp { anchor, .. } | Rollback::RampEnded { anchor, .. } => anchor,
+            Rollback::Ramp { anchor, .. }
+            | Rollback::RampEnded { anchor, .. }
+            | Rollback::FalseFixEnded { anchor, .. } => anchor,
             Rollback::Stale { since, .. } => since,
         };
         let Some(k) = self
@@ -209,6 +222,9 @@ impl Fusion {
             Rollback::Stale { since, until } => core.aid.gnss.replay_stale(since, until),
             Rollback::RampEnded { anchor, end } => {
                 core.aid.gnss.monitor.replay_ramp_end(anchor, end)
+            }
+            Rollback::FalseFixEnded { anchor, end } => {
+                core.aid.gnss.monitor.replay_false_fix_end(anchor, end)
             }
         }
         // Fixes pushed after the state was stored are queued again.

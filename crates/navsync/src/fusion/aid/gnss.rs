@@ -1186,6 +1186,23 @@ impl GnssSource {
                 self.forced = Some(FaultReason::Persisted);
                 Ok(false)
             }
+            Judgement::FalseFixEnd { anchor, offset } => {
+                grow_position_variance(core, &offset);
+                if self.monitor.onset_enabled {
+                    core.rollback_to = Some(Rollback::FalseFixEnded { anchor, end: time });
+                }
+                core.notes.push(format!(
+                    "GNSS fix at {time} jumped {:.3} m back, undoing the jump that opened the episode after the clean fix at {anchor}: the level followed since was a false fix; used, position variance grown to fit{}",
+                    offset.norm(),
+                    if self.monitor.onset_enabled {
+                        "; the filter returns to its state after that clean fix and runs again without the fixes since"
+                    } else {
+                        ""
+                    }
+                ));
+                self.forced = Some(FaultReason::None);
+                Ok(false)
+            }
             Judgement::Persisted { unbridged, offset } => {
                 grow_position_variance(core, &offset);
                 core.notes.push(if unbridged {

@@ -79,7 +79,7 @@ impl FaultMonitor {
         lambda: f64,
     ) -> Option<Judgement> {
         self.onset_pending = None;
-        let mut worst: Option<(Anchor, f64, Vector3<f64>)> = None;
+        let mut worst: Option<(Anchor, f64, Vector3<f64>, Vector3<f64>)> = None;
         let mut last_tested: Option<GpsTime> = None;
         for a in self.onset_anchors(time) {
             if last_tested.is_some_and(|t| t.seconds_since(a.time) < ONSET_ANCHOR_SPACING_S)
@@ -88,17 +88,17 @@ impl FaultMonitor {
                 continue;
             }
             last_tested = Some(a.time);
-            let (delta, d, _) = self.test(a, time, z, hph, r, lambda);
-            if worst.is_none_or(|(_, dw, _)| d > dw) {
-                worst = Some((*a, d, delta));
+            let (delta, d, v) = self.test(a, time, z, hph, r, lambda);
+            if worst.is_none_or(|(_, dw, _, _)| d > dw) {
+                worst = Some((*a, d, delta, v));
             }
         }
-        if let (Some(scale), Some((a, d, delta))) = (self.onset_scale, worst)
+        if let (Some(scale), Some((a, d, delta, v))) = (self.onset_scale, worst)
             && d > fix_test_threshold() * scale
         {
             self.anchors.retain(|b| b.seq <= a.seq);
             self.pending_pair = None;
-            self.open(a, time, delta, hph, true);
+            self.open(a, time, delta, v, hph, true);
             return Some(Judgement::Onset {
                 anchor: a.time,
                 offset_m: delta.norm(),
@@ -110,8 +110,8 @@ impl FaultMonitor {
         // ramp's own fixes, let in, raised the scale 1.0 → 3.3 in five
         // seconds and hid it on dataset2).
         self.onset_pending = worst
-            .filter(|(_, d, _)| *d <= fix_test_threshold() * self.onset_scale.unwrap_or(1.0))
-            .map(|(_, d, _)| (time, d));
+            .filter(|(_, d, _, _)| *d <= fix_test_threshold() * self.onset_scale.unwrap_or(1.0))
+            .map(|(_, d, _, _)| (time, d));
         None
     }
 
@@ -142,9 +142,9 @@ impl FaultMonitor {
         self.replay_return = Some(end);
     }
 
-    /// A fix of the ramp in a rollback's re-run: the first opens the
-    /// onset's episode against the last anchor (the one rolled back to),
-    /// the others continue it.
+    /// A fix of the ramp (or of the false fix, [`Self::replay_false_fix_end`])
+    /// in a rollback's re-run: the first opens the episode against the
+    /// last anchor (the one rolled back to), the others continue it.
     pub(super) fn replay_ramp_fix(
         &mut self,
         time: GpsTime,
@@ -161,13 +161,18 @@ impl FaultMonitor {
             self.episode = Some(ep);
             return Judgement::Exclude(FaultReason::Run);
         }
-        let Some(a) = self.anchors.back().copied() else {
-            return Judgement::Exclude(FaultReason::Ramp);
+        let opening = if self.replay_jump {
+            FaultReason::Jump
+        } else {
+            FaultReason::Ramp
         };
-        let (delta, _, _) = self.test(&a, time, z, hph, r, lambda);
+        let Some(a) = self.anchors.back().copied() else {
+            return Judgement::Exclude(opening);
+        };
+        let (delta, _, v) = self.test(&a, time, z, hph, r, lambda);
         self.pending_pair = None;
-        self.open(a, time, delta, hph, true);
-        Judgement::Exclude(FaultReason::Ramp)
+        self.open(a, time, delta, v, hph, !self.replay_jump);
+        Judgement::Exclude(opening)
     }
 
     /// Whether the INS's horizontal drift since anchor `a` is within the

@@ -1,0 +1,122 @@
+//! A false fix found at its end, after the fixes were followed onto it
+//! (issue 33).
+//!
+//! An episode persists when the INS's predicted drift grows to cover the
+//! fixes' offset: it can no longer tell the new level from its own drift,
+//! and the fixes are followed again. Over the seconds a false RTK fix
+//! lasts, a MEMS INS run free does drift that far (the 1 Hz ADIS16465
+//! test-track drive: 0.3 m in 6 s in a turn), so a false fix of
+//! decimetres is often followed. When it ends, the fixes jump back, and
+//! the filter, now on the false level, takes the good fixes for a new
+//! fault (measured: a 0.7 m false fix at 130 s left the solution 0.9 m
+//! off for 30 s, 0.256 m RMS against the oracle's 0.072 m).
+//!
+//! The jump back tells the two levels apart where the INS's absolute
+//! position cannot: a jump is measured against the INS's displacement
+//! over a second, sharp to centimetres however far the INS drifted. A
+//! constant false fix opens with a jump Δ₁ and ends with one Δ₂ = −Δ₁;
+//! a real change of level (a receiver moving between solutions, an INS
+//! that did drift) has no jump back that undoes it. So a jump from the
+//! followed level whose sum with the opening jump is within both jumps'
+//! test variance (χ²₃ at [`super::FALSE_ALARM_PROB`]) and less than half
+//! the jump ends the false fix: the time-differenced test of the parent
+//! module (after Joerger & Pervan 2013) applied to the episode's two
+//! edges. The fix is used with the position variance grown to fit, and
+//! offline the wrapper returns to the state after the clean fix before the
+//! episode and runs again without the fixes since (`fusion/rollback.rs`).
+//!
+//! A jump the monitor took for a ramp's end (back to the level of the
+//! fixes seconds before, [`Judgement::RampEnd`]) is followed at once; when
+//! a later jump undoes it, it was a false fix's onset, and ends the same
+//! way (measured: a 1.5 m false fix 160 s into the ADIS16465 drive, taken
+//! for a ramp's end, was followed and then held the clean fixes after it
+//! off for 40 s, 0.961 m RMS against the oracle's 0.048 m).
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::*;
+
+/// An episode the fixes were followed out of (persisted), while its end
+/// may still come.
+#[derive(Copy, Clone, Debug)]
+pub(super) struct Followed {
+    /// The clean fix before the episode.
+    pub(super) anchor: GpsTime,
+    /// The episode's first fix, and the one followed from.
+    pub(super) start: GpsTime,
+    pub(super) followed_from: GpsTime,
+    /// The opening jump Δ₁ and its test's variance per axis.
+    pub(super) level: Vector3<f64>,
+    pub(super) level_var: Vector3<f64>,
+}
+
+impl Followed {
+    /// The episode `ep`, persisted at the fix at `time`.
+    pub(super) fn from_episode(ep: &Episode, time: GpsTime) -> Self {
+        Followed {
+            anchor: ep.anchor.time,
+            start: ep.start,
+            followed_from: time,
+            level: ep.level,
+            level_var: ep.level_var,
+        }
+    }
+}
+
+impl FaultMonitor {
+    /// Whether the fix (innovation `z`, as for [`Self::judge`]) jumped back
+    /// from the level of the episode followed last, undoing its opening
+    /// jump: then that level was a false fix, which ends here (see the
+    /// module's notes). Needs a clean fix on the followed level within
+    /// [`JUMP_MAX_GAP_S`] before, to measure the jump against; an episode
+    /// older than [`MAX_EPISODE_S`] is forgotten.
+    pub(super) fn false_fix_end(
+        &mut self,
+        time: GpsTime,
+        z: &Vector3<f64>,
+        hph: &Matrix3<f64>,
+        r: &Vector3<f64>,
+        lambda: f64,
+    ) -> Option<Judgement> {
+        let f = self.followed?;
+        if time.seconds_since(f.start) > MAX_EPISODE_S {
+            self.followed = None;
+            return None;
+        }
+        let last = self.anchors.back().copied()?;
+        if last.time < f.followed_from || time.seconds_since(last.time) > JUMP_MAX_GAP_S {
+            return None;
+        }
+        let threshold = fix_test_threshold();
+        let (delta, d, v) = self.test(&last, time, z, hph, r, lambda);
+        if d <= threshold {
+            return None;
+        }
+        let undone = delta + f.level;
+        let d_undone: f64 = (0..3)
+            .map(|i| undone[i] * undone[i] / (v[i] + f.level_var[i]))
+            .sum();
+        if d_undone > threshold || undone.norm() > RAMP_END_CLOSER * delta.norm() {
+            return None;
+        }
+        self.followed = None;
+        // The anchors since were on the false level.
+        self.anchors.clear();
+        self.anchors_since_reset = 0;
+        self.pending_pair = None;
+        Some(Judgement::FalseFixEnd {
+            anchor: f.anchor,
+            offset: delta,
+        })
+    }
+
+    /// Prepares a false fix's re-run from a state stored at or before the
+    /// clean fix `anchor`: the fixes after it and before `end` were the
+    /// false fix's (the first a jump, the others its run), and the fix at
+    /// `end` is back at the clean level.
+    pub(in crate::fusion) fn replay_false_fix_end(&mut self, anchor: GpsTime, end: GpsTime) {
+        self.replay_onset = Some((anchor, end));
+        self.replay_return = Some(end);
+        self.replay_jump = true;
+    }
+}
