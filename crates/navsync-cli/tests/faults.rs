@@ -472,6 +472,24 @@ fn offset_fixes(
     moved
 }
 
+/// `fixes` written to `run_dir` and fused with the simulation `sim`: the
+/// solution's folder and its horizontal RMS (m) against `sim`'s truth.
+fn fuse_scored(sim: &Path, run_dir: &Path, fixes: &[Vec<String>]) -> (PathBuf, f64) {
+    write_fixes(run_dir, fixes);
+    fuse_in(sim, run_dir);
+    let fused = run_dir.join("fused");
+    let rms = horizontal_rms(&sim.join("truth.nav"), &fused.join("navresult.nav"), &fused);
+    (fused, rms)
+}
+
+/// `lines` without those in `range` (the oracle's fixes).
+fn without(lines: &[Vec<String>], range: std::ops::Range<usize>) -> Vec<Vec<String>> {
+    (0..lines.len())
+        .filter(|i| !range.contains(i))
+        .map(|i| lines[i].clone())
+        .collect()
+}
+
 /// A ramp the filter followed (3 m over 15 s, 100 s into the 1 Hz
 /// ADIS16465 drive) is found when the fixes jump back: the jump is 4 times
 /// closer to the INS run free from before the ramp than to the solution
@@ -486,26 +504,11 @@ fn a_followed_ramp_is_found_at_its_end_and_a_false_fix_is_not_one() {
     let dir = temp_dir("faults-ramp-end");
     let sim = simulate_test_track(&dir, &["--imu-grade", "adis16465"]);
     let lines = fix_lines(&sim.join("gnss.txt"));
-    let truth = sim.join("truth.nav");
-    let fuse = |name: &str, fixes: &[Vec<String>]| {
-        let run_dir = dir.join(name);
-        write_fixes(&run_dir, fixes);
-        fuse_in(&sim, &run_dir);
-        let fused = run_dir.join("fused");
-        let rms = horizontal_rms(&truth, &fused.join("navresult.nav"), &fused);
-        (fused, rms)
-    };
-    let without = |range: std::ops::Range<usize>| -> Vec<Vec<String>> {
-        let keep = |i: &usize| !range.contains(i);
-        (0..lines.len())
-            .filter(keep)
-            .map(|i| lines[i].clone())
-            .collect()
-    };
+    let fuse = |name: &str, fixes: &[Vec<String>]| fuse_scored(&sim, &dir.join(name), fixes);
     let ramp = 100..115;
     let ramped = offset_fixes(&lines, ramp.clone(), (0.6, 0.8), |k| 0.2 * (k + 1) as f64);
     let (faulty, f) = fuse("ramp", &ramped);
-    let (_, o) = fuse("ramp-oracle", &without(ramp.clone()));
+    let (_, o) = fuse("ramp-oracle", &without(&lines, ramp.clone()));
     assert!(
         f <= 1.25 * o,
         "ramp: horizontal RMS {f:.4} m against {o:.4} m without the ramp's fixes"
@@ -525,7 +528,7 @@ fn a_followed_ramp_is_found_at_its_end_and_a_false_fix_is_not_one() {
     let false_fix = 100..110;
     let moved = offset_fixes(&lines, false_fix.clone(), (1.0, 0.0), |_| 6.0);
     let (_, f) = fuse("false-fix", &moved);
-    let (_, o) = fuse("false-fix-oracle", &without(false_fix));
+    let (_, o) = fuse("false-fix-oracle", &without(&lines, false_fix));
     assert!(
         f <= 1.25 * o,
         "false fix: horizontal RMS {f:.4} m against {o:.4} m without its fixes"
@@ -544,25 +547,15 @@ fn a_false_fix_the_filter_followed_is_taken_back_at_its_end() {
     let dir = temp_dir("faults-false-fix-end");
     let sim = simulate_test_track(&dir, &["--imu-grade", "adis16465"]);
     let lines = fix_lines(&sim.join("gnss.txt"));
-    let truth = sim.join("truth.nav");
     let direction = (120f64.to_radians().cos(), 120f64.to_radians().sin());
     for (start, size_m) in [(130, 0.7), (160, 1.5)] {
         let range = start..start + 10;
         let fuse = |name: &str, fixes: &[Vec<String>]| {
-            let run_dir = dir.join(format!("{name}-{start}"));
-            write_fixes(&run_dir, fixes);
-            fuse_in(&sim, &run_dir);
-            let fused = run_dir.join("fused");
-            let rms = horizontal_rms(&truth, &fused.join("navresult.nav"), &fused);
-            (fused, rms)
+            fuse_scored(&sim, &dir.join(format!("{name}-{start}")), fixes)
         };
         let moved = offset_fixes(&lines, range.clone(), direction, |_| size_m);
         let (faulty, f) = fuse("false-fix", &moved);
-        let without: Vec<Vec<String>> = (0..lines.len())
-            .filter(|i| !range.contains(i))
-            .map(|i| lines[i].clone())
-            .collect();
-        let (_, o) = fuse("oracle", &without);
+        let (_, o) = fuse("oracle", &without(&lines, range.clone()));
         assert!(
             f <= 1.25 * o,
             "{size_m} m at {start} s: horizontal RMS {f:.4} m against {o:.4} m without its fixes"

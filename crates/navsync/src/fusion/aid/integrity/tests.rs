@@ -407,6 +407,18 @@ fn a_false_fix_is_judged_by_the_filters_own_growth_without_updates() {
     assert_eq!(m.all_episodes()[0].fixes, 10);
 }
 
+/// A MEMS INS's σ: 0.1° tilt, 0.2° heading at 10 m/s.
+fn mems_ins() -> StateSpread {
+    StateSpread {
+        vel_sd: Vector3::repeat(0.01),
+        tilt_sd: 0.1f64.to_radians(),
+        yaw_sd: 0.2f64.to_radians(),
+        accel_bias_sd: 0.02,
+        gyro_bias_sd: 1e-5,
+        speed_mps: 10.0,
+    }
+}
+
 /// A MEMS INS (0.1° tilt, 0.2° heading σ at 10 m/s) follows fixes for
 /// 18 s, corrected by 1 cm a fix from the 6th on, then the fixes jump
 /// 1.44 m: sharp against the last fix (a jump), within the INS's drift
@@ -417,14 +429,7 @@ fn a_false_fix_is_judged_by_the_filters_own_growth_without_updates() {
 /// fixes after a start, which is the INS catching up).
 #[test]
 fn a_jump_after_the_fixes_dragged_the_ins_is_a_ramp_end() {
-    let spread = StateSpread {
-        vel_sd: Vector3::repeat(0.01),
-        tilt_sd: 0.1f64.to_radians(),
-        yaw_sd: 0.2f64.to_radians(),
-        accel_bias_sd: 0.02,
-        gyro_bias_sd: 1e-5,
-        speed_mps: 10.0,
-    };
+    let spread = mems_ins();
     let jump_after = |dragged_at: Option<usize>| {
         let (mut m, t) = pulled(spread, 0.01, dragged_at);
         let z = Vector3::new(1.2, -0.8, 0.0);
@@ -444,14 +449,7 @@ fn a_jump_after_the_fixes_dragged_the_ins_is_a_ramp_end() {
 /// which ends there, after the clean fix before it.
 #[test]
 fn a_ramp_end_that_a_later_jump_undoes_was_a_false_fixs_onset() {
-    let spread = StateSpread {
-        vel_sd: Vector3::repeat(0.01),
-        tilt_sd: 0.1f64.to_radians(),
-        yaw_sd: 0.2f64.to_radians(),
-        accel_bias_sd: 0.02,
-        gyro_bias_sd: 1e-5,
-        speed_mps: 10.0,
-    };
+    let spread = mems_ins();
     let (mut m, t) = pulled(spread, 0.01, Some(10));
     let z = Vector3::new(1.2, -0.8, 0.0);
     assert!(matches!(
