@@ -473,6 +473,8 @@ impl FaultMonitor {
         self.anchors.clear();
         self.anchors_since_reset = 0;
         self.ledger.clear();
+        // A level followed before it is no reference for a jump after it.
+        self.followed = None;
         if let Some(ep) = self.episode.take() {
             self.close(ep, EpisodeEnd::Returned);
         }
