@@ -36,6 +36,13 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::*;
 
+/// A followed level is a false fix's only once clean fixes held it this
+/// long (s): a level of one fix between two jumps is a receiver flipping
+/// between two bad levels (±0.3 m every second: taken for a false fix's
+/// end, the fix back, as bad, was used and the good ones after it
+/// excluded for 7 s).
+const LEVEL_HELD_MIN_S: f64 = 2.0;
+
 /// An episode the fixes were followed out of (persisted), while its end
 /// may still come.
 #[derive(Copy, Clone, Debug)]
@@ -67,9 +74,10 @@ impl FaultMonitor {
     /// Whether the fix (innovation `z`, as for [`Self::judge`]) jumped back
     /// from the level of the episode followed last, undoing its opening
     /// jump: then that level was a false fix, which ends here (see the
-    /// module's notes). Needs a clean fix on the followed level within
-    /// [`JUMP_MAX_GAP_S`] before, to measure the jump against; an episode
-    /// older than [`MAX_EPISODE_S`] is forgotten.
+    /// module's notes). Needs clean fixes on the followed level for
+    /// [`LEVEL_HELD_MIN_S`], the last within [`JUMP_MAX_GAP_S`] before, to
+    /// measure the jump against; an episode older than [`MAX_EPISODE_S`]
+    /// is forgotten.
     pub(super) fn false_fix_end(
         &mut self,
         time: GpsTime,
@@ -84,7 +92,9 @@ impl FaultMonitor {
             return None;
         }
         let last = self.anchors.back().copied()?;
-        if last.time < f.followed_from || time.seconds_since(last.time) > JUMP_MAX_GAP_S {
+        if last.time.seconds_since(f.followed_from) < LEVEL_HELD_MIN_S
+            || time.seconds_since(last.time) > JUMP_MAX_GAP_S
+        {
             return None;
         }
         let threshold = fix_test_threshold();
@@ -100,10 +110,10 @@ impl FaultMonitor {
             return None;
         }
         self.followed = None;
-        // The anchors since were on the false level.
-        self.anchors.clear();
-        self.anchors_since_reset = 0;
-        self.pending_pair = None;
+        // The anchors since stay: with the ledger they still measure the
+        // INS's displacement (offline the re-run from before the episode
+        // replaces them; forgotten, the monitor let 5 more of a receiver's
+        // flips of ±0.3 m through in real time).
         Some(Judgement::FalseFixEnd {
             anchor: f.anchor,
             offset: delta,
