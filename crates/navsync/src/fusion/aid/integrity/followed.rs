@@ -21,9 +21,10 @@
 //! test variance (χ²₃ at [`super::FALSE_ALARM_PROB`]) and less than half
 //! the jump ends the false fix: the time-differenced test of the parent
 //! module (after Joerger & Pervan 2013) applied to the episode's two
-//! edges. The fix is used with the position variance grown to fit, and
-//! offline the wrapper returns to the state after the clean fix before the
-//! episode and runs again without the fixes since (`fusion/rollback.rs`).
+//! edges. Offline the wrapper then returns to the state after the clean
+//! fix before the episode and runs again without the fixes since
+//! (`fusion/rollback.rs`); in real time the fix is weighed as any fix is
+//! (not excluded as a jump from the false level).
 //!
 //! A jump the monitor took for a ramp's end (back to the level of the
 //! fixes seconds before, [`Judgement::RampEnd`]) is followed at once; when
@@ -36,12 +37,15 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::*;
 
-/// A followed level is a false fix's only once clean fixes held it this
-/// long (s): a level of one fix between two jumps is a receiver flipping
-/// between two bad levels (±0.3 m every second: taken for a false fix's
-/// end, the fix back, as bad, was used and the good ones after it
-/// excluded for 7 s).
-const LEVEL_HELD_MIN_S: f64 = 2.0;
+/// A level the monitor followed at once (taken for a ramp's end) is a
+/// false fix's only once this many clean fixes held it: a level of one
+/// fix between two jumps is a receiver flipping between two bad levels
+/// (±0.3 m every second: taken for a false fix's end, the fix back, as
+/// bad, was used and the good ones after it excluded for 7 s). A level
+/// followed after an episode of excluded fixes has held already: one fix
+/// on it is enough (asked of those too, 4 of the placed sweep's 96 false
+/// fixes, followed for their last fix, were missed; asked to hold 2 s, 12).
+pub(super) const LEVEL_HELD_MIN_FIXES: usize = 2;
 
 /// An episode the fixes were followed out of (persisted), while its end
 /// may still come.
@@ -55,6 +59,8 @@ pub(super) struct Followed {
     /// The opening jump Δ₁ and its test's variance per axis.
     pub(super) level: Vector3<f64>,
     pub(super) level_var: Vector3<f64>,
+    /// Clean fixes that must hold the level before a jump can undo it.
+    pub(super) min_held: usize,
 }
 
 impl Followed {
@@ -66,6 +72,7 @@ impl Followed {
             followed_from: time,
             level: ep.level,
             level_var: ep.level_var,
+            min_held: 1,
         }
     }
 }
@@ -74,8 +81,8 @@ impl FaultMonitor {
     /// Whether the fix (innovation `z`, as for [`Self::judge`]) jumped back
     /// from the level of the episode followed last, undoing its opening
     /// jump: then that level was a false fix, which ends here (see the
-    /// module's notes). Needs clean fixes on the followed level for
-    /// [`LEVEL_HELD_MIN_S`], the last within [`JUMP_MAX_GAP_S`] before, to
+    /// module's notes). Needs clean fixes on the followed level (for one
+    /// taken for a ramp's end, [`LEVEL_HELD_MIN_FIXES`]), the last within [`JUMP_MAX_GAP_S`] before, to
     /// measure the jump against; an episode older than [`MAX_EPISODE_S`]
     /// is forgotten.
     pub(super) fn false_fix_end(
@@ -92,9 +99,12 @@ impl FaultMonitor {
             return None;
         }
         let last = self.anchors.back().copied()?;
-        if last.time.seconds_since(f.followed_from) < LEVEL_HELD_MIN_S
-            || time.seconds_since(last.time) > JUMP_MAX_GAP_S
-        {
+        let held = self
+            .anchors
+            .iter()
+            .filter(|a| a.time >= f.followed_from)
+            .count();
+        if held < f.min_held || time.seconds_since(last.time) > JUMP_MAX_GAP_S {
             return None;
         }
         let threshold = fix_test_threshold();

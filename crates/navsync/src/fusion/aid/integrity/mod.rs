@@ -350,10 +350,9 @@ pub(in crate::fusion) enum Judgement {
     RampEnd { offset: Vector3<f64> },
     /// A jump back that undid the jump opening an episode the fixes were
     /// followed out of: the level followed was a false fix, which began
-    /// after the clean fix at `anchor` ([`followed`]). Used, with the
-    /// position variance grown by the square of `offset`; offline the
-    /// wrapper returns to the state after `anchor` and runs again without
-    /// the fixes since.
+    /// after the clean fix at `anchor` ([`followed`]); `offset` the fix's
+    /// jump. Weighed as any fix is; offline the wrapper returns to the
+    /// state after `anchor` and runs again without the fixes since.
     FalseFixEnd {
         anchor: GpsTime,
         offset: Vector3<f64>,
@@ -849,6 +848,7 @@ impl FaultMonitor {
                     followed_from: time,
                     level: delta,
                     level_var: v,
+                    min_held: followed::LEVEL_HELD_MIN_FIXES,
                 });
                 return Judgement::RampEnd { offset: delta };
             }
