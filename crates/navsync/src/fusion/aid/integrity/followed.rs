@@ -63,6 +63,23 @@ pub(super) struct Followed {
     pub(super) min_held: usize,
 }
 
+/// Whether `jump` (variance `jump_var` per axis) undoes the jump `level`
+/// that opened an episode (variance `level_var`): their sum within both
+/// tests' variance (χ²₃ at [`super::FALSE_ALARM_PROB`]) and shorter than
+/// [`RAMP_END_CLOSER`] times the jump.
+pub(super) fn undoes(
+    jump: &Vector3<f64>,
+    jump_var: &Vector3<f64>,
+    level: &Vector3<f64>,
+    level_var: &Vector3<f64>,
+) -> bool {
+    let undone = jump + level;
+    let d_undone: f64 = (0..3)
+        .map(|i| undone[i] * undone[i] / (jump_var[i] + level_var[i]))
+        .sum();
+    d_undone <= fix_test_threshold() && undone.norm() <= RAMP_END_CLOSER * jump.norm()
+}
+
 impl Followed {
     /// The episode `ep`, persisted at the fix at `time`.
     pub(super) fn from_episode(ep: &Episode, time: GpsTime) -> Self {
@@ -82,9 +99,9 @@ impl FaultMonitor {
     /// from the level of the episode followed last, undoing its opening
     /// jump: then that level was a false fix, which ends here (see the
     /// module's notes). Needs clean fixes on the followed level (for one
-    /// taken for a ramp's end, [`LEVEL_HELD_MIN_FIXES`]), the last within [`JUMP_MAX_GAP_S`] before, to
-    /// measure the jump against; an episode older than [`MAX_EPISODE_S`]
-    /// is forgotten.
+    /// taken for a ramp's end, [`LEVEL_HELD_MIN_FIXES`]), the last within
+    /// [`JUMP_MAX_GAP_S`] before, to measure the jump against; an episode
+    /// older than [`MAX_EPISODE_S`] is forgotten.
     pub(super) fn false_fix_end(
         &mut self,
         time: GpsTime,
@@ -107,16 +124,8 @@ impl FaultMonitor {
         if held < f.min_held || time.seconds_since(last.time) > JUMP_MAX_GAP_S {
             return None;
         }
-        let threshold = fix_test_threshold();
         let (delta, d, v) = self.test(&last, time, z, hph, r, lambda);
-        if d <= threshold {
-            return None;
-        }
-        let undone = delta + f.level;
-        let d_undone: f64 = (0..3)
-            .map(|i| undone[i] * undone[i] / (v[i] + f.level_var[i]))
-            .sum();
-        if d_undone > threshold || undone.norm() > RAMP_END_CLOSER * delta.norm() {
+        if d <= fix_test_threshold() || !undoes(&delta, &v, &f.level, &f.level_var) {
             return None;
         }
         self.followed = None;

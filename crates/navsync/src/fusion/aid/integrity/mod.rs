@@ -928,14 +928,10 @@ impl FaultMonitor {
         // excluded for 17 s more, 1.025 m RMS against the oracle's
         // 0.098 m): [`followed`]'s test on the episode's two edges.
         if !ep.onset && d_step > threshold {
-            let undone = step + ep.level;
-            let d_undone: f64 = (0..3)
-                .map(|i| {
-                    let growth = (hph_diag[i] - ep.hph_last[i]).max(0.0);
-                    undone[i] * undone[i] / (lambda * growth + step_fixes[i] + ep.level_var[i])
-                })
-                .sum();
-            if d_undone <= threshold && undone.norm() <= RAMP_END_CLOSER * step.norm() {
+            let step_var = Vector3::from_fn(|i, _| {
+                lambda * (hph_diag[i] - ep.hph_last[i]).max(0.0) + step_fixes[i]
+            });
+            if followed::undoes(&step, &step_var, &ep.level, &ep.level_var) {
                 self.episode = None;
                 self.close(ep, EpisodeEnd::Returned);
                 return Judgement::Clean;
