@@ -155,8 +155,8 @@ struct RigFrontEnd {
 
 /// How long [`Navigator::with_revised_output`] holds solutions back (s):
 /// longer than the filter keeps the states a rollback returns to
-/// (`fusion::rollback`, 21 s, stored at most every 0.9 s).
-const HOLD_S: f64 = 25.0;
+/// (`fusion::rollback`, stored at most every 0.9 s).
+const HOLD_S: f64 = crate::fusion::ROLLBACK_KEEP_S + 4.0;
 
 /// The auxiliary line of a solution: all state σ, the position
 /// covariance (m², NED) and the time offset with its σ.
@@ -347,7 +347,7 @@ impl Navigator {
         self
     }
 
-    /// Offline: solutions reach the sink `HOLD_S` (25 s) late, so that when the
+    /// Offline: solutions reach the sink `HOLD_S` (59 s) late, so that when the
     /// filter returns to a stored state and runs again (a ramp's onset or end or
     /// a stale run found, `fusion::rollback`) the re-run's solutions are
     /// written in place of those it replaces: the written forward solution

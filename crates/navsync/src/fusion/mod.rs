@@ -75,7 +75,7 @@ use aid::time_offset::Kinematics;
 use aid::{AidSources, DelayBuffer, Timed};
 pub use config::*;
 use latency::{HistoryEntry, Predictor};
-pub(crate) use rollback::Revised;
+pub(crate) use rollback::{KEEP_S as ROLLBACK_KEEP_S, Revised};
 
 /// The filter and navigation state: everything that a delayed-state update
 /// must be able to restore (cloned at each IMU epoch in that mode).
@@ -569,6 +569,8 @@ pub struct Fusion {
     recorder: Option<Recorder>,
     /// Rollback (`rollback.rs`): the states stored after clean fixes.
     rollback_states: std::collections::VecDeque<rollback::Stored>,
+    /// Rollback: a ramp's end held as a hypothesis.
+    held_ramp_end: Option<rollback::HeldRampEnd>,
     /// With [`Self::keep_revisions`]: the last rollback's re-run solutions
     /// not yet taken.
     revisions: Option<Vec<rollback::Revised>>,
@@ -600,6 +602,7 @@ impl Fusion {
             fix_log: Vec::new(),
             recorder: None,
             rollback_states: std::collections::VecDeque::new(),
+            held_ramp_end: None,
             revisions: None,
         }
         .with_onset_test()

@@ -34,6 +34,12 @@
 //! and leaves the fixes since out (`ramp`, `run`) up to the jump, which
 //! ends the episode.
 //!
+//! A jump that test leaves open (the free INS only twice nearer the fix
+//! than the solution, or the ramp begun further back than it reaches) is
+//! held as a ramp's end for [`HELD_S`] ([`HeldRampEnd`]): a false fix's
+//! onset that a free INS drifted near ends, the fixes coming back; a
+//! ramp's end stays, and the re-run then returns to before the ramp.
+//!
 //! A false fix the filter was led onto (its episode persisted: the INS
 //! could no longer tell its level from its own drift) is found at its
 //! end, where a jump back undoes the jump that opened it
@@ -53,11 +59,27 @@
 //! no onset test.
 
 use super::aid::gnss::{FreeIns, fix_difference_3sd_m, free_drift_sd_m, free_drift_variance};
-use super::aid::integrity::RAMP_END_MIN_LAG_S;
+use super::aid::integrity::{EpisodeEnd, RAMP_END_MIN_LAG_S};
 use super::*;
 
-/// States are kept this long (s): the monitor's anchors reach back this far.
-const KEEP_S: f64 = 21.0;
+/// A fix's jump is judged at once against the states kept this long (s)
+/// back ([`Fusion::ramp_start`]): the monitor's anchors reach back this
+/// far.
+const AT_ONCE_REACH_S: f64 = 21.0;
+/// A ramp's end that the test at once leaves open (its start further
+/// back, or the free INS not that much closer than the solution) is held
+/// as a hypothesis ([`HeldRampEnd`]) against the states this far back
+/// (s)…
+const HELD_REACH_S: f64 = 35.0;
+/// …for this long (s) after its jump: a false fix's onset that a free INS
+/// drifted near ends within it, with the fixes back at the clean level
+/// (the episode its jump opened returns); a ramp's end stays.
+const HELD_S: f64 = 20.0;
+/// A held ramp end's fix is this many times closer to a free INS than to
+/// the solution (at least two consecutive states, as [`RAMP_END_MIN_STATES`]).
+const HELD_RATIO: f64 = 2.0;
+/// States are kept this long (s).
+pub(crate) const KEEP_S: f64 = HELD_REACH_S + HELD_S;
 /// A state is stored after a clean fix at least this long (s) after the
 /// last stored one: a rollback returns to the newest stored at or before
 /// its anchor and judges the clean fixes since again. With 10 Hz fixes a
@@ -80,6 +102,43 @@ pub(super) enum Rollback {
     /// after the clean fix `anchor` before the one at `end`, whose jump
     /// back undid the one that opened them.
     FalseFixEnded { anchor: GpsTime, end: GpsTime },
+    /// A ramp's end held [`HELD_S`] and confirmed: as `RampEnded`, from a
+    /// state up to [`HELD_REACH_S`] before the jump.
+    HeldRampEnded { anchor: GpsTime, end: GpsTime },
+}
+
+impl Rollback {
+    /// The clean fix (the stale run's first write) whose state the re-run
+    /// starts from.
+    fn anchor(self) -> GpsTime {
+        match self {
+            Rollback::Ramp { anchor, .. }
+            | Rollback::RampEnded { anchor, .. }
+            | Rollback::FalseFixEnded { anchor, .. }
+            | Rollback::HeldRampEnded { anchor, .. } => anchor,
+            Rollback::Stale { since, .. } => since,
+        }
+    }
+}
+
+/// A fix's jump that may have ended a ramp the filter followed from
+/// further back than the test at once reaches, or whose free INS was only
+/// [`HELD_RATIO`] times closer than the solution: a false fix's onset that
+/// a free INS drifted near is as likely there. The two differ in what
+/// follows: a false fix ends, and the fixes jump back to the level before
+/// (the episode its jump opened returns); a ramp's end stays. So the
+/// hypothesis is held for [`HELD_S`], the filter going on as if the jump
+/// were a fault, and confirmed if nothing undid it: the filter then
+/// returns to the state before the ramp, as for a ramp's end found at
+/// once. A false fix longer than [`HELD_S`] whose onset a free INS drifted
+/// near would be taken for a ramp's end.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct HeldRampEnd {
+    /// The clean fix of the state whose free INS was nearest the fix.
+    anchor: GpsTime,
+    /// The fix that jumped, and the INS time it was fused at.
+    jump: JumpCheck,
+    from_free_m: f64,
 }
 
 /// A fix at a ramp's end is this many times closer to the INS run free
@@ -141,19 +200,42 @@ impl Fusion {
         self.imu_buffer.push_back(*sample);
         if let Some(check) = self.core.jump_check.take()
             && self.core.rollback_to.is_none()
-            && let Some((anchor, from_free_m)) = self.ramp_start(&check)
         {
-            self.core.notes.push(format!(
-                "GNSS fix at {}: {:.2} m from the solution and {from_free_m:.2} m from where the IMU alone carried the antenna from the clean fix at {anchor}: the fixes since had drifted away (a ramp the filter followed); the filter returns to its state then and runs again without them",
-                check.time, check.from_filter_m
-            ));
-            self.core.rollback_to = Some(Rollback::RampEnded {
-                anchor,
-                end: check.time,
-            });
+            // A later jump, either way, ends what the one held stood for.
+            self.held_ramp_end = None;
+            if let Some((anchor, from_free_m)) =
+                self.ramp_start(&check, RAMP_END_RATIO, true, AT_ONCE_REACH_S)
+            {
+                self.core.notes.push(format!(
+                    "GNSS fix at {}: {:.2} m from the solution and {from_free_m:.2} m from where the IMU alone carried the antenna from the clean fix at {anchor}: the fixes since had drifted away (a ramp the filter followed); the filter returns to its state then and runs again without them",
+                    check.time, check.from_filter_m
+                ));
+                self.core.rollback_to = Some(Rollback::RampEnded {
+                    anchor,
+                    end: check.time,
+                });
+            } else if let Some((anchor, from_free_m)) =
+                self.ramp_start(&check, HELD_RATIO, false, HELD_REACH_S)
+            {
+                self.held_ramp_end = Some(HeldRampEnd {
+                    anchor,
+                    jump: check,
+                    from_free_m,
+                });
+            }
         }
+        self.judge_held_ramp_end(sample.time);
         if let Some(rollback) = self.core.rollback_to.take() {
-            self.roll_back(rollback)?;
+            // A re-run from before the held jump judges it again; one from
+            // after it (an onset the ramp's dragged velocity brought on)
+            // leaves it and the states before it as they were.
+            if self
+                .held_ramp_end
+                .is_some_and(|h| rollback.anchor() < h.jump.time)
+            {
+                self.held_ramp_end = None;
+            }
+            self.roll_back(rollback, sample.time)?;
         }
         let monitor = &self.core.aid.gnss.monitor;
         if let Some(anchor) = monitor.last_anchor_time()
@@ -196,17 +278,18 @@ impl Fusion {
     /// one found stale) excluded.
     /// Without such a state (it was not kept), nothing is done: the
     /// episode stands, without the rollback.
-    fn roll_back(&mut self, rollback: Rollback) -> Result<(), Error> {
-        let anchor = match rollback {
-            Rollback::Ramp { anchor, .. }
-            | Rollback::RampEnded { anchor, .. }
-            | Rollback::FalseFixEnded { anchor, .. } => anchor,
-            Rollback::Stale { since, .. } => since,
+    fn roll_back(&mut self, rollback: Rollback, now: GpsTime) -> Result<(), Error> {
+        let anchor = rollback.anchor();
+        let reach_s = match rollback {
+            Rollback::HeldRampEnded { .. } => KEEP_S,
+            _ => AT_ONCE_REACH_S,
         };
+        let first = self.first_within(now, reach_s);
         let Some(k) = self
             .rollback_states
             .iter()
             .rposition(|s| s.anchor <= anchor)
+            .filter(|&k| k >= first)
         else {
             return Ok(());
         };
@@ -220,7 +303,7 @@ impl Fusion {
         match rollback {
             Rollback::Ramp { anchor, onset } => core.aid.gnss.monitor.replay_ramp(anchor, onset),
             Rollback::Stale { since, until } => core.aid.gnss.replay_stale(since, until),
-            Rollback::RampEnded { anchor, end } => {
+            Rollback::RampEnded { anchor, end } | Rollback::HeldRampEnded { anchor, end } => {
                 core.aid.gnss.monitor.replay_ramp_end(anchor, end)
             }
             Rollback::FalseFixEnded { anchor, end } => {
@@ -274,7 +357,18 @@ impl Fusion {
     /// by chance. Returns the clean fix of the
     /// state whose free INS is nearest the fix (the ramp's start), and
     /// that distance.
-    fn ramp_start(&self, check: &JumpCheck) -> Option<(GpsTime, f64)> {
+    /// Here `ratio` is how many times closer than the solution a free INS
+    /// must be, `drift_bound` whether the fix must be farther from the
+    /// solution than the free INS's predicted drift, and `reach_s` how far
+    /// back the states are tried (as the monitor's anchors: at most every
+    /// [`STORE_SPACING_S`], at least [`RAMP_END_MIN_LAG_S`] back).
+    fn ramp_start(
+        &self,
+        check: &JumpCheck,
+        ratio: f64,
+        drift_bound: bool,
+        reach_s: f64,
+    ) -> Option<(GpsTime, f64)> {
         if check.from_filter_m <= fix_difference_3sd_m(&check.pos_sd) {
             return None;
         }
@@ -291,7 +385,13 @@ impl Fusion {
             run.clear();
         };
         let old_enough = |s: &&Stored| check.time.seconds_since(s.anchor) >= RAMP_END_MIN_LAG_S;
-        for stored in self.rollback_states.iter().take_while(old_enough) {
+        let first = self.first_within(check.at, reach_s);
+        for stored in self
+            .rollback_states
+            .iter()
+            .skip(first)
+            .take_while(old_enough)
+        {
             let d = self.free_distance(&stored.core, check);
             let core = &stored.core;
             let drift_sd_m = free_drift_sd_m(
@@ -300,7 +400,9 @@ impl Fusion {
                 check.at.seconds_since(core.nav.time),
             );
             let drift_bound_m = RAMP_END_DRIFT_K * drift_sd_m;
-            if d * RAMP_END_RATIO < check.from_filter_m && check.from_filter_m > drift_bound_m {
+            if d * ratio < check.from_filter_m
+                && (!drift_bound || check.from_filter_m > drift_bound_m)
+            {
                 run.push((stored.anchor, d));
             } else {
                 close_run(&mut run);
@@ -308,6 +410,54 @@ impl Fusion {
         }
         close_run(&mut run);
         best
+    }
+
+    /// The index of the first stored state at most `reach_s` before `now`,
+    /// or of the last if all are older (as the states kept were before
+    /// they were kept longer than [`AT_ONCE_REACH_S`]).
+    fn first_within(&self, now: GpsTime, reach_s: f64) -> usize {
+        let oldest = now.add_seconds(-reach_s);
+        self.rollback_states
+            .iter()
+            .position(|s| s.anchor >= oldest)
+            .unwrap_or(self.rollback_states.len().saturating_sub(1))
+    }
+
+    /// Drops a held ramp end that the fixes undid (the episode its jump
+    /// opened returned: the fixes came back to the level before it, a
+    /// false fix or a spike) or that a rollback replaced; confirms one
+    /// held [`HELD_S`].
+    fn judge_held_ramp_end(&mut self, now: GpsTime) {
+        let Some(held) = self.held_ramp_end else {
+            return;
+        };
+        let jump_sow = held.jump.time.sow();
+        let undone = self
+            .core
+            .aid
+            .gnss
+            .monitor
+            .episodes
+            .iter()
+            .rev()
+            .take_while(|e| e.start_sow >= jump_sow)
+            .any(|e| e.start_sow == jump_sow && e.end == EpisodeEnd::Returned);
+        if undone {
+            self.held_ramp_end = None;
+            return;
+        }
+        if now.seconds_since(held.jump.at) < HELD_S || self.core.rollback_to.is_some() {
+            return;
+        }
+        self.held_ramp_end = None;
+        self.core.notes.push(format!(
+            "GNSS fix at {}: {:.2} m from the solution and {:.2} m from where the IMU alone carried the antenna from the clean fix at {}, and the fixes stayed at its level for {HELD_S:.0} s: the fixes before it had drifted away (a ramp the filter followed); the filter returns to its state then and runs again without them",
+            held.jump.time, held.jump.from_filter_m, held.from_free_m, held.anchor
+        ));
+        self.core.rollback_to = Some(Rollback::HeldRampEnded {
+            anchor: held.anchor,
+            end: held.jump.time,
+        });
     }
 
     /// The distance (m) of the fix in `check` from the antenna of the INS
