@@ -578,6 +578,13 @@ fn a_ramp_past_the_states_reached_at_once_is_held_and_a_false_fix_undoes_it() {
     for i in ramp.end..ramp.end + 25 {
         assert_eq!(status(i).as_deref(), Some("used"), "fix {i}:\n{residuals}");
     }
+    // A ramp that ends 10 s before the data: no fix can tell it from a
+    // false fix's onset, and the run says so.
+    let last = lines.len() - 10;
+    let late = offset_fixes(&lines, last - 20..last, north, |k| 0.15 * (k + 1) as f64);
+    let (late_run, _) = fuse("late-ramp", &late);
+    let summary = std::fs::read_to_string(late_run.join("summary.json")).unwrap();
+    assert!(summary.contains("before the fixes could tell"), "{summary}");
     let direction = (120f64.to_radians().cos(), 120f64.to_radians().sin());
     let false_fix = 160..170;
     let moved = offset_fixes(&lines, false_fix.clone(), direction, |_| 6.0);

@@ -460,6 +460,24 @@ impl Fusion {
         });
     }
 
+    /// Says so of a held ramp end the data ended before it was judged
+    /// (called when the run ends).
+    pub(super) fn note_unresolved_ramp_end(&mut self) {
+        let Some(held) = self.held_ramp_end.take() else {
+            return;
+        };
+        self.diag.note(format!(
+            "GNSS fix at {}: {:.2} m from the solution and {:.2} m from where the IMU alone carried the antenna from the clean fix at {}: either the fixes before it had drifted away (a ramp's end) or it began a false fix; the data ended {:.0} s after it, before the fixes could tell (a false fix's end comes back to the level before it), so the monitor's judgement stands (the fixes after it excluded until their level persisted) and the forward solution from {} on may be off by about {:.1} m (the smoothed solution weighs both sides)",
+            held.jump.time,
+            held.jump.from_filter_m,
+            held.from_free_m,
+            held.anchor,
+            self.now.seconds_since(held.jump.at),
+            held.anchor,
+            held.jump.from_filter_m
+        ));
+    }
+
     /// The distance (m) of the fix in `check` from the antenna of the INS
     /// run free from `from` over the samples kept since, to the time the
     /// fix was fused at.
