@@ -7,7 +7,7 @@
 //! Position and velocity are one source: a fix's velocity row is fused
 //! only after its position was used, with the same held states.
 
-use super::integrity::{FaultMonitor, FaultReason, Judgement, PROTECTION_K, StateSpread};
+use super::integrity::{FaultMonitor, FaultReason, FixView, Judgement, PROTECTION_K, StateSpread};
 use super::*;
 use crate::filter::idx;
 use crate::fusion::rollback::{JumpCheck, Rollback};
@@ -1341,7 +1341,9 @@ impl GnssSource {
         if obs.dim() == 3 {
             let (r, hph) = stated_parts(obs, s);
             let lambda = self.overconfidence_scale();
-            if self.monitor.ins_is_reference(time, &hph, &r, lambda) {
+            let z = Vector3::new(obs.z[0], obs.z[1], obs.z[2]);
+            let fix = FixView::new(time, z, hph, r, lambda);
+            if self.monitor.ins_is_reference(&fix) {
                 return Ok(false);
             }
         }

@@ -33,7 +33,7 @@
 //! for a ramp's end, was followed and then held the clean fixes after it
 //! off for 40 s, 0.961 m RMS against the oracle's 0.048 m).
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 use super::*;
 
@@ -102,14 +102,8 @@ impl FaultMonitor {
     /// taken for a ramp's end, [`LEVEL_HELD_MIN_FIXES`]), the last within
     /// [`JUMP_MAX_GAP_S`] before, to measure the jump against; an episode
     /// older than [`MAX_EPISODE_S`] is forgotten.
-    pub(super) fn false_fix_end(
-        &mut self,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> Option<Judgement> {
+    pub(super) fn false_fix_end(&mut self, fix: &FixView) -> Option<Judgement> {
+        let time = fix.time;
         let f = self.followed?;
         if time.seconds_since(f.start) > MAX_EPISODE_S {
             self.followed = None;
@@ -124,7 +118,7 @@ impl FaultMonitor {
         if held < f.min_held || time.seconds_since(last.time) > JUMP_MAX_GAP_S {
             return None;
         }
-        let (delta, d, v) = self.test(&last, time, z, hph, r, lambda);
+        let (delta, d, v) = self.test(&last, fix);
         if d <= fix_test_threshold() || !undoes(&delta, &v, &f.level, &f.level_var) {
             return None;
         }

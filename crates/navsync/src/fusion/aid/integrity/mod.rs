@@ -252,6 +252,36 @@ pub struct FaultEpisode {
     pub max_offset_m: f64,
 }
 
+/// A position fix as the monitor judges it: its time, innovation z
+/// (predicted − measured, NED, m), the prediction's H P Hᵀ, its stated R
+/// (diagonal) and the INS overconfidence λ.
+#[derive(Clone, Copy, Debug)]
+pub(in crate::fusion) struct FixView {
+    time: GpsTime,
+    z: Vector3<f64>,
+    hph: Matrix3<f64>,
+    r: Vector3<f64>,
+    lambda: f64,
+}
+
+impl FixView {
+    pub(in crate::fusion) fn new(
+        time: GpsTime,
+        z: Vector3<f64>,
+        hph: Matrix3<f64>,
+        r: Vector3<f64>,
+        lambda: f64,
+    ) -> Self {
+        FixView {
+            time,
+            z,
+            hph,
+            r,
+            lambda,
+        }
+    }
+}
+
 /// A clean fix that later ones are judged against.
 #[derive(Copy, Clone, Debug)]
 struct Anchor {
@@ -611,15 +641,8 @@ impl FaultMonitor {
 
     /// Δ, D and the variance per axis D divides by, of a fix against
     /// anchor `a`.
-    fn test(
-        &self,
-        a: &Anchor,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> (Vector3<f64>, f64, Vector3<f64>) {
+    fn test(&self, a: &Anchor, fix: &FixView) -> (Vector3<f64>, f64, Vector3<f64>) {
+        let (time, z, hph, r, lambda) = (fix.time, &fix.z, &fix.hph, &fix.r, fix.lambda);
         let dt = time.seconds_since(a.time);
         let c = self.ledger_since(a, time);
         let delta = z - c - a.residual;
@@ -739,6 +762,7 @@ impl FaultMonitor {
         lambda: f64,
     ) -> Judgement {
         let lambda = lambda.max(1.0);
+        let fix = &FixView::new(time, *z, *hph, *r, lambda);
         self.fixes_continuous = self
             .last_judged
             .is_some_and(|t| time.seconds_since(t) <= JUMP_MAX_GAP_S);
@@ -766,16 +790,16 @@ impl FaultMonitor {
         }
         if let Some((anchor, until)) = self.replay_onset {
             if time > anchor && time <= until {
-                return self.replay_ramp_fix(time, z, hph, r, lambda);
+                return self.replay_ramp_fix(fix);
             }
             if time > until {
                 self.replay_onset = None;
             }
         }
         if let Some(ep) = self.episode {
-            return self.judge_in_episode(ep, time, z, hph, r, lambda);
+            return self.judge_in_episode(ep, fix);
         }
-        if let Some(end) = self.false_fix_end(time, z, hph, r, lambda) {
+        if let Some(end) = self.false_fix_end(fix) {
             return end;
         }
         let threshold = fix_test_threshold();
@@ -797,13 +821,13 @@ impl FaultMonitor {
             // weighting (a ramp past its gate): the onset test still
             // reaches back to the clean fixes before them.
             if self.onset_enabled
-                && let Some(onset) = self.ramp_onset(time, z, hph, r, lambda)
+                && let Some(onset) = self.ramp_onset(fix)
             {
                 return onset;
             }
             return Judgement::Clean;
         }
-        let (delta, d, v) = self.test(&last, time, z, hph, r, lambda);
+        let (delta, d, v) = self.test(&last, fix);
         if d > threshold {
             self.jumped = true;
             // Back to the level of the fixes seconds before? Then those
@@ -824,8 +848,7 @@ impl FaultMonitor {
             // near the old level (comma2k19 with the IMU alone: a 30 m
             // spike, against an anchor 20 s back at σ 151 m, was followed
             // as a ramp's end).
-            if let Some((old, d_old, delta_old, v_old)) =
-                self.back_to_older(time, z, hph, r, lambda, &last)
+            if let Some((old, d_old, delta_old, v_old)) = self.back_to_older(fix, &last)
                 && d_old <= threshold
                 && (dragged
                     || (delta_old.norm() < RAMP_END_CLOSER * delta.norm()
@@ -857,7 +880,7 @@ impl FaultMonitor {
             return Judgement::Exclude(FaultReason::Jump);
         }
         if self.onset_enabled
-            && let Some(onset) = self.ramp_onset(time, z, hph, r, lambda)
+            && let Some(onset) = self.ramp_onset(fix)
         {
             return onset;
         }
@@ -872,15 +895,8 @@ impl FaultMonitor {
     /// Judges a fix inside the open episode `ep` (see the module's notes):
     /// back at the clean level, the INS no longer able to tell, the fixes
     /// followed again, a new fault inside it, or the episode continued.
-    fn judge_in_episode(
-        &mut self,
-        mut ep: Episode,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> Judgement {
+    fn judge_in_episode(&mut self, mut ep: Episode, fix: &FixView) -> Judgement {
+        let (time, hph, r, lambda) = (fix.time, &fix.hph, &fix.r, fix.lambda);
         // An onset's episode is judged with the onset test's calibrated
         // threshold: its anchor is seconds back.
         let threshold = if ep.onset {
@@ -888,14 +904,14 @@ impl FaultMonitor {
         } else {
             fix_test_threshold()
         };
-        let (delta, d, _) = self.test(&ep.anchor, time, z, hph, r, lambda);
+        let (delta, d, _) = self.test(&ep.anchor, fix);
         // An onset's episode holds only while the INS is the sharper
         // reference, as when the onset was found: once its drift since the
         // anchor outgrows the fixes' own error change, it can no longer
         // tell a ramp from its own drift (a MEMS INS held 50 s from a fix
         // on a ramp's start coasted 20 m off on the test-track drive), and
         // the fixes are followed again.
-        if ep.onset && !self.ins_within(&ep.anchor, time, hph, r, lambda, ONSET_HOLD_RATIO) {
+        if ep.onset && !self.ins_within(&ep.anchor, fix, ONSET_HOLD_RATIO) {
             return self.end_unresolved(ep, EpisodeEnd::Persisted, time, delta);
         }
         if d <= threshold {
@@ -989,18 +1005,15 @@ impl FaultMonitor {
     /// test's variance per axis.
     fn back_to_older(
         &self,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
+        fix: &FixView,
         last: &Anchor,
     ) -> Option<(GpsTime, f64, Vector3<f64>, Vector3<f64>)> {
+        let time = fix.time;
         let a = self
             .anchors
             .iter()
             .find(|a| a.seq < last.seq && time.seconds_since(a.time) >= RAMP_END_MIN_LAG_S)?;
-        let (delta, d, v) = self.test(a, time, z, hph, r, lambda);
+        let (delta, d, v) = self.test(a, fix);
         Some((a.time, d, delta, v))
     }
 

@@ -3,7 +3,7 @@
 //! own error change; an onset hands the wrapper a rollback
 //! (`fusion/rollback.rs`). See the parent module's notes.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 use super::*;
 
@@ -70,25 +70,19 @@ impl FaultMonitor {
     /// episode's, the anchors since are dropped (they were on the ramp) and
     /// the wrapper rolls the filter back to that anchor
     /// ([`Judgement::Onset`]).
-    pub(super) fn ramp_onset(
-        &mut self,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> Option<Judgement> {
+    pub(super) fn ramp_onset(&mut self, fix: &FixView) -> Option<Judgement> {
+        let (time, hph) = (fix.time, &fix.hph);
         self.onset_pending = None;
         let mut worst: Option<(Anchor, f64, Vector3<f64>, Vector3<f64>)> = None;
         let mut last_tested: Option<GpsTime> = None;
         for a in self.onset_anchors(time) {
             if last_tested.is_some_and(|t| t.seconds_since(a.time) < ONSET_ANCHOR_SPACING_S)
-                || !self.ins_is_sharper(a, time, hph, r, lambda)
+                || !self.ins_is_sharper(a, fix)
             {
                 continue;
             }
             last_tested = Some(a.time);
-            let (delta, d, v) = self.test(a, time, z, hph, r, lambda);
+            let (delta, d, v) = self.test(a, fix);
             if worst.is_none_or(|(_, dw, _, _)| d > dw) {
                 worst = Some((*a, d, delta, v));
             }
@@ -145,16 +139,10 @@ impl FaultMonitor {
     /// A fix of the ramp (or of the false fix, [`Self::replay_false_fix_end`])
     /// in a rollback's re-run: the first opens the episode against the
     /// last anchor (the one rolled back to), the others continue it.
-    pub(super) fn replay_ramp_fix(
-        &mut self,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> Judgement {
+    pub(super) fn replay_ramp_fix(&mut self, fix: &FixView) -> Judgement {
+        let (time, hph) = (fix.time, &fix.hph);
         if let Some(mut ep) = self.episode {
-            let (delta, _, _) = self.test(&ep.anchor, time, z, hph, r, lambda);
+            let (delta, _, _) = self.test(&ep.anchor, fix);
             ep.last_delta = delta;
             ep.hph_last = hph.diagonal();
             ep.count(time, &delta);
@@ -169,7 +157,7 @@ impl FaultMonitor {
         let Some(a) = self.anchors.back().copied() else {
             return Judgement::Exclude(opening);
         };
-        let (delta, _, v) = self.test(&a, time, z, hph, r, lambda);
+        let (delta, _, v) = self.test(&a, fix);
         self.pending_pair = None;
         self.open(a, time, delta, v, hph, !self.replay_jump);
         Judgement::Exclude(opening)
@@ -181,28 +169,14 @@ impl FaultMonitor {
     /// which over seconds a MEMS INS leaves (the test-track drive with the
     /// ADIS16465, clean: 0.44 m in 7 s where its model said 0.19 m, 100 s
     /// into the drive).
-    pub(super) fn ins_is_sharper(
-        &self,
-        a: &Anchor,
-        time: GpsTime,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> bool {
-        self.ins_within(a, time, hph, r, lambda, 1.0)
+    pub(super) fn ins_is_sharper(&self, a: &Anchor, fix: &FixView) -> bool {
+        self.ins_within(a, fix, 1.0)
     }
 
     /// Whether the INS's horizontal drift variance since `a` is within
     /// `ratio` times the fixes' error-change variance.
-    pub(super) fn ins_within(
-        &self,
-        a: &Anchor,
-        time: GpsTime,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-        ratio: f64,
-    ) -> bool {
+    pub(super) fn ins_within(&self, a: &Anchor, fix: &FixView, ratio: f64) -> bool {
+        let (time, hph, r, lambda) = (fix.time, &fix.hph, &fix.r, fix.lambda);
         let lag = time.seconds_since(a.time);
         let growth = self.ins_growth(a, lag, hph) * lambda;
         let fixes = self.fix_change_var(r, &a.r, lag);
@@ -212,22 +186,16 @@ impl FaultMonitor {
     /// Whether the onset test holds a clean anchor at least
     /// [`ONSET_MIN_LAG_S`] back, within the fixes, against which the INS
     /// is the sharper reference ([`Self::ins_is_sharper`]).
-    pub(in crate::fusion) fn ins_is_reference(
-        &self,
-        time: GpsTime,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> bool {
+    pub(in crate::fusion) fn ins_is_reference(&self, fix: &FixView) -> bool {
         if !self.onset_enabled
             || self.onset_scale.is_none()
             || self.anchors_since_reset < MIN_ANCHORS
         {
             return false;
         }
-        self.onset_anchors(time)
+        self.onset_anchors(fix.time)
             .next()
-            .is_some_and(|a| self.ins_is_sharper(a, time, hph, r, lambda))
+            .is_some_and(|a| self.ins_is_sharper(a, fix))
     }
 
     /// The anchors an onset test at `time` may use, newest first: at least

@@ -557,6 +557,6 @@ fn corrections_after_the_anchor_are_taken_out() {
     // free INS: an innovation of 0.7 m is no fault.
     let z = Vector3::new(0.7, 0.0, 0.0);
     let a = *m.anchors.back().expect("anchor");
-    let (delta, _, _) = m.test(&a, t.add_seconds(2.0), &z, &hph(), &r(), 1.0);
+    let (delta, _, _) = m.test(&a, &FixView::new(t.add_seconds(2.0), z, hph(), r(), 1.0));
     assert!(delta.norm() < 1e-9, "{delta:?}");
 }
