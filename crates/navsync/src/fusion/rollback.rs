@@ -29,7 +29,7 @@
 //! fixes over the seconds a ramp needs to show) is followed to its end,
 //! where the fixes jump back. A jump from the clean level is judged again
 //! here against the INS run free from each state kept
-//! ([`Fusion::ramp_start`]): a fix back from a ramp is where the IMU alone
+//! ([`ramp_start`]): a fix back from a ramp is where the IMU alone
 //! carried the antenna from before it. The re-run returns to that state
 //! and leaves the fixes since out (`ramp`, `run`) up to the jump, which
 //! ends the episode.
@@ -63,7 +63,7 @@ use super::aid::integrity::{EpisodeEnd, RAMP_END_MIN_LAG_S};
 use super::*;
 
 /// A fix's jump is judged at once against the states kept this long (s)
-/// back ([`Fusion::ramp_start`]): the monitor's anchors reach back this
+/// back ([`ramp_start`]): the monitor's anchors reach back this
 /// far.
 const AT_ONCE_REACH_S: f64 = 21.0;
 /// A ramp's end that the test at once leaves open (its start further
@@ -157,7 +157,7 @@ const RAMP_END_DRIFT_K: f64 = 3.0;
 const RAMP_END_MIN_STATES: usize = 2;
 
 /// A fix that jumped from the clean level, as the GNSS source saw it, for
-/// [`Fusion::ramp_start`].
+/// [`ramp_start`].
 #[derive(Clone, Copy, Debug)]
 pub(super) struct JumpCheck {
     /// The fix's time, and the INS time it was fused at.
@@ -203,25 +203,29 @@ impl Fusion {
         {
             // A later jump, either way, ends what the one held stood for.
             self.held_ramp_end = None;
-            if let Some((anchor, from_free_m)) =
-                self.ramp_start(&check, RAMP_END_RATIO, true, AT_ONCE_REACH_S)
-            {
-                self.core.notes.push(format!(
-                    "GNSS fix at {}: {:.2} m from the solution and {from_free_m:.2} m from where the IMU alone carried the antenna from the clean fix at {anchor}: the fixes since had drifted away (a ramp the filter followed); the filter returns to its state then and runs again without them",
-                    check.time, check.from_filter_m
-                ));
-                self.core.rollback_to = Some(Rollback::RampEnded {
-                    anchor,
-                    end: check.time,
-                });
-            } else if let Some((anchor, from_free_m)) =
-                self.ramp_start(&check, HELD_RATIO, false, HELD_REACH_S)
-            {
-                self.held_ramp_end = Some(HeldRampEnd {
-                    anchor,
-                    jump: check,
-                    from_free_m,
-                });
+            if check.from_filter_m > fix_difference_3sd_m(&check.pos_sd) {
+                let fits = self.free_fits(&check);
+                let at_once = self.first_within(check.at, AT_ONCE_REACH_S);
+                if let Some((anchor, from_free_m)) =
+                    ramp_start(&fits, &check, RAMP_END_RATIO, true, at_once)
+                {
+                    self.core.notes.push(format!(
+                        "GNSS fix at {}: {:.2} m from the solution and {from_free_m:.2} m from where the IMU alone carried the antenna from the clean fix at {anchor}: the fixes since had drifted away (a ramp the filter followed); the filter returns to its state then and runs again without them",
+                        check.time, check.from_filter_m
+                    ));
+                    self.core.rollback_to = Some(Rollback::RampEnded {
+                        anchor,
+                        end: check.time,
+                    });
+                } else if let Some((anchor, from_free_m)) =
+                    ramp_start(&fits, &check, HELD_RATIO, false, 0)
+                {
+                    self.held_ramp_end = Some(HeldRampEnd {
+                        anchor,
+                        jump: check,
+                        from_free_m,
+                    });
+                }
             }
         }
         self.judge_held_ramp_end(sample.time);
@@ -334,82 +338,34 @@ impl Fusion {
         Ok(())
     }
 
-    /// Whether a fix that jumped from the clean level ended a ramp the
-    /// filter had followed, and where the ramp began. Two hypotheses meet
-    /// at such a jump: the fixes before it had drifted away (a ramp) and
-    /// this one is back, or the fixes were right and this one is off (a
-    /// false fix's onset, a spike). The INS run free (the IMU alone) from
-    /// a state stored seconds back tells them apart: a ramp's end is
-    /// [`RAMP_END_RATIO`] times closer to it than to the solution the
-    /// ramp had led off, farther from that solution than 3 σ of a fix
-    /// difference, and farther than the free INS could have drifted by its
-    /// own predicted σ ([`RAMP_END_DRIFT_K`]: where it could have drifted
-    /// as far, a false fix may sit where it drifted). The distances are
-    /// compared with each other, not the free INS's with a bound of its
-    /// own (its drift model was measured optimistic in a MEMS INS's turns),
-    /// and the INS is run, not the monitor's ledger undone (which leaves
-    /// in the attitude that the ramp's fixes corrected). States
-    /// before the ramp fit; those on it do not (the ramp's fixes had
-    /// dragged their velocity), nor, by their drift, those long before it.
-    /// A run of [`RAMP_END_MIN_STATES`] fitting states is needed, not one:
-    /// a single state's free INS drifts by its own errors (metres in 20 s
-    /// in a MEMS INS's turns), and one of many may land near a false fix
-    /// by chance. Returns the clean fix of the
-    /// state whose free INS is nearest the fix (the ramp's start), and
-    /// that distance.
-    /// Here `ratio` is how many times closer than the solution a free INS
-    /// must be, `drift_bound` whether the fix must be farther from the
-    /// solution than the free INS's predicted drift, and `reach_s` how far
-    /// back the states are tried (as the monitor's anchors: at most every
-    /// [`STORE_SPACING_S`], at least [`RAMP_END_MIN_LAG_S`] back).
-    fn ramp_start(
-        &self,
-        check: &JumpCheck,
-        ratio: f64,
-        drift_bound: bool,
-        reach_s: f64,
-    ) -> Option<(GpsTime, f64)> {
-        if check.from_filter_m <= fix_difference_3sd_m(&check.pos_sd) {
-            return None;
-        }
-        let mut run: Vec<(GpsTime, f64)> = Vec::new();
-        let mut best: Option<(GpsTime, f64)> = None;
-        let mut close_run = |run: &mut Vec<(GpsTime, f64)>| {
-            if run.len() >= RAMP_END_MIN_STATES {
-                for &(anchor, d) in run.iter() {
-                    if best.is_none_or(|(_, b)| d < b) {
-                        best = Some((anchor, d));
-                    }
-                }
-            }
-            run.clear();
-        };
-        let old_enough = |s: &&Stored| check.time.seconds_since(s.anchor) >= RAMP_END_MIN_LAG_S;
-        let first = self.first_within(check.at, reach_s);
-        for stored in self
-            .rollback_states
+    /// The INS run free (the IMU alone) from each state kept at least
+    /// [`RAMP_END_MIN_LAG_S`] and at most [`HELD_REACH_S`] before the fix
+    /// in `check`, against that fix ([`ramp_start`]): computed once for
+    /// the test at once and the held hypothesis.
+    fn free_fits(&self, check: &JumpCheck) -> Vec<FreeFit> {
+        let old_enough =
+            |s: &(usize, &Stored)| check.time.seconds_since(s.1.anchor) >= RAMP_END_MIN_LAG_S;
+        let first = self.first_within(check.at, HELD_REACH_S);
+        self.rollback_states
             .iter()
+            .enumerate()
             .skip(first)
             .take_while(old_enough)
-        {
-            let d = self.free_distance(&stored.core, check);
-            let core = &stored.core;
-            let drift_sd_m = free_drift_sd_m(
-                free_drift_variance(core),
-                core.aid.gnss.overconfidence_scale(),
-                check.at.seconds_since(core.nav.time),
-            );
-            let drift_bound_m = RAMP_END_DRIFT_K * drift_sd_m;
-            if d * ratio < check.from_filter_m
-                && (!drift_bound || check.from_filter_m > drift_bound_m)
-            {
-                run.push((stored.anchor, d));
-            } else {
-                close_run(&mut run);
-            }
-        }
-        close_run(&mut run);
-        best
+            .map(|(index, stored)| {
+                let core = &stored.core;
+                let drift_sd_m = free_drift_sd_m(
+                    free_drift_variance(core),
+                    core.aid.gnss.overconfidence_scale(),
+                    check.at.seconds_since(core.nav.time),
+                );
+                FreeFit {
+                    index,
+                    anchor: stored.anchor,
+                    from_free_m: self.free_distance(core, check),
+                    drift_bound_m: RAMP_END_DRIFT_K * drift_sd_m,
+                }
+            })
+            .collect()
     }
 
     /// The index of the first stored state at most `reach_s` before `now`,
@@ -535,6 +491,75 @@ impl Fusion {
         let list = self.revisions.as_mut()?;
         (!list.is_empty()).then(|| std::mem::take(list))
     }
+}
+
+/// A stored state's INS run free to a jump's fix ([`Fusion::free_fits`]).
+struct FreeFit {
+    /// The state's place among those kept, and its clean fix.
+    index: usize,
+    anchor: GpsTime,
+    /// The fix's distance from the free INS's antenna (m), and
+    /// [`RAMP_END_DRIFT_K`] σ of the free INS's predicted drift
+    /// (λ-scaled, m).
+    from_free_m: f64,
+    drift_bound_m: f64,
+}
+
+/// Whether a fix that jumped from the clean level ended a ramp the
+/// filter had followed, and where the ramp began. Two hypotheses meet
+/// at such a jump: the fixes before it had drifted away (a ramp) and
+/// this one is back, or the fixes were right and this one is off (a
+/// false fix's onset, a spike). The INS run free (the IMU alone) from
+/// a state stored seconds back tells them apart: a ramp's end is
+/// [`RAMP_END_RATIO`] times closer to it than to the solution the
+/// ramp had led off, farther from that solution than 3 σ of a fix
+/// difference (checked before any INS is run), and farther than the
+/// free INS could have drifted by its own predicted σ ([`RAMP_END_DRIFT_K`]: where it could have drifted
+/// as far, a false fix may sit where it drifted). The distances are
+/// compared with each other, not the free INS's with a bound of its
+/// own (its drift model was measured optimistic in a MEMS INS's turns),
+/// and the INS is run, not the monitor's ledger undone (which leaves
+/// in the attitude that the ramp's fixes corrected). States
+/// before the ramp fit; those on it do not (the ramp's fixes had
+/// dragged their velocity), nor, by their drift, those long before it.
+/// A run of [`RAMP_END_MIN_STATES`] fitting states is needed, not one:
+/// a single state's free INS drifts by its own errors (metres in 20 s
+/// in a MEMS INS's turns), and one of many may land near a false fix
+/// by chance. Judged on the states from the `first` kept on (the test at
+/// once reaches [`AT_ONCE_REACH_S`] back), with `ratio` in place of
+/// [`RAMP_END_RATIO`], and the drift bound only with `drift_bound`.
+/// Returns the clean fix of the state whose free INS is nearest the fix
+/// (the ramp's start), and that distance.
+fn ramp_start(
+    fits: &[FreeFit],
+    check: &JumpCheck,
+    ratio: f64,
+    drift_bound: bool,
+    first: usize,
+) -> Option<(GpsTime, f64)> {
+    let mut run: Vec<(GpsTime, f64)> = Vec::new();
+    let mut best: Option<(GpsTime, f64)> = None;
+    let mut close_run = |run: &mut Vec<(GpsTime, f64)>| {
+        if run.len() >= RAMP_END_MIN_STATES {
+            for &(anchor, d) in run.iter() {
+                if best.is_none_or(|(_, b)| d < b) {
+                    best = Some((anchor, d));
+                }
+            }
+        }
+        run.clear();
+    };
+    for fit in fits.iter().filter(|f| f.index >= first) {
+        if fit.from_free_m * ratio < check.from_filter_m
+            && (!drift_bound || check.from_filter_m > fit.drift_bound_m)
+        {
+            run.push((fit.anchor, fit.from_free_m));
+        } else {
+            close_run(&mut run);
+        }
+    }
+    close_run(&mut run);
+    best
 }
 
 /// A solution of a rollback's re-run, with what the auxiliary output
