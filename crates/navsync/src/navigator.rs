@@ -162,6 +162,18 @@ const HOLD_S: f64 = crate::fusion::ROLLBACK_KEEP_S + 4.0;
 /// covariance (m², NED) and the time offset with its σ.
 pub(crate) type AuxLine = (Vec<f64>, Matrix3<f64>, Option<TimeOffsetState>);
 
+/// Adds `extra` (m², NED) to an auxiliary line's position covariance and
+/// position σ: a jump the fixes left undecided (`fusion::jump_doubt`).
+fn widen_position(aux: &mut AuxLine, extra: &Matrix3<f64>) {
+    aux.1 += extra;
+    let pos = crate::filter::idx::POS;
+    for i in 0..3 {
+        if let Some(sd) = aux.0.get_mut(pos + i) {
+            *sd = (*sd * *sd + extra[(i, i)]).sqrt();
+        }
+    }
+}
+
 /// A solution held back before it is written (see
 /// [`Navigator::with_revised_output`]).
 struct Held {
@@ -592,9 +604,14 @@ impl Navigator {
         while let Some(h) = held.front()
             && before.is_none_or(|t| h.nav.time < t)
         {
-            let Some(h) = held.pop_front() else {
+            let Some(mut h) = held.pop_front() else {
                 break;
             };
+            if let (Some(aux), Some(doubt)) =
+                (h.aux.as_mut(), self.fusion.doubt_covariance(h.nav.time))
+            {
+                widen_position(aux, &doubt);
+            }
             self.output.write(&h.nav, &h.imu, h.offset, sink, h.aux)?;
         }
         Ok(())

@@ -57,6 +57,7 @@ mod aid;
 mod config;
 pub mod course_heading;
 mod gap;
+mod jump_doubt;
 mod latency;
 mod rollback;
 #[cfg(test)]
@@ -571,6 +572,8 @@ pub struct Fusion {
     rollback_states: std::collections::VecDeque<rollback::Stored>,
     /// Rollback: a ramp's end held as a hypothesis.
     held_ramp_end: Option<rollback::HeldRampEnd>,
+    /// Jumps the fixes have not decided, for the σ written.
+    jump_doubts: Vec<jump_doubt::JumpDoubt>,
     /// With [`Self::keep_revisions`]: the last rollback's re-run solutions
     /// not yet taken.
     revisions: Option<Vec<rollback::Revised>>,
@@ -603,6 +606,7 @@ impl Fusion {
             recorder: None,
             rollback_states: std::collections::VecDeque::new(),
             held_ramp_end: None,
+            jump_doubts: Vec::new(),
             revisions: None,
         }
         .with_onset_test()
@@ -679,9 +683,13 @@ impl Fusion {
         self.recorder.as_ref().map(|r| (r.node_count(), r.bytes()))
     }
 
-    /// Takes the GNSS observation records collected so far.
+    /// Takes the GNSS observation records collected so far, their
+    /// protection levels widened by the jumps the fixes left undecided
+    /// (`jump_doubt.rs`).
     pub(crate) fn take_fix_log(&mut self) -> Vec<FixRecord> {
-        std::mem::take(&mut self.fix_log)
+        let mut log = std::mem::take(&mut self.fix_log);
+        self.widen_protection_levels(&mut log);
+        log
     }
 
     /// The configuration the filter runs with.

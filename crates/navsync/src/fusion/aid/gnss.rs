@@ -878,6 +878,8 @@ impl GnssSource {
                 pos: fix.pos,
                 pos_sd: fix.pos_sd,
                 from_filter_m: Vector3::new(obs.z[0], obs.z[1], obs.z[2]).norm(),
+                innovation: Vector3::new(obs.z[0], obs.z[1], obs.z[2]),
+                excluded,
             });
         }
         if excluded {

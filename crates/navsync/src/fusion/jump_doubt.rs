@@ -1,0 +1,153 @@
+//! A jump the fixes have not yet decided, carried into the σ written
+//! (issue 33).
+//!
+//! A fix that jumps from the clean level is either a false fix's onset or
+//! a spike (the solution right, the fix off) or a ramp's end (the fixes
+//! before it had drifted, the solution had followed them, and this one is
+//! back). The monitor keeps the solution and excludes the jump; the
+//! rollback (`rollback.rs`) returns to before the ramp when the INS run
+//! free from there tells the two apart, at once or after
+//! [`super::rollback`]'s hold. Where it cannot (a MEMS INS drifts as far
+//! as the ramp over the seconds the ramp takes), the forward solution
+//! written over the ramp is off by up to the jump at the centimetre σ of
+//! the fixes it followed: on the bed's drives 1.3–1.9 m against a 6 σ
+//! protection level of 3–10 cm, the wrong answer that looks right.
+//!
+//! So each such jump is held as a doubt ([`JumpDoubt`]) while the
+//! solutions it concerns are held back (`Navigator::with_revised_output`):
+//! the σ written for them (std.txt, the position covariance, the fixes'
+//! protection levels in gnss_residuals.txt) carry the error the other
+//! hypothesis gives, along the jump: growing linearly from the state whose
+//! free INS was nearest the fix (where a ramp would have begun) to the
+//! jump's size at the jump, and on at the same rate after it (the ramp's
+//! fixes dragged the solution's velocity) until the fixes are followed
+//! again. The doubt is dropped when the fixes decide: the jump's episode
+//! returns (the fixes came back: a false fix or a spike; the solution was
+//! right), or a rollback returns to before the jump (a ramp's end found:
+//! its re-run is written instead). Offline only, as the rollback.
+
+use super::aid::integrity::{EpisodeEnd, MAX_EPISODE_S};
+use super::*;
+
+/// A jump from the clean level that neither the test at once nor the
+/// fixes since have decided.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct JumpDoubt {
+    /// The clean fix of the state whose INS run free was nearest the
+    /// jump's fix: where a ramp ending at the jump would have begun.
+    start: GpsTime,
+    /// The jump's fix, and the INS time it was fused at.
+    fix: GpsTime,
+    at: GpsTime,
+    /// The jump (m) and its direction (NED unit vector, predicted −
+    /// measured).
+    size_m: f64,
+    unit: Vector3<f64>,
+    /// When the fixes were followed again (the episode persisted, or ran
+    /// longer than the IMU can bridge): the filter's own σ covers the
+    /// offset from then on.
+    until: Option<GpsTime>,
+}
+
+impl JumpDoubt {
+    pub(super) fn new(
+        start: GpsTime,
+        fix: GpsTime,
+        at: GpsTime,
+        innovation: Vector3<f64>,
+    ) -> Option<Self> {
+        let size_m = innovation.norm();
+        let unit = innovation.try_normalize(1e-9)?;
+        (at.seconds_since(start) > 0.0).then_some(JumpDoubt {
+            start,
+            fix,
+            at,
+            size_m,
+            unit,
+            until: None,
+        })
+    }
+
+    /// The fixes were followed again from `t` on.
+    pub(super) fn close(&mut self, t: GpsTime) {
+        self.until = Some(t);
+    }
+
+    /// The other hypothesis's error (m) at `t`, along [`Self::unit`].
+    fn error_m(&self, t: GpsTime) -> f64 {
+        let ramp_s = self.at.seconds_since(self.start);
+        let since_start_s = t.seconds_since(self.start);
+        if since_start_s <= 0.0
+            || self.until.is_some_and(|u| t > u)
+            || t.seconds_since(self.at) > MAX_EPISODE_S
+        {
+            return 0.0;
+        }
+        self.size_m * since_start_s / ramp_s
+    }
+}
+
+impl Fusion {
+    /// Follows each open doubt's episode: dropped when it returned (the
+    /// fixes came back to the level before the jump), closed when the
+    /// fixes were followed again.
+    pub(super) fn follow_jump_doubts(&mut self) {
+        let episodes = &self.core.aid.gnss.monitor.episodes;
+        self.jump_doubts.retain_mut(|d| {
+            if d.until.is_some() {
+                return true;
+            }
+            let sow = d.fix.sow();
+            let Some(e) = episodes.iter().rev().find(|e| e.start_sow == sow) else {
+                return true;
+            };
+            match e.end {
+                EpisodeEnd::Returned => false,
+                EpisodeEnd::Open => true,
+                EpisodeEnd::Persisted | EpisodeEnd::Unbridged => {
+                    d.close(d.fix.add_seconds(e.end_sow - e.start_sow));
+                    true
+                }
+            }
+        });
+    }
+
+    /// Drops the doubts about jumps at or after `anchor`: a rollback
+    /// returning there runs them again.
+    pub(super) fn drop_jump_doubts_since(&mut self, anchor: GpsTime) {
+        self.jump_doubts.retain(|d| d.fix < anchor);
+    }
+
+    /// The covariance (m², NED) the doubts still open add to the solution
+    /// at `t`; `None` when there is none.
+    pub(crate) fn doubt_covariance(&self, t: GpsTime) -> Option<Matrix3<f64>> {
+        let mut sum: Option<Matrix3<f64>> = None;
+        for d in &self.jump_doubts {
+            let e = d.error_m(t);
+            if e > 0.0 {
+                *sum.get_or_insert_with(Matrix3::zeros) += d.unit * d.unit.transpose() * (e * e);
+            }
+        }
+        sum
+    }
+
+    /// The horizontal protection level of each fix record with the
+    /// doubts' horizontal error at its time added: a protection level
+    /// under a fault hypothesis is the fault's bias plus the fault-free
+    /// K σ (Blanch, Walter, Enge et al., "Advanced RAIM user algorithm
+    /// description", ION GNSS 2012).
+    pub(super) fn widen_protection_levels(&self, records: &mut [FixRecord]) {
+        let Some(first) = self.jump_doubts.iter().map(|d| d.start).min() else {
+            return;
+        };
+        for r in records.iter_mut() {
+            let t = first.add_seconds(r.sow - first.sow());
+            let bias_h_m: f64 = self
+                .jump_doubts
+                .iter()
+                .map(|d| d.error_m(t) * d.unit.xy().norm())
+                .sum();
+            r.hpl_m += bias_h_m;
+        }
+    }
+}
