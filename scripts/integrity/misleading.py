@@ -1,8 +1,11 @@
 #!/usr/bin/env python3
-"""Misleading forward solutions on the integrity bed: the fix epochs whose
+"""Misleading solutions on the integrity bed: the fix epochs whose
 horizontal error (against the bed's truth) passes the horizontal protection
-level written for them (gnss_residuals.txt's last column), per bed, for the
-runs with faults and the clean run, with the worst error / HPL ratio.
+level written for them, per bed, for the runs with faults and the clean
+run, with the worst error / HPL ratio. Forward: gnss_residuals.txt's last
+column (K σ, K = 6, after the fix). Smoothed: K √(σ_N² + σ_E²) of the
+smoothed std.txt line nearest the fix (std.txt has no N–E covariance; the
+root sum is the largest the major axis can be).
 
 Needs a bed run with its solutions kept (from the repository root):
 
@@ -12,9 +15,12 @@ Needs a bed run with its solutions kept (from the repository root):
 
 Python 3 standard library only.
 """
+import bisect
 import math
 import os
 import sys
+
+PROTECTION_K = 6.0
 
 EARTH_M = 6378137.0
 
@@ -31,9 +37,31 @@ def positions(path):
     return out
 
 
-def misleading(truth, run):
-    """(epochs, misleading, worst error/HPL) of one forward run folder."""
+def std_hpl(run):
+    """sow → K √(σ_N² + σ_E²) of the std.txt line nearest it."""
+    times, hpls = [], []
+    with open(os.path.join(run, "std.txt")) as f:
+        for line in f:
+            if line.startswith("#") or not line.strip():
+                continue
+            fields = line.split()
+            times.append(float(fields[0]))
+            hpls.append(PROTECTION_K * math.hypot(float(fields[1]), float(fields[2])))
+
+    def at(sow):
+        i = min(bisect.bisect_left(times, sow), len(times) - 1)
+        if i > 0 and abs(times[i - 1] - sow) < abs(times[i] - sow):
+            i -= 1
+        return hpls[i]
+
+    return at
+
+
+def misleading(truth, run, smoothed=False):
+    """(epochs, misleading, worst error/HPL) of one run folder: the
+    forward's HPL from gnss_residuals.txt, the smoothed's from std.txt."""
     nav = positions(os.path.join(run, "navresult.nav"))
+    hpl_of = std_hpl(run) if smoothed else None
     epochs = bad = 0
     worst = 0.0
     with open(os.path.join(run, "gnss_residuals.txt")) as f:
@@ -47,7 +75,8 @@ def misleading(truth, run):
             (lat, lon), (tlat, tlon) = nav[key], truth[key]
             dn = math.radians(lat - tlat) * EARTH_M
             de = math.radians(lon - tlon) * EARTH_M * math.cos(math.radians(tlat))
-            error, hpl = math.hypot(dn, de), float(fields[14])
+            hpl = hpl_of(float(fields[0])) if smoothed else float(fields[14])
+            error = math.hypot(dn, de)
             epochs += 1
             bad += error > hpl
             worst = max(worst, error / max(hpl, 1e-9))
@@ -64,26 +93,36 @@ def main():
     if len(sys.argv) != 2:
         sys.exit(__doc__)
     work = sys.argv[1]
-    print("| bed | with faults: misleading fix epochs | worst error / HPL | clean: misleading | worst |")
-    print("|---|---|---|---|---|")
+    print(
+        "| bed | forward with faults: misleading fix epochs | worst error / HPL | clean | worst "
+        "| smoothed with faults | worst | clean | worst |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
     for bed in sorted(os.listdir(work)):
         truth_path = os.path.join(work, bed, "truth.nav")
         if not os.path.isfile(truth_path):
             continue
         truth = positions(truth_path)
-        faulty = [0, 0, 0.0]
         seeds = sorted(d for d in os.listdir(os.path.join(work, bed)) if d.startswith("faults-"))
-        for seed in seeds:
-            run = forward_dir(os.path.join(work, bed, seed, "default"))
-            if not os.path.isfile(os.path.join(run, "navresult.nav")):
-                sys.exit(f"{run}: no navresult.nav (run the bed with KEEP=1)")
-            e, b, w = misleading(truth, run)
-            faulty = [faulty[0] + e, faulty[1] + b, max(faulty[2], w)]
-        e, b, w = misleading(truth, forward_dir(os.path.join(work, bed, "clean")))
-        print(
-            f"| {bed} ({len(seeds)} seeds) | {100 * faulty[1] / max(faulty[0], 1):.2f} % of {faulty[0]} "
-            f"| {faulty[2]:.1f} | {100 * b / max(e, 1):.2f} % of {e} | {w:.2f} |"
-        )
+        cells = []
+        for smoothed in (False, True):
+            faulty = [0, 0, 0.0]
+            for seed in seeds:
+                run = os.path.join(work, bed, seed, "default")
+                run = run if smoothed else forward_dir(run)
+                if not os.path.isfile(os.path.join(run, "navresult.nav")):
+                    sys.exit(f"{run}: no navresult.nav (run the bed with KEEP=1)")
+                e, b, w = misleading(truth, run, smoothed)
+                faulty = [faulty[0] + e, faulty[1] + b, max(faulty[2], w)]
+            clean = os.path.join(work, bed, "clean")
+            e, b, w = misleading(truth, clean if smoothed else forward_dir(clean), smoothed)
+            cells += [
+                f"{100 * faulty[1] / max(faulty[0], 1):.2f} % of {faulty[0]}",
+                f"{faulty[2]:.1f}",
+                f"{100 * b / max(e, 1):.2f} %",
+                f"{w:.2f}",
+            ]
+        print(f"| {bed} ({len(seeds)} seeds) | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

@@ -164,7 +164,7 @@ pub(crate) type AuxLine = (Vec<f64>, Matrix3<f64>, Option<TimeOffsetState>);
 
 /// Adds `extra` (m², NED) to an auxiliary line's position covariance and
 /// position σ: a jump the fixes left undecided (`fusion::jump_doubt`).
-fn widen_position(aux: &mut AuxLine, extra: &Matrix3<f64>) {
+pub(crate) fn widen_position(aux: &mut AuxLine, extra: &Matrix3<f64>) {
     aux.1 += extra;
     let pos = crate::filter::idx::POS;
     for i in 0..3 {

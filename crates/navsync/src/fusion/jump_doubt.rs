@@ -32,7 +32,7 @@ use super::*;
 /// A jump from the clean level that neither the test at once nor the
 /// fixes since have decided.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct JumpDoubt {
+pub(crate) struct JumpDoubt {
     /// The clean fix of the state whose INS run free was nearest the
     /// jump's fix: where a ramp ending at the jump would have begun.
     start: GpsTime,
@@ -118,17 +118,25 @@ impl Fusion {
         self.jump_doubts.retain(|d| d.fix < anchor);
     }
 
-    /// The covariance (m², NED) the doubts still open add to the solution
-    /// at `t`; `None` when there is none.
+    fn doubts_reaching(&self, t: GpsTime) -> impl Iterator<Item = &JumpDoubt> {
+        doubts_reaching(&self.jump_doubts, t)
+    }
+
+    /// The covariance (m², NED) the doubts add to the solution at `t`;
+    /// `None` when there is none.
     pub(crate) fn doubt_covariance(&self, t: GpsTime) -> Option<Matrix3<f64>> {
-        let mut sum: Option<Matrix3<f64>> = None;
-        for d in &self.jump_doubts {
-            let e = d.error_m(t);
-            if e > 0.0 {
-                *sum.get_or_insert_with(Matrix3::zeros) += d.unit * d.unit.transpose() * (e * e);
-            }
-        }
-        sum
+        doubt_covariance(&self.jump_doubts, t)
+    }
+
+    /// The doubts the data ended before the fixes decided (their episode
+    /// still open): the smoothed solution, which has no fixes after them
+    /// either, carries them too.
+    pub(crate) fn undecided_jumps(&self) -> Vec<JumpDoubt> {
+        self.jump_doubts
+            .iter()
+            .filter(|d| d.until.is_none())
+            .copied()
+            .collect()
     }
 
     /// The horizontal protection level of each fix record with the
@@ -143,11 +151,66 @@ impl Fusion {
         for r in records.iter_mut() {
             let t = first.add_seconds(r.sow - first.sow());
             let bias_h_m: f64 = self
-                .jump_doubts
-                .iter()
+                .doubts_reaching(t)
                 .map(|d| d.error_m(t) * d.unit.xy().norm())
                 .sum();
             r.hpl_m += bias_h_m;
         }
+    }
+}
+
+/// The doubts whose jump was at most [`MAX_EPISODE_S`] before `t` (none
+/// older reaches it), newest first: they are kept in the order of their
+/// jumps, so a long run's are not all read for each solution.
+fn doubts_reaching(doubts: &[JumpDoubt], t: GpsTime) -> impl Iterator<Item = &JumpDoubt> {
+    doubts
+        .iter()
+        .rev()
+        .take_while(move |d| t.seconds_since(d.at) <= MAX_EPISODE_S)
+}
+
+/// The covariance (m², NED) `doubts` add to a solution at `t`: each
+/// one's error along its jump, squared; `None` when none reaches `t`.
+pub(crate) fn doubt_covariance(doubts: &[JumpDoubt], t: GpsTime) -> Option<Matrix3<f64>> {
+    let mut sum: Option<Matrix3<f64>> = None;
+    for d in doubts_reaching(doubts, t) {
+        let e = d.error_m(t);
+        if e > 0.0 {
+            *sum.get_or_insert_with(Matrix3::zeros) += d.unit * d.unit.transpose() * (e * e);
+        }
+    }
+    sum
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 3 m jump north-east 20 s after the doubt's start: the other
+    /// hypothesis's error grows linearly to the jump at the jump and on
+    /// at the same rate, along the jump; nothing before the start, after
+    /// the fixes were followed again, or past an episode's longest.
+    #[test]
+    fn a_doubt_is_the_ramp_the_jump_would_have_ended() {
+        let t = |s: f64| GpsTime::from_week_sow(2300, 100_000.0 + s);
+        let innovation = Vector3::new(3.0, 3.0, 0.0) / 2f64.sqrt();
+        let mut d = JumpDoubt::new(t(0.0), t(20.0), t(20.0), innovation).unwrap();
+        let doubts = [d];
+        assert!(doubt_covariance(&doubts, t(-1.0)).is_none());
+        for (s, error_m) in [(10.0, 1.5), (20.0, 3.0), (30.0, 4.5)] {
+            let c = doubt_covariance(&doubts, t(s)).unwrap();
+            assert!((c.trace().sqrt() - error_m).abs() < 1e-9, "{s}: {c}");
+            // Along the jump: north and east alike, fully correlated.
+            assert!((c[(0, 0)] - c[(1, 1)]).abs() < 1e-9 && (c[(0, 1)] - c[(0, 0)]).abs() < 1e-9);
+            assert_eq!(c[(2, 2)], 0.0);
+        }
+        assert!(doubt_covariance(&doubts, t(20.0 + MAX_EPISODE_S + 1.0)).is_none());
+        d.close(t(25.0));
+        let closed = [d];
+        assert!(doubt_covariance(&closed, t(24.0)).is_some());
+        assert!(doubt_covariance(&closed, t(26.0)).is_none());
+        // No doubt without a direction or a span before the jump.
+        assert!(JumpDoubt::new(t(0.0), t(20.0), t(20.0), Vector3::zeros()).is_none());
+        assert!(JumpDoubt::new(t(20.0), t(20.0), t(20.0), innovation).is_none());
     }
 }

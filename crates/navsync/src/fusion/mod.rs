@@ -57,7 +57,7 @@ mod aid;
 mod config;
 pub mod course_heading;
 mod gap;
-mod jump_doubt;
+pub(crate) mod jump_doubt;
 mod latency;
 mod rollback;
 #[cfg(test)]

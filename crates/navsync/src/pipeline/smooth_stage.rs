@@ -4,6 +4,8 @@
 //! written at the forward run's epochs.
 
 use super::*;
+use crate::fusion::jump_doubt::{JumpDoubt, doubt_covariance};
+use crate::navigator::widen_position;
 
 /// What the forward pass leaves for the smoother.
 pub(super) struct ForwardResult<'a> {
@@ -40,6 +42,7 @@ pub(super) fn smooth_stage(
     let forward_s = started.elapsed().as_secs_f64();
     let temp_bytes = fusion.smoother_record().map(|r| r.1).unwrap_or(0);
     let tau_index = fusion.state_layout().index_of("time_offset");
+    let undecided = fusion.undecided_jumps();
     // The smoother re-judges the fixes where the fault monitor judged them
     // (robust weighting): `crate::rejudge`.
     let judged = matches!(fc.gnss_weighting, GnssWeighting::Robust(_));
@@ -71,7 +74,15 @@ pub(super) fn smooth_stage(
         forward_s,
         temp_bytes,
     };
-    write_smoothed(&mut smoothed, tau_index, input.opts, out, Some(t0), times)
+    write_smoothed(
+        &mut smoothed,
+        tau_index,
+        &undecided,
+        input.opts,
+        out,
+        Some(t0),
+        times,
+    )
 }
 
 /// Times and sizes of the smoothing, for its summary.
@@ -87,6 +98,7 @@ struct SmoothTimes {
 fn write_smoothed(
     smoothed: &mut Smoothed,
     tau_index: Option<usize>,
+    undecided: &[JumpDoubt],
     opts: &FuseOptions,
     sink: &mut dyn NavSink,
     t0: Option<GpsTime>,
@@ -118,9 +130,14 @@ fn write_smoothed(
         if start_offset.is_none() {
             start_offset = offset.map(|o| (o.offset_s, o.sd_s));
         }
-        let aux = output
+        let mut aux = output
             .take_aux_due(ep.nav.time)
             .then(|| (ep.sd.clone(), ep.p_pos, offset));
+        // A jump the data ended before the fixes decided (`fusion::
+        // jump_doubt`): no fix after it tells the smoother either.
+        if let (Some(aux), Some(extra)) = (aux.as_mut(), doubt_covariance(undecided, ep.nav.time)) {
+            widen_position(aux, &extra);
+        }
         output.write(&ep.nav, &ep.imu, offset, sink, aux)?;
         Ok(())
     })?;
