@@ -378,16 +378,16 @@ impl Fusion {
             .collect()
     }
 
-    /// Holds a jump as a doubt ([`JumpDoubt`]) over the states kept up to
-    /// [`HELD_REACH_S`] before it: where the INS run free from them was
-    /// nearest, a ramp need not have begun (a MEMS INS in turns drifts
-    /// past its model: the fix back from a 24 s ramp on the 1 Hz
-    /// ADIS16465 drive was 4.5–7.4 m from the INS run free from before
-    /// it, 1.5 m from the solution; on the 10 Hz drive the nearest was a
-    /// state on the ramp). A jump the monitor did not exclude (it took it
-    /// for a ramp's end or for drift: the filter follows the fixes after
-    /// it, its σ grown to fit) is a doubt about the solutions before it
-    /// only.
+    /// Holds a jump as a doubt ([`JumpDoubt`]) from the oldest state kept
+    /// up to [`HELD_REACH_S`] before it, not from the one whose INS run
+    /// free was nearest its fix: that is no sure start of a ramp (a MEMS
+    /// INS in turns drifts past its model: the fix back from a 24 s ramp
+    /// on the 1 Hz ADIS16465 drive was 4.5–7.4 m from the INS run free
+    /// from before it and 1.5 m from the solution; on the 10 Hz drive the
+    /// nearest was a state on the ramp). A jump the monitor did not
+    /// exclude (it took it for a ramp's end or for drift: the filter
+    /// follows the fixes after it, its σ grown to fit) is a doubt about
+    /// the solutions before it only.
     fn doubt_jump(&mut self, fits: &[FreeFit], check: &JumpCheck) {
         let start = fits
             .first()
