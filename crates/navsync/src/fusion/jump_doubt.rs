@@ -50,6 +50,9 @@ pub(crate) struct JumpDoubt {
 }
 
 impl JumpDoubt {
+    /// The doubt about a jump of `innovation` (predicted − measured, NED,
+    /// m) at the fix `fix`, fused at `at`, over the solutions from `start`;
+    /// none without a finite size, a direction or a span before the jump.
     pub(super) fn new(
         start: GpsTime,
         fix: GpsTime,
@@ -57,6 +60,9 @@ impl JumpDoubt {
         innovation: Vector3<f64>,
     ) -> Option<Self> {
         let size_m = innovation.norm();
+        if !size_m.is_finite() {
+            return None;
+        }
         let unit = innovation.try_normalize(1e-9)?;
         (at.seconds_since(start) > 0.0).then_some(JumpDoubt {
             start,
@@ -212,5 +218,7 @@ mod tests {
         // No doubt without a direction or a span before the jump.
         assert!(JumpDoubt::new(t(0.0), t(20.0), t(20.0), Vector3::zeros()).is_none());
         assert!(JumpDoubt::new(t(20.0), t(20.0), t(20.0), innovation).is_none());
+        let corrupt = Vector3::new(f64::NAN, 1.0, 0.0);
+        assert!(JumpDoubt::new(t(0.0), t(20.0), t(20.0), corrupt).is_none());
     }
 }
