@@ -29,6 +29,19 @@
 use super::aid::integrity::{EpisodeEnd, MAX_EPISODE_S};
 use super::*;
 
+/// A fix that jumped again inside a fault episode, as the GNSS source saw
+/// it ([`Fusion::doubt_jump_in_episode`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct JumpInEpisode {
+    /// The fix's time, and the INS time it was fused at.
+    pub(crate) time: GpsTime,
+    pub(crate) at: GpsTime,
+    /// Predicted − measured (NED, m).
+    pub(crate) innovation: Vector3<f64>,
+    /// The episode's first excluded fix.
+    pub(crate) episode_start: GpsTime,
+}
+
 /// A jump from the clean level that neither the test at once nor the
 /// fixes since have decided.
 #[derive(Clone, Copy, Debug)]
@@ -39,6 +52,9 @@ pub(crate) struct JumpDoubt {
     /// The jump's fix, and the INS time it was fused at.
     fix: GpsTime,
     at: GpsTime,
+    /// The GPS seconds of week of the start of the fault episode whose
+    /// end decides it: the one the jump opened, or the one it jumped in.
+    episode_sow: f64,
     /// The jump (m) and its direction (NED unit vector, predicted −
     /// measured).
     size_m: f64,
@@ -68,6 +84,7 @@ impl JumpDoubt {
             start,
             fix,
             at,
+            episode_sow: fix.sow(),
             size_m,
             unit,
             until: None,
@@ -103,19 +120,33 @@ impl Fusion {
             if d.until.is_some() {
                 return true;
             }
-            let sow = d.fix.sow();
-            let Some(e) = episodes.iter().rev().find(|e| e.start_sow == sow) else {
+            let Some(e) = episodes.iter().rev().find(|e| e.start_sow == d.episode_sow) else {
                 return true;
             };
             match e.end {
                 EpisodeEnd::Returned => false,
                 EpisodeEnd::Open => true,
                 EpisodeEnd::Persisted | EpisodeEnd::Unbridged => {
-                    d.close(d.fix.add_seconds(e.end_sow - e.start_sow));
+                    d.close(d.fix.add_seconds(e.end_sow - d.fix.sow()));
                     true
                 }
             }
         });
+    }
+
+    /// Holds a jump inside a fault episode as a doubt over the solutions
+    /// from [`super::rollback::HELD_REACH_S`] before it, decided with the
+    /// episode: a ramp's onset found after the filter had followed the
+    /// ramp for seconds returns it to a state the ramp had dragged, and
+    /// the fixes jump back at the ramp's end inside the onset's episode
+    /// (`drive-adis16465` held-out seed 10: 2.15 m off at an HPL of
+    /// 0.86 m when the jump came).
+    pub(super) fn doubt_jump_in_episode(&mut self, jump: JumpInEpisode) {
+        let start = jump.at.add_seconds(-super::rollback::HELD_REACH_S);
+        if let Some(mut doubt) = JumpDoubt::new(start, jump.time, jump.at, jump.innovation) {
+            doubt.episode_sow = jump.episode_start.sow();
+            self.jump_doubts.push(doubt);
+        }
     }
 
     /// Drops the doubts about jumps at or after `anchor`: a rollback

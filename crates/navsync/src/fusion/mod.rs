@@ -137,6 +137,8 @@ struct Core {
     /// A fix that jumped from the clean level, for the wrapper to judge
     /// against the INS run free from seconds back (`rollback.rs`).
     jump_check: Option<rollback::JumpCheck>,
+    /// A fix that jumped again inside a fault episode (`jump_doubt.rs`).
+    jump_in_episode: Option<jump_doubt::JumpInEpisode>,
 }
 
 impl Core {
@@ -284,6 +286,7 @@ impl Core {
             nodes: Vec::new(),
             rollback_to: None,
             jump_check: None,
+            jump_in_episode: None,
             cfg,
         }
     }

@@ -71,7 +71,7 @@ const AT_ONCE_REACH_S: f64 = 21.0;
 /// back, or the free INS not that much closer than the solution) is held
 /// as a hypothesis ([`HeldRampEnd`]) against the states this far back
 /// (s)…
-const HELD_REACH_S: f64 = 35.0;
+pub(super) const HELD_REACH_S: f64 = 35.0;
 /// …for this long (s) after its jump: a false fix's onset that a free INS
 /// drifted near ends within it, with the fixes back at the clean level
 /// (the episode its jump opened returns); a ramp's end stays.
@@ -236,6 +236,9 @@ impl Fusion {
                 }
             }
         }
+        if let Some(jump) = self.core.jump_in_episode.take() {
+            self.doubt_jump_in_episode(jump);
+        }
         self.judge_held_ramp_end(sample.time);
         self.follow_jump_doubts();
         if let Some(rollback) = self.core.rollback_to.take() {
@@ -341,6 +344,7 @@ impl Fusion {
         }
         // A jump in the re-run was judged when its fix first came.
         self.core.jump_check = None;
+        self.core.jump_in_episode = None;
         if let (Some(slot), Some(list)) = (self.revisions.as_mut(), revised) {
             *slot = list;
         }

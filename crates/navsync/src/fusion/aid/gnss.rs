@@ -10,6 +10,7 @@
 use super::integrity::{FaultMonitor, FaultReason, FixView, Judgement, PROTECTION_K, StateSpread};
 use super::*;
 use crate::filter::idx;
+use crate::fusion::jump_doubt::JumpInEpisode;
 use crate::fusion::rollback::{JumpCheck, Rollback};
 use std::collections::VecDeque;
 
@@ -871,6 +872,18 @@ impl GnssSource {
             Some(d) => self.apply_decision(core, &obs, fix.time, d),
             None => self.judge_integrity(core, &obs, fix.time)?,
         };
+        let in_episode = self.monitor.take_jump_in_episode();
+        if let Some(episode_start) = in_episode
+            && self.monitor.onset_enabled
+            && core.rollback_to.is_none()
+        {
+            core.jump_in_episode = Some(JumpInEpisode {
+                time: fix.time,
+                at: core.nav.time,
+                innovation: Vector3::new(obs.z[0], obs.z[1], obs.z[2]),
+                episode_start,
+            });
+        }
         if self.monitor.take_jump() && self.monitor.onset_enabled && core.rollback_to.is_none() {
             core.jump_check = Some(JumpCheck {
                 time: fix.time,

@@ -462,6 +462,10 @@ pub(in crate::fusion) struct FaultMonitor {
     /// fix's onset, or a ramp's end): the wrapper may judge it against
     /// the INS run free from seconds back ([`Self::take_jump`]).
     jumped: bool,
+    /// The fix judged last jumped again inside an episode (a new fault
+    /// in it, or a ramp's end after its onset): the episode's start
+    /// ([`Self::take_jump_in_episode`]).
+    jumped_in_episode: Option<GpsTime>,
     /// The last fix judged, and whether the one judged now came within
     /// [`JUMP_MAX_GAP_S`] of it.
     last_judged: Option<GpsTime>,
@@ -962,6 +966,7 @@ impl FaultMonitor {
         if new_fault {
             ep.count(time, &delta);
             self.episode = Some(ep);
+            self.jumped_in_episode = Some(ep.start);
             return Judgement::Exclude(FaultReason::Jump);
         }
         // A false fix holds its level; fixes whose offset from the INS
@@ -998,6 +1003,12 @@ impl FaultMonitor {
     /// by the call).
     pub(in crate::fusion) fn take_jump(&mut self) -> bool {
         std::mem::take(&mut self.jumped)
+    }
+
+    /// The start of the episode the fix judged last jumped inside, if it
+    /// did (cleared by the call).
+    pub(in crate::fusion) fn take_jump_in_episode(&mut self) -> Option<GpsTime> {
+        self.jumped_in_episode.take()
     }
 
     /// The oldest anchor at least [`RAMP_END_MIN_LAG_S`] before `time` (and
