@@ -13,18 +13,22 @@
 //! the fixes it followed: on the bed's drives 1.3–1.9 m against a 6 σ
 //! protection level of 3–10 cm, the wrong answer that looks right.
 //!
-//! So each such jump is held as a doubt ([`JumpDoubt`]) while the
-//! solutions it concerns are held back (`Navigator::with_revised_output`):
-//! the σ written for them (std.txt, the position covariance, the fixes'
-//! protection levels in gnss_residuals.txt) carry the error the other
-//! hypothesis gives, along the jump: growing linearly from the state whose
-//! free INS was nearest the fix (where a ramp would have begun) to the
+//! So each such jump, and each jump inside a fault episode, is held as a
+//! doubt ([`JumpDoubt`]) while the solutions it concerns are held back
+//! (`Navigator::with_revised_output`): the σ written for them (std.txt,
+//! the position covariance) carry the error the other hypothesis gives,
+//! along the jump, and the fixes' protection levels in
+//! gnss_residuals.txt carry it as a bias. That error grows linearly from
+//! the state kept `rollback::HELD_REACH_S` before the jump (the
+//! farthest a rollback reaches: any shorter ramp is covered) to the
 //! jump's size at the jump, and on at the same rate after it (the ramp's
 //! fixes dragged the solution's velocity) until the fixes are followed
-//! again. The doubt is dropped when the fixes decide: the jump's episode
-//! returns (the fixes came back: a false fix or a spike; the solution was
-//! right), or a rollback returns to before the jump (a ramp's end found:
-//! its re-run is written instead). Offline only, as the rollback.
+//! again. The doubt is dropped when the fixes decide: the episode returns
+//! (the fixes came back: a false fix or a spike; the solution was right),
+//! or a rollback returns to before the jump (a ramp's end found: its
+//! re-run is written instead). A doubt the data ends before is carried
+//! by the smoothed σ too (`pipeline::smooth_stage`). Offline only, as the
+//! rollback.
 
 use super::aid::integrity::{EpisodeEnd, MAX_EPISODE_S};
 use super::*;
@@ -42,12 +46,12 @@ pub(crate) struct JumpInEpisode {
     pub(crate) episode_start: GpsTime,
 }
 
-/// A jump from the clean level that neither the test at once nor the
-/// fixes since have decided.
+/// A jump (from the clean level, or inside a fault episode) that neither
+/// the tests nor the fixes since have decided.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct JumpDoubt {
-    /// The clean fix of the state whose INS run free was nearest the
-    /// jump's fix: where a ramp ending at the jump would have begun.
+    /// Where the other hypothesis's error begins: the oldest state kept
+    /// up to `rollback::HELD_REACH_S` before the jump.
     start: GpsTime,
     /// The jump's fix, and the INS time it was fused at.
     fix: GpsTime,
@@ -135,7 +139,7 @@ impl Fusion {
     }
 
     /// Holds a jump inside a fault episode as a doubt over the solutions
-    /// from [`super::rollback::HELD_REACH_S`] before it, decided with the
+    /// from `rollback::HELD_REACH_S` before it, decided with the
     /// episode: a ramp's onset found after the filter had followed the
     /// ramp for seconds returns it to a state the ramp had dragged, and
     /// the fixes jump back at the ramp's end inside the onset's episode
