@@ -662,6 +662,7 @@ fn a_ramp_past_the_states_reached_at_once_is_held_and_a_false_fix_undoes_it() {
         sow(last - 20)..=sow(last),
     );
     assert!(misleading.is_empty(), "(sow, error, HPL): {misleading:?}");
+    assert!(summary.contains("did not tell a ramp's end"), "{summary}");
     let direction = (120f64.to_radians().cos(), 120f64.to_radians().sin());
     let false_fix = 160..170;
     let moved = offset_fixes(&lines, false_fix.clone(), direction, |_| 6.0);

@@ -153,6 +153,22 @@ impl Fusion {
         }
     }
 
+    /// Says, for each doubt that stood, which solutions' σ it widened
+    /// (called when the run ends).
+    pub(super) fn note_jump_doubts(&mut self) {
+        for d in &self.jump_doubts {
+            let until = d
+                .until
+                .map_or("the data's end (at most 60 s on)".to_string(), |u| {
+                    u.to_string()
+                });
+            self.diag.note(format!(
+                "GNSS fix at {}: jumped {:.2} m, and the fixes did not tell a ramp's end (the solution had followed drifting fixes before it) from a false fix's onset (the fixes after it off); the σ and protection levels written from {} to {} carry up to that offset along the jump",
+                d.fix, d.size_m, d.start, until
+            ));
+        }
+    }
+
     /// Drops the doubts about jumps at or after `anchor`: a rollback
     /// returning there runs them again.
     pub(super) fn drop_jump_doubts_since(&mut self, anchor: GpsTime) {

@@ -731,6 +731,7 @@ impl Fusion {
     /// Takes the diagnostics collected so far.
     pub(crate) fn take_diagnostics(&mut self) -> Diagnostics {
         self.note_unresolved_ramp_end();
+        self.note_jump_doubts();
         std::mem::replace(&mut self.diag, Diagnostics::with_cap(1000))
     }
 
