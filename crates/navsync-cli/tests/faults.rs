@@ -509,10 +509,16 @@ fn within_oracle(
 /// The status column of the `position` line of fix `i` of `lines` in a
 /// run's `gnss_residuals.txt` text.
 fn fix_status(residuals: &str, lines: &[Vec<String>], i: usize) -> Option<String> {
+    position_line(residuals, &lines[i])
+        .map(|l| l.split_whitespace().nth(12).unwrap_or("").to_string())
+}
+
+/// The `position` line of the fix line `fix` in a run's
+/// `gnss_residuals.txt` text.
+fn position_line<'a>(residuals: &'a str, fix: &[String]) -> Option<&'a str> {
     residuals
         .lines()
-        .find(|l| l.starts_with(&lines[i][0][..10]) && l.contains(" position "))
-        .map(|l| l.split_whitespace().nth(12).unwrap_or("").to_string())
+        .find(|l| l.starts_with(&fix[0][..10]) && l.contains(" position "))
 }
 
 /// The fixes of a run's `gnss_residuals.txt` within `sow` whose
@@ -671,9 +677,7 @@ fn a_ramp_past_the_states_reached_at_once_is_held_and_a_false_fix_undoes_it() {
     // before it: their protection levels are those of the clean run.
     let residuals = std::fs::read_to_string(run.join("gnss_residuals.txt")).unwrap();
     for fix in &lines[false_fix.start - 30..false_fix.start] {
-        let hpl = residuals
-            .lines()
-            .find(|l| l.starts_with(&fix[0][..10]) && l.contains(" position "))
+        let hpl = position_line(&residuals, fix)
             .and_then(|l| l.split_whitespace().last()?.parse::<f64>().ok());
         assert!(
             hpl.is_some_and(|h| h < 0.3),

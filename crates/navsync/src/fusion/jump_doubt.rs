@@ -175,10 +175,6 @@ impl Fusion {
         self.jump_doubts.retain(|d| d.fix < anchor);
     }
 
-    fn doubts_reaching(&self, t: GpsTime) -> impl Iterator<Item = &JumpDoubt> {
-        doubts_reaching(&self.jump_doubts, t)
-    }
-
     /// The covariance (m², NED) the doubts add to the solution at `t`;
     /// `None` when there is none.
     pub(crate) fn doubt_covariance(&self, t: GpsTime) -> Option<Matrix3<f64>> {
@@ -207,8 +203,7 @@ impl Fusion {
         };
         for r in records.iter_mut() {
             let t = first.add_seconds(r.sow - first.sow());
-            let bias_h_m: f64 = self
-                .doubts_reaching(t)
+            let bias_h_m: f64 = doubts_reaching(&self.jump_doubts, t)
                 .map(|d| d.error_m(t) * d.unit.xy().norm())
                 .sum();
             r.hpl_m += bias_h_m;

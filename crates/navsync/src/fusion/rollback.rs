@@ -166,12 +166,17 @@ pub(super) struct JumpCheck {
     pub(super) at: GpsTime,
     pub(super) pos: Geodetic,
     pub(super) pos_sd: Vector3<f64>,
-    /// Its distance from the filter's predicted antenna (m), the
-    /// innovation (predicted − measured, NED, m), and whether the monitor
-    /// excluded it (it kept the solution).
-    pub(super) from_filter_m: f64,
+    /// Its innovation (predicted − measured, NED, m), and whether the
+    /// monitor excluded it (it kept the solution).
     pub(super) innovation: Vector3<f64>,
     pub(super) excluded: bool,
+}
+
+impl JumpCheck {
+    /// The fix's distance from the filter's predicted antenna (m).
+    pub(super) fn distance_from_filter_m(&self) -> f64 {
+        self.innovation.norm()
+    }
 }
 
 /// The filter after a clean fix, with the smoother's record lengths then.
@@ -208,7 +213,7 @@ impl Fusion {
         {
             // A later jump, either way, ends what the one held stood for.
             self.held_ramp_end = None;
-            if check.from_filter_m > fix_difference_3sd_m(&check.pos_sd) {
+            if check.distance_from_filter_m() > fix_difference_3sd_m(&check.pos_sd) {
                 let fits = self.free_fits(&check);
                 let at_once = self.first_within(check.at, AT_ONCE_REACH_S);
                 if let Some((anchor, from_free_m)) =
@@ -216,7 +221,7 @@ impl Fusion {
                 {
                     self.core.notes.push(format!(
                         "GNSS fix at {}: {:.2} m from the solution and {from_free_m:.2} m from where the IMU alone carried the antenna from the clean fix at {anchor}: the fixes since had drifted away (a ramp the filter followed); the filter returns to its state then and runs again without them",
-                        check.time, check.from_filter_m
+                        check.time, check.distance_from_filter_m()
                     ));
                     self.core.rollback_to = Some(Rollback::RampEnded {
                         anchor,
@@ -444,7 +449,7 @@ impl Fusion {
         self.held_ramp_end = None;
         self.core.notes.push(format!(
             "GNSS fix at {}: {:.2} m from the solution and {:.2} m from where the IMU alone carried the antenna from the clean fix at {}, and the fixes stayed at its level for {HELD_S:.0} s: the fixes before it had drifted away (a ramp the filter followed); the filter returns to its state then and runs again without them",
-            held.jump.time, held.jump.from_filter_m, held.from_free_m, held.anchor
+            held.jump.time, held.jump.distance_from_filter_m(), held.from_free_m, held.anchor
         ));
         self.core.rollback_to = Some(Rollback::HeldRampEnded {
             anchor: held.anchor,
@@ -461,12 +466,12 @@ impl Fusion {
         self.diag.note(format!(
             "GNSS fix at {}: {:.2} m from the solution and {:.2} m from where the IMU alone carried the antenna from the clean fix at {}: either the fixes before it had drifted away (a ramp's end) or it began a false fix; the data ended {:.0} s after it, before the fixes could tell (a false fix's end comes back to the level before it), so the monitor's judgement stands (the fixes after it excluded until their level persisted) and the forward solution from {} on may be off by about {:.1} m (the smoothed solution weighs both sides)",
             held.jump.time,
-            held.jump.from_filter_m,
+            held.jump.distance_from_filter_m(),
             held.from_free_m,
             held.anchor,
             self.now.seconds_since(held.jump.at),
             held.anchor,
-            held.jump.from_filter_m
+            held.jump.distance_from_filter_m()
         ));
     }
 
@@ -586,8 +591,8 @@ fn ramp_start(
         run.clear();
     };
     for fit in fits.iter().filter(|f| f.index >= first) {
-        if fit.from_free_m * ratio < check.from_filter_m
-            && (!drift_bound || check.from_filter_m > fit.drift_bound_m)
+        if fit.from_free_m * ratio < check.distance_from_filter_m()
+            && (!drift_bound || check.distance_from_filter_m() > fit.drift_bound_m)
         {
             run.push((fit.anchor, fit.from_free_m));
         } else {

@@ -872,15 +872,15 @@ impl GnssSource {
             Some(d) => self.apply_decision(core, &obs, fix.time, d),
             None => self.judge_integrity(core, &obs, fix.time)?,
         };
-        let in_episode = self.monitor.take_jump_in_episode();
-        if let Some(episode_start) = in_episode
+        let innovation = Vector3::new(obs.z[0], obs.z[1], obs.z[2]);
+        if let Some(episode_start) = self.monitor.take_jump_in_episode()
             && self.monitor.onset_enabled
             && core.rollback_to.is_none()
         {
             core.jump_in_episode = Some(JumpInEpisode {
                 time: fix.time,
                 at: core.nav.time,
-                innovation: Vector3::new(obs.z[0], obs.z[1], obs.z[2]),
+                innovation,
                 episode_start,
             });
         }
@@ -890,8 +890,7 @@ impl GnssSource {
                 at: core.nav.time,
                 pos: fix.pos,
                 pos_sd: fix.pos_sd,
-                from_filter_m: Vector3::new(obs.z[0], obs.z[1], obs.z[2]).norm(),
-                innovation: Vector3::new(obs.z[0], obs.z[1], obs.z[2]),
+                innovation,
                 excluded,
             });
         }
