@@ -7,6 +7,11 @@ column (K σ, K = 6, after the fix). Smoothed: K √(σ_N² + σ_E²) of the
 smoothed std.txt line nearest the fix (std.txt has no N–E covariance; the
 root sum is the largest the major axis can be).
 
+A second table gives the clean runs' σ against their error: the mean of
+e²/(σ_N² + σ_E²) over the fix epochs (horizontal NEES per degree of
+freedom, 1 where the σ are right, above where they are optimistic),
+forward and smoothed, from each std.txt.
+
 Needs a bed run with its solutions kept (from the repository root):
 
     cargo build --release
@@ -37,33 +42,36 @@ def positions(path):
     return out
 
 
-def std_hpl(run):
-    """sow → K √(σ_N² + σ_E²) of the std.txt line nearest it."""
-    times, hpls = [], []
+def std_horizontal(run):
+    """sow → √(σ_N² + σ_E²) of the std.txt line nearest it."""
+    times, sds = [], []
     with open(os.path.join(run, "std.txt")) as f:
         for line in f:
             if line.startswith("#") or not line.strip():
                 continue
             fields = line.split()
             times.append(float(fields[0]))
-            hpls.append(PROTECTION_K * math.hypot(float(fields[1]), float(fields[2])))
+            sds.append(math.hypot(float(fields[1]), float(fields[2])))
 
     def at(sow):
         i = min(bisect.bisect_left(times, sow), len(times) - 1)
         if i > 0 and abs(times[i - 1] - sow) < abs(times[i] - sow):
             i -= 1
-        return hpls[i]
+        return sds[i]
 
     return at
 
 
-def misleading(truth, run, smoothed=False):
-    """(epochs, misleading, worst error/HPL) of one run folder: the
-    forward's HPL from gnss_residuals.txt, the smoothed's from std.txt."""
+def std_hpl(run):
+    """sow → K √(σ_N² + σ_E²) of the std.txt line nearest it."""
+    sd = std_horizontal(run)
+    return lambda sow: PROTECTION_K * sd(sow)
+
+
+def fix_errors(truth, run):
+    """(sow, horizontal error m) of the run's position fix epochs that the
+    truth and the solution both hold."""
     nav = positions(os.path.join(run, "navresult.nav"))
-    hpl_of = std_hpl(run) if smoothed else None
-    epochs = bad = 0
-    worst = 0.0
     with open(os.path.join(run, "gnss_residuals.txt")) as f:
         for line in f:
             fields = line.split()
@@ -75,11 +83,27 @@ def misleading(truth, run, smoothed=False):
             (lat, lon), (tlat, tlon) = nav[key], truth[key]
             dn = math.radians(lat - tlat) * EARTH_M
             de = math.radians(lon - tlon) * EARTH_M * math.cos(math.radians(tlat))
-            hpl = hpl_of(float(fields[0])) if smoothed else float(fields[14])
-            error = math.hypot(dn, de)
-            epochs += 1
-            bad += error > hpl
-            worst = max(worst, error / max(hpl, 1e-9))
+            yield float(fields[0]), math.hypot(dn, de), fields
+
+
+def nees_per_dof(truth, run):
+    """Mean e²/(σ_N² + σ_E²) over the run's fix epochs (std.txt's σ)."""
+    sd = std_horizontal(run)
+    values = [(e / max(sd(sow), 1e-9)) ** 2 for sow, e, _ in fix_errors(truth, run)]
+    return sum(values) / max(len(values), 1)
+
+
+def misleading(truth, run, smoothed=False):
+    """(epochs, misleading, worst error/HPL) of one run folder: the
+    forward's HPL from gnss_residuals.txt, the smoothed's from std.txt."""
+    hpl_of = std_hpl(run) if smoothed else None
+    epochs = bad = 0
+    worst = 0.0
+    for sow, error, fields in fix_errors(truth, run):
+        hpl = hpl_of(sow) if smoothed else float(fields[14])
+        epochs += 1
+        bad += error > hpl
+        worst = max(worst, error / max(hpl, 1e-9))
     return epochs, bad, worst
 
 
@@ -98,6 +122,7 @@ def main():
         "| smoothed with faults | worst | clean | worst |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
+    beds = []
     for bed in sorted(os.listdir(work)):
         truth_path = os.path.join(work, bed, "truth.nav")
         if not os.path.isfile(truth_path):
@@ -123,6 +148,13 @@ def main():
                 f"{w:.2f}",
             ]
         print(f"| {bed} ({len(seeds)} seeds) | " + " | ".join(cells) + " |")
+        beds.append((bed, truth))
+    print()
+    print("| bed | clean run, forward: mean e²/(σ_N² + σ_E²) | smoothed |")
+    print("|---|---|---|")
+    for bed, truth in beds:
+        clean = os.path.join(work, bed, "clean")
+        print(f"| {bed} | {nees_per_dof(truth, forward_dir(clean)):.2f} | {nees_per_dof(truth, clean):.2f} |")
 
 
 if __name__ == "__main__":

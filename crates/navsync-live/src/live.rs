@@ -964,7 +964,7 @@ impl Core {
                     let sec = nav.nav.time.ns().div_euclid(navsync::time::NS_PER_S);
                     if self.aux_second != Some(sec) {
                         self.aux_second = Some(sec);
-                        let sd = f.fusion_mut().std_devs();
+                        let (sd, _) = f.fusion_mut().written_figures();
                         sink.aux(&nav, &sd)?;
                     }
                     self.last = Some((nav, info));

@@ -163,15 +163,10 @@ const HOLD_S: f64 = crate::fusion::ROLLBACK_KEEP_S + 4.0;
 pub(crate) type AuxLine = (Vec<f64>, Matrix3<f64>, Option<TimeOffsetState>);
 
 /// Adds `extra` (m², NED) to an auxiliary line's position covariance and
-/// position σ: a jump the fixes left undecided (`fusion::jump_doubt`).
+/// position σ: a jump the fixes left undecided (`fusion::jump_doubt`), the
+/// fixes' error that outlasts their spacing (`fusion::fix_correlation`).
 pub(crate) fn widen_position(aux: &mut AuxLine, extra: &Matrix3<f64>) {
-    aux.1 += extra;
-    let pos = crate::filter::idx::POS;
-    for i in 0..3 {
-        if let Some(sd) = aux.0.get_mut(pos + i) {
-            *sd = (*sd * *sd + extra[(i, i)]).sqrt();
-        }
-    }
+    crate::fusion::widen_position(&mut aux.0, &mut aux.1, extra);
 }
 
 /// A solution held back before it is written (see
@@ -543,8 +538,8 @@ impl Navigator {
         let next_aux_before = self.output.next_aux;
         let aux_due = self.output.take_aux_due(out.nav.time);
         let aux = aux_due.then(|| {
-            let sd = fusion.std_devs();
-            (sd, fusion.position_covariance(), fusion.time_offset())
+            let (sd, cov) = fusion.written_figures();
+            (sd, cov, fusion.time_offset())
         });
         let Some(held) = self.held.as_mut() else {
             self.output.write(&out.nav, &out.imu, offset, sink, aux)?;

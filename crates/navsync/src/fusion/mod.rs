@@ -56,6 +56,7 @@ use crate::time::GpsTime;
 mod aid;
 mod config;
 pub mod course_heading;
+pub(crate) mod fix_correlation;
 mod gap;
 pub(crate) mod jump_doubt;
 mod latency;
@@ -119,6 +120,9 @@ struct Core {
     /// state index.
     gnss_bias: Vector3<f64>,
     gnss_bias_index: Option<usize>,
+    /// The fixes' error that outlasts their spacing, for the written σ
+    /// (`fix_correlation`).
+    fix_correlation: fix_correlation::FixCorrelation,
     tau_observable: bool,
     stats: FusionStats,
     /// Messages since the wrapper last drained them.
@@ -277,6 +281,7 @@ impl Core {
             lever_index,
             gnss_bias: Vector3::zeros(),
             gnss_bias_index,
+            fix_correlation: Default::default(),
             tau_observable: false,
             stats: FusionStats::default(),
             notes: Vec::new(),
@@ -776,6 +781,36 @@ impl Fusion {
         nalgebra::Matrix3::from_fn(|r, c| p.get(i0 + r, i0 + c))
     }
 
+    /// The σ of every state and the position covariance (m², NED) as
+    /// written beside a solution: the filter's, the position's widened by
+    /// the fixes' error that outlasts their spacing (`fix_correlation`).
+    /// Propagates the covariance first.
+    pub fn written_figures(&mut self) -> (Vec<f64>, nalgebra::Matrix3<f64>) {
+        let mut sd = self.std_devs();
+        let mut cov = self.position_covariance();
+        if let Some(extra) = self.correlated_fix_covariance(&cov) {
+            widen_position(&mut sd, &mut cov, &extra);
+        }
+        (sd, cov)
+    }
+
+    /// What a written position covariance `p_pos` (m², NED) adds for the
+    /// fixes' error that outlasts their spacing (`fix_correlation`).
+    pub(crate) fn correlated_fix_covariance(
+        &self,
+        p_pos: &nalgebra::Matrix3<f64>,
+    ) -> Option<nalgebra::Matrix3<f64>> {
+        self.core.fix_correlation.covariance(p_pos)
+    }
+
+    /// The correlated share of the fixes' stated variance measured over
+    /// the run (per axis), for the smoothed σ (`fix_correlation`).
+    pub(crate) fn correlated_fix_share(&self) -> Option<Vector3<f64>> {
+        // None where Gauss–Markov error states model it.
+        let share = self.core.aid.gnss.monitor.correlated_fix_share();
+        share.filter(|_| self.cfg().gnss_error.is_none())
+    }
+
     /// A dual-antenna heading, used at the first IMU epoch at or after its
     /// time (with `FusionConfig::heading`).
     pub(crate) fn push_heading(&mut self, h: crate::io::heading::HeadingObs) {
@@ -944,5 +979,21 @@ fn breakdown(sample: &ImuSample, why: String) -> Error {
             sample.dvel.y,
             sample.dvel.z
         ),
+    }
+}
+
+/// Adds `extra` (m², NED) to a written position covariance `cov` and to the
+/// position σ in the state σ `sd`.
+pub(crate) fn widen_position(
+    sd: &mut [f64],
+    cov: &mut nalgebra::Matrix3<f64>,
+    extra: &nalgebra::Matrix3<f64>,
+) {
+    *cov += extra;
+    let pos = crate::filter::idx::POS;
+    for i in 0..3 {
+        if let Some(s) = sd.get_mut(pos + i) {
+            *s = (*s * *s + extra[(i, i)]).sqrt();
+        }
     }
 }

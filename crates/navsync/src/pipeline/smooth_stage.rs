@@ -4,6 +4,7 @@
 //! written at the forward run's epochs.
 
 use super::*;
+use crate::fusion::fix_correlation::FixSumsTimeline;
 use crate::fusion::jump_doubt::{JumpDoubt, doubt_covariance};
 use crate::navigator::widen_position;
 
@@ -43,6 +44,7 @@ pub(super) fn smooth_stage(
     let temp_bytes = fusion.smoother_record().map(|r| r.1).unwrap_or(0);
     let tau_index = fusion.state_layout().index_of("time_offset");
     let undecided = fusion.undecided_jumps();
+    let correlated_share = fusion.correlated_fix_share();
     // The smoother re-judges the fixes where the fault monitor judged them
     // (robust weighting): `crate::rejudge`.
     let judged = matches!(fc.gnss_weighting, GnssWeighting::Robust(_));
@@ -74,15 +76,44 @@ pub(super) fn smooth_stage(
         forward_s,
         temp_bytes,
     };
+    let widen = Widening {
+        undecided: &undecided,
+        correlated: correlated_share
+            .map(|share| (share, FixSumsTimeline::from_records(&smoothed_records))),
+    };
     write_smoothed(
         &mut smoothed,
         tau_index,
-        &undecided,
+        &widen,
         input.opts,
         out,
         Some(t0),
         times,
     )
+}
+
+/// What the smoothed σ carry beyond the smoother's covariance.
+struct Widening<'a> {
+    /// The jumps the data ended before the fixes decided
+    /// (`fusion::jump_doubt`): no fix after them tells the smoother either.
+    undecided: &'a [JumpDoubt],
+    /// The fixes' error that outlasts their spacing, at the share measured
+    /// over the whole run (`fusion::fix_correlation`).
+    correlated: Option<(Vector3<f64>, FixSumsTimeline)>,
+}
+
+impl Widening<'_> {
+    /// Widens the auxiliary line of the smoothed solution at `t`.
+    fn apply(&self, aux: &mut crate::navigator::AuxLine, t: GpsTime) {
+        if let Some((share, sums)) = &self.correlated
+            && let Some(extra) = sums.at(t).and_then(|s| s.consider(share, &aux.1))
+        {
+            widen_position(aux, &extra);
+        }
+        if let Some(extra) = doubt_covariance(self.undecided, t) {
+            widen_position(aux, &extra);
+        }
+    }
 }
 
 /// Times and sizes of the smoothing, for its summary.
@@ -98,7 +129,7 @@ struct SmoothTimes {
 fn write_smoothed(
     smoothed: &mut Smoothed,
     tau_index: Option<usize>,
-    undecided: &[JumpDoubt],
+    widen: &Widening,
     opts: &FuseOptions,
     sink: &mut dyn NavSink,
     t0: Option<GpsTime>,
@@ -133,10 +164,8 @@ fn write_smoothed(
         let mut aux = output
             .take_aux_due(ep.nav.time)
             .then(|| (ep.sd.clone(), ep.p_pos, offset));
-        // A jump the data ended before the fixes decided (`fusion::
-        // jump_doubt`): no fix after it tells the smoother either.
-        if let (Some(aux), Some(extra)) = (aux.as_mut(), doubt_covariance(undecided, ep.nav.time)) {
-            widen_position(aux, &extra);
+        if let Some(aux) = aux.as_mut() {
+            widen.apply(aux, ep.nav.time);
         }
         output.write(&ep.nav, &ep.imu, offset, sink, aux)?;
         Ok(())

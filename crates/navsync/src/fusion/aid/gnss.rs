@@ -1106,6 +1106,13 @@ impl GnssSource {
             self.monitor
                 .record_correction(time, &outcome.dx, idx::POS, idx::VEL);
             self.note_correction(time, &outcome.dx);
+            if slot == 0 {
+                // Gauss–Markov error states model the correlated part
+                // themselves (`FusionConfig::gnss_error`).
+                let share = self.monitor.correlated_fix_share();
+                let share = share.filter(|_| core.cfg.gnss_error.is_none());
+                core.fix_correlation.note_fused(time, r_stated, share);
+            }
         }
         record.hpl_m = protection_level(core, ins_scale);
         // Posterior residual z⁺ = R' S⁻¹ z and H P⁺ Hᵀ = HPHᵀ S⁻¹ R'.
@@ -1460,17 +1467,19 @@ impl GnssSource {
     }
 }
 
-/// The horizontal protection level (m): K·√(λ·μ), μ the larger
-/// eigenvalue of the horizontal position covariance, K = [`PROTECTION_K`].
+/// The horizontal protection level (m): K·√μ, μ the larger eigenvalue of
+/// the horizontal position covariance scaled by λ, with the fixes' error
+/// that outlasts their spacing added (`fusion::fix_correlation`); K =
+/// [`PROTECTION_K`].
 fn protection_level(core: &Core, lambda: f64) -> f64 {
     let p = core.filter.covariance();
-    let (a, b, d) = (
-        p.get(idx::POS, idx::POS),
-        p.get(idx::POS, idx::POS + 1),
-        p.get(idx::POS + 1, idx::POS + 1),
-    );
+    let lambda = lambda.max(1.0);
+    let p_pos = Matrix3::from_fn(|r, c| lambda * p.get(idx::POS + r, idx::POS + c));
+    // The fixes' error that outlasts their spacing (`fix_correlation`).
+    let p_pos = p_pos + core.fix_correlation.covariance(&p_pos).unwrap_or_default();
+    let (a, b, d) = (p_pos[(0, 0)], p_pos[(0, 1)], p_pos[(1, 1)]);
     let mu = 0.5 * (a + d) + (0.25 * (a - d) * (a - d) + b * b).sqrt();
-    PROTECTION_K * (lambda.max(1.0) * mu.max(0.0)).sqrt()
+    PROTECTION_K * mu.max(0.0).sqrt()
 }
 
 /// The record of a position fix not fused (stale, or excluded by the fault

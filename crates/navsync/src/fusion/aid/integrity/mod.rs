@@ -406,6 +406,15 @@ pub(in crate::fusion) struct StateSpread {
     pub speed_mps: f64,
 }
 
+/// A clean fix pair's change of error: Δ² over the pair's stated R + R'
+/// per second² (`per_s2`) and alone (`share`), per axis.
+#[derive(Clone, Copy, Debug)]
+struct FixPair {
+    time: GpsTime,
+    per_s2: Vector3<f64>,
+    share: Vector3<f64>,
+}
+
 /// The episode monitor of the GNSS source.
 #[derive(Clone, Debug, Default)]
 pub(in crate::fusion) struct FaultMonitor {
@@ -422,11 +431,16 @@ pub(in crate::fusion) struct FaultMonitor {
     anchors_since_reset: usize,
     /// Clean fix pairs' Δ² per second² over their stated R + R' (1/s², per
     /// axis), the last [`FIX_CHANGE_MEMORY_S`].
-    fix_change: VecDeque<(GpsTime, Vector3<f64>)>,
+    /// and their Δ² over R + R' alone (per axis).
+    fix_change: VecDeque<FixPair>,
     /// Their robust rate (1/s², per axis) once there are
     /// [`FIX_CHANGE_MIN_PAIRS`]: the share of the stated variance by which
     /// the fixes' error changes per second².
     fix_change_rate: Option<Vector3<f64>>,
+    /// The share of the stated variance by which the fixes' error changes
+    /// from one fix to the next (per axis, robust, not capped), with the
+    /// rate: the part of the error the filter can average away.
+    fix_white_share: Option<Vector3<f64>>,
     /// The last fix judged clean against the previous anchor, of the same
     /// stated σ: its Δ, the
     /// time between and their stated R + R'; a pair once it becomes an
@@ -729,30 +743,52 @@ impl FaultMonitor {
         dt: f64,
         stated: &Vector3<f64>,
     ) {
-        let u = Vector3::from_fn(|i, _| delta[i] * delta[i] / (stated[i] * dt * dt));
-        if !u.iter().all(|v| v.is_finite()) {
+        let v = Vector3::from_fn(|i, _| delta[i] * delta[i] / stated[i]);
+        let u = v / (dt * dt);
+        if !u.iter().chain(v.iter()).all(|x| x.is_finite()) {
             return;
         }
-        self.fix_change.push_back((time, u));
+        self.fix_change.push_back(FixPair {
+            time,
+            per_s2: u,
+            share: v,
+        });
         while self
             .fix_change
             .front()
-            .is_some_and(|(t, _)| time.seconds_since(*t) > FIX_CHANGE_MEMORY_S)
+            .is_some_and(|p| time.seconds_since(p.time) > FIX_CHANGE_MEMORY_S)
         {
             self.fix_change.pop_front();
         }
         if self.fix_change.len() < FIX_CHANGE_MIN_PAIRS {
             self.fix_change_rate = None;
+            self.fix_white_share = None;
             return;
         }
         let mut axis: Vec<f64> = Vec::with_capacity(self.fix_change.len());
-        self.fix_change_rate = Some(Vector3::from_fn(|i, _| {
+        let mut median_of = |pick: &dyn Fn(&FixPair) -> f64| {
             axis.clear();
-            axis.extend(self.fix_change.iter().map(|(_, u)| u[i]));
+            axis.extend(self.fix_change.iter().map(pick));
             let mid = axis.len() / 2;
             let (_, median, _) = axis.select_nth_unstable_by(mid, f64::total_cmp);
             *median / CHI2_1_MEDIAN
-        }));
+        };
+        let rate = Vector3::from_fn(|i, _| median_of(&|p| p.per_s2[i]));
+        let white = Vector3::from_fn(|i, _| median_of(&|p| p.share[i]));
+        self.fix_change_rate = Some(rate);
+        self.fix_white_share = Some(white);
+    }
+
+    /// The share of the fixes' stated variance that does not change from
+    /// one clean fix to the next (per axis, 0–1): an error correlated over
+    /// longer than the fixes' spacing, which a filter taking the fixes as
+    /// independent cannot average away (`fusion::fix_correlation`). `None`
+    /// until [`FIX_CHANGE_MIN_PAIRS`] clean pairs measured it. The pairs'
+    /// Δ carries the INS's drift between them too, so the share errs
+    /// small.
+    pub(in crate::fusion) fn correlated_fix_share(&self) -> Option<Vector3<f64>> {
+        self.fix_white_share
+            .map(|w| w.map(|w| (1.0 - w).clamp(0.0, 1.0)))
     }
 
     /// Judges a position fix: innovation `z`, predicted H P Hᵀ `hph`,
