@@ -6,7 +6,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{bin, json, run, simulate_adis16465, temp_dir};
+use common::{bin, json, number_rows, run, simulate_adis16465, temp_dir};
 
 const NOISE_SD_DEG: f64 = 0.2;
 const MOUNT_YAW_DEG: f64 = 30.0;
@@ -327,20 +327,8 @@ fn simulated_dual_antenna_headings_follow_the_truth() {
     let d = temp_dir("dual-sim");
     let mount = format!("{MOUNT_YAW_DEG},{NOISE_SD_DEG}");
     let sim = simulate_with(&d, "static", "30", &["--dual-antenna", &mount]);
-    let rows = |p: &Path| -> Vec<Vec<f64>> {
-        std::fs::read_to_string(p)
-            .unwrap()
-            .lines()
-            .filter(|l| !l.starts_with('#'))
-            .map(|l| {
-                l.split_whitespace()
-                    .filter_map(|x| x.parse().ok())
-                    .collect()
-            })
-            .collect()
-    };
-    let headings = rows(&sim.join("heading.txt"));
-    let fixes = rows(&sim.join("gnss.txt"));
+    let headings = number_rows(&sim.join("heading.txt"));
+    let fixes = number_rows(&sim.join("gnss.txt"));
     assert_eq!(headings.len(), fixes.len());
     // The static vehicle faces its truth yaw: the baseline is 30° right of it.
     let truth = attitudes(&sim.join("truth.nav"));

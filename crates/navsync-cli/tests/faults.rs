@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{bin, horizontal_rms, json, run, simulate_test_track, temp_dir};
+use common::{bin, horizontal_rms, json, number_rows, run, simulate_test_track, temp_dir};
 use std::path::{Path, PathBuf};
 
 /// A 240 s test-track drive (simulator seed 1) in `dir/sim`: at rest for
@@ -744,28 +744,16 @@ fn a_slow_fix_error_at_10_hz_stays_inside_the_written_sigma() {
 
     // The smoothed solution against K σ of its std.txt (the nearest line)
     // at every fix epoch, and its horizontal NEES.
-    let numbers = |path: &Path| -> Vec<Vec<f64>> {
-        std::fs::read_to_string(path)
-            .unwrap()
-            .lines()
-            .filter(|l| !l.starts_with('#'))
-            .map(|l| {
-                l.split_whitespace()
-                    .filter_map(|x| x.parse().ok())
-                    .collect()
-            })
-            .collect()
-    };
     let by_ms = |rows: &[Vec<f64>]| -> std::collections::HashMap<i64, (f64, f64)> {
         rows.iter()
             .map(|f| ((f[1] * 1e3).round() as i64, (f[2], f[3])))
             .collect()
     };
     let (truth, nav) = (
-        by_ms(&numbers(&truth)),
-        by_ms(&numbers(&fused.join("navresult.nav"))),
+        by_ms(&number_rows(&truth)),
+        by_ms(&number_rows(&fused.join("navresult.nav"))),
     );
-    let sd = numbers(&fused.join("std.txt"));
+    let sd = number_rows(&fused.join("std.txt"));
     let (mut epochs, mut outside, mut nees) = (0usize, Vec::new(), 0.0);
     for fix in fix_lines(&sim.join("gnss.txt")) {
         let t: f64 = fix[0].parse().unwrap();

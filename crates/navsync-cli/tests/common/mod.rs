@@ -106,3 +106,17 @@ pub fn adis16465_sheet(dir: &Path, name: &str, edits: &[(&str, &str)]) -> std::p
     std::fs::write(&p, text).unwrap();
     p
 }
+
+/// The numeric fields of each line of a text file, `#` comments left out.
+pub fn number_rows(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            l.split_whitespace()
+                .filter_map(|x| x.parse().ok())
+                .collect()
+        })
+        .collect()
+}
