@@ -515,6 +515,14 @@ pub struct FusionStats {
     /// many such fixes it has seen; absent when none was seen.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gnss_ins_overconfidence: Option<InsOverconfidence>,
+    /// The share of the fixes' stated variance that does not change from
+    /// one clean fix to the next (N, E, D; 0–1), measured by the fault
+    /// monitor over the last 120 s of the run: an error the filter cannot
+    /// average, which the written σ and protection levels carry
+    /// (`fusion::fix_correlation`; not with Gauss–Markov error states,
+    /// which model it); absent until 20 clean pairs measured it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gnss_fix_error_correlated: Option<[f64; 3]>,
     /// Fixes refused before use for non-finite values or a σ ≤ 0 or
     /// beyond [`MAX_GNSS_SD_M`] (repeated times and stale outputs are
     /// counted below).

@@ -443,6 +443,7 @@ impl AidSource for GnssSource {
         stats.gnss_fixes_stale = c.stale;
         stats.gnss_fixes_excluded = c.excluded;
         stats.gnss_fault_episodes = self.monitor.all_episodes();
+        stats.gnss_fix_error_correlated = self.monitor.correlated_fix_share().map(|c| c.into());
         stats.gnss_ins_overconfidence =
             (c.overconfidence_fixes > 0).then(|| crate::fusion::InsOverconfidence {
                 scale: self.overconfidence_scale(),

@@ -407,12 +407,26 @@ pub(in crate::fusion) struct StateSpread {
 }
 
 /// A clean fix pair's change of error: Δ² over the pair's stated R + R'
-/// per second² (`per_s2`) and alone (`share`), per axis.
+/// per second² (`per_s2`) and alone (`share`), and the variance the INS's
+/// drift and the anchor's σ put in Δ over R + R' (`ins_share`), per axis.
 #[derive(Clone, Copy, Debug)]
 struct FixPair {
     time: GpsTime,
     per_s2: Vector3<f64>,
     share: Vector3<f64>,
+    ins_share: Vector3<f64>,
+}
+
+/// The last fix judged clean against the anchor before it, until it becomes
+/// an anchor itself: its Δ, the time between (s), their stated R + R' and
+/// the INS's part of Δ's variance (λ·G + H P⁺ Hᵀ of the anchor).
+#[derive(Clone, Copy, Debug)]
+struct PendingPair {
+    time: GpsTime,
+    delta: Vector3<f64>,
+    dt: f64,
+    stated: Vector3<f64>,
+    ins_var: Vector3<f64>,
 }
 
 /// The episode monitor of the GNSS source.
@@ -445,7 +459,7 @@ pub(in crate::fusion) struct FaultMonitor {
     /// stated σ: its Δ, the
     /// time between and their stated R + R'; a pair once it becomes an
     /// anchor itself.
-    pending_pair: Option<(GpsTime, Vector3<f64>, f64, Vector3<f64>)>,
+    pending_pair: Option<PendingPair>,
     /// D of clean fixes against older anchors (the onset test's), the
     /// last [`ONSET_CAL_MEMORY_S`].
     onset_cal: VecDeque<(GpsTime, f64)>,
@@ -563,11 +577,11 @@ impl FaultMonitor {
         drift_accepted: bool,
     ) {
         let dragged = drift_accepted && self.anchors_since_reset >= MIN_ANCHORS;
-        if let Some((t, delta, dt, stated)) = self.pending_pair.take()
-            && t == time
+        if let Some(pair) = self.pending_pair.take()
+            && pair.time == time
             && !drift_accepted
         {
-            self.note_fix_change(time, &delta, dt, &stated);
+            self.note_fix_change(&pair);
         }
         // One calibration value per anchor spacing: fixes at 10 Hz test
         // nearly the same thing ten times a second, and each value costs
@@ -736,22 +750,30 @@ impl FaultMonitor {
     /// Keeps a clean pair's Δ over `dt` s with stated R + R' `stated` and
     /// updates the measured rate: per axis, the median of Δ²/(stated·dt²)
     /// over [`CHI2_1_MEDIAN`].
-    fn note_fix_change(
-        &mut self,
-        time: GpsTime,
-        delta: &Vector3<f64>,
-        dt: f64,
-        stated: &Vector3<f64>,
-    ) {
+    fn note_fix_change(&mut self, pair: &PendingPair) {
+        let PendingPair {
+            time,
+            delta,
+            dt,
+            stated,
+            ins_var,
+        } = *pair;
         let v = Vector3::from_fn(|i, _| delta[i] * delta[i] / stated[i]);
         let u = v / (dt * dt);
-        if !u.iter().chain(v.iter()).all(|x| x.is_finite()) {
+        let ins = ins_var.component_div(&stated);
+        if !u
+            .iter()
+            .chain(v.iter())
+            .chain(ins.iter())
+            .all(|x| x.is_finite())
+        {
             return;
         }
         self.fix_change.push_back(FixPair {
             time,
             per_s2: u,
             share: v,
+            ins_share: ins,
         });
         while self
             .fix_change
@@ -774,7 +796,12 @@ impl FaultMonitor {
             *median / CHI2_1_MEDIAN
         };
         let rate = Vector3::from_fn(|i, _| median_of(&|p| p.per_s2[i]));
-        let white = Vector3::from_fn(|i, _| median_of(&|p| p.share[i]));
+        // Var Δ = the INS's part + the fixes' change: the latter's share is
+        // Δ²'s less the INS's (each robust; the INS's is a variance, not a
+        // square, hence the χ²₁ median put back).
+        let white = Vector3::from_fn(|i, _| {
+            median_of(&|p| p.share[i]) - CHI2_1_MEDIAN * median_of(&|p| p.ins_share[i])
+        });
         self.fix_change_rate = Some(rate);
         self.fix_white_share = Some(white);
     }
@@ -784,8 +811,10 @@ impl FaultMonitor {
     /// longer than the fixes' spacing, which a filter taking the fixes as
     /// independent cannot average away (`fusion::fix_correlation`). `None`
     /// until [`FIX_CHANGE_MIN_PAIRS`] clean pairs measured it. The pairs'
-    /// Δ carries the INS's drift between them too, so the share errs
-    /// small.
+    /// Δ carries the INS's drift between them too, taken out at its
+    /// predicted variance: where the INS drifts less than its model says
+    /// (or the fixes change less than their σ), the share errs large, the
+    /// safe side.
     pub(in crate::fusion) fn correlated_fix_share(&self) -> Option<Vector3<f64>> {
         self.fix_white_share
             .map(|w| w.map(|w| (1.0 - w).clamp(0.0, 1.0)))
@@ -927,7 +956,14 @@ impl FaultMonitor {
         // A pair measures the receiver's error change only between fixes of
         // the same stated σ (see `fix_change_var`).
         if (0..3).all(|i| same_sd(r[i], last.r[i])) {
-            self.pending_pair = Some((time, delta, time.seconds_since(last.time), r + last.r));
+            let dt = time.seconds_since(last.time);
+            self.pending_pair = Some(PendingPair {
+                time,
+                delta,
+                dt,
+                stated: r + last.r,
+                ins_var: v - self.fix_change_var(r, &last.r, dt),
+            });
         }
         Judgement::Clean
     }
