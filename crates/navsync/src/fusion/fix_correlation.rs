@@ -4,7 +4,7 @@
 //! A receiver's position error is white noise plus slow errors (multipath,
 //! the atmosphere, an ambiguity-fixed solution's bias) correlated over
 //! seconds to minutes (Groves, "Principles of GNSS, Inertial, and
-//! Multisensor Integrated Navigation Systems", 2nd ed., §9.4). The filter
+//! Multisensor Integrated Navigation Systems", 2nd ed., ch. 9). The filter
 //! takes each fix as independent: after N fixes its position variance P is
 //! about R/N, right for the white part, while the slow part passes into the
 //! solution whole. With 10 Hz RTK fixes the written σ fall to millimetres

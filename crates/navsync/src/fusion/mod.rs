@@ -803,8 +803,8 @@ impl Fusion {
         self.core.fix_correlation.covariance(p_pos)
     }
 
-    /// The correlated share of the fixes' stated variance measured over
-    /// the run (per axis), for the smoothed σ (`fix_correlation`).
+    /// The correlated share of the fixes' stated variance as measured now
+    /// (per axis), for the smoothed σ (`fix_correlation`).
     pub(crate) fn correlated_fix_share(&self) -> Option<Vector3<f64>> {
         // None where Gauss–Markov error states model it.
         let share = self.core.aid.gnss.monitor.correlated_fix_share();

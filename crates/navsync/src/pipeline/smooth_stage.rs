@@ -98,7 +98,7 @@ struct Widening<'a> {
     /// (`fusion::jump_doubt`): no fix after them tells the smoother either.
     undecided: &'a [JumpDoubt],
     /// The fixes' error that outlasts their spacing, at the share measured
-    /// over the whole run (`fusion::fix_correlation`).
+    /// at the run's end (`fusion::fix_correlation`).
     correlated: Option<(Vector3<f64>, FixSumsTimeline)>,
 }
 

@@ -443,22 +443,19 @@ pub(in crate::fusion) struct FaultMonitor {
     /// Anchors added since the start, a reset or an episode the INS could
     /// not resolve (then the INS is not yet a reference).
     anchors_since_reset: usize,
-    /// Clean fix pairs' Δ² per second² over their stated R + R' (1/s², per
-    /// axis), the last [`FIX_CHANGE_MEMORY_S`].
-    /// and their Δ² over R + R' alone (per axis).
+    /// Clean fix pairs' change of error, the last [`FIX_CHANGE_MEMORY_S`].
     fix_change: VecDeque<FixPair>,
     /// Their robust rate (1/s², per axis) once there are
     /// [`FIX_CHANGE_MIN_PAIRS`]: the share of the stated variance by which
     /// the fixes' error changes per second².
     fix_change_rate: Option<Vector3<f64>>,
     /// The share of the stated variance by which the fixes' error changes
-    /// from one fix to the next (per axis, robust, not capped), with the
-    /// rate: the part of the error the filter can average away.
+    /// from one fix to the next (per axis, robust, the INS's predicted
+    /// part taken out, not capped), with the rate: the part of the error
+    /// the filter can average away.
     fix_white_share: Option<Vector3<f64>>,
     /// The last fix judged clean against the previous anchor, of the same
-    /// stated σ: its Δ, the
-    /// time between and their stated R + R'; a pair once it becomes an
-    /// anchor itself.
+    /// stated σ; a pair once it becomes an anchor itself.
     pending_pair: Option<PendingPair>,
     /// D of clean fixes against older anchors (the onset test's), the
     /// last [`ONSET_CAL_MEMORY_S`].
@@ -747,9 +744,10 @@ impl FaultMonitor {
         })
     }
 
-    /// Keeps a clean pair's Δ over `dt` s with stated R + R' `stated` and
-    /// updates the measured rate: per axis, the median of Δ²/(stated·dt²)
-    /// over [`CHI2_1_MEDIAN`].
+    /// Keeps a clean pair's change of error and updates the measured rate
+    /// (per axis, the median of Δ²/(stated·dt²) over [`CHI2_1_MEDIAN`]) and
+    /// the white share (the median of Δ²/stated over it, less the INS's
+    /// part).
     fn note_fix_change(&mut self, pair: &PendingPair) {
         let PendingPair {
             time,
