@@ -149,6 +149,11 @@ const FIX_CHANGE_MIN_PAIRS: usize = 20;
 /// 99th percentile of the 1 s change is 2.5 times its RMS), so the test
 /// allows twice the measured σ.
 const FIX_CHANGE_MARGIN: f64 = 4.0;
+/// How often (s) the share of the fixes' error that changes from fix to
+/// fix is measured again: a statistic of the last [`FIX_CHANGE_MEMORY_S`],
+/// whose six medians added a quarter to a 10 Hz run's time when taken at
+/// every fix.
+const FIX_SHARE_EVERY_S: f64 = 5.0;
 /// Two fixes' stated σ within this ratio are the same solution quality.
 const FIX_SAME_SD_RATIO: f64 = 1.1;
 /// Median of χ²₁: the variance of a Gaussian is the median of its squares
@@ -451,9 +456,10 @@ pub(in crate::fusion) struct FaultMonitor {
     fix_change_rate: Option<Vector3<f64>>,
     /// The share of the stated variance by which the fixes' error changes
     /// from one fix to the next (per axis, robust, the INS's predicted
-    /// part taken out, not capped), with the rate: the part of the error
-    /// the filter can average away.
-    fix_white_share: Option<Vector3<f64>>,
+    /// part taken out, not capped): the part of the error the filter can
+    /// average away; and when it was measured (at most once every
+    /// [`FIX_SHARE_EVERY_S`]).
+    fix_white_share: Option<(GpsTime, Vector3<f64>)>,
     /// The last fix judged clean against the previous anchor, of the same
     /// stated σ; a pair once it becomes an anchor itself.
     pending_pair: Option<PendingPair>,
@@ -786,22 +792,24 @@ impl FaultMonitor {
             return;
         }
         let mut axis: Vec<f64> = Vec::with_capacity(self.fix_change.len());
-        let mut median_of = |pick: &dyn Fn(&FixPair) -> f64| {
-            axis.clear();
-            axis.extend(self.fix_change.iter().map(pick));
-            let mid = axis.len() / 2;
-            let (_, median, _) = axis.select_nth_unstable_by(mid, f64::total_cmp);
-            *median / CHI2_1_MEDIAN
-        };
-        let rate = Vector3::from_fn(|i, _| median_of(&|p| p.per_s2[i]));
+        let pairs = &self.fix_change;
+        self.fix_change_rate = Some(Vector3::from_fn(|i, _| {
+            variance_of(pairs, &mut axis, |p| p.per_s2[i])
+        }));
+        if self
+            .fix_white_share
+            .is_some_and(|(t, _)| time.seconds_since(t) < FIX_SHARE_EVERY_S)
+        {
+            return;
+        }
         // Var Δ = the INS's part + the fixes' change: the latter's share is
         // Δ²'s less the INS's (each robust; the INS's is a variance, not a
         // square, hence the χ²₁ median put back).
         let white = Vector3::from_fn(|i, _| {
-            median_of(&|p| p.share[i]) - CHI2_1_MEDIAN * median_of(&|p| p.ins_share[i])
+            variance_of(pairs, &mut axis, |p| p.share[i])
+                - CHI2_1_MEDIAN * variance_of(pairs, &mut axis, |p| p.ins_share[i])
         });
-        self.fix_change_rate = Some(rate);
-        self.fix_white_share = Some(white);
+        self.fix_white_share = Some((time, white));
     }
 
     /// The share of the fixes' stated variance that does not change from
@@ -815,7 +823,7 @@ impl FaultMonitor {
     /// safe side.
     pub(in crate::fusion) fn correlated_fix_share(&self) -> Option<Vector3<f64>> {
         self.fix_white_share
-            .map(|w| w.map(|w| (1.0 - w).clamp(0.0, 1.0)))
+            .map(|(_, w)| w.map(|w| (1.0 - w).clamp(0.0, 1.0)))
     }
 
     /// Judges a position fix: innovation `z`, predicted H P Hᵀ `hph`,
@@ -1203,6 +1211,21 @@ impl FaultMonitor {
 
 /// Whether two stated variances are of the same σ, within
 /// [`FIX_SAME_SD_RATIO`].
+/// The median of `pick` over `pairs` divided by χ²₁'s median: the
+/// variance of a Gaussian whose squares `pick` gives, robustly (`axis` is
+/// scratch space).
+fn variance_of(
+    pairs: &VecDeque<FixPair>,
+    axis: &mut Vec<f64>,
+    pick: impl Fn(&FixPair) -> f64,
+) -> f64 {
+    axis.clear();
+    axis.extend(pairs.iter().map(pick));
+    let mid = axis.len() / 2;
+    let (_, median, _) = axis.select_nth_unstable_by(mid, f64::total_cmp);
+    *median / CHI2_1_MEDIAN
+}
+
 fn same_sd(var_a: f64, var_b: f64) -> bool {
     let ratio2 = FIX_SAME_SD_RATIO * FIX_SAME_SD_RATIO;
     var_a <= ratio2 * var_b && var_b <= ratio2 * var_a
