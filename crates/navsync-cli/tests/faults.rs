@@ -529,21 +529,8 @@ fn misleading_fixes(
     run: &Path,
     sow: std::ops::RangeInclusive<f64>,
 ) -> Vec<(f64, f64, f64)> {
-    let by_ms = |path: &Path| -> std::collections::HashMap<i64, (f64, f64)> {
-        std::fs::read_to_string(path)
-            .unwrap()
-            .lines()
-            .filter(|l| !l.starts_with('#'))
-            .filter_map(|l| {
-                let f: Vec<f64> = l
-                    .split_whitespace()
-                    .filter_map(|x| x.parse().ok())
-                    .collect();
-                (f.len() >= 4).then(|| ((f[1] * 1e3).round() as i64, (f[2], f[3])))
-            })
-            .collect()
-    };
-    let (truth, nav) = (by_ms(truth), by_ms(&run.join("navresult.nav")));
+    let truth = positions_by_ms(truth);
+    let nav = positions_by_ms(&run.join("navresult.nav"));
     let residuals = std::fs::read_to_string(run.join("gnss_residuals.txt")).unwrap();
     let mut misleading = Vec::new();
     for line in residuals.lines().filter(|l| l.contains(" position ")) {
@@ -558,14 +545,29 @@ fn misleading_fixes(
         let (Some(t), Some(n)) = (truth.get(&key), nav.get(&key)) else {
             continue;
         };
-        let dn = (n.0 - t.0).to_radians() * 6.378137e6;
-        let de = (n.1 - t.1).to_radians() * 6.378137e6 * t.0.to_radians().cos();
-        let error = dn.hypot(de);
+        let error = horizontal_error_m(*t, *n);
         if sow.contains(&fix_sow) && error > hpl {
             misleading.push((fix_sow, error, hpl));
         }
     }
     misleading
+}
+
+/// Latitude and longitude (deg) by GPS time (ms) of an 11-column nav file.
+fn positions_by_ms(path: &Path) -> std::collections::HashMap<i64, (f64, f64)> {
+    number_rows(path)
+        .into_iter()
+        .filter(|f| f.len() >= 4)
+        .map(|f| ((f[1] * 1e3).round() as i64, (f[2], f[3])))
+        .collect()
+}
+
+/// The horizontal distance (m) of `nav` from `truth`, each (latitude,
+/// longitude) in degrees, on a sphere of the WGS-84 semi-major axis.
+fn horizontal_error_m(truth: (f64, f64), nav: (f64, f64)) -> f64 {
+    let dn = (nav.0 - truth.0).to_radians() * 6.378137e6;
+    let de = (nav.1 - truth.1).to_radians() * 6.378137e6 * truth.0.to_radians().cos();
+    dn.hypot(de)
 }
 
 /// `lines` without those in `range` (the oracle's fixes).
@@ -744,15 +746,8 @@ fn a_slow_fix_error_at_10_hz_stays_inside_the_written_sigma() {
 
     // The smoothed solution against K σ of its std.txt (the nearest line)
     // at every fix epoch, and its horizontal NEES.
-    let by_ms = |rows: &[Vec<f64>]| -> std::collections::HashMap<i64, (f64, f64)> {
-        rows.iter()
-            .map(|f| ((f[1] * 1e3).round() as i64, (f[2], f[3])))
-            .collect()
-    };
-    let (truth, nav) = (
-        by_ms(&number_rows(&truth)),
-        by_ms(&number_rows(&fused.join("navresult.nav"))),
-    );
+    let truth = positions_by_ms(&truth);
+    let nav = positions_by_ms(&fused.join("navresult.nav"));
     let sd = number_rows(&fused.join("std.txt"));
     let (mut epochs, mut outside, mut nees) = (0usize, Vec::new(), 0.0);
     for fix in fix_lines(&sim.join("gnss.txt")) {
@@ -768,9 +763,7 @@ fn a_slow_fix_error_at_10_hz_stays_inside_the_written_sigma() {
             k
         };
         let var_h = sd[k][1] * sd[k][1] + sd[k][2] * sd[k][2];
-        let dn = (b.0 - a.0).to_radians() * 6.378137e6;
-        let de = (b.1 - a.1).to_radians() * 6.378137e6 * a.0.to_radians().cos();
-        let error = dn.hypot(de);
+        let error = horizontal_error_m(*a, *b);
         epochs += 1;
         nees += error * error / var_h;
         if error > 6.0 * var_h.sqrt() {

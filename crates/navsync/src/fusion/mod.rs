@@ -786,7 +786,14 @@ impl Fusion {
     /// the fixes' error that outlasts their spacing (`fix_correlation`).
     /// Propagates the covariance first.
     pub fn written_figures(&mut self) -> (Vec<f64>, nalgebra::Matrix3<f64>) {
-        let mut sd = self.std_devs();
+        self.core.propagate();
+        self.figures_as_propagated()
+    }
+
+    /// [`Self::written_figures`] as of the last covariance propagation.
+    pub(crate) fn figures_as_propagated(&self) -> (Vec<f64>, nalgebra::Matrix3<f64>) {
+        let f = &self.core.filter;
+        let mut sd: Vec<f64> = (0..f.n()).map(|i| f.sd(i)).collect();
         let mut cov = self.position_covariance();
         if let Some(extra) = self.correlated_fix_covariance(&cov) {
             widen_position(&mut sd, &mut cov, &extra);
@@ -806,9 +813,7 @@ impl Fusion {
     /// The correlated share of the fixes' stated variance as measured now
     /// (per axis), for the smoothed σ (`fix_correlation`).
     pub(crate) fn correlated_fix_share(&self) -> Option<Vector3<f64>> {
-        // None where Gauss–Markov error states model it.
-        let share = self.core.aid.gnss.monitor.correlated_fix_share();
-        share.filter(|_| self.cfg().gnss_error.is_none())
+        self.core.aid.gnss.unmodelled_fix_share(self.cfg())
     }
 
     /// A dual-antenna heading, used at the first IMU epoch at or after its

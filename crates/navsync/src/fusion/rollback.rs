@@ -502,13 +502,8 @@ impl Fusion {
     /// position covariance as of the last covariance propagation (at most
     /// `cov_step_s` old: propagating for each would change the re-run).
     fn revised(&self, out: NavOutput) -> Revised {
-        let f = &self.core.filter;
-        let mut sd: Vec<f64> = (0..f.n()).map(|i| f.sd(i)).collect();
-        let mut position_covariance = self.position_covariance();
         // As written in the forward run (`Fusion::written_figures`).
-        if let Some(extra) = self.correlated_fix_covariance(&position_covariance) {
-            super::widen_position(&mut sd, &mut position_covariance, &extra);
-        }
+        let (sd, position_covariance) = self.figures_as_propagated();
         Revised {
             out,
             offset: self.time_offset(),

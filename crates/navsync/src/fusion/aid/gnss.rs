@@ -391,6 +391,17 @@ pub(in crate::fusion) struct GnssCounts {
 }
 
 impl GnssSource {
+    /// The share of the fixes' error that outlasts their spacing which the
+    /// written σ carry (`fusion::fix_correlation`): the monitor's, none
+    /// where Gauss–Markov error states model it (`FusionConfig::gnss_error`).
+    pub(in crate::fusion) fn unmodelled_fix_share(
+        &self,
+        cfg: &FusionConfig,
+    ) -> Option<Vector3<f64>> {
+        let share = self.monitor.correlated_fix_share();
+        share.filter(|_| cfg.gnss_error.is_none())
+    }
+
     pub(in crate::fusion) fn new(cfg: &FusionConfig) -> Self {
         let gate = match cfg.gnss_weighting {
             GnssWeighting::Gate { prob } if prob > 0.0 && prob < 1.0 => {
@@ -1108,10 +1119,7 @@ impl GnssSource {
                 .record_correction(time, &outcome.dx, idx::POS, idx::VEL);
             self.note_correction(time, &outcome.dx);
             if slot == 0 {
-                // Gauss–Markov error states model the correlated part
-                // themselves (`FusionConfig::gnss_error`).
-                let share = self.monitor.correlated_fix_share();
-                let share = share.filter(|_| core.cfg.gnss_error.is_none());
+                let share = self.unmodelled_fix_share(&core.cfg);
                 core.fix_correlation.note_fused(time, r_stated, share);
             }
         }

@@ -412,14 +412,22 @@ pub(in crate::fusion) struct StateSpread {
 }
 
 /// A clean fix pair's change of error: Δ² over the pair's stated R + R'
-/// per second² (`per_s2`) and alone (`share`), and the variance the INS's
-/// drift and the anchor's σ put in Δ over R + R' (`ins_share`), per axis.
+/// (`share`), the variance the INS's drift and the anchor's σ put in Δ over
+/// R + R' (`ins_share`), per axis, and the time between the fixes squared
+/// (s²; `share` over it is the change per second²).
 #[derive(Clone, Copy, Debug)]
 struct FixPair {
     time: GpsTime,
-    per_s2: Vector3<f64>,
+    dt2: f64,
     share: Vector3<f64>,
     ins_share: Vector3<f64>,
+}
+
+impl FixPair {
+    /// Δ² over R + R' per second², on axis `i`.
+    fn per_s2(&self, i: usize) -> f64 {
+        self.share[i] / self.dt2
+    }
 }
 
 /// The last fix judged clean against the anchor before it, until it becomes
@@ -762,23 +770,19 @@ impl FaultMonitor {
             stated,
             ins_var,
         } = *pair;
-        let v = Vector3::from_fn(|i, _| delta[i] * delta[i] / stated[i]);
-        let u = v / (dt * dt);
-        let ins = ins_var.component_div(&stated);
-        if !u
-            .iter()
-            .chain(v.iter())
-            .chain(ins.iter())
-            .all(|x| x.is_finite())
-        {
+        let new = FixPair {
+            time,
+            dt2: dt * dt,
+            share: Vector3::from_fn(|i, _| delta[i] * delta[i] / stated[i]),
+            ins_share: ins_var.component_div(&stated),
+        };
+        let finite = (0..3).all(|i| {
+            new.per_s2(i).is_finite() && new.share[i].is_finite() && new.ins_share[i].is_finite()
+        });
+        if !finite {
             return;
         }
-        self.fix_change.push_back(FixPair {
-            time,
-            per_s2: u,
-            share: v,
-            ins_share: ins,
-        });
+        self.fix_change.push_back(new);
         while self
             .fix_change
             .front()
@@ -794,7 +798,7 @@ impl FaultMonitor {
         let mut axis: Vec<f64> = Vec::with_capacity(self.fix_change.len());
         let pairs = &self.fix_change;
         self.fix_change_rate = Some(Vector3::from_fn(|i, _| {
-            variance_of(pairs, &mut axis, |p| p.per_s2[i])
+            variance_of(pairs, &mut axis, |p| p.per_s2(i))
         }));
         if self
             .fix_white_share
