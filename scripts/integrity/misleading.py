@@ -2,15 +2,17 @@
 """Misleading solutions on the integrity bed: the fix epochs whose
 horizontal error (against the bed's truth) passes the horizontal protection
 level written for them, per bed, for the runs with faults and the clean
-run, with the worst error / HPL ratio. Forward: gnss_residuals.txt's last
+run, with the worst error / HPL ratio. A fix is judged at the epoch that
+fuses it: the first solution epoch at or after its time (the one before it
+is the prediction the fix corrects). Forward: gnss_residuals.txt's last
 column (K σ, K = 6, after the fix). Smoothed: K √(σ_N² + σ_E²) of the
-smoothed std.txt line nearest the fix (std.txt has no N–E covariance; the
-root sum is the largest the major axis can be).
+smoothed std.txt line at or after that epoch (std.txt has no N–E
+covariance; the root sum is the largest the major axis can be).
 
 A second table gives the clean runs' σ against their error: the mean of
 e²/(σ_N² + σ_E²) over the fix epochs (horizontal NEES per degree of
 freedom, 1 where the σ are right, above where they are optimistic),
-forward and smoothed, from each std.txt.
+forward and smoothed, each std.txt line against the error at its own time.
 
 Needs a bed run with its solutions kept (from the repository root):
 
@@ -31,19 +33,28 @@ EARTH_M = 6378137.0
 
 
 def positions(path):
-    """sow (ms) → (lat, lon) of an 11-column nav file."""
-    out = {}
+    """(sorted sow list, sow (ms) → (lat, lon)) of an 11-column nav file."""
+    times, out = [], {}
     with open(path) as f:
         for line in f:
             if line.startswith("#") or not line.strip():
                 continue
             fields = line.split()
-            out[round(float(fields[1]) * 1000)] = (float(fields[2]), float(fields[3]))
-    return out
+            times.append(float(fields[1]))
+            out[round(times[-1] * 1000)] = (float(fields[2]), float(fields[3]))
+    times.sort()
+    return times, out
+
+
+def at_or_after(times, sow):
+    """Index of the first of the sorted `times` at or after `sow` (1 µs
+    tolerance), clamped to the last."""
+    return min(bisect.bisect_left(times, sow - 1e-6), len(times) - 1)
 
 
 def std_horizontal(run):
-    """sow → √(σ_N² + σ_E²) of the std.txt line nearest it."""
+    """sow → (line time, √(σ_N² + σ_E²)) of the first std.txt line at or
+    after it."""
     times, sds = [], []
     with open(os.path.join(run, "std.txt")) as f:
         for line in f:
@@ -54,53 +65,61 @@ def std_horizontal(run):
             sds.append(math.hypot(float(fields[1]), float(fields[2])))
 
     def at(sow):
-        i = min(bisect.bisect_left(times, sow), len(times) - 1)
-        if i > 0 and abs(times[i - 1] - sow) < abs(times[i] - sow):
-            i -= 1
-        return sds[i]
+        i = at_or_after(times, sow)
+        return times[i], sds[i]
 
     return at
 
 
-def std_hpl(run):
-    """sow → K √(σ_N² + σ_E²) of the std.txt line nearest it."""
-    sd = std_horizontal(run)
-    return lambda sow: PROTECTION_K * sd(sow)
+def horizontal_error(nav, truth, sow):
+    """Horizontal error (m) of the solution at `sow`, or None where the
+    solution or the truth has no record then."""
+    key = round(sow * 1000)
+    if key not in nav or key not in truth:
+        return None
+    (lat, lon), (tlat, tlon) = nav[key], truth[key]
+    dn = math.radians(lat - tlat) * EARTH_M
+    de = math.radians(lon - tlon) * EARTH_M * math.cos(math.radians(tlat))
+    return math.hypot(dn, de)
 
 
-def fix_errors(truth, run):
-    """(sow, horizontal error m) of the run's position fix epochs that the
-    truth and the solution both hold."""
-    nav = positions(os.path.join(run, "navresult.nav"))
+def fix_epochs(truth, run):
+    """(epoch sow, horizontal error m, gnss_residuals fields) of the run's
+    position fixes, each at the solution epoch that fuses it."""
+    times, nav = positions(os.path.join(run, "navresult.nav"))
     with open(os.path.join(run, "gnss_residuals.txt")) as f:
         for line in f:
             fields = line.split()
             if line.startswith("#") or len(fields) < 15 or fields[1] != "position":
                 continue
-            key = round(float(fields[0]) * 1000)
-            if key not in nav or key not in truth:
-                continue
-            (lat, lon), (tlat, tlon) = nav[key], truth[key]
-            dn = math.radians(lat - tlat) * EARTH_M
-            de = math.radians(lon - tlon) * EARTH_M * math.cos(math.radians(tlat))
-            yield float(fields[0]), math.hypot(dn, de), fields
+            epoch = times[at_or_after(times, float(fields[0]))]
+            error = horizontal_error(nav, truth, epoch)
+            if error is not None:
+                yield epoch, error, fields
 
 
 def nees_per_dof(truth, run):
-    """Mean e²/(σ_N² + σ_E²) over the run's fix epochs (std.txt's σ)."""
+    """Mean e²/(σ_N² + σ_E²) over the run's fix epochs: each fix's first
+    std.txt line against the error at that line's time."""
     sd = std_horizontal(run)
-    values = [(e / max(sd(sow), 1e-9)) ** 2 for sow, e, _ in fix_errors(truth, run)]
+    _, nav = positions(os.path.join(run, "navresult.nav"))
+    values = []
+    for epoch, _, _ in fix_epochs(truth, run):
+        when, sigma = sd(epoch)
+        error = horizontal_error(nav, truth, when)
+        if error is not None:
+            values.append((error / max(sigma, 1e-9)) ** 2)
     return sum(values) / max(len(values), 1)
 
 
 def misleading(truth, run, smoothed=False):
     """(epochs, misleading, worst error/HPL) of one run folder: the
     forward's HPL from gnss_residuals.txt, the smoothed's from std.txt."""
-    hpl_of = std_hpl(run) if smoothed else None
+    sd = std_horizontal(run)
     epochs = bad = 0
     worst = 0.0
-    for sow, error, fields in fix_errors(truth, run):
-        hpl = hpl_of(sow) if smoothed else float(fields[14])
+    for epoch, error, fields in fix_epochs(truth, run):
+        hpl = PROTECTION_K * sd(epoch)[1] if smoothed else float(fields[14])
         epochs += 1
         bad += error > hpl
         worst = max(worst, error / max(hpl, 1e-9))
@@ -127,7 +146,7 @@ def main():
         truth_path = os.path.join(work, bed, "truth.nav")
         if not os.path.isfile(truth_path):
             continue
-        truth = positions(truth_path)
+        _, truth = positions(truth_path)
         seeds = sorted(d for d in os.listdir(os.path.join(work, bed)) if d.startswith("faults-"))
         cells = []
         for smoothed in (False, True):

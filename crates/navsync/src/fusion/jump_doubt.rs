@@ -23,7 +23,15 @@
 //! farthest a rollback reaches: any shorter ramp is covered) to the
 //! jump's size at the jump, and on at the same rate after it (the ramp's
 //! fixes dragged the solution's velocity) until the fixes are followed
-//! again. The doubt is dropped when the fixes decide: the episode returns
+//! again. From then on the solution stands on the level followed, off by
+//! the jump should that level be a false fix, and the doubt holds the
+//! jump's size while the fault monitor still watches that level for the
+//! jump back that would say so (`aid::integrity::followed`: at most
+//! `MAX_EPISODE_S` after the episode began). The error bound under a
+//! fault hypothesis is the fault's bias plus the fault-free K σ, as in
+//! solution separation (Brenner, "Integrated GPS/inertial fault detection
+//! availability", Navigation 43(2), 1996). The doubt is dropped when the
+//! fixes decide: the episode returns
 //! (the fixes came back: a false fix or a spike; the solution was right),
 //! or a rollback returns to before the jump (a ramp's end found: its
 //! re-run is written instead). A doubt the data ends before is carried
@@ -63,10 +71,17 @@ pub(crate) struct JumpDoubt {
     /// measured).
     size_m: f64,
     unit: Vector3<f64>,
-    /// When the fixes were followed again (the episode persisted, or ran
-    /// longer than the IMU can bridge): the filter's own σ covers the
-    /// offset from then on.
+    /// When the fixes were followed again (the episode persisted, the
+    /// monitor took the jump for a ramp's end, or the episode ran longer
+    /// than the IMU can bridge).
     until: Option<GpsTime>,
+    /// When the monitor stopped watching the level the fixes were followed
+    /// onto for the jump back that would make it a false fix. Until then
+    /// the solution, moved onto that level, is off by the jump should the
+    /// level be false, while its σ shrank to the fixes' (dataset2 with
+    /// ADIS16465, a 0.8 m false fix followed after 8 s: 0.79 m off at a
+    /// 6 σ protection level of 0.16–0.46 m for 5 s).
+    released: Option<GpsTime>,
 }
 
 impl JumpDoubt {
@@ -92,35 +107,62 @@ impl JumpDoubt {
             size_m,
             unit,
             until: None,
+            released: None,
         })
     }
 
-    /// The fixes were followed again from `t` on.
+    /// The fixes were followed again from `t` on: the error is the jump
+    /// from then until [`Self::release`].
     pub(super) fn close(&mut self, t: GpsTime) {
         self.until = Some(t);
     }
 
-    /// The other hypothesis's error (m) at `t`, along [`Self::unit`].
+    /// The level followed is no longer in doubt from `t` on (the monitor
+    /// stopped watching it).
+    pub(super) fn release(&mut self, t: GpsTime) {
+        self.released.get_or_insert(t);
+    }
+
+    /// Whether the fixes were followed again and the level followed is
+    /// still in doubt.
+    fn is_held(&self) -> bool {
+        self.until.is_some() && self.released.is_none()
+    }
+
+    /// The other hypothesis's error (m) at `t`, along [`Self::unit`]:
+    /// growing linearly from [`Self::start`] to the jump at the jump and on
+    /// at the same rate; the jump itself from when the fixes were followed
+    /// again until the level followed was released.
     fn error_m(&self, t: GpsTime) -> f64 {
-        let ramp_s = self.at.seconds_since(self.start);
         let since_start_s = t.seconds_since(self.start);
         if since_start_s <= 0.0
-            || self.until.is_some_and(|u| t > u)
             || t.seconds_since(self.at) > MAX_EPISODE_S
+            || self.released.is_some_and(|r| t > r)
         {
             return 0.0;
         }
-        self.size_m * since_start_s / ramp_s
+        match self.until {
+            Some(u) if t > u => self.size_m,
+            _ => self.size_m * since_start_s / self.at.seconds_since(self.start),
+        }
     }
 }
 
 impl Fusion {
-    /// Follows each open doubt's episode: dropped when it returned (the
-    /// fixes came back to the level before the jump), closed when the
-    /// fixes were followed again.
-    pub(super) fn follow_jump_doubts(&mut self) {
-        let episodes = &self.core.aid.gnss.monitor.episodes;
+    /// Follows each open doubt's episode at `now`: dropped when it
+    /// returned (the fixes came back to the level before the jump), closed
+    /// when the fixes were followed again, released when the monitor no
+    /// longer watches the level they were followed onto.
+    pub(super) fn follow_jump_doubts(&mut self, now: GpsTime) {
+        let monitor = &self.core.aid.gnss.monitor;
+        let episodes = &monitor.episodes;
         self.jump_doubts.retain_mut(|d| {
+            if d.is_held() {
+                if !monitor.watches_followed_level(d.episode_sow, now) {
+                    d.release(now);
+                }
+                return true;
+            }
             if d.until.is_some() {
                 return true;
             }
@@ -157,11 +199,16 @@ impl Fusion {
     /// (called when the run ends).
     pub(super) fn note_jump_doubts(&mut self) {
         for d in &self.jump_doubts {
-            let until = d
-                .until
-                .map_or("the data's end (at most 60 s on)".to_string(), |u| {
-                    u.to_string()
-                });
+            let until = match (d.until, d.released) {
+                (None, _) => "the data's end (at most 60 s on)".to_string(),
+                (Some(u), None) => format!(
+                    "{u} (the level followed from then watched until the data's end, at most 60 s after the jump)"
+                ),
+                (Some(u), Some(r)) if r > u => {
+                    format!("{u} (the level followed from then watched until {r})")
+                }
+                (Some(u), Some(_)) => u.to_string(),
+            };
             self.diag.note(format!(
                 "GNSS fix at {}: jumped {:.2} m, and the fixes did not tell a ramp's end (the solution had followed drifting fixes before it) from a false fix's onset (the fixes after it off); the σ and protection levels written from {} to {} carry up to that offset along the jump",
                 d.fix, d.size_m, d.start, until
@@ -257,10 +304,22 @@ mod tests {
             assert_eq!(c[(2, 2)], 0.0);
         }
         assert!(doubt_covariance(&doubts, t(20.0 + MAX_EPISODE_S + 1.0)).is_none());
+        // Followed again at 25 s: the solution on the level followed is
+        // off by the jump itself, should it be false, until released.
         d.close(t(25.0));
-        let closed = [d];
-        assert!(doubt_covariance(&closed, t(24.0)).is_some());
-        assert!(doubt_covariance(&closed, t(26.0)).is_none());
+        let held = [d];
+        let at =
+            |doubts: &[JumpDoubt], s: f64| doubt_covariance(doubts, t(s)).map(|c| c.trace().sqrt());
+        assert!((at(&held, 24.0).unwrap() - 3.6).abs() < 1e-9);
+        assert!((at(&held, 26.0).unwrap() - 3.0).abs() < 1e-9);
+        d.release(t(30.0));
+        d.release(t(40.0));
+        let released = [d];
+        assert!((at(&released, 30.0).unwrap() - 3.0).abs() < 1e-9);
+        assert!(
+            at(&released, 31.0).is_none(),
+            "released at the first release"
+        );
         // No doubt without a direction or a span before the jump.
         assert!(JumpDoubt::new(t(0.0), t(20.0), t(20.0), Vector3::zeros()).is_none());
         assert!(JumpDoubt::new(t(20.0), t(20.0), t(20.0), innovation).is_none());

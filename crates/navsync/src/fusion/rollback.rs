@@ -245,7 +245,7 @@ impl Fusion {
             self.doubt_jump_in_episode(jump);
         }
         self.judge_held_ramp_end(sample.time);
-        self.follow_jump_doubts();
+        self.follow_jump_doubts(sample.time);
         if let Some(rollback) = self.core.rollback_to.take() {
             // A re-run from before the held jump judges it again; one from
             // after it (an onset the ramp's dragged velocity brought on)

@@ -95,6 +95,18 @@ impl Followed {
 }
 
 impl FaultMonitor {
+    /// Whether the level the fixes were followed onto at the fault episode
+    /// that began at `episode_sow` (GPS seconds of week) is still watched
+    /// for the jump back that would make it a false fix: at most
+    /// [`MAX_EPISODE_S`] after the episode's start, until a jump undoes it
+    /// or another level is followed.
+    pub(in crate::fusion) fn watches_followed_level(&self, episode_sow: f64, now: GpsTime) -> bool {
+        self.followed.is_some_and(|f| {
+            (f.start.sow() - episode_sow).abs() < 1e-6
+                && now.seconds_since(f.start) <= MAX_EPISODE_S
+        })
+    }
+
     /// Whether the fix (innovation `z`, as for [`Self::judge`]) jumped back
     /// from the level of the episode followed last, undoing its opening
     /// jump: then that level was a false fix, which ends here (see the
