@@ -75,6 +75,10 @@ pub(crate) struct JumpDoubt {
     /// monitor took the jump for a ramp's end, or the episode ran longer
     /// than the IMU can bridge).
     until: Option<GpsTime>,
+    /// Whether the fault monitor watches the level followed (released when
+    /// it stops); otherwise the doubt holds until `MAX_EPISODE_S` after
+    /// the jump.
+    watched: bool,
     /// When the monitor stopped watching the level the fixes were followed
     /// onto for the jump back that would make it a false fix. Until then
     /// the solution, moved onto that level, is off by the jump should the
@@ -107,6 +111,37 @@ impl JumpDoubt {
             size_m,
             unit,
             until: None,
+            watched: true,
+            released: None,
+        })
+    }
+
+    /// The doubt about the level a confirmed ramp's end followed (the fix
+    /// at `fix`, fused at `at`, jumped by `innovation`, predicted −
+    /// measured): should it have been a false fix's onset, the solutions
+    /// after it are off by the jump. None before it (the re-run excluded
+    /// the fixes before it; its σ grew as it coasted). Held until
+    /// `MAX_EPISODE_S` after the jump: the span a level followed is watched
+    /// for the jump back, which the re-run's monitor no longer does.
+    pub(super) fn level_followed(
+        fix: GpsTime,
+        at: GpsTime,
+        innovation: Vector3<f64>,
+    ) -> Option<Self> {
+        let size_m = innovation.norm();
+        if !size_m.is_finite() {
+            return None;
+        }
+        let unit = innovation.try_normalize(1e-9)?;
+        Some(JumpDoubt {
+            start: at,
+            fix,
+            at,
+            episode_sow: fix.sow(),
+            size_m,
+            unit,
+            until: Some(at),
+            watched: false,
             released: None,
         })
     }
@@ -135,15 +170,18 @@ impl JumpDoubt {
     /// again until the level followed was released.
     fn error_m(&self, t: GpsTime) -> f64 {
         let since_start_s = t.seconds_since(self.start);
-        if since_start_s <= 0.0
+        if since_start_s < 0.0
             || t.seconds_since(self.at) > MAX_EPISODE_S
             || self.released.is_some_and(|r| t > r)
         {
             return 0.0;
         }
+        let ramp_s = self.at.seconds_since(self.start);
         match self.until {
             Some(u) if t > u => self.size_m,
-            _ => self.size_m * since_start_s / self.at.seconds_since(self.start),
+            // A step (`level_followed`): the jump from the jump on.
+            _ if ramp_s <= 0.0 => self.size_m,
+            _ => self.size_m * since_start_s / ramp_s,
         }
     }
 }
@@ -158,7 +196,7 @@ impl Fusion {
         let episodes = &monitor.episodes;
         self.jump_doubts.retain_mut(|d| {
             if d.is_held() {
-                if !monitor.watches_followed_level(d.episode_sow, now) {
+                if d.watched && !monitor.watches_followed_level(d.episode_sow, now) {
                     d.release(now);
                 }
                 return true;
@@ -201,6 +239,9 @@ impl Fusion {
         for d in &self.jump_doubts {
             let until = match (d.until, d.released) {
                 (None, _) => "the data's end (at most 60 s on)".to_string(),
+                (Some(u), _) if !d.watched => format!(
+                    "{u} and on, the level followed from then in doubt until 60 s after the jump (or the data's end)"
+                ),
                 (Some(u), None) => format!(
                     "{u} (the level followed from then watched until the data's end, at most 60 s after the jump)"
                 ),
@@ -216,10 +257,31 @@ impl Fusion {
         }
     }
 
-    /// Drops the doubts about jumps at or after `anchor`: a rollback
-    /// returning there runs them again.
+    /// Drops the doubts about jumps after the fix `anchor`: a rollback
+    /// returning to the state after it runs them again.
     pub(super) fn drop_jump_doubts_since(&mut self, anchor: GpsTime) {
-        self.jump_doubts.retain(|d| d.fix < anchor);
+        self.jump_doubts.retain(|d| d.fix <= anchor);
+    }
+
+    /// Holds the level a confirmed ramp's end followed as a doubt
+    /// ([`JumpDoubt::level_followed`]): the ramp's end was held
+    /// `rollback::HELD_S` because the INS run free from before the ramp
+    /// was only twice nearer the fix than the solution, and a false fix
+    /// that outlasts the hold reads the same (the 1 Hz ADIS16465
+    /// test-track drive, a 0.7 m false fix from 200 s on: the 18 good
+    /// fixes before it were taken for a ramp, and the solution on the
+    /// false level was written at a protection level of 0.09–0.11 m).
+    /// Kept in the order of the jumps.
+    pub(super) fn doubt_level_after_held_ramp_end(
+        &mut self,
+        fix: GpsTime,
+        at: GpsTime,
+        innovation: Vector3<f64>,
+    ) {
+        if let Some(doubt) = JumpDoubt::level_followed(fix, at, innovation) {
+            let k = self.jump_doubts.partition_point(|d| d.at <= doubt.at);
+            self.jump_doubts.insert(k, doubt);
+        }
     }
 
     /// The covariance (m², NED) the doubts add to the solution at `t`;
@@ -287,8 +349,9 @@ mod tests {
 
     /// A 3 m jump north-east 20 s after the doubt's start: the other
     /// hypothesis's error grows linearly to the jump at the jump and on
-    /// at the same rate, along the jump; nothing before the start, after
-    /// the fixes were followed again, or past an episode's longest.
+    /// at the same rate, along the jump; the jump itself once the fixes
+    /// were followed again, until the level is released; nothing before
+    /// the start or past an episode's longest.
     #[test]
     fn a_doubt_is_the_ramp_the_jump_would_have_ended() {
         let t = |s: f64| GpsTime::from_week_sow(2300, 100_000.0 + s);
@@ -320,6 +383,19 @@ mod tests {
             at(&released, 31.0).is_none(),
             "released at the first release"
         );
+        // The level a confirmed ramp's end followed: nothing before the
+        // jump, the jump from it on, until 60 s after it (no monitor
+        // releases it).
+        let step = JumpDoubt::level_followed(t(20.0), t(20.0), innovation).unwrap();
+        assert!(!step.watched);
+        let step = [step];
+        assert!(at(&step, 19.9).is_none());
+        for s in [20.0, 21.0, 19.9 + MAX_EPISODE_S] {
+            let e = at(&step, s);
+            assert!(e.is_some_and(|e| (e - 3.0).abs() < 1e-9), "{s}: {e:?}");
+        }
+        assert!(at(&step, 20.1 + MAX_EPISODE_S).is_none());
+        assert!(JumpDoubt::level_followed(t(20.0), t(20.0), Vector3::zeros()).is_none());
         // No doubt without a direction or a span before the jump.
         assert!(JumpDoubt::new(t(0.0), t(20.0), t(20.0), Vector3::zeros()).is_none());
         assert!(JumpDoubt::new(t(20.0), t(20.0), t(20.0), innovation).is_none());

@@ -104,8 +104,15 @@ pub(super) enum Rollback {
     /// back undid the one that opened them.
     FalseFixEnded { anchor: GpsTime, end: GpsTime },
     /// A ramp's end held [`HELD_S`] and confirmed: as `RampEnded`, from a
-    /// state up to [`HELD_REACH_S`] before the jump.
-    HeldRampEnded { anchor: GpsTime, end: GpsTime },
+    /// state up to [`HELD_REACH_S`] before the jump; the jump's fix was
+    /// fused at `at` with the innovation `jump` (predicted − measured,
+    /// NED, m).
+    HeldRampEnded {
+        anchor: GpsTime,
+        end: GpsTime,
+        at: GpsTime,
+        jump: Vector3<f64>,
+    },
 }
 
 impl Rollback {
@@ -258,6 +265,9 @@ impl Fusion {
             }
             self.drop_jump_doubts_since(rollback.anchor());
             self.roll_back(rollback, sample.time)?;
+            if let Rollback::HeldRampEnded { end, at, jump, .. } = rollback {
+                self.doubt_level_after_held_ramp_end(end, at, jump);
+            }
         }
         let monitor = &self.core.aid.gnss.monitor;
         if let Some(anchor) = monitor.last_anchor_time()
@@ -325,7 +335,7 @@ impl Fusion {
         match rollback {
             Rollback::Ramp { anchor, onset } => core.aid.gnss.monitor.replay_ramp(anchor, onset),
             Rollback::Stale { since, until } => core.aid.gnss.replay_stale(since, until),
-            Rollback::RampEnded { anchor, end } | Rollback::HeldRampEnded { anchor, end } => {
+            Rollback::RampEnded { anchor, end } | Rollback::HeldRampEnded { anchor, end, .. } => {
                 core.aid.gnss.monitor.replay_ramp_end(anchor, end)
             }
             Rollback::FalseFixEnded { anchor, end } => {
@@ -454,6 +464,8 @@ impl Fusion {
         self.core.rollback_to = Some(Rollback::HeldRampEnded {
             anchor: held.anchor,
             end: held.jump.time,
+            at: held.jump.at,
+            jump: held.jump.innovation,
         });
     }
 
