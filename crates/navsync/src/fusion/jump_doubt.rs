@@ -98,22 +98,10 @@ impl JumpDoubt {
         at: GpsTime,
         innovation: Vector3<f64>,
     ) -> Option<Self> {
-        let size_m = innovation.norm();
-        if !size_m.is_finite() {
+        if at.seconds_since(start) <= 0.0 {
             return None;
         }
-        let unit = innovation.try_normalize(1e-9)?;
-        (at.seconds_since(start) > 0.0).then_some(JumpDoubt {
-            start,
-            fix,
-            at,
-            episode_sow: fix.sow(),
-            size_m,
-            unit,
-            until: None,
-            watched: true,
-            released: None,
-        })
+        Self::along(start, fix, at, innovation)
     }
 
     /// The doubt about the level a confirmed ramp's end followed (the fix
@@ -128,20 +116,28 @@ impl JumpDoubt {
         at: GpsTime,
         innovation: Vector3<f64>,
     ) -> Option<Self> {
+        let mut doubt = Self::along(at, fix, at, innovation)?;
+        doubt.until = Some(at);
+        doubt.watched = false;
+        Some(doubt)
+    }
+
+    /// An open, watched doubt along `innovation`; none without a finite
+    /// size or a direction.
+    fn along(start: GpsTime, fix: GpsTime, at: GpsTime, innovation: Vector3<f64>) -> Option<Self> {
         let size_m = innovation.norm();
         if !size_m.is_finite() {
             return None;
         }
-        let unit = innovation.try_normalize(1e-9)?;
         Some(JumpDoubt {
-            start: at,
+            start,
             fix,
             at,
             episode_sow: fix.sow(),
             size_m,
-            unit,
-            until: Some(at),
-            watched: false,
+            unit: innovation.try_normalize(1e-9)?,
+            until: None,
+            watched: true,
             released: None,
         })
     }
