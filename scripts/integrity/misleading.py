@@ -83,10 +83,11 @@ def horizontal_error(nav, truth, sow):
     return math.hypot(dn, de)
 
 
-def fix_epochs(truth, run):
+def fix_epochs(truth, run, solution):
     """(epoch sow, horizontal error m, gnss_residuals fields) of the run's
-    position fixes, each at the solution epoch that fuses it."""
-    times, nav = positions(os.path.join(run, "navresult.nav"))
+    position fixes, each at the epoch of `solution` (the run's
+    `positions`) that fuses it."""
+    times, nav = solution
     with open(os.path.join(run, "gnss_residuals.txt")) as f:
         for line in f:
             fields = line.split()
@@ -102,9 +103,10 @@ def nees_per_dof(truth, run):
     """Mean e²/(σ_N² + σ_E²) over the run's fix epochs: each fix's first
     std.txt line against the error at that line's time."""
     sd = std_horizontal(run)
-    _, nav = positions(os.path.join(run, "navresult.nav"))
+    solution = positions(os.path.join(run, "navresult.nav"))
+    _, nav = solution
     values = []
-    for epoch, _, _ in fix_epochs(truth, run):
+    for epoch, _, _ in fix_epochs(truth, run, solution):
         when, sigma = sd(epoch)
         error = horizontal_error(nav, truth, when)
         if error is not None:
@@ -115,10 +117,11 @@ def nees_per_dof(truth, run):
 def misleading(truth, run, smoothed=False):
     """(epochs, misleading, worst error/HPL) of one run folder: the
     forward's HPL from gnss_residuals.txt, the smoothed's from std.txt."""
-    sd = std_horizontal(run)
+    sd = std_horizontal(run) if smoothed else None
     epochs = bad = 0
     worst = 0.0
-    for epoch, error, fields in fix_epochs(truth, run):
+    solution = positions(os.path.join(run, "navresult.nav"))
+    for epoch, error, fields in fix_epochs(truth, run, solution):
         hpl = PROTECTION_K * sd(epoch)[1] if smoothed else float(fields[14])
         epochs += 1
         bad += error > hpl

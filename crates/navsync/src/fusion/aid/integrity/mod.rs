@@ -1213,8 +1213,6 @@ impl FaultMonitor {
     }
 }
 
-/// Whether two stated variances are of the same σ, within
-/// [`FIX_SAME_SD_RATIO`].
 /// The median of `pick` over `pairs` divided by χ²₁'s median: the
 /// variance of a Gaussian whose squares `pick` gives, robustly (`axis` is
 /// scratch space).
@@ -1230,6 +1228,8 @@ fn variance_of(
     *median / CHI2_1_MEDIAN
 }
 
+/// Whether two stated variances are of the same σ, within
+/// [`FIX_SAME_SD_RATIO`].
 fn same_sd(var_a: f64, var_b: f64) -> bool {
     let ratio2 = FIX_SAME_SD_RATIO * FIX_SAME_SD_RATIO;
     var_a <= ratio2 * var_b && var_b <= ratio2 * var_a
