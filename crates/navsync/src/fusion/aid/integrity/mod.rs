@@ -109,6 +109,14 @@ pub(in crate::fusion) const RAMP_END_MIN_LAG_S: f64 = 3.0;
 const JUMP_MAX_GAP_S: f64 = 2.5;
 /// Clean fixes in a row needed before the INS is a reference for faults.
 const MIN_ANCHORS: usize = 5;
+/// …and the span (s) they must cover before the onset test measures a ramp
+/// from them ([`Anchor::settled`]): the velocity an episode led off is put
+/// right by the fixes over seconds, not over a count of fixes (five fixes
+/// span 5 s at 1 Hz but 0.4 s at 10 Hz, where a ramp the filter had
+/// followed left a 9 cm/s velocity error that the onset test, against an
+/// anchor 0.5 s after the episode, took for a new ramp: 10 s of clean
+/// fixes excluded on the 10 Hz ADIS16465 drive).
+const SETTLE_SPAN_S: f64 = 4.5;
 /// A jump is a ramp's end when the fix is this much closer to the level
 /// of the fixes seconds before than to the last one.
 const RAMP_END_CLOSER: f64 = 0.5;
@@ -296,7 +304,8 @@ struct Anchor {
     /// INS was a reference: the fixes were pulling the state away, most
     /// often along a ramp.
     dragged: bool,
-    /// Added after [`MIN_ANCHORS`] clean fixes since the start or a reset:
+    /// Added after [`MIN_ANCHORS`] clean fixes over [`SETTLE_SPAN_S`]
+    /// since the start or a reset:
     /// the INS was a reference again. The first clean fixes after an
     /// episode the fixes outlasted follow an INS whose velocity the
     /// episode had led off (its position alone was put back): against
@@ -456,6 +465,8 @@ pub(in crate::fusion) struct FaultMonitor {
     /// Anchors added since the start, a reset or an episode the INS could
     /// not resolve (then the INS is not yet a reference).
     anchors_since_reset: usize,
+    /// The first of them.
+    first_anchor_since_reset: Option<GpsTime>,
     /// Clean fix pairs' change of error, the last [`FIX_CHANGE_MEMORY_S`].
     fix_change: VecDeque<FixPair>,
     /// Their robust rate (1/s², per axis) once there are
@@ -544,6 +555,7 @@ impl FaultMonitor {
     pub(in crate::fusion) fn reset(&mut self) {
         self.anchors.clear();
         self.anchors_since_reset = 0;
+        self.first_anchor_since_reset = None;
         self.ledger.clear();
         // A level followed before it is no reference for a jump after it.
         self.followed = None;
@@ -615,7 +627,9 @@ impl FaultMonitor {
             }
             self.recalibrate_onset();
         }
-        let settled = self.anchors_since_reset >= MIN_ANCHORS;
+        let first = *self.first_anchor_since_reset.get_or_insert(time);
+        let settled =
+            self.anchors_since_reset >= MIN_ANCHORS && time.seconds_since(first) >= SETTLE_SPAN_S;
         self.anchors_since_reset += 1;
         self.anchors.push_back(Anchor {
             time,
@@ -1128,6 +1142,7 @@ impl FaultMonitor {
         }
         self.anchors.clear();
         self.anchors_since_reset = 0;
+        self.first_anchor_since_reset = None;
         Judgement::Persisted {
             unbridged: end == EpisodeEnd::Unbridged,
             offset: delta,

@@ -502,17 +502,17 @@ fn a_jump_back_the_old_anchor_cannot_resolve_is_no_ramp_end() {
     assert_eq!(jump_back(1.0), Judgement::Exclude(FaultReason::Jump));
 }
 
-/// The ledger: a GNSS correction the filter applied after the anchor
-/// is taken out of the comparison (position, and velocity carried).
 /// The onset test measures a ramp from settled anchors only: the
 /// first clean fixes after a reset (an episode the fixes outlasted)
-/// follow an INS the episode had led off. With an onset test
+/// follow an INS the episode had led off, and the fixes put its velocity
+/// right over seconds, not over a count of fixes. With an onset test
 /// calibrated on 130 s of clean fixes, fixes that the filter follows
-/// north by 0.1 m a second are a ramp's onset within 8 s; the same
-/// fixes right after a reset are not.
+/// north by 0.1 m a second are a ramp's onset within 8 s, at 1 Hz and
+/// at 10 Hz; the same fixes right after a reset are not, at either rate
+/// (at 10 Hz, five fixes after the reset span 0.4 s).
 #[test]
 fn an_onset_is_not_measured_from_the_first_fixes_after_a_reset() {
-    let onset_within_8_s = |reset: bool| {
+    let onset_within_8_s = |reset: bool, rate_hz: usize| {
         let mut m = FaultMonitor::new(0.04 / 60.0);
         m.onset_enabled = true;
         let t0 = GpsTime::from_week_sow(2300, 1000.0);
@@ -520,10 +520,10 @@ fn an_onset_is_not_measured_from_the_first_fixes_after_a_reset() {
             speed_mps: 0.0,
             ..sharp_ins()
         };
-        // A fix at k s whose innovation is `z_north` (m); used, it
-        // moves the state that far north.
+        // The fix at k / rate_hz s whose innovation is `z_north` (m);
+        // used, it moves the state that far north.
         let fix = |m: &mut FaultMonitor, k: usize, z_north: f64| {
-            let t = t0.add_seconds(k as f64);
+            let t = t0.add_seconds(k as f64 / rate_hz as f64);
             let z = Vector3::new(z_north, 0.0, 0.0);
             let judged = m.judge(t, &z, &hph(), &r(), 1.0);
             if judged == Judgement::Clean {
@@ -531,19 +531,25 @@ fn an_onset_is_not_measured_from_the_first_fixes_after_a_reset() {
             }
             judged
         };
-        for k in 0..130 {
+        for k in 0..130 * rate_hz {
             assert_eq!(fix(&mut m, k, 0.0), Judgement::Clean);
         }
         assert_eq!(m.drift_test_scale(), Some(1.0), "calibrated");
         if reset {
             m.reset();
         }
-        (130..138).any(|k| matches!(fix(&mut m, k, -0.1), Judgement::Onset { .. }))
+        let ramp_step_m = -0.1 / rate_hz as f64;
+        (130 * rate_hz..138 * rate_hz)
+            .any(|k| matches!(fix(&mut m, k, ramp_step_m), Judgement::Onset { .. }))
     };
-    assert!(onset_within_8_s(false));
-    assert!(!onset_within_8_s(true));
+    for rate_hz in [1, 10] {
+        assert!(onset_within_8_s(false, rate_hz), "{rate_hz} Hz");
+        assert!(!onset_within_8_s(true, rate_hz), "{rate_hz} Hz, reset");
+    }
 }
 
+/// The ledger: a GNSS correction the filter applied after the anchor
+/// is taken out of the comparison (position, and velocity carried).
 #[test]
 fn corrections_after_the_anchor_are_taken_out() {
     let (mut m, t) = primed(3);
