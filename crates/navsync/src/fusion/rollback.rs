@@ -40,6 +40,13 @@
 //! onset that a free INS drifted near ends, the fixes coming back; a
 //! ramp's end stays, and the re-run then returns to before the ramp.
 //!
+//! A ramp the onset test found whose fixes were followed all the same
+//! (the INS's predicted drift grew to cover their offset before the
+//! ramp ended) is found at its end too: the first jump after is judged
+//! against the INS run free from the onset's clean fix alone
+//! ([`onset_ramp_end`]), not against the states kept since, which the
+//! ramp's fixes had led.
+//!
 //! A false fix the filter was led onto (its episode persisted: the INS
 //! could no longer tell its level from its own drift) is found at its
 //! end, where a jump back undoes the jump that opened it
@@ -161,6 +168,10 @@ const RAMP_END_RATIO: f64 = 4.0;
 /// false fix (an ICM-20602 16 s free: σ 12.7 m; a 4 m false fix's onset
 /// was 0.83 m from one such free INS).
 const RAMP_END_DRIFT_K: f64 = 3.0;
+/// A jump after a ramp onset's fixes were followed is that ramp's end
+/// when it is at least this many times closer to the INS run free from
+/// the onset's anchor than to the solution ([`onset_ramp_end`]).
+const ONSET_END_RATIO: f64 = 1.0;
 /// Consecutive stored states whose free INS must fit a ramp's end.
 const RAMP_END_MIN_STATES: usize = 2;
 
@@ -218,10 +229,20 @@ impl Fusion {
         if let Some(check) = self.core.jump_check.take()
             && self.core.rollback_to.is_none()
         {
-            // A later jump, either way, ends what the one held stood for.
+            // A later jump, either way, ends what the one held stood for;
+            // the first after a ramp onset's fixes were followed may be
+            // that ramp's end.
             self.held_ramp_end = None;
+            let onset_followed = self.core.aid.gnss.monitor.onset_followed.take();
             if check.distance_from_filter_m() > fix_difference_3sd_m(&check.pos_sd) {
-                let fits = self.free_fits(&check);
+                let mut fits = self.free_fits(&check);
+                // The states kept since that onset's anchor stood on the
+                // ramp's fixes (the filter followed them): no ramp starts
+                // there (a re-run from one, after the fix persisted on
+                // the ramp, coasted 1 m off at an HPL of 0.11 m).
+                if let Some(anchor) = onset_followed {
+                    fits.retain(|f| f.anchor <= anchor);
+                }
                 let at_once = self.first_within(check.at, AT_ONCE_REACH_S);
                 if let Some((anchor, from_free_m)) =
                     ramp_start(&fits, &check, RAMP_END_RATIO, true, at_once)
@@ -237,6 +258,7 @@ impl Fusion {
                 } else {
                     if let Some((anchor, from_free_m)) =
                         ramp_start(&fits, &check, HELD_RATIO, false, 0)
+                            .or_else(|| onset_ramp_end(&fits, &check, onset_followed.is_some()))
                     {
                         self.held_ramp_end = Some(HeldRampEnd {
                             anchor,
@@ -614,6 +636,33 @@ fn ramp_start(
     }
     close_run(&mut run);
     best
+}
+
+/// A jump after a ramp's onset whose episode persisted: the onset test
+/// found the fixes drifting away from the INS run from the clean fix
+/// `onset_anchor` (beyond its drift, at the test's calibrated false-alarm
+/// rate), and the fixes were followed again only when the INS's drift
+/// model could no longer tell, not because they came back. A jump after
+/// that is then more likely the ramp's end than a false fix's onset (that
+/// would need the onset to have been a false alarm too), and a fix closer
+/// to where the IMU alone carried the antenna from that anchor than to
+/// the solution the followed fixes led ([`ONSET_END_RATIO`]) is held as a
+/// ramp's end ([`HeldRampEnd`]): a false fix ends within [`HELD_S`] and
+/// undoes it. On the 10 Hz ADIS16465 drive a ramp found at its onset and
+/// followed from 12 s on ended 2.07 m from the solution and 1.27 m from
+/// the INS run free from the onset's anchor (a ratio of 1.6, under
+/// [`HELD_RATIO`]): the solution stayed on the ramp's level, 2.2 m off,
+/// until the fixes after the end persisted. `fits` are those of the
+/// states kept at or before the anchor; judged against the newest (None
+/// if there is none, or no onset was followed).
+fn onset_ramp_end(
+    fits: &[FreeFit],
+    check: &JumpCheck,
+    onset_followed: bool,
+) -> Option<(GpsTime, f64)> {
+    let fit = fits.last().filter(|_| onset_followed)?;
+    (fit.from_free_m * ONSET_END_RATIO < check.distance_from_filter_m())
+        .then_some((fit.anchor, fit.from_free_m))
 }
 
 /// A solution of a rollback's re-run, with what the auxiliary output

@@ -508,6 +508,10 @@ pub(in crate::fusion) struct FaultMonitor {
     /// The last episode the fixes were followed out of, while its end may
     /// still come ([`followed`]).
     followed: Option<followed::Followed>,
+    /// The clean anchor of the last ramp onset whose episode persisted
+    /// (the fixes followed again, the INS no longer the sharper): a jump
+    /// after it may be the ramp's end (`fusion/rollback.rs`).
+    pub(in crate::fusion) onset_followed: Option<GpsTime>,
     /// The fix judged last jumped from the clean level (a spike, a false
     /// fix's onset, or a ramp's end): the wrapper may judge it against
     /// the INS run free from seconds back ([`Self::take_jump`]).
@@ -559,6 +563,7 @@ impl FaultMonitor {
         self.ledger.clear();
         // A level followed before it is no reference for a jump after it.
         self.followed = None;
+        self.onset_followed = None;
         if let Some(ep) = self.episode.take() {
             self.close(ep, EpisodeEnd::Returned);
         }
@@ -1137,8 +1142,12 @@ impl FaultMonitor {
     ) -> Judgement {
         self.episode = None;
         self.close(ep, end);
-        if end == EpisodeEnd::Persisted && !ep.onset {
-            self.followed = Some(followed::Followed::from_episode(&ep, time));
+        if end == EpisodeEnd::Persisted {
+            if ep.onset {
+                self.onset_followed = Some(ep.anchor.time);
+            } else {
+                self.followed = Some(followed::Followed::from_episode(&ep, time));
+            }
         }
         self.anchors.clear();
         self.anchors_since_reset = 0;
