@@ -1080,6 +1080,19 @@ impl FaultMonitor {
         // size; not one of metres more (a false fix early in a drive,
         // whose INS drifts faster than its model but by decimetres).
         let moved = delta - ep.level;
+        // The fixes since the episode's first are off by a constant (a
+        // false fix) or right (a ramp's end): either way the change of
+        // their offset from the INS is the INS's own drift since. Once
+        // that is more than the level it judges, the INS is no nearer
+        // the truth than the fixes it refuses, whatever its model says:
+        // coasting on it costs more than following them, and a false
+        // fix's end, a jump back, is still watched for ([`followed`]).
+        // (An ICM-20602 led along a ramp, at its end, refused the fixes
+        // back 1.5 m away for 19 s while it drifted to 4.3 m off, within
+        // its predicted growth.)
+        if !ep.onset && horizontal(&moved) > horizontal(&ep.level) {
+            return self.end_unresolved(ep, EpisodeEnd::Persisted, time, delta);
+        }
         let level_fixes = self.fix_change_var(r, &ep.anchor.r, time.seconds_since(ep.start));
         let d_level =
             offset_change_statistic(&moved, &hph_diag, &ep.hph_start, &level_fixes, lambda);

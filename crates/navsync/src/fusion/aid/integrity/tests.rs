@@ -286,6 +286,49 @@ fn an_ins_that_drifts_follows_offsets_it_could_build_not_a_false_fix() {
     assert_eq!(k, 5.0);
 }
 
+/// A jump to a 1 m level whose fixes the INS then drifts from at
+/// 0.1 m/s, within its own predicted growth (0.03 m/s): the fixes after
+/// the jump are off by a constant (a false fix) or right (a ramp's end),
+/// so the change of their offset is the INS's own drift. Once that passes
+/// the level, 11 s in, the INS is no nearer the truth than the level it
+/// refuses, and the fixes are followed (before, they were excluded until
+/// its predicted growth covered the whole offset, 27 s in).
+#[test]
+fn an_ins_that_drifted_past_the_level_it_judges_follows_the_fixes() {
+    let (mut m, t) = primed(10);
+    let fix = |k: usize| {
+        let z = Vector3::new(1.0 + 0.1 * k as f64, 0.0, 0.0);
+        let growth_sd_m = 0.03 * k as f64;
+        let hph = Matrix3::from_diagonal(&Vector3::repeat(1.2e-4 + growth_sd_m * growth_sd_m));
+        (t.add_seconds(k as f64), z, hph)
+    };
+    for k in 0..=10 {
+        let (tk, z, hph) = fix(k);
+        let why = if k == 0 {
+            FaultReason::Jump
+        } else {
+            FaultReason::Run
+        };
+        assert_eq!(
+            m.judge(tk, &z, &hph, &r(), 1.0),
+            Judgement::Exclude(why),
+            "{k} s"
+        );
+    }
+    let (tk, z, hph) = fix(11);
+    let judged = m.judge(tk, &z, &hph, &r(), 1.0);
+    assert!(
+        matches!(
+            judged,
+            Judgement::Persisted {
+                unbridged: false,
+                ..
+            }
+        ),
+        "{judged:?}"
+    );
+}
+
 /// A 0.9 m false fix the INS could no longer tell from its own drift
 /// (H P Hᵀ grown to 1 m² a fix in): followed, four fixes on its level,
 /// then a jump that undoes the one that opened it is the false fix's
