@@ -7,7 +7,9 @@
 //! Position and velocity are one source: a fix's velocity row is fused
 //! only after its position was used, with the same held states.
 
-use super::integrity::{FaultMonitor, FaultReason, FixView, Judgement, PROTECTION_K, StateSpread};
+use super::integrity::{
+    FaultMonitor, FaultReason, FixView, Judgement, PROTECTION_K, PersistedBy, StateSpread,
+};
 use super::*;
 use crate::filter::idx;
 use crate::fusion::jump_doubt::JumpInEpisode;
@@ -911,18 +913,21 @@ impl GnssSource {
                 ));
                 Ok(false)
             }
-            Judgement::Persisted { unbridged, offset } => {
+            Judgement::Persisted { by, offset } => {
                 grow_position_variance(core, &offset);
-                core.notes.push(if unbridged {
-                    format!(
-                        "GNSS fix at {time}: a fault episode lasted longer than the IMU can bridge ({} s); the fixes are followed again and the solution in the episode is uncertain",
+                let why = match by {
+                    PersistedBy::Unbridged => format!(
+                        "a fault episode lasted longer than the IMU can bridge ({} s); the fixes are followed again and the solution in the episode is uncertain",
                         super::integrity::MAX_EPISODE_S
-                    )
-                } else {
-                    format!(
-                        "GNSS fix at {time}: the fixes stayed at their new level until the INS's predicted drift covered it; used again (covariance inflated to fit)"
-                    )
-                });
+                    ),
+                    PersistedBy::DriftCovers => "the fixes stayed at their new level until the INS's predicted drift covered it; used again (covariance inflated to fit)".to_string(),
+                    PersistedBy::OnsetUnresolved => "the fixes drifted on from the INS after a ramp's onset until its predicted drift outgrew their own error change, so it can no longer tell a ramp from its own drift; used again (covariance inflated to fit)".to_string(),
+                    PersistedBy::InsDrifts => "the fixes' offset from the INS wandered past its predicted growth, at a rate that could have built the offset: the INS drifts; used again (covariance inflated to fit)".to_string(),
+                    PersistedBy::InsDriftedPastLevel { drift_m, level_m } => format!(
+                        "the INS drifted {drift_m:.3} m from the fixes since the episode began, more than the {level_m:.3} m level it judged: it is no nearer the truth than they are; used again (covariance inflated to fit)"
+                    ),
+                };
+                core.notes.push(format!("GNSS fix at {time}: {why}"));
                 self.forced = Some(FaultReason::Persisted);
                 Ok(false)
             }

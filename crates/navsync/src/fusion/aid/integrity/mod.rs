@@ -372,6 +372,26 @@ impl Episode {
     }
 }
 
+/// Why an episode's fixes are followed again ([`Judgement::Persisted`]).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub(in crate::fusion) enum PersistedBy {
+    /// The INS's predicted drift since the episode's anchor covers the
+    /// fixes' offset.
+    DriftCovers,
+    /// A ramp's onset: the INS's predicted drift since the anchor outgrew
+    /// the fixes' own error change ([`ONSET_HOLD_RATIO`]), so it can no
+    /// longer tell a ramp from its own drift.
+    OnsetUnresolved,
+    /// The fixes' offset wandered past the INS's predicted growth at a
+    /// rate that could have built it: the INS drifts.
+    InsDrifts,
+    /// The INS's drift since the episode began, measured on its fixes
+    /// (`drift_m`, horizontal), passed the level it judged (`level_m`).
+    InsDriftedPastLevel { drift_m: f64, level_m: f64 },
+    /// Longer than [`MAX_EPISODE_S`]: more than the IMU can bridge.
+    Unbridged,
+}
+
 /// What the monitor says of a fix.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub(in crate::fusion) enum Judgement {
@@ -379,11 +399,11 @@ pub(in crate::fusion) enum Judgement {
     Clean,
     /// Excluded, for this reason.
     Exclude(FaultReason),
-    /// An episode ended with the fixes still off the old level but within
-    /// the INS's predicted drift (or longer than the IMU can bridge): use
-    /// it, marked persisted; `unbridged` when the INS could not cover it.
+    /// An episode ended with the fixes still off the old level, the INS
+    /// no longer able to tell (or longer than the IMU can bridge): use it,
+    /// marked persisted, `by` the reason.
     Persisted {
-        unbridged: bool,
+        by: PersistedBy,
         /// The fix's offset from the state the INS carried (m, NED): the
         /// position variance grows by its square.
         offset: Vector3<f64>,
@@ -1017,7 +1037,7 @@ impl FaultMonitor {
         // on a ramp's start coasted 20 m off on the test-track drive), and
         // the fixes are followed again.
         if ep.onset && !self.ins_within(&ep.anchor, fix, ONSET_HOLD_RATIO) {
-            return self.end_unresolved(ep, EpisodeEnd::Persisted, time, delta);
+            return self.end_unresolved(ep, PersistedBy::OnsetUnresolved, time, delta);
         }
         if d <= threshold {
             // Back at the clean level, or the INS can no longer tell.
@@ -1027,7 +1047,7 @@ impl FaultMonitor {
                 self.close(ep, EpisodeEnd::Returned);
                 return Judgement::Clean;
             }
-            return self.end_unresolved(ep, EpisodeEnd::Persisted, time, delta);
+            return self.end_unresolved(ep, PersistedBy::DriftCovers, time, delta);
         }
         // A fix that jumped from the episode's last one by more than the
         // whole offset so far, and not back toward the INS (the fault
@@ -1091,7 +1111,11 @@ impl FaultMonitor {
         // back 1.5 m away for 19 s while it drifted to 4.3 m off, within
         // its predicted growth.)
         if !ep.onset && horizontal(&moved) > horizontal(&ep.level) {
-            return self.end_unresolved(ep, EpisodeEnd::Persisted, time, delta);
+            let by = PersistedBy::InsDriftedPastLevel {
+                drift_m: horizontal(&moved),
+                level_m: horizontal(&ep.level),
+            };
+            return self.end_unresolved(ep, by, time, delta);
         }
         let level_fixes = self.fix_change_var(r, &ep.anchor.r, time.seconds_since(ep.start));
         let d_level =
@@ -1102,11 +1126,11 @@ impl FaultMonitor {
         // (An onset's episode is a drift away by its nature, and the onset
         // test has already weighed it against the INS's drift.)
         if !ep.onset && d_level > threshold && horizontal(&delta) <= could_build_m {
-            return self.end_unresolved(ep, EpisodeEnd::Persisted, time, delta);
+            return self.end_unresolved(ep, PersistedBy::InsDrifts, time, delta);
         }
         if time.seconds_since(ep.start) > MAX_EPISODE_S {
             self.ledger.clear();
-            return self.end_unresolved(ep, EpisodeEnd::Unbridged, time, delta);
+            return self.end_unresolved(ep, PersistedBy::Unbridged, time, delta);
         }
         ep.count(time, &delta);
         self.episode = Some(ep);
@@ -1143,16 +1167,21 @@ impl FaultMonitor {
     }
 
     /// Ends `ep` with the fixes followed again from the one at `time`
-    /// (`end`: persisted or unbridged): the INS is no reference until clean
-    /// fixes rebuild it. A persisted level that a later jump undoes was a
-    /// false fix ([`followed`]).
+    /// (`by` why: persisted or unbridged): the INS is no reference until
+    /// clean fixes rebuild it. A persisted level that a later jump undoes
+    /// was a false fix ([`followed`]).
     fn end_unresolved(
         &mut self,
         ep: Episode,
-        end: EpisodeEnd,
+        by: PersistedBy,
         time: GpsTime,
         delta: Vector3<f64>,
     ) -> Judgement {
+        let end = if by == PersistedBy::Unbridged {
+            EpisodeEnd::Unbridged
+        } else {
+            EpisodeEnd::Persisted
+        };
         self.episode = None;
         self.close(ep, end);
         if end == EpisodeEnd::Persisted {
@@ -1165,10 +1194,7 @@ impl FaultMonitor {
         self.anchors.clear();
         self.anchors_since_reset = 0;
         self.first_anchor_since_reset = None;
-        Judgement::Persisted {
-            unbridged: end == EpisodeEnd::Unbridged,
-            offset: delta,
-        }
+        Judgement::Persisted { by, offset: delta }
     }
 
     fn open(

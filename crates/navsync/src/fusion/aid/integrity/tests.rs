@@ -212,8 +212,8 @@ fn a_fault_the_ins_cannot_bridge_is_followed_and_said() {
     // H P Hᵀ grown to 1 m² per axis: a 1 m offset is within it.
     let wide = Matrix3::from_diagonal(&Vector3::repeat(1.0));
     match m.judge(t.add_seconds(1.0), &fault, &wide, &r(), 1.0) {
-        Judgement::Persisted { unbridged, offset } => {
-            assert!(!unbridged);
+        Judgement::Persisted { by, offset } => {
+            assert_eq!(by, PersistedBy::DriftCovers);
             assert!((offset - fault).norm() < 1e-9);
         }
         other => panic!("{other:?}"),
@@ -233,7 +233,7 @@ fn a_fault_the_ins_cannot_bridge_is_followed_and_said() {
     assert!(matches!(
         end,
         Judgement::Persisted {
-            unbridged: true,
+            by: PersistedBy::Unbridged,
             ..
         }
     ));
@@ -277,7 +277,7 @@ fn an_ins_that_drifts_follows_offsets_it_could_build_not_a_false_fix() {
         matches!(
             end,
             Judgement::Persisted {
-                unbridged: false,
+                by: PersistedBy::InsDrifts,
                 ..
             }
         ),
@@ -321,7 +321,7 @@ fn an_ins_that_drifted_past_the_level_it_judges_follows_the_fixes() {
         matches!(
             judged,
             Judgement::Persisted {
-                unbridged: false,
+                by: PersistedBy::InsDriftedPastLevel { .. },
                 ..
             }
         ),
@@ -348,7 +348,7 @@ fn a_jump_that_undoes_a_followed_level_ends_a_false_fix() {
         assert!(matches!(
             m.judge(t1, &fault, &wide, &r(), 1.0),
             Judgement::Persisted {
-                unbridged: false,
+                by: PersistedBy::DriftCovers,
                 ..
             }
         ));
