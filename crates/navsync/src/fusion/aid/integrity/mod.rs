@@ -61,7 +61,8 @@
 //! when it passes, either the fixes came back (the episode ends; an
 //! episode of one fix was a *spike*) or the INS's own predicted drift has
 //! grown to cover the offset (accepted after persisting: the INS can no
-//! longer tell). Fixes whose offset wanders beyond the INS's growth show
+//! longer tell), or its drift since the episode began, measured on the
+//! episode's fixes, passed the level it judges. Fixes whose offset wanders beyond the INS's growth show
 //! an INS that drifts: the fixes are followed again, if the INS, at the
 //! rate it drifts from them, could have built the offset (a ramp's size,
 //! not a false fix of metres). A fix that jumps from the episode's last
@@ -188,8 +189,9 @@ pub enum FaultReason {
     Ramp,
     /// It repeats the previous fix's position while the vehicle moved.
     Stale,
-    /// It continues an episode that lasted until the INS's predicted drift
-    /// covered its offset (or longer than the IMU can bridge): used.
+    /// It continues an episode that lasted until the INS could no longer
+    /// tell its offset ([`PersistedBy`]; or longer than the IMU can
+    /// bridge): used.
     Persisted,
     /// Beyond the robust weighting's outlier bound (a single wild value).
     Outlier,
@@ -238,7 +240,9 @@ pub enum EpisodeClass {
 pub enum EpisodeEnd {
     /// The fixes came back to the INS.
     Returned,
-    /// The INS's predicted drift grew to cover the offset; fixes used again.
+    /// The INS could no longer tell the offset (its predicted drift grew
+    /// to cover it, or its drift since the episode began passed it); fixes
+    /// used again.
     Persisted,
     /// Longer than [`MAX_EPISODE_S`]: more than the IMU can bridge; the
     /// fixes are followed again and the solution in the episode is uncertain.
