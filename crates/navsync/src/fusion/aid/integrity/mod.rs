@@ -190,8 +190,8 @@ pub enum FaultReason {
     /// It repeats the previous fix's position while the vehicle moved.
     Stale,
     /// It continues an episode that lasted until the INS could no longer
-    /// tell its offset ([`PersistedBy`]; or longer than the IMU can
-    /// bridge): used.
+    /// tell its offset (the run's notes say why), or longer than the IMU
+    /// can bridge: used.
     Persisted,
     /// Beyond the robust weighting's outlier bound (a single wild value).
     Outlier,
