@@ -231,9 +231,17 @@ impl Fusion {
         {
             // A later jump, either way, ends what the one held stood for;
             // the first after a ramp onset's fixes were followed may be
-            // that ramp's end.
+            // that ramp's end, if the states kept still reach its anchor
+            // (a ramp longer than that is no longer found by its end).
             self.held_ramp_end = None;
-            let onset_followed = self.core.aid.gnss.monitor.onset_followed.take();
+            let onset_followed = self
+                .core
+                .aid
+                .gnss
+                .monitor
+                .onset_followed
+                .take()
+                .filter(|anchor| check.at.seconds_since(*anchor) <= HELD_REACH_S);
             if check.distance_from_filter_m() > fix_difference_3sd_m(&check.pos_sd) {
                 let mut fits = self.free_fits(&check);
                 // The states kept since that onset's anchor stood on the
