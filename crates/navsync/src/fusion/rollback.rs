@@ -243,14 +243,11 @@ impl Fusion {
                 .take()
                 .filter(|anchor| check.at.seconds_since(*anchor) <= HELD_REACH_S);
             if check.distance_from_filter_m() > fix_difference_3sd_m(&check.pos_sd) {
-                let mut fits = self.free_fits(&check);
                 // The states kept since that onset's anchor stood on the
                 // ramp's fixes (the filter followed them): no ramp starts
                 // there (a re-run from one, after the fix persisted on
                 // the ramp, coasted 1 m off at an HPL of 0.11 m).
-                if let Some(anchor) = onset_followed {
-                    fits.retain(|f| f.anchor <= anchor);
-                }
+                let fits = self.free_fits(&check, onset_followed);
                 let at_once = self.first_within(check.at, AT_ONCE_REACH_S);
                 if let Some((anchor, from_free_m)) =
                     ramp_start(&fits, &check, RAMP_END_RATIO, true, at_once)
@@ -266,7 +263,7 @@ impl Fusion {
                 } else {
                     if let Some((anchor, from_free_m)) =
                         ramp_start(&fits, &check, HELD_RATIO, false, 0)
-                            .or_else(|| onset_ramp_end(&fits, &check, onset_followed.is_some()))
+                            .or_else(|| onset_followed.and_then(|_| onset_ramp_end(&fits, &check)))
                     {
                         self.held_ramp_end = Some(HeldRampEnd {
                             anchor,
@@ -399,11 +396,14 @@ impl Fusion {
 
     /// The INS run free (the IMU alone) from each state kept at least
     /// [`RAMP_END_MIN_LAG_S`] and at most [`HELD_REACH_S`] before the fix
-    /// in `check`, against that fix ([`ramp_start`]): computed once for
-    /// the test at once and the held hypothesis.
-    fn free_fits(&self, check: &JumpCheck) -> Vec<FreeFit> {
-        let old_enough =
-            |s: &(usize, &Stored)| check.time.seconds_since(s.1.anchor) >= RAMP_END_MIN_LAG_S;
+    /// in `check`, and at or before the clean fix `newest` if given,
+    /// against that fix ([`ramp_start`]): computed once for the test at
+    /// once and the held hypothesis.
+    fn free_fits(&self, check: &JumpCheck, newest: Option<GpsTime>) -> Vec<FreeFit> {
+        let old_enough = |s: &(usize, &Stored)| {
+            check.time.seconds_since(s.1.anchor) >= RAMP_END_MIN_LAG_S
+                && newest.is_none_or(|n| s.1.anchor <= n)
+        };
         let first = self.first_within(check.at, HELD_REACH_S);
         self.rollback_states
             .iter()
@@ -662,13 +662,9 @@ fn ramp_start(
 /// [`HELD_RATIO`]): the solution stayed on the ramp's level, 2.2 m off,
 /// until the fixes after the end persisted. `fits` are those of the
 /// states kept at or before the anchor; judged against the newest (None
-/// if there is none, or no onset was followed).
-fn onset_ramp_end(
-    fits: &[FreeFit],
-    check: &JumpCheck,
-    onset_followed: bool,
-) -> Option<(GpsTime, f64)> {
-    let fit = fits.last().filter(|_| onset_followed)?;
+/// if there is none).
+fn onset_ramp_end(fits: &[FreeFit], check: &JumpCheck) -> Option<(GpsTime, f64)> {
+    let fit = fits.last()?;
     (fit.from_free_m * ONSET_END_RATIO < check.distance_from_filter_m())
         .then_some((fit.anchor, fit.from_free_m))
 }
