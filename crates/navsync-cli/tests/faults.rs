@@ -5,7 +5,10 @@
 
 mod common;
 
-use common::{bin, horizontal_rms, json, number_rows, run, simulate_test_track, temp_dir};
+use common::{
+    bin, horizontal_rms, json, number_rows, run, simulate_test_track, simulate_test_track_for,
+    temp_dir,
+};
 use std::path::{Path, PathBuf};
 
 /// A 240 s test-track drive (simulator seed 1) in `dir/sim`: at rest for
@@ -771,13 +774,8 @@ fn a_false_fix_followed_and_never_undone_stays_inside_the_protection_level() {
 #[test]
 fn a_ramp_followed_after_its_onset_is_taken_back_at_its_end_at_10_hz() {
     let dir = temp_dir("faults-onset-ramp-end");
-    let sim = dir.join("sim");
-    let (ok, _, err) = run(bin()
-        .args(["simulate", "--scenario", "test-track", "--duration", "600"])
-        .args(["--seed", "1", "--quiet", "--imu-grade", "adis16465"])
-        .args(["--gnss-rate", "10", "--output"])
-        .arg(&sim));
-    assert!(ok, "{err}");
+    let extra = ["--imu-grade", "adis16465", "--gnss-rate", "10"];
+    let sim = simulate_test_track_for(&dir, "600", &extra);
     let lines = fix_lines(&sim.join("gnss.txt"));
     let direction = (120f64.to_radians().cos(), 120f64.to_radians().sin());
     let ramp = 4236..4473;

@@ -74,9 +74,20 @@ pub fn simulate_adis16465(
 /// for 26 s, then driving at up to 20 m/s), plus `extra` arguments (an
 /// IMU grade, a GNSS rate), into `dir/sim`; returns that folder.
 pub fn simulate_test_track(dir: &Path, extra: &[&str]) -> std::path::PathBuf {
+    simulate_test_track_for(dir, "240", extra)
+}
+
+/// [`simulate_test_track`] for `duration_s` seconds.
+pub fn simulate_test_track_for(dir: &Path, duration_s: &str, extra: &[&str]) -> std::path::PathBuf {
     let sim = dir.join("sim");
     let (ok, _, err) = run(bin()
-        .args(["simulate", "--scenario", "test-track", "--duration", "240"])
+        .args([
+            "simulate",
+            "--scenario",
+            "test-track",
+            "--duration",
+            duration_s,
+        ])
         .args(["--seed", "1", "--quiet", "--output"])
         .arg(&sim)
         .args(extra));
