@@ -62,8 +62,9 @@
 //! episode of one fix was a *spike*) or the INS's own predicted drift has
 //! grown to cover the offset (accepted after persisting: the INS can no
 //! longer tell), or its drift since the episode began, measured on the
-//! episode's fixes, passed the level it judges. Fixes whose offset wanders beyond the INS's growth show
-//! an INS that drifts: the fixes are followed again, if the INS, at the
+//! episode's fixes, passed the level it judges. Fixes whose offset
+//! wanders beyond the INS's growth show an INS that drifts: the fixes
+//! are followed again, if the INS, at the
 //! rate it drifts from them, could have built the offset (a ramp's size,
 //! not a false fix of metres). A fix that jumps from the episode's last
 //! one by more than the offset so far, away from the INS, is a new fault
@@ -581,9 +582,7 @@ impl FaultMonitor {
     /// Forgets everything judged against (after a re-initialisation, or a
     /// covariance inflation: the INS is no longer the reference it was).
     pub(in crate::fusion) fn reset(&mut self) {
-        self.anchors.clear();
-        self.anchors_since_reset = 0;
-        self.first_anchor_since_reset = None;
+        self.restart_anchors();
         self.ledger.clear();
         // A level followed before it is no reference for a jump after it.
         self.followed = None;
@@ -591,6 +590,14 @@ impl FaultMonitor {
         if let Some(ep) = self.episode.take() {
             self.close(ep, EpisodeEnd::Returned);
         }
+    }
+
+    /// Forgets the anchors, and counts the clean fixes that make the INS
+    /// a reference again from none ([`Anchor::settled`]).
+    fn restart_anchors(&mut self) {
+        self.anchors.clear();
+        self.anchors_since_reset = 0;
+        self.first_anchor_since_reset = None;
     }
 
     /// Records a GNSS correction `dx` (error-state convention: the state
@@ -1195,9 +1202,7 @@ impl FaultMonitor {
                 self.followed = Some(followed::Followed::from_episode(&ep, time));
             }
         }
-        self.anchors.clear();
-        self.anchors_since_reset = 0;
-        self.first_anchor_since_reset = None;
+        self.restart_anchors();
         Judgement::Persisted { by, offset: delta }
     }
 
