@@ -793,6 +793,38 @@ fn a_ramp_followed_after_its_onset_is_taken_back_at_its_end_at_10_hz() {
     assert!(misleading.is_empty(), "(sow, error, HPL): {misleading:?}");
 }
 
+/// A ramp the ICM-20602 cannot see (8 cm/s for 24 s at −82°, 424 s into
+/// a 600 s drive with 1 Hz RTK fixes, the bed's `drive-icm20602` seed 2)
+/// is followed to its end, where the fixes jump back 2 m. The jump is
+/// excluded as a false fix's onset might be, until the fixes have held
+/// its level long enough (the INS drifted past it); that level is then
+/// followed from the jump on, the filter returning to its state before it
+/// and running again. Before, it was followed only from then: the
+/// solution coasted on the ramp's level for 19 s, 2–4 m off (bed seed
+/// 2). Measured here: 0.633 m before against 0.310 m without the ramp's
+/// fixes, 0.233 m now.
+#[test]
+fn a_level_that_persisted_after_a_jump_is_followed_from_the_jump() {
+    let dir = temp_dir("faults-persisted-level");
+    let sim = simulate_test_track_for(&dir, "600", &["--imu-grade", "icm20602"]);
+    let lines = fix_lines(&sim.join("gnss.txt"));
+    let direction = ((-81.6f64).to_radians().cos(), (-81.6f64).to_radians().sin());
+    let ramp = 423..447;
+    let ramped = offset_fixes(&lines, ramp.clone(), direction, |k| 0.078 * (k + 1) as f64);
+    let faulty = within_oracle(&sim, &dir, "ramp", &lines, &ramped, ramp.clone());
+    let summary = std::fs::read_to_string(faulty.join("summary.json")).unwrap();
+    assert!(
+        summary.contains("runs again following the fixes from it"),
+        "{summary}"
+    );
+    // From the state a rollback may reach back to before the ramp on (the
+    // clean run's own HPL is missed once, by 5 %, 99 s in, as it settles).
+    let sow = |i: usize| lines[i][0].parse::<f64>().unwrap();
+    let from_before_the_ramp = sow(ramp.start) - 35.0..=f64::MAX;
+    let misleading = misleading_fixes(&sim.join("truth.nav"), &faulty, from_before_the_ramp);
+    assert!(misleading.is_empty(), "(sow, error, HPL): {misleading:?}");
+}
+
 /// 10 Hz RTK fixes whose error is white plus a part correlated over a
 /// minute (the simulator's RTK receiver: 1.5 cm white, 1 cm Gauss–Markov
 /// over 60 s, stated as 1.8 cm). The filter averages the white part away,

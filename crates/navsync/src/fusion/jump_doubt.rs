@@ -259,6 +259,17 @@ impl Fusion {
         self.jump_doubts.retain(|d| d.fix <= anchor);
     }
 
+    /// A persisted level's re-run follows the fixes from the jump at
+    /// `jump` on: its doubt holds the jump's size from the jump, not from
+    /// when the level persisted, and the doubts about jumps inside its
+    /// episode, whose fixes the re-run follows, are dropped.
+    pub(super) fn follow_jump_doubt_from_jump(&mut self, jump: GpsTime) {
+        self.jump_doubts.retain(|d| d.fix <= jump);
+        for d in self.jump_doubts.iter_mut().filter(|d| d.fix == jump) {
+            d.until = Some(d.at);
+        }
+    }
+
     /// Holds the level a confirmed ramp's end followed as a doubt
     /// ([`JumpDoubt::level_followed`]): the ramp's end was held
     /// `rollback::HELD_S` because the INS run free from before the ramp

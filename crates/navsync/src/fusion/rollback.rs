@@ -53,6 +53,15 @@
 //! (`aid::integrity`'s `followed`): the re-run returns to the state after
 //! the clean fix before it and leaves its fixes out (`jump`, `run`).
 //!
+//! A jump whose level persisted (the fixes held it until the INS could
+//! no longer tell, `aid::integrity`'s `PersistedLevel`) is followed from
+//! the jump: the re-run returns to the state before it and uses the
+//! fixes since, which the filter had coasted past (an ICM-20602 at a
+//! ramp's end it could not see: 19 s, 2–4 m off).
+//!
+//! A re-run stores its states as the run does, so that a rollback it calls
+//! for returns to them, not to those of the run it replaced.
+//!
 //! The state from now on, the smoother's record and the fixes' records
 //! (`gnss_residuals.txt`: the ramp's fixes become `ramp`, `run`) are those
 //! of the re-run. The solutions already returned stay as they were (a
@@ -66,7 +75,7 @@
 //! no onset test.
 
 use super::aid::gnss::{FreeIns, fix_difference_3sd_m, free_drift_sd_m, free_drift_variance};
-use super::aid::integrity::{EpisodeEnd, RAMP_END_MIN_LAG_S};
+use super::aid::integrity::{EpisodeEnd, PersistedLevel, RAMP_END_MIN_LAG_S};
 use super::jump_doubt::JumpDoubt;
 use super::*;
 
@@ -120,6 +129,10 @@ pub(super) enum Rollback {
         at: GpsTime,
         jump: Vector3<f64>,
     },
+    /// A jump's episode that persisted: the fixes after the clean fix
+    /// before it are judged again, the jump followed at once
+    /// (`aid::integrity`'s `PersistedLevel`).
+    LevelPersisted(PersistedLevel),
 }
 
 impl Rollback {
@@ -132,6 +145,7 @@ impl Rollback {
             | Rollback::FalseFixEnded { anchor, .. }
             | Rollback::HeldRampEnded { anchor, .. } => anchor,
             Rollback::Stale { since, .. } => since,
+            Rollback::LevelPersisted(level) => level.anchor,
         }
     }
 }
@@ -284,33 +298,27 @@ impl Fusion {
             // A re-run from before the held jump judges it again; one from
             // after it (an onset the ramp's dragged velocity brought on)
             // leaves it and the states before it as they were.
-            if self
-                .held_ramp_end
-                .is_some_and(|h| rollback.anchor() < h.jump.time)
-            {
-                self.held_ramp_end = None;
+            // (A persisted level's re-run leaves its jump's hypotheses as
+            // they were: it follows the fixes from the jump instead of
+            // from when they persisted, and the held ramp end, confirmed,
+            // returns to before it all the same.)
+            if let Rollback::LevelPersisted(level) = rollback {
+                self.follow_jump_doubt_from_jump(level.jump);
+            } else {
+                if self
+                    .held_ramp_end
+                    .is_some_and(|h| rollback.anchor() < h.jump.time)
+                {
+                    self.held_ramp_end = None;
+                }
+                self.drop_jump_doubts_since(rollback.anchor());
             }
-            self.drop_jump_doubts_since(rollback.anchor());
             self.roll_back(rollback, sample.time)?;
             if let Rollback::HeldRampEnded { end, at, jump, .. } = rollback {
                 self.doubt_level_after_held_ramp_end(end, at, jump);
             }
         }
-        let monitor = &self.core.aid.gnss.monitor;
-        if let Some(anchor) = monitor.last_anchor_time()
-            && self
-                .rollback_states
-                .back()
-                .is_none_or(|s| anchor.seconds_since(s.anchor) >= STORE_SPACING_S)
-        {
-            let (nodes, tape) = self.recorder.as_ref().map_or((0, 0), |r| r.lengths());
-            self.rollback_states.push_back(Stored {
-                anchor,
-                core: self.core.clone(),
-                nodes,
-                tape,
-            });
-        }
+        self.store_state();
         let oldest = sample.time.add_seconds(-KEEP_S);
         while self.rollback_states.len() > 1
             && self
@@ -331,6 +339,26 @@ impl Fusion {
         Ok(())
     }
 
+    /// Stores the state after a new clean fix (at most every
+    /// [`STORE_SPACING_S`]).
+    fn store_state(&mut self) {
+        let monitor = &self.core.aid.gnss.monitor;
+        if let Some(anchor) = monitor.last_anchor_time()
+            && self
+                .rollback_states
+                .back()
+                .is_none_or(|s| anchor.seconds_since(s.anchor) >= STORE_SPACING_S)
+        {
+            let (nodes, tape) = self.recorder.as_ref().map_or((0, 0), |r| r.lengths());
+            self.rollback_states.push_back(Stored {
+                anchor,
+                core: self.core.clone(),
+                nodes,
+                tape,
+            });
+        }
+    }
+
     /// Returns to the newest state stored after a clean fix at or before
     /// the ramp's anchor (the stale run's first write) and runs the
     /// samples since again, the ramp's fixes (the run's repeats up to the
@@ -340,7 +368,7 @@ impl Fusion {
     fn roll_back(&mut self, rollback: Rollback, now: GpsTime) -> Result<(), Error> {
         let anchor = rollback.anchor();
         let reach_s = match rollback {
-            Rollback::HeldRampEnded { .. } => KEEP_S,
+            Rollback::HeldRampEnded { .. } | Rollback::LevelPersisted(_) => KEEP_S,
             _ => AT_ONCE_REACH_S,
         };
         let first = self.first_within(now, reach_s);
@@ -368,6 +396,7 @@ impl Fusion {
             Rollback::FalseFixEnded { anchor, end } => {
                 core.aid.gnss.monitor.replay_false_fix_end(anchor, end)
             }
+            Rollback::LevelPersisted(level) => core.aid.gnss.monitor.replay_persisted_level(level),
         }
         // Fixes pushed after the state was stored are queued again.
         super::latency::requeue_applied(&self.applied, &mut core);
@@ -379,6 +408,13 @@ impl Fusion {
             self.store_nodes()?;
             if let (Some(rec), Some(o)) = (self.recorder.as_mut(), &out) {
                 rec.push_nav(&o.nav)?;
+            }
+            // A rollback the re-run calls for returns to its states, not
+            // to those of the run it replaced (which had judged the fixes
+            // before it otherwise); the states after one it calls for are
+            // replaced anyway.
+            if self.core.rollback_to.is_none() {
+                self.store_state();
             }
             if let (Some(list), Some(o)) = (revised.as_mut(), out) {
                 list.push(self.revised(o));

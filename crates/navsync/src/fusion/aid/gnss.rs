@@ -927,7 +927,17 @@ impl GnssSource {
                         "the INS drifted {drift_m:.3} m from the fixes since the episode began, more than the {level_m:.3} m level it judged: it is no nearer the truth than they are; used again (covariance inflated to fit)"
                     ),
                 };
-                core.notes.push(format!("GNSS fix at {time}: {why}"));
+                let rerun = match self.monitor.take_persisted_level() {
+                    Some(level) if core.rollback_to.is_none() => {
+                        core.rollback_to = Some(Rollback::LevelPersisted(level));
+                        format!(
+                            "; the level held since the jump at {}: the filter returns to its state before it and runs again following the fixes from it",
+                            level.jump
+                        )
+                    }
+                    _ => String::new(),
+                };
+                core.notes.push(format!("GNSS fix at {time}: {why}{rerun}"));
                 self.forced = Some(FaultReason::Persisted);
                 Ok(false)
             }

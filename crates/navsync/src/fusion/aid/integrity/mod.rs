@@ -86,6 +86,7 @@ use crate::stats::chi2_quantile;
 use crate::time::GpsTime;
 
 mod followed;
+pub(in crate::fusion) use followed::PersistedLevel;
 mod onset;
 use onset::{ONSET_ANCHOR_SPACING_S, ONSET_CAL_MEMORY_S, ONSET_HOLD_RATIO};
 
@@ -366,6 +367,11 @@ struct Episode {
     max_offset_m: f64,
     /// Opened by a ramp's onset (the fixes drift away; not a level).
     onset: bool,
+    /// Whether the last fix judged in it held the level: as sharp as the
+    /// anchor (its stated σ the same) and with the one before (the change
+    /// of their offsets from the INS within the test)
+    /// (`followed::PersistedLevel`).
+    steady: bool,
 }
 
 impl Episode {
@@ -533,6 +539,12 @@ pub(in crate::fusion) struct FaultMonitor {
     /// The last episode the fixes were followed out of, while its end may
     /// still come ([`followed`]).
     followed: Option<followed::Followed>,
+    /// A jump's episode that persisted, for the wrapper to follow its
+    /// level from the jump on ([`followed::PersistedLevel`]; taken by
+    /// [`Self::take_persisted_level`]).
+    persisted_level: Option<followed::PersistedLevel>,
+    /// In such a re-run: the jump whose level is followed at once.
+    replay_level: Option<followed::PersistedLevel>,
     /// The clean anchor of the last ramp onset whose episode persisted
     /// (the fixes followed again, the INS no longer the sharper): a jump
     /// after it may be the ramp's end (`fusion/rollback.rs`).
@@ -587,6 +599,7 @@ impl FaultMonitor {
         // A level followed before it is no reference for a jump after it.
         self.followed = None;
         self.onset_followed = None;
+        self.persisted_level = None;
         if let Some(ep) = self.episode.take() {
             self.close(ep, EpisodeEnd::Returned);
         }
@@ -890,6 +903,18 @@ impl FaultMonitor {
         r: &Vector3<f64>,
         lambda: f64,
     ) -> Judgement {
+        let judgement = self.judge_fix(time, z, hph, r, lambda);
+        self.follow_replayed_level(time, judgement)
+    }
+
+    fn judge_fix(
+        &mut self,
+        time: GpsTime,
+        z: &Vector3<f64>,
+        hph: &Matrix3<f64>,
+        r: &Vector3<f64>,
+        lambda: f64,
+    ) -> Judgement {
         let lambda = lambda.max(1.0);
         let fix = &FixView::new(time, *z, *hph, *r, lambda);
         self.fixes_continuous = self
@@ -1041,6 +1066,11 @@ impl FaultMonitor {
             fix_test_threshold()
         };
         let (delta, d, _) = self.test(&ep.anchor, fix);
+        let hph_diag = hph.diagonal();
+        let step = delta - ep.last_delta;
+        let step_fixes = self.fix_change_var(r, &ep.anchor.r, time.seconds_since(ep.last));
+        let d_step = offset_change_statistic(&step, &hph_diag, &ep.hph_last, &step_fixes, lambda);
+        ep.steady = d_step <= threshold && (0..3).all(|i| same_sd(r[i], ep.anchor.r[i]));
         // An onset's episode holds only while the INS is the sharper
         // reference, as when the onset was found: once its drift since the
         // anchor outgrows the fixes' own error change, it can no longer
@@ -1069,10 +1099,6 @@ impl FaultMonitor {
         // drift, a 45 m spike 29 s into an episode was followed). The
         // next fix is compared with it: one that holds the new level
         // is judged as the episode's fixes are.
-        let hph_diag = hph.diagonal();
-        let step = delta - ep.last_delta;
-        let step_fixes = self.fix_change_var(r, &ep.anchor.r, time.seconds_since(ep.last));
-        let d_step = offset_change_statistic(&step, &hph_diag, &ep.hph_last, &step_fixes, lambda);
         let horizontal = |v: &Vector3<f64>| v[0].hypot(v[1]);
         // A jump that undoes the one that opened the episode is the fixes
         // coming back, however far the INS drifted from them meanwhile
@@ -1200,6 +1226,7 @@ impl FaultMonitor {
                 self.onset_followed = Some(ep.anchor.time);
             } else {
                 self.followed = Some(followed::Followed::from_episode(&ep, time));
+                self.persisted_level = followed::PersistedLevel::of(self, &ep, by);
             }
         }
         self.restart_anchors();
@@ -1228,6 +1255,7 @@ impl FaultMonitor {
             hph_last: hph_diag,
             max_offset_m: delta.norm(),
             onset,
+            steady: true,
         });
     }
 

@@ -329,6 +329,55 @@ fn an_ins_that_drifted_past_the_level_it_judges_follows_the_fixes() {
     );
 }
 
+/// A jump's level that persisted (as above) is followed from the jump on
+/// where a re-run can: the monitor hands the wrapper the clean fix before
+/// the jump and the jump, and in the re-run the jump persists at once,
+/// for the same reason, its episode recorded as first closed. The re-run
+/// asks for no re-run of its own, and a real-time monitor for none.
+#[test]
+fn a_persisted_level_is_followed_from_its_jump_in_a_rerun() {
+    let fix = |t: GpsTime, k: usize| {
+        let z = Vector3::new(1.0 + 0.1 * k as f64, 0.0, 0.0);
+        let growth_sd_m = 0.03 * k as f64;
+        let hph = Matrix3::from_diagonal(&Vector3::repeat(1.2e-4 + growth_sd_m * growth_sd_m));
+        (t.add_seconds(k as f64), z, hph)
+    };
+    let run = |onset_enabled: bool| {
+        let (mut m, t) = primed(10);
+        m.onset_enabled = onset_enabled;
+        let mut judged = Judgement::Clean;
+        for k in 0..=11 {
+            let (tk, z, hph) = fix(t, k);
+            judged = m.judge(tk, &z, &hph, &r(), 1.0);
+        }
+        (m, t, judged)
+    };
+    let (mut first, t, judged) = run(true);
+    let Judgement::Persisted { by, .. } = judged else {
+        panic!("{judged:?}");
+    };
+    let level = first.take_persisted_level().expect("a level to follow");
+    assert_eq!((level.anchor, level.jump), (t.add_seconds(-1.0), t));
+    assert!(first.take_persisted_level().is_none());
+    let record = *first.episodes.last().unwrap();
+    assert_eq!((record.fixes, record.end), (11, EpisodeEnd::Persisted));
+
+    let (mut rerun, t) = primed(10);
+    rerun.onset_enabled = true;
+    rerun.replay_persisted_level(level);
+    let (tk, z, hph) = fix(t, 0);
+    let judged = rerun.judge(tk, &z, &hph, &r(), 1.0);
+    assert!(
+        matches!(judged, Judgement::Persisted { by: b, .. } if b == by),
+        "{judged:?}"
+    );
+    assert_eq!(rerun.episodes.last(), Some(&record));
+    assert!(rerun.take_persisted_level().is_none());
+
+    let (mut real_time, _, _) = run(false);
+    assert!(real_time.take_persisted_level().is_none());
+}
+
 /// A 0.9 m false fix the INS could no longer tell from its own drift
 /// (H P Hᵀ grown to 1 m² a fix in): followed, four fixes on its level,
 /// then a jump that undoes the one that opened it is the false fix's
