@@ -57,7 +57,10 @@
 //! no longer tell, `aid::integrity`'s `PersistedLevel`) is followed from
 //! the jump: the re-run returns to the state before it and uses the
 //! fixes since, which the filter had coasted past (an ICM-20602 at a
-//! ramp's end it could not see: 19 s, 2–4 m off).
+//! ramp's end it could not see: 19 s, 2–4 m off). So is a run of fixes
+//! the robust weighting refused (the monitor no reference yet) that began
+//! with a jump and that it then took for INS drift (`aid::gnss`'s
+//! `robust_drift_check`): the re-run takes its first fix so.
 //!
 //! A re-run stores its states as the run does, so that a rollback it calls
 //! for returns to them, not to those of the run it replaced.
@@ -133,6 +136,9 @@ pub(super) enum Rollback {
     /// before it are judged again, the jump followed at once
     /// (`aid::integrity`'s `PersistedLevel`).
     LevelPersisted(PersistedLevel),
+    /// A run of fixes the robust weighting took for INS drift, which began
+    /// at `first` with a jump: the re-run takes it so from `first` on.
+    DriftRunAccepted { first: GpsTime },
 }
 
 impl Rollback {
@@ -146,6 +152,8 @@ impl Rollback {
             | Rollback::HeldRampEnded { anchor, .. } => anchor,
             Rollback::Stale { since, .. } => since,
             Rollback::LevelPersisted(level) => level.anchor,
+            // The newest state stored before it.
+            Rollback::DriftRunAccepted { first } => first.add_seconds(-1e-6),
         }
     }
 }
@@ -368,7 +376,9 @@ impl Fusion {
     fn roll_back(&mut self, rollback: Rollback, now: GpsTime) -> Result<(), Error> {
         let anchor = rollback.anchor();
         let reach_s = match rollback {
-            Rollback::HeldRampEnded { .. } | Rollback::LevelPersisted(_) => KEEP_S,
+            Rollback::HeldRampEnded { .. }
+            | Rollback::LevelPersisted(_)
+            | Rollback::DriftRunAccepted { .. } => KEEP_S,
             _ => AT_ONCE_REACH_S,
         };
         let first = self.first_within(now, reach_s);
@@ -397,6 +407,7 @@ impl Fusion {
                 core.aid.gnss.monitor.replay_false_fix_end(anchor, end)
             }
             Rollback::LevelPersisted(level) => core.aid.gnss.monitor.replay_persisted_level(level),
+            Rollback::DriftRunAccepted { first } => core.aid.gnss.replay_drift_accept = Some(first),
         }
         // Fixes pushed after the state was stored are queued again.
         super::latency::requeue_applied(&self.applied, &mut core);

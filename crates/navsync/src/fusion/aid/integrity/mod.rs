@@ -939,6 +939,10 @@ impl FaultMonitor {
                 // bridge there: a 23 s ramp's, 0.015 → 0.047 m smoothed
                 // on the 10 Hz ADIS16465 drive (bed seed 5), forward
                 // within millimetres either way.
+                // The INS coasted through the episode, as through a gap:
+                // it is a reference again only once anchors settle after
+                // it ([`Anchor::settled`]).
+                self.restart_anchors();
                 return Judgement::Clean;
             }
         }
