@@ -188,7 +188,9 @@ impl PersistedLevel {
     /// closed episode: to be followed from its jump where a re-run can
     /// (the onset test's condition), this is no such re-run, and the fix
     /// it persisted at held the level: as sharp as the clean fix before
-    /// the jump, and with the fix before it. (One that cannot tell is no
+    /// the jump, and with the fix before it (and there was a fix before it
+    /// in the episode: one persisted at the fix after its jump coasted
+    /// for one fix interval only). (One that cannot tell is no
     /// evidence the level held: on dataset2 a real float fix at σ 0.5 m,
     /// 1.1 m off the 12th fix of a 0.8 m false fix at σ 1 cm, persisted
     /// its episode; followed from its jump, the false fix cost 0.305 →

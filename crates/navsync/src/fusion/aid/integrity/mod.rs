@@ -903,20 +903,14 @@ impl FaultMonitor {
         r: &Vector3<f64>,
         lambda: f64,
     ) -> Judgement {
-        let judgement = self.judge_fix(time, z, hph, r, lambda);
+        let fix = FixView::new(time, *z, *hph, *r, lambda.max(1.0));
+        let judgement = self.judge_fix(&fix);
         self.follow_replayed_level(time, judgement)
     }
 
-    fn judge_fix(
-        &mut self,
-        time: GpsTime,
-        z: &Vector3<f64>,
-        hph: &Matrix3<f64>,
-        r: &Vector3<f64>,
-        lambda: f64,
-    ) -> Judgement {
-        let lambda = lambda.max(1.0);
-        let fix = &FixView::new(time, *z, *hph, *r, lambda);
+    /// [`Self::judge`] of the fix as the monitor sees it.
+    fn judge_fix(&mut self, fix: &FixView) -> Judgement {
+        let (time, hph, r) = (fix.time, &fix.hph, &fix.r);
         self.fixes_continuous = self
             .last_judged
             .is_some_and(|t| time.seconds_since(t) <= JUMP_MAX_GAP_S);
